@@ -1,0 +1,52 @@
+"""ddatai: 2D Discontinuous Deformation Analysis (Shi's DDA) with Taichi kernels.
+
+Data flows one way::
+
+    Scene (blocks, joints, points, loads, shaking)      ddatai.scene
+      -> Model (static arrays) + State                  ddatai.model
+      -> step: contacts -> assembly -> open-close solve -> update     ddatai.step
+      -> Results (frames, per-step records, .npz)       ddatai.results
+
+Importing ``ddatai`` is cheap: it loads neither Taichi nor any imaging library. Taichi is
+initialised (CPU by default, ``Params(arch=...)``) by the first simulation.
+
+>>> import ddatai as dd
+>>> scene = dd.Scene(gravity=9.81)
+>>> rock = dd.Material(density=2500.0, young=5e9, poisson=0.25)
+>>> base = scene.add_block([(0, 0), (4, 0), (4, 1), (0, 1)], material=rock, fixed=True)
+>>> top = scene.add_block([(1, 1), (2, 1), (2, 2), (1, 2)], material=rock)
+>>> res = dd.simulate(scene, duration=0.1)   # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import importlib
+
+__version__ = "0.1.0"
+
+# public name -> module that defines it (PEP 562 lazy attributes)
+_EXPORTS = {
+    "Material": "params", "Joint": "params", "Params": "params",
+    "Scene": "scene",
+    "Model": "model", "State": "model", "ContactState": "model", "ContactKind": "model",
+    "build_model": "model",
+    "Results": "results", "load_results": "results", "SimulationError": "results",
+    "STEP_DTYPE": "results",
+    "simulate": "step", "Stepper": "step",
+    "polygon_integrals": "geometry", "validate_polygon": "geometry",
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str):
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'ddatai' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(__all__))

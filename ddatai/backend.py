@@ -1,0 +1,46 @@
+"""The one owner of the Taichi runtime.
+
+Nothing in ddatai calls ``ti.init`` except `ensure`. It is called lazily by the first
+simulation (or test) that needs a kernel, with double precision as the default float type:
+penetrations of ~1e-8 m on coordinates of ~1e2 m do not survive float32
+(dda-method.md §8.9). Taichi keeps one runtime per process; asking for another arch
+re-initialises it (and recompiles kernels on first use).
+"""
+
+from __future__ import annotations
+
+import os
+
+_current_arch: str | None = None
+
+
+def ensure(arch: str = "cpu") -> str:
+    """Initialise Taichi for ``arch`` ("cpu", "gpu", "cuda", "vulkan", "metal") if not done.
+
+    Returns the arch really in use. "gpu" picks any available GPU backend and falls back to
+    the CPU when there is none; naming a specific GPU backend that is absent raises
+    ``RuntimeError``.
+    """
+    global _current_arch
+    if _current_arch is not None and (arch == _current_arch or
+                                      (arch == "gpu" and _current_arch != "cpu")):
+        return _current_arch
+    os.environ.setdefault("TI_SKIP_VERSION_CHECK", "ON")  # no network look-up from CI
+    import taichi as ti
+
+    targets = {"cpu": ti.cpu, "gpu": ti.gpu, "cuda": ti.cuda, "vulkan": ti.vulkan, "metal": ti.metal}
+    if arch not in targets:
+        raise ValueError(f"unknown Taichi arch {arch!r}; expected one of {sorted(targets)}")
+    ti.init(arch=targets[arch], default_fp=ti.f64, default_ip=ti.i32,
+            enable_fallback=(arch == "gpu"), offline_cache=True, log_level=ti.WARN)
+    actual = ti.lang.impl.current_cfg().arch
+    name = {ti.cpu: "cpu", ti.x64: "cpu", ti.arm64: "cpu"}.get(actual, str(actual).split(".")[-1])
+    if arch not in ("gpu", name):
+        raise RuntimeError(f"Taichi arch {arch!r} requested but {name!r} was initialised")
+    _current_arch = name if arch != "gpu" else ("cpu" if name == "cpu" else name)
+    return _current_arch
+
+
+def current() -> str | None:
+    """The arch Taichi was initialised with by `ensure`, or None."""
+    return _current_arch

@@ -1,0 +1,328 @@
+"""Contacts: detection (Taichi kernels), memory transfer between steps, sparse block pattern.
+
+`detect_contacts` runs the broad phase (hashed uniform grid, plus an all-against-one test for
+the few boxes larger than a cell) and Shi's narrow phase, then sorts the contacts so that runs
+are reproducible whatever the thread scheduling. `Contacts.start` attaches joint properties and
+the memory of the previous step (dda-method.md §3.7). `BlockPattern` is the CSR layout of the
+global matrix for one step: one dense 6×6 block per free block and per contacting pair.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .model import ContactKind, ContactMemory, ContactState, Model
+
+#: columns of the integer contact table ``cint``
+KIND, V0, E0, V1, E1 = range(5)
+N_SLOTS = 7  # contact vector slots, see ddatai.kernels
+
+
+def box_bounds(model: Model, vertex_xy: np.ndarray, margin: float) -> tuple[np.ndarray, np.ndarray]:
+    """Axis-aligned bounding boxes of all blocks, enlarged by ``margin`` on every side."""
+    starts = model.vertex_offset[:-1]
+    lo = np.minimum.reduceat(vertex_xy, starts, axis=0) - margin
+    hi = np.maximum.reduceat(vertex_xy, starts, axis=0) + margin
+    return lo, hi
+
+
+class _Buffers:
+    """Output buffers reused between steps; grown (doubled) when a kernel reports overflow."""
+
+    def __init__(self):
+        self.pairs = np.zeros((64, 2), np.int32)
+        self.cint = np.zeros((256, 5), np.int32)
+        self.clen = np.zeros(256)
+        self.count = np.zeros(1, np.int32)
+
+
+def broad_phase(model: Model, vertex_xy: np.ndarray, margin: float, buffers: _Buffers) -> np.ndarray:
+    """Candidate block pairs (i < j, not both fixed) whose boxes, enlarged by margin/2, overlap.
+
+    Returns a (P, 2) int32 array sorted by (i, j).
+    """
+    from . import kernels as K
+
+    lo, hi = box_bounds(model, vertex_xy, 0.5 * margin)
+    nb = len(lo)
+    if nb < 2:
+        return np.zeros((0, 2), np.int32)
+    ext = (hi - lo).max(axis=1)
+    # cell size: the largest box that is not "big" (more than 4× the median size); the few
+    # big boxes (typically a fixed base) are tested against all others instead of binned
+    med = float(np.median(ext))
+    big = ext > 4.0 * med
+    h = float(ext[~big].max())
+    big_i = big.astype(np.int32)
+    fixed = model.block_fixed.astype(np.int32)
+    table = max(64, 2 * nb)
+    cell = np.zeros((nb, 2), np.int32)
+    bucket = np.zeros(nb, np.int32)
+    bucket_count = np.zeros(table, np.int32)
+    ox, oy = lo.min(axis=0)
+    K.grid_bin(lo, hi, big_i, h, float(ox), float(oy), table, cell, bucket, bucket_count)
+    bucket_start = np.zeros(table + 1, np.int32)
+    np.cumsum(bucket_count, out=bucket_start[1:])
+    sorted_ids = np.zeros(max(1, int(np.count_nonzero(~big))), np.int32)
+    K.grid_scatter(big_i, bucket, bucket_start, np.zeros(table, np.int32), sorted_ids)
+    big_ids = np.flatnonzero(big).astype(np.int32)
+    while True:
+        buffers.count[0] = 0
+        K.grid_query(lo, hi, big_i, fixed, cell, table, bucket_start, sorted_ids, buffers.pairs, buffers.count)
+        if len(big_ids):
+            K.big_query(lo, hi, big_i, big_ids, fixed, buffers.pairs, buffers.count)
+        n = int(buffers.count[0])
+        if n <= len(buffers.pairs):
+            break
+        buffers.pairs = np.zeros((2 * n, 2), np.int32)
+    pairs = buffers.pairs[:n]
+    order = np.lexsort((pairs[:, 1], pairs[:, 0]))
+    return pairs[order].copy()
+
+
+def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray, buffers: _Buffers
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """Contacts of the candidate pairs: (cint (m, 5) int32, length (m,)), sorted."""
+    from . import kernels as K
+
+    p = model.params
+    if len(pairs) == 0:
+        return np.zeros((0, 5), np.int32), np.zeros(0)
+    while True:
+        buffers.count[0] = 0
+        K.narrow_phase(pairs, vertex_xy, model.vertex_offset, model.vertex_next, model.vertex_prev,
+                       model.search_distance, model.max_penetration, np.radians(p.angle_tolerance),
+                       buffers.cint, buffers.clen, buffers.count)
+        n = int(buffers.count[0])
+        if n <= len(buffers.cint):
+            break
+        buffers.cint = np.zeros((2 * n, 5), np.int32)
+        buffers.clen = np.zeros(2 * n)
+    return sort_contacts(buffers.cint[:n].copy(), buffers.clen[:n].copy())
+
+
+def sort_contacts(cint: np.ndarray, length: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Canonical order (by kind, vertex0, edge0, vertex1, edge1): makes runs reproducible."""
+    order = np.lexsort((cint[:, 4], cint[:, 3], cint[:, 2], cint[:, 1], cint[:, 0]))
+    return cint[order], length[order]
+
+
+def detect_contacts(model: Model, vertex_xy: np.ndarray, buffers: _Buffers | None = None
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Broad + narrow phase on the Taichi backend. Returns (cint, length) in canonical order."""
+    buffers = buffers or _Buffers()
+    pairs = broad_phase(model, vertex_xy, model.search_distance, buffers)
+    return narrow_phase(model, vertex_xy, pairs, buffers)
+
+
+def contact_keys(cint: np.ndarray, n_vertices: int) -> np.ndarray:
+    """Identity of each contact for the transfer between steps: (vertex, edge) for a
+    vertex-edge contact, (vertex, vertex) for a vertex-vertex contact."""
+    v = np.int64(n_vertices)
+    k = cint[:, V0].astype(np.int64) * v
+    ve = cint[:, KIND] == ContactKind.VE
+    return np.where(ve, k + cint[:, E0], v * v + k + cint[:, V1])
+
+
+@dataclass(kw_only=True, eq=False)
+class Contacts:
+    """The contacts of one step: geometry (fixed during the step) and open-close state.
+
+    m contacts; a vertex-vertex contact has two entrance lines (``line`` says which acts).
+    """
+
+    cint: np.ndarray
+    """(m, 5) int32 (kind, vertex0, edge0, vertex1, edge1); line 1 only for vertex-vertex."""
+    length: np.ndarray
+    """(m,) contact length L of an edge-edge contact (half the overlap), else 0 [m]."""
+    key: np.ndarray
+    """(m,) int64 identity (see `contact_keys`)."""
+    block_a: np.ndarray
+    """(m,) block of vertex0."""
+    block_b: np.ndarray
+    """(m,) block of edge0."""
+    tan_phi: np.ndarray
+    """(m,) tan of the friction angle."""
+    friction_deg: np.ndarray
+    """(m,) friction angle [degrees]."""
+    cohesion: np.ndarray
+    """(m,) cohesion [Pa]."""
+    tensile: np.ndarray
+    """(m,) tensile strength [Pa]."""
+    state: np.ndarray
+    """(m,) int8 `ContactState` assumed for the next solve."""
+    line: np.ndarray
+    """(m,) int8 active line (0 or 1)."""
+    omega: np.ndarray
+    """(m,) lock position on the reference edge."""
+    bond: np.ndarray
+    """(m,) bool joint intact."""
+    shear_dir: np.ndarray
+    """(m,) int8 direction of sliding (+1/-1; friction acts against it)."""
+    dn: np.ndarray
+    """(m,) normal distance of the active line from the last solve (start: dn0) [m]."""
+    ds: np.ndarray
+    """(m,) shear displacement from the last solve [m]."""
+
+    @property
+    def n(self) -> int:
+        return len(self.key)
+
+    def copy(self) -> "Contacts":
+        return Contacts(**{k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in vars(self).items()})
+
+    @staticmethod
+    def start(model: Model, vertex_xy: np.ndarray, cint: np.ndarray, length: np.ndarray,
+              memory: ContactMemory, first_step: bool) -> "Contacts":
+        """Attach joint properties and last step's memory to freshly detected contacts.
+
+        Transferred (same vertex and reference edge): state, active line, bond, sliding
+        direction; the lock position ω only if the contact was locked (others are re-anchored
+        at the projection of the vertex, so their shear displacement restarts at 0).
+        New contacts start open, except on the first step, where contacts touching within the
+        opening tolerance start closed and locked (vertex-edge), and edge-edge contacts of the
+        initial geometry are bonded (dda-method.md §3.7, §2.8.5).
+        """
+        m = len(cint)
+        key = contact_keys(cint, model.n_vertices)
+        a = model.vertex_block[cint[:, V0]]
+        b = model.vertex_block[cint[:, E0]]
+        joint = model.edge_joint[cint[:, E0]].copy()
+        if len(model.pair_key):
+            nb = np.int64(model.n_blocks)
+            pk = np.minimum(a, b).astype(np.int64) * nb + np.maximum(a, b)
+            pos = np.minimum(np.searchsorted(model.pair_key, pk), len(model.pair_key) - 1)
+            hit = model.pair_key[pos] == pk
+            joint[hit] = model.pair_joint[pos[hit]]
+        kind = cint[:, KIND]
+        ve = kind == ContactKind.VE
+        dn0 = signed_distance(vertex_xy, model.vertex_next, cint[:, V0], cint[:, E0])
+        state = np.zeros(m, np.int8)
+        line = np.zeros(m, np.int8)
+        bond = np.zeros(m, bool)
+        shear_dir = np.ones(m, np.int8)
+        omega = edge_projection(vertex_xy, model.vertex_next, cint[:, V0], cint[:, E0])
+        if len(memory.key) and m:
+            pos = np.minimum(np.searchsorted(memory.key, key), len(memory.key) - 1)
+            found = memory.key[pos] == key
+            src = pos[found]
+            state[found] = memory.state[src]
+            line[found] = memory.line[src]
+            bond[found] = memory.bond[src]
+            shear_dir[found] = memory.shear_dir[src]
+            locked = found.copy()
+            locked[found] = memory.state[src] == ContactState.LOCK
+            omega[locked] = memory.omega[pos[locked]]
+        if first_step and m:
+            dn1 = np.full(m, -np.inf)
+            vv = ~ve
+            if vv.any():
+                dn1[vv] = signed_distance(vertex_xy, model.vertex_next, cint[vv, V1], cint[vv, E1])
+            touching = np.maximum(dn0, dn1) <= model.open_tol
+            state[touching & ve] = ContactState.LOCK
+            state[touching & vv] = ContactState.SLIDE
+            line[vv] = (dn1[vv] > dn0[vv]).astype(np.int8)
+            bond[touching & ve & (length > 0)] = True
+        return Contacts(
+            cint=cint, length=length, key=key, block_a=a, block_b=b,
+            tan_phi=model.joint_tan_phi[joint], friction_deg=model.joint_friction[joint],
+            cohesion=model.joint_cohesion[joint], tensile=model.joint_tensile[joint],
+            state=state, line=line, omega=omega, bond=bond, shear_dir=shear_dir,
+            dn=dn0, ds=np.zeros(m))
+
+    def memory(self) -> ContactMemory:
+        """What this step hands to the next (bond survives only on locked contacts)."""
+        locked = self.state == ContactState.LOCK
+        return ContactMemory(key=self.key.copy(), state=self.state.copy(), line=self.line.copy(),
+                             omega=self.omega.copy(), bond=self.bond & locked,
+                             shear_dir=self.shear_dir.copy(), dn=self.dn.copy(),
+                             kind=self.cint[:, KIND].astype(np.int8))
+
+
+def signed_distance(xy: np.ndarray, vnext: np.ndarray, vertex: np.ndarray, edge: np.ndarray) -> np.ndarray:
+    """Signed distance of vertices from the lines of edges (positive outside the edge's block)."""
+    q0 = xy[edge]
+    d = xy[vnext[edge]] - q0
+    r = xy[vertex] - q0
+    return (r[:, 0] * d[:, 1] - r[:, 1] * d[:, 0]) / np.hypot(d[:, 0], d[:, 1])
+
+
+def edge_projection(xy: np.ndarray, vnext: np.ndarray, vertex: np.ndarray, edge: np.ndarray) -> np.ndarray:
+    """ω of the projection of each vertex on its reference line P2 -> P3 (P2 = edge end)."""
+    p2 = xy[vnext[edge]]
+    d = xy[edge] - p2
+    return ((xy[vertex] - p2) * d).sum(axis=1) / (d * d).sum(axis=1)
+
+
+@dataclass(kw_only=True, eq=False)
+class BlockPattern:
+    """CSR layout of the global stiffness matrix for one step (full symmetric storage).
+
+    Entry (a, b) of the 6×6 block (r, c) lives at ``data[slot + a*stride[r] + b]``, where
+    ``slot`` is the block's slot and ``stride[r] = 6 × (blocks in block-row r)``.
+    """
+
+    n_rows: int
+    """Number of block-rows (free blocks)."""
+    indptr: np.ndarray
+    indices: np.ndarray
+    diag_slot: np.ndarray
+    """(n_rows,) slot of each diagonal block."""
+    stride: np.ndarray
+    """(n_rows,) scalar row length of each block-row."""
+    slot_ab: np.ndarray
+    """(m,) slot of block (row of block_a, column of block_b) for each contact, -1 if none."""
+    slot_ba: np.ndarray
+    """(m,) slot of block (row of block_b, column of block_a), -1 if none."""
+
+    @property
+    def nnz(self) -> int:
+        return len(self.indices)
+
+    @staticmethod
+    def build(model: Model, contacts: Contacts) -> "BlockPattern":
+        nr = model.n_free
+        dof = model.block_dof
+        ra = dof[contacts.block_a].astype(np.int64)
+        rb = dof[contacts.block_b].astype(np.int64)
+        coupled = (ra >= 0) & (rb >= 0) & (ra != rb)
+        lo = np.minimum(ra[coupled], rb[coupled])
+        hi = np.maximum(ra[coupled], rb[coupled])
+        pair = np.unique(lo * nr + hi)
+        lo, hi = pair // nr, pair % nr
+        diag = np.arange(nr, dtype=np.int64)
+        rows = np.concatenate([diag, lo, hi])
+        cols = np.concatenate([diag, hi, lo])
+        bkey = rows * nr + cols
+        order = np.argsort(bkey)
+        bkey, rows, cols = bkey[order], rows[order], cols[order]
+        ncols = np.bincount(rows, minlength=nr)
+        first = np.concatenate([[0], np.cumsum(ncols)[:-1]])
+        pos = np.arange(len(rows)) - first[rows]
+        base = 36 * first
+        stride = 6 * ncols
+        slot = base[rows] + 6 * pos
+        a = np.arange(6)
+        # scalar row 6r+a starts at base[r] + a*stride[r]
+        indptr = np.empty(6 * nr + 1, np.int64)
+        indptr[:-1] = (base[:, None] + a[None, :] * stride[:, None]).ravel()
+        indptr[-1] = 36 * len(rows)
+        idx = slot[:, None, None] + a[None, :, None] * stride[rows][:, None, None] + a[None, None, :]
+        indices = np.empty(36 * len(rows), np.int32)
+        indices[idx.ravel()] = np.broadcast_to(6 * cols[:, None, None] + a[None, None, :],
+                                               idx.shape).ravel()
+
+        def lookup(r, c):
+            out = np.full(len(r), -1, np.int64)
+            ok = (r >= 0) & (c >= 0) & (r != c)
+            k = r[ok] * nr + c[ok]
+            out[ok] = slot[np.searchsorted(bkey, k)]
+            return out
+
+        return BlockPattern(
+            n_rows=nr, indptr=indptr.astype(np.int32), indices=indices,
+            diag_slot=slot[np.searchsorted(bkey, diag * nr + diag)].astype(np.int32),
+            stride=stride.astype(np.int32),
+            slot_ab=lookup(ra, rb).astype(np.int32), slot_ba=lookup(rb, ra).astype(np.int32))

@@ -1,0 +1,244 @@
+"""Block polygons: validation, polygon integrals and cutting a domain by joint lines.
+
+NumPy and shapely only (never Taichi). Blocks are simple polygons stored counter-clockwise
+(CCW) without a repeated closing vertex. Many blocks are stored as one flat vertex array plus
+offsets (``xy[offset[b]:offset[b+1]]`` is block b), the layout the rest of the code uses.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+#: Relative tolerance below which a vertex is treated as lying on the line of its neighbours
+#: (|sin| of the turning angle). Shapely's noding leaves such vertices at T-junctions; they are
+#: removed because a flat vertex duplicates the edge contacts around it.
+COLLINEAR_TOL = 1e-10
+
+
+def validate_polygon(vertices, *, name: str = "block") -> np.ndarray:
+    """Return the polygon as a (n, 2) float64 CCW array, or raise ``ValueError`` naming ``name``.
+
+    Checks: finite coordinates, at least 3 distinct non-collinear vertices, a simple ring (no
+    self-intersection) and positive area. A repeated closing vertex, repeated consecutive
+    vertices and vertices lying on the line of their neighbours are removed; clockwise input
+    is reversed.
+    """
+    try:
+        xy = np.asarray(vertices, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name}: vertices must be a sequence of (x, y) pairs ({exc})") from None
+    if xy.ndim != 2 or xy.shape[1] != 2:
+        raise ValueError(f"{name}: vertices must have shape (n, 2), got {xy.shape}")
+    if not np.all(np.isfinite(xy)):
+        raise ValueError(f"{name}: vertices contain NaN or infinite coordinates")
+    scale = float(np.ptp(xy, axis=0).max()) if len(xy) else 0.0
+    if scale <= 0:
+        raise ValueError(f"{name}: degenerate polygon (all vertices coincide)")
+    xy = _drop_repeated(xy, 1e-12 * scale)
+    if len(xy) < 3:
+        raise ValueError(f"{name}: a polygon needs at least 3 distinct vertices, got {len(xy)}")
+    import shapely
+
+    ring = shapely.LinearRing(xy)
+    if not ring.is_simple:
+        raise ValueError(f"{name}: polygon is self-intersecting (not a simple polygon)")
+    area = signed_area(xy)
+    if abs(area) <= 1e-12 * scale * scale:
+        raise ValueError(f"{name}: polygon has zero area")
+    if area < 0:
+        xy = xy[::-1].copy()
+    xy = _drop_collinear(xy)
+    if len(xy) < 3:
+        raise ValueError(f"{name}: polygon has zero area (all vertices collinear)")
+    return np.ascontiguousarray(xy)
+
+
+def _drop_repeated(xy: np.ndarray, tol: float) -> np.ndarray:
+    keep = np.ones(len(xy), dtype=bool)
+    d = np.linalg.norm(np.roll(xy, -1, axis=0) - xy, axis=1)
+    keep[d <= tol] = False  # vertex equal to its successor (this also drops a closing repeat)
+    if not keep.any():
+        return xy[:1]
+    return xy[keep]
+
+
+def _drop_collinear(xy: np.ndarray) -> np.ndarray:
+    """Remove vertices whose turning angle is zero within COLLINEAR_TOL (repeat until none)."""
+    while len(xy) > 3:
+        prev = np.roll(xy, 1, axis=0)
+        nxt = np.roll(xy, -1, axis=0)
+        a = xy - prev
+        b = nxt - xy
+        cross = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+        norm = np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1)
+        dot = (a * b).sum(axis=1)
+        flat = (np.abs(cross) <= COLLINEAR_TOL * norm) & (dot > 0)
+        if not flat.any():
+            break
+        xy = xy[~flat]
+    return xy
+
+
+def signed_area(xy: np.ndarray) -> float:
+    """Signed area of one polygon (positive when CCW) [m²]."""
+    x = xy[:, 0] - xy[0, 0]
+    y = xy[:, 1] - xy[0, 1]
+    return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+
+
+def polygon_integrals(xy: np.ndarray, offset: np.ndarray) -> dict[str, np.ndarray]:
+    """Area, centroid and central second moments of many CCW polygons (dda-method.md §1.2).
+
+    Parameters
+    ----------
+    xy : (V, 2) float64 vertices of all blocks, CCW per block.
+    offset : (B+1,) int; block b owns ``xy[offset[b]:offset[b+1]]``.
+
+    Returns
+    -------
+    dict with ``area`` (B,) [m²], ``centroid`` (B, 2) [m], and the central moments
+    ``s1 = ∫X² dA``, ``s2 = ∫Y² dA``, ``s3 = ∫XY dA`` (B,) [m⁴], X, Y centroidal.
+
+    The triangle-fan sums are evaluated relative to each block's first vertex, so a model far
+    from the origin loses no precision (dda-method.md §1.2, numerical tip).
+    """
+    offset = np.asarray(offset)
+    counts = np.diff(offset)
+    block = np.repeat(np.arange(len(counts)), counts)
+    origin = xy[offset[:-1]]
+    local = xy - origin[block]
+    nxt_idx = np.arange(len(xy)) + 1
+    nxt_idx[offset[1:] - 1] = offset[:-1]
+    x1, y1 = local[:, 0], local[:, 1]
+    x2, y2 = local[nxt_idx, 0], local[nxt_idx, 1]
+    f = x1 * y2 - x2 * y1
+    starts = offset[:-1]
+
+    def total(v: np.ndarray) -> np.ndarray:
+        return np.add.reduceat(v, starts) if len(v) else np.zeros(0)
+
+    s = total(f) / 2.0
+    sx = total(f * (x1 + x2)) / 6.0
+    sy = total(f * (y1 + y2)) / 6.0
+    sxx = total(f * (x1 * x1 + x1 * x2 + x2 * x2)) / 12.0
+    syy = total(f * (y1 * y1 + y1 * y2 + y2 * y2)) / 12.0
+    sxy = total(f * (2 * x1 * y1 + x1 * y2 + x2 * y1 + 2 * x2 * y2)) / 24.0
+    xc = sx / s
+    yc = sy / s
+    return {
+        "area": s,
+        "centroid": origin + np.stack([xc, yc], axis=1),
+        "s1": sxx - xc * sx,
+        "s2": syy - yc * sy,
+        "s3": sxy - xc * sy,
+    }
+
+
+def mass_matrix(area: np.ndarray, s1: np.ndarray, s2: np.ndarray, s3: np.ndarray) -> np.ndarray:
+    """M = ∫ TᵀT dA for each block, (B, 6, 6) [m², m³, m⁴] (dda-method.md §1.3; × ρ for mass)."""
+    n = len(area)
+    m = np.zeros((n, 6, 6))
+    m[:, 0, 0] = area
+    m[:, 1, 1] = area
+    m[:, 2, 2] = s1 + s2
+    m[:, 2, 3] = m[:, 3, 2] = -s3
+    m[:, 2, 4] = m[:, 4, 2] = s3
+    m[:, 2, 5] = m[:, 5, 2] = (s1 - s2) / 2
+    m[:, 3, 3] = s1
+    m[:, 3, 5] = m[:, 5, 3] = s3 / 2
+    m[:, 4, 4] = s2
+    m[:, 4, 5] = m[:, 5, 4] = s3 / 2
+    m[:, 5, 5] = (s1 + s2) / 4
+    return m
+
+
+def displacement_matrix(point: np.ndarray, centroid: np.ndarray) -> np.ndarray:
+    """T(x, y) of dda-method.md §1.1 for many points, (n, 2, 6): u = T D."""
+    X = point[..., 0] - centroid[..., 0]
+    Y = point[..., 1] - centroid[..., 1]
+    t = np.zeros(X.shape + (2, 6))
+    t[..., 0, 0] = 1.0
+    t[..., 0, 2] = -Y
+    t[..., 0, 3] = X
+    t[..., 0, 5] = Y / 2
+    t[..., 1, 1] = 1.0
+    t[..., 1, 2] = X
+    t[..., 1, 4] = Y
+    t[..., 1, 5] = X / 2
+    return t
+
+
+def cut(boundary, joints: Sequence, *, snap: float | None = None) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Cut a domain polygon by joint traces into blocks.
+
+    Parameters
+    ----------
+    boundary : (n, 2) vertices of the domain polygon (any orientation).
+    joints : sequence of polylines, each (k, 2) with k >= 2; a trace may be persistent (crossing
+        the domain) or finite. Parts of traces outside the domain are ignored, and parts that
+        do not close a block (dangling ends, isolated traces) are dropped, as in DDA's block
+        cutting.
+    snap : distance [m] below which an edge counts as lying on a joint trace; default 1e-9 ×
+        the domain size.
+
+    Returns
+    -------
+    list of ``(vertices, edge_joint)``: the CCW vertices of each block and, for each edge
+    (from vertex k to k+1), the index into ``joints`` of the trace it lies on, or -1 for an edge
+    on the domain boundary. Blocks are ordered by centroid (y, then x).
+    """
+    import shapely
+
+    outline = validate_polygon(boundary, name="cut boundary")
+    domain = shapely.Polygon(outline)
+    scale = float(np.ptp(outline, axis=0).max())
+    tol = 1e-9 * scale if snap is None else float(snap)
+    lines = []
+    for k, trace in enumerate(joints):
+        arr = np.asarray(trace, dtype=np.float64)
+        if arr.ndim != 2 or arr.shape[1] != 2 or len(arr) < 2 or not np.all(np.isfinite(arr)):
+            raise ValueError(f"joint {k}: a trace must be a polyline of at least 2 finite (x, y) points")
+        if np.ptp(arr, axis=0).max() <= 0:
+            raise ValueError(f"joint {k}: trace has zero length")
+        lines.append(shapely.LineString(arr))
+    noded = shapely.union_all([domain.exterior, *lines])
+    faces = shapely.get_parts(shapely.polygonize(shapely.get_parts(noded)))
+    inside = [f for f in faces if f.area > 1e-12 * scale * scale
+              and domain.contains(f.representative_point())]
+    if not inside:
+        raise ValueError("cut: the joints produce no block inside the boundary")
+
+    blocks = []
+    for face in inside:
+        xy = validate_polygon(np.asarray(face.exterior.coords)[:-1], name="cut block")
+        blocks.append(xy)
+    centroid = np.array([_centroid(b) for b in blocks])
+    order = np.lexsort((np.round(centroid[:, 0] / scale, 9), np.round(centroid[:, 1] / scale, 9)))
+    blocks = [blocks[i] for i in order]
+
+    counts = np.array([len(b) for b in blocks])
+    offset = np.concatenate([[0], np.cumsum(counts)])
+    xy_all = np.concatenate(blocks)
+    nxt = np.arange(len(xy_all)) + 1
+    nxt[offset[1:] - 1] = offset[:-1]
+    edge_joint = np.full(len(xy_all), np.iinfo(np.int64).max, dtype=np.int64)
+    if lines:
+        tree = shapely.STRtree(lines)
+        a, b = xy_all, xy_all[nxt]
+        edges = shapely.linestrings(np.stack([a, b], axis=1))
+        e_idx, j_idx = tree.query(edges, predicate="dwithin", distance=tol)
+        if len(e_idx):
+            # an edge lies on a trace when both of its end points do (not just one touching it)
+            line_arr = np.asarray(lines, dtype=object)[j_idx]
+            on = (shapely.distance(shapely.points(a[e_idx]), line_arr) <= tol) & \
+                 (shapely.distance(shapely.points(b[e_idx]), line_arr) <= tol)
+            np.minimum.at(edge_joint, e_idx[on], j_idx[on])
+    edge_joint[edge_joint == np.iinfo(np.int64).max] = -1
+    return [(blocks[k], edge_joint[offset[k]:offset[k + 1]].copy()) for k in range(len(blocks))]
+
+
+def _centroid(xy: np.ndarray) -> np.ndarray:
+    ints = polygon_integrals(xy, np.array([0, len(xy)]))
+    return ints["centroid"][0]

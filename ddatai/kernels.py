@@ -1,0 +1,499 @@
+"""Taichi kernels: broad phase, narrow phase (Shi's contact rules), contact vectors, assembly.
+
+Importing this module imports Taichi (it is loaded only when a simulation runs); kernels
+compile on first call after `ddatai.backend.ensure`. Every kernel works on NumPy arrays
+passed as ``ti.types.ndarray`` (no copies on the CPU backend) and has a plain NumPy twin in
+:mod:`ddatai.reference`; tests compare the two.
+
+Conventions (see :mod:`ddatai.model`): block b owns vertices ``voff[b]:voff[b+1]`` in CCW
+order, edge k runs from vertex k to ``vnext[k]``. A vertex-edge contact of vertex P1 against
+edge k uses the reference line P2 = vnext[k] -> P3 = k, which runs clockwise around the edge's
+block, so that the signed normal distance is positive outside (dda-method.md §2.8.1, §3.5).
+
+Contact vectors are stored per contact c in ``vec[c, s, 0:6]`` with slots
+``E0, G0`` (normal, line 0), ``E1, G1`` (normal, line 1 of a vertex-vertex contact),
+``ES, GS`` (shear, line 0) and ``TJ`` (friction load on the edge's block), and the constant
+parts in ``sca[c, 0:3]`` = (dn0 line 0, dn0 line 1, ds0); see dda-method.md §2.8.
+"""
+
+import math
+
+import taichi as ti
+
+F64_1 = ti.types.ndarray(dtype=ti.f64, ndim=1)
+F64_2 = ti.types.ndarray(dtype=ti.f64, ndim=2)
+F64_3 = ti.types.ndarray(dtype=ti.f64, ndim=3)
+I32_1 = ti.types.ndarray(dtype=ti.i32, ndim=1)
+I32_2 = ti.types.ndarray(dtype=ti.i32, ndim=2)
+I8_1 = ti.types.ndarray(dtype=ti.i8, ndim=1)
+
+KIND_VE = 0
+KIND_VV = 1
+STATE_OPEN = 0
+STATE_SLIDE = 1
+STATE_LOCK = 2
+# slots of the contact vector array
+E0, G0, E1, G1, ES, GS, TJ = 0, 1, 2, 3, 4, 5, 6
+N_SLOTS = 7
+TWO_PI = 2.0 * math.pi
+
+
+# --------------------------------------------------------------------------- helpers
+@ti.func
+def _pt(xy: ti.template(), i):
+    return ti.Vector([xy[i, 0], xy[i, 1]])
+
+
+@ti.func
+def _cross(a, b):
+    return a[0] * b[1] - a[1] * b[0]
+
+
+@ti.func
+def _wrap(angle, lower):
+    """angle wrapped into [lower, lower + 2π)."""
+    return angle - TWO_PI * ti.floor((angle - lower) / TWO_PI)
+
+
+@ti.func
+def _edge_param(xy: ti.template(), vnext: ti.template(), e, p):
+    """Projection parameter of vertex p on edge e (0 at its start, 1 at its end)."""
+    q0 = _pt(xy, e)
+    d = _pt(xy, vnext[e]) - q0
+    return (_pt(xy, p) - q0).dot(d) / d.dot(d)
+
+
+@ti.func
+def _half_overlap(xy: ti.template(), vnext: ti.template(), e, a, b):
+    """Half the length of the overlap of segment (a, b) projected on edge e (§3.6)."""
+    q0 = _pt(xy, e)
+    d = _pt(xy, vnext[e]) - q0
+    l2 = d.dot(d)
+    ta = (_pt(xy, a) - q0).dot(d) / l2
+    tb = (_pt(xy, b) - q0).dot(d) / l2
+    lo = ti.max(0.0, ti.min(ta, tb))
+    hi = ti.min(1.0, ti.max(ta, tb))
+    return 0.5 * ti.max(0.0, hi - lo) * ti.sqrt(l2)
+
+
+@ti.func
+def _convex(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), p):
+    P = _pt(xy, p)
+    return _cross(_pt(xy, vnext[p]) - P, _pt(xy, vprev[p]) - P) > 0.0
+
+
+@ti.func
+def _ve_test(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), p, e,
+             d0, d9, sin_h1, check_projection):
+    """Distance and entrance-angle criteria for vertex p against edge e (§3.3, §3.4).
+
+    Returns (accepted, contact length L of an edge-edge contact or 0).
+    """
+    q0 = _pt(xy, e)
+    d = _pt(xy, vnext[e]) - q0
+    l = d.norm()
+    P = _pt(xy, p)
+    t = (P - q0).dot(d) / (l * l)
+    n = ti.Vector([d[1], -d[0]]) / l  # outward normal of a CCW edge
+    dn = (P - q0).dot(n)
+    ok = 1
+    if check_projection != 0:
+        if t < 0.0 or t > 1.0:
+            ok = 0
+    if dn > d0 or dn < -d9:
+        ok = 0
+    r1 = _pt(xy, vnext[p]) - P
+    r2 = _pt(xy, vprev[p]) - P
+    n1 = r1.norm()
+    n2 = r2.norm()
+    # a concave vertex never contacts as a vertex; the vertex's material wedge must lie on the
+    # outer side of the edge within the angle tolerance h1
+    if _cross(r1, r2) <= 0.0:
+        ok = 0
+    if r1.dot(n) < -sin_h1 * n1 or r2.dot(n) < -sin_h1 * n2:
+        ok = 0
+    length = 0.0
+    if ok == 1:
+        if ti.abs(r1.dot(n)) <= sin_h1 * n1:
+            length = _half_overlap(xy, vnext, e, p, vnext[p])
+        elif ti.abs(r2.dot(n)) <= sin_h1 * n2:
+            length = _half_overlap(xy, vnext, e, p, vprev[p])
+    return ok, length
+
+
+@ti.func
+def _emit(out_int: ti.template(), out_len: ti.template(), count: ti.template(),
+          kind, v0, e0, v1, e1, length):
+    k = ti.atomic_add(count[0], 1)
+    if k < out_int.shape[0]:
+        out_int[k, 0] = kind
+        out_int[k, 1] = v0
+        out_int[k, 2] = e0
+        out_int[k, 3] = v1
+        out_int[k, 4] = e1
+        out_len[k] = length
+
+
+@ti.func
+def _nearest(xy: ti.template(), P, lo, hi, limit):
+    """Index of the vertex in [lo, hi) nearest to P within `limit` (ties: lowest index), or -1."""
+    best = -1
+    best_d = limit
+    for k in range(lo, hi):
+        dist = (_pt(xy, k) - P).norm()
+        if dist < best_d or (dist == best_d and best == -1):
+            best = k
+            best_d = dist
+    return best
+
+
+@ti.func
+def _vertex_vertex(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), ia, ib,
+                   d0, d9, sin_h1, h1, out_int: ti.template(), out_len: ti.template(),
+                   count: ti.template()):
+    """Vertices ia (block A) and ib (block B) are mutual nearest within d0 (§3.3 case 1, §3.4)."""
+    cP = _convex(xy, vnext, vprev, ia)
+    cQ = _convex(xy, vnext, vprev, ib)
+    if cP and not cQ:
+        # concave Q: P against both edges meeting at Q
+        for s in ti.static(range(2)):
+            e = vprev[ib] if s == 0 else ib
+            ok, length = _ve_test(xy, vnext, vprev, ia, e, d0, d9, sin_h1, 0)
+            if ok == 1:
+                _emit(out_int, out_len, count, KIND_VE, ia, e, -1, -1, length)
+    elif cQ and not cP:
+        for s in ti.static(range(2)):
+            e = vprev[ia] if s == 0 else ia
+            ok, length = _ve_test(xy, vnext, vprev, ib, e, d0, d9, sin_h1, 0)
+            if ok == 1:
+                _emit(out_int, out_len, count, KIND_VE, ib, e, -1, -1, length)
+    elif cP and cQ:
+        P = _pt(xy, ia)
+        Q = _pt(xy, ib)
+        rA1 = _pt(xy, vnext[ia]) - P
+        rA2 = _pt(xy, vprev[ia]) - P
+        rB1 = _pt(xy, vnext[ib]) - Q
+        rB2 = _pt(xy, vprev[ib]) - Q
+        a1 = ti.atan2(rA1[1], rA1[0])
+        a2 = ti.atan2(rA2[1], rA2[0])
+        b1 = ti.atan2(rB1[1], rB1[0])
+        b2 = ti.atan2(rB2[1], rB2[0])
+        wA = _wrap(a2 - a1, 0.0)
+        wB = _wrap(b2 - b1, 0.0)
+        e5 = _wrap(b1 - a2, -h1)  # free gap between A's edge (prev->P) and B's edge (Q->next)
+        e6 = _wrap(a1 - b2, -h1)  # free gap between B's edge (prev->Q) and A's edge (P->next)
+        # the two wedges do not overlap (beyond h1) iff the four angles go once around
+        if ti.abs(wA + wB + e5 + e6 - TWO_PI) < 1e-6:
+            if e5 < h1:
+                # A's edge (prev[ia], ia) is parallel to B's edge (ib, next[ib]): edge-edge;
+                # the contact vertex is whichever lies inside the other's edge
+                tP = _edge_param(xy, vnext, ib, ia)
+                tQ = _edge_param(xy, vnext, vprev[ia], ib)
+                if ti.min(tP, 1.0 - tP) >= ti.min(tQ, 1.0 - tQ):
+                    _emit(out_int, out_len, count, KIND_VE, ia, ib, -1, -1,
+                          _half_overlap(xy, vnext, ib, ia, vprev[ia]))
+                else:
+                    _emit(out_int, out_len, count, KIND_VE, ib, vprev[ia], -1, -1,
+                          _half_overlap(xy, vnext, vprev[ia], ib, vnext[ib]))
+            elif e6 < h1:
+                # A's edge (ia, next[ia]) is parallel to B's edge (prev[ib], ib)
+                tP = _edge_param(xy, vnext, vprev[ib], ia)
+                tQ = _edge_param(xy, vnext, ia, ib)
+                if ti.min(tP, 1.0 - tP) >= ti.min(tQ, 1.0 - tQ):
+                    _emit(out_int, out_len, count, KIND_VE, ia, vprev[ib], -1, -1,
+                          _half_overlap(xy, vnext, vprev[ib], ia, vnext[ia]))
+                else:
+                    _emit(out_int, out_len, count, KIND_VE, ib, ia, -1, -1,
+                          _half_overlap(xy, vnext, ia, ib, vprev[ib]))
+            elif e5 <= e6:
+                # genuine vertex-vertex: the entrance lines are the edges across the smaller gap
+                _emit(out_int, out_len, count, KIND_VV, ia, ib, ib, vprev[ia], 0.0)
+            else:
+                _emit(out_int, out_len, count, KIND_VV, ia, vprev[ib], ib, ia, 0.0)
+
+
+# --------------------------------------------------------------------------- broad phase
+@ti.func
+def _cell_hash(cx, cy, table):
+    h = (ti.cast(cx, ti.i64) * 73856093) ^ (ti.cast(cy, ti.i64) * 19349663)
+    return ti.cast((h % table + table) % table, ti.i32)
+
+
+@ti.kernel
+def grid_bin(lo: F64_2, hi: F64_2, big: I32_1, h: ti.f64, ox: ti.f64, oy: ti.f64, table: ti.i32,
+             cell: I32_2, bucket: I32_1, bucket_count: I32_1):
+    """Bin each small box by its centre into a hashed uniform grid of cell size h."""
+    for b in range(lo.shape[0]):
+        if big[b] == 0:
+            cx = ti.cast(ti.floor((0.5 * (lo[b, 0] + hi[b, 0]) - ox) / h), ti.i32)
+            cy = ti.cast(ti.floor((0.5 * (lo[b, 1] + hi[b, 1]) - oy) / h), ti.i32)
+            cell[b, 0] = cx
+            cell[b, 1] = cy
+            k = _cell_hash(cx, cy, table)
+            bucket[b] = k
+            ti.atomic_add(bucket_count[k], 1)
+
+
+@ti.kernel
+def grid_scatter(big: I32_1, bucket: I32_1, bucket_start: I32_1, bucket_fill: I32_1, sorted_ids: I32_1):
+    """Counting sort of the small boxes by bucket (bucket_start = exclusive prefix sum)."""
+    for b in range(big.shape[0]):
+        if big[b] == 0:
+            k = bucket[b]
+            s = ti.atomic_add(bucket_fill[k], 1)
+            sorted_ids[bucket_start[k] + s] = b
+
+
+@ti.func
+def _boxes_overlap(lo: ti.template(), hi: ti.template(), a, b):
+    return (lo[a, 0] <= hi[b, 0] and lo[b, 0] <= hi[a, 0] and
+            lo[a, 1] <= hi[b, 1] and lo[b, 1] <= hi[a, 1])
+
+
+@ti.kernel
+def grid_query(lo: F64_2, hi: F64_2, big: I32_1, fixed: I32_1, cell: I32_2, table: ti.i32,
+               bucket_start: I32_1, sorted_ids: I32_1, pairs: I32_2, count: I32_1):
+    """Pairs (i < j) of small boxes that overlap, found in the 3×3 neighbouring cells."""
+    for b in range(lo.shape[0]):
+        if big[b] == 0:
+            cx = cell[b, 0]
+            cy = cell[b, 1]
+            for dx in range(-1, 2):
+                for dy in range(-1, 2):
+                    k = _cell_hash(cx + dx, cy + dy, table)
+                    for s in range(bucket_start[k], bucket_start[k + 1]):
+                        o = sorted_ids[s]
+                        # the hash may merge cells: keep only boxes of this very cell
+                        if o > b and cell[o, 0] == cx + dx and cell[o, 1] == cy + dy:
+                            if not (fixed[b] == 1 and fixed[o] == 1) and _boxes_overlap(lo, hi, b, o):
+                                n = ti.atomic_add(count[0], 1)
+                                if n < pairs.shape[0]:
+                                    pairs[n, 0] = b
+                                    pairs[n, 1] = o
+
+
+@ti.kernel
+def big_query(lo: F64_2, hi: F64_2, big: I32_1, big_ids: I32_1, fixed: I32_1,
+              pairs: I32_2, count: I32_1):
+    """Pairs involving a big box (larger than a grid cell), tested against every box."""
+    nb = lo.shape[0]
+    for t in range(big_ids.shape[0] * nb):
+        q = big_ids[t // nb]
+        b = t % nb
+        # a pair of two big boxes is reported once, from the lower index
+        if b != q and (big[b] == 0 or b > q):
+            if not (fixed[b] == 1 and fixed[q] == 1) and _boxes_overlap(lo, hi, b, q):
+                n = ti.atomic_add(count[0], 1)
+                if n < pairs.shape[0]:
+                    pairs[n, 0] = ti.min(b, q)
+                    pairs[n, 1] = ti.max(b, q)
+
+
+# --------------------------------------------------------------------------- narrow phase
+@ti.kernel
+def narrow_phase(pairs: I32_2, xy: F64_2, voff: I32_1, vnext: I32_1, vprev: I32_1,
+                 d0: ti.f64, d9: ti.f64, h1: ti.f64, out_int: I32_2, out_len: F64_1, count: I32_1):
+    """Shi's narrow phase for each candidate block pair (A < B) (dda-method.md §3.3–3.6).
+
+    out_int rows: (kind, vertex0, edge0, vertex1, edge1); out_len: contact length.
+    """
+    sin_h1 = ti.sin(h1)
+    for p in range(pairs.shape[0]):
+        A = pairs[p, 0]
+        B = pairs[p, 1]
+        a0, a1 = voff[A], voff[A + 1]
+        b0, b1 = voff[B], voff[B + 1]
+        # 1. vertex pairs closer than d0 (mutual nearest): vertex-vertex rules
+        for ia in range(a0, a1):
+            P = _pt(xy, ia)
+            ib = _nearest(xy, P, b0, b1, d0)
+            if ib >= 0:
+                if _nearest(xy, _pt(xy, ib), a0, a1, d0) == ia:
+                    _vertex_vertex(xy, vnext, vprev, ia, ib, d0, d9, sin_h1, h1, out_int, out_len, count)
+        # 2. vertices of A against edges of B, and 3. vertices of B against edges of A,
+        # skipping vertices close to an end of the edge (handled above)
+        for s in ti.static(range(2)):
+            v_lo, v_hi = (a0, a1) if s == 0 else (b0, b1)
+            e_lo, e_hi = (b0, b1) if s == 0 else (a0, a1)
+            for iv in range(v_lo, v_hi):
+                P = _pt(xy, iv)
+                for ie in range(e_lo, e_hi):
+                    if (P - _pt(xy, ie)).norm() > d0 and (P - _pt(xy, vnext[ie])).norm() > d0:
+                        ok, length = _ve_test(xy, vnext, vprev, iv, ie, d0, d9, sin_h1, 1)
+                        if ok == 1:
+                            _emit(out_int, out_len, count, KIND_VE, iv, ie, -1, -1, length)
+
+
+# --------------------------------------------------------------------------- contact vectors
+@ti.func
+def _trow(a, b, X):
+    """a·T(X)row1 + b·T(X)row2 as a 6-vector (T of dda-method.md §1.1, X centroidal)."""
+    return ti.Vector([a, b, -a * X[1] + b * X[0], a * X[0], b * X[1], 0.5 * (a * X[1] + b * X[0])])
+
+
+@ti.func
+def _store(vec: ti.template(), c, slot, v):
+    for a in ti.static(range(6)):
+        vec[c, slot, a] = v[a]
+
+
+@ti.kernel
+def contact_vectors(xy: F64_2, vblock: I32_1, vnext: I32_1, centroid: F64_2, cint: I32_2,
+                    omega: F64_1, vec: F64_3, sca: F64_2):
+    """Linearised normal and shear distances of every contact line (dda-method.md §2.8.1–2.8.4).
+
+    cint rows: (kind, vertex0, edge0, vertex1, edge1). Positions are taken relative to the
+    contact vertex P1 so that the constant parts keep full precision.
+    """
+    for c in range(cint.shape[0]):
+        nl = 1 + cint[c, 0]
+        for q in range(nl):
+            p1 = cint[c, 1 + 2 * q]
+            k = cint[c, 2 + 2 * q]
+            P1 = _pt(xy, p1)
+            x2 = _pt(xy, vnext[k]) - P1
+            x3 = _pt(xy, k) - P1
+            l = (x3 - x2).norm()
+            ci = ti.Vector([centroid[vblock[p1], 0], centroid[vblock[p1], 1]])
+            cj = ti.Vector([centroid[vblock[k], 0], centroid[vblock[k], 1]])
+            X1 = P1 - ci
+            X2 = x2 + P1 - cj
+            X3 = x3 + P1 - cj
+            # ∂Δ/∂P1, ∂Δ/∂P2, ∂Δ/∂P3 with P1 at the origin
+            ev = _trow(x2[1] - x3[1], x3[0] - x2[0], X1) / l
+            gv = (_trow(x3[1], -x3[0], X2) + _trow(-x2[1], x2[0], X3)) / l
+            sca[c, q] = _cross(x2, x3) / l
+            _store(vec, c, E0 + 2 * q, ev)
+            _store(vec, c, G0 + 2 * q, gv)
+            if q == 0 and cint[c, 0] == KIND_VE:
+                w = omega[c]
+                t = (x3 - x2) / l
+                # ds = (P1 - P0)·(P3 - P2)/l with P0 = (1-ω)P2 + ωP3 (§2.8.3)
+                sca[c, 2] = (-(1.0 - w) * x2 - w * x3).dot(x3 - x2) / l
+                c2 = (2.0 * (1.0 - w) * x2 - (1.0 - 2.0 * w) * x3) / l
+                c3 = (-(1.0 - 2.0 * w) * x2 - 2.0 * w * x3) / l
+                _store(vec, c, ES, _trow(t[0], t[1], X1))
+                _store(vec, c, GS, _trow(c2[0], c2[1], X2) + _trow(c3[0], c3[1], X3))
+                _store(vec, c, TJ, (1.0 - w) * _trow(t[0], t[1], X2) + w * _trow(t[0], t[1], X3))
+
+
+# --------------------------------------------------------------------------- assembly
+@ti.kernel
+def assemble_blocks(dof: I32_1, density: F64_1, elastic: F64_3, area: F64_1, mass: F64_3,
+                    velocity: F64_2, stress: F64_2, body_acc_x: ti.f64, body_acc_y: ti.f64,
+                    dt: ti.f64, carry: ti.f64, diag_slot: I32_1, stride: I32_1,
+                    data: F64_1, rhs: F64_1):
+    """Per-block terms: inertia + velocity carry-over (§2.5), elasticity (§2.1),
+    initial stress (§2.2) and body force (§2.4; gravity minus ground acceleration)."""
+    for b in range(dof.shape[0]):
+        r = dof[b]
+        if r >= 0:
+            rho = density[b]
+            s = area[b]
+            c_inertia = 2.0 * rho / (dt * dt)
+            c_velocity = 2.0 * rho / dt * carry
+            base = diag_slot[r]
+            st = stride[r]
+            for a in range(6):
+                mv = 0.0
+                for c in range(6):
+                    k = c_inertia * mass[b, a, c]
+                    if a >= 3 and c >= 3:
+                        k += s * elastic[b, a - 3, c - 3]
+                    data[base + a * st + c] += k
+                    mv += mass[b, a, c] * velocity[b, c]
+                rhs[6 * r + a] += c_velocity * mv
+            for a in range(3):
+                rhs[6 * r + 3 + a] -= s * stress[b, a]
+            rhs[6 * r + 0] += rho * s * body_acc_x
+            rhs[6 * r + 1] += rho * s * body_acc_y
+
+
+@ti.kernel
+def assemble_points(point_block: I32_1, point_xy: F64_2, point_force: F64_2, stiffness: F64_1,
+                    dof: I32_1, centroid: F64_2, diag_slot: I32_1, stride: I32_1,
+                    data: F64_1, rhs: F64_1):
+    """Point springs and point loads: K += k TᵀT, F += Tᵀ f (§2.3, §2.6)."""
+    for p in range(point_block.shape[0]):
+        b = point_block[p]
+        r = dof[b]
+        if r >= 0:
+            X = ti.Vector([point_xy[p, 0] - centroid[b, 0], point_xy[p, 1] - centroid[b, 1]])
+            t1 = _trow(1.0, 0.0, X)
+            t2 = _trow(0.0, 1.0, X)
+            k = stiffness[p]
+            base = diag_slot[r]
+            st = stride[r]
+            if k != 0.0:
+                for a in range(6):
+                    for c in range(6):
+                        ti.atomic_add(data[base + a * st + c], k * (t1[a] * t1[c] + t2[a] * t2[c]))
+            for a in range(6):
+                ti.atomic_add(rhs[6 * r + a], t1[a] * point_force[p, 0] + t2[a] * point_force[p, 1])
+
+
+@ti.func
+def _spring(vec: ti.template(), c, su, sw, k, d0, ri, rj, sij, sji,
+            diag_slot: ti.template(), stride: ti.template(), data: ti.template(), rhs: ti.template()):
+    """Add the spring energy ½ k (d0 + uᵀDi + wᵀDj)² of contact c (u = vec[c, su], w = vec[c, sw])."""
+    if ri >= 0:
+        base = diag_slot[ri]
+        st = stride[ri]
+        for a in range(6):
+            ua = vec[c, su, a]
+            ti.atomic_add(rhs[6 * ri + a], -k * d0 * ua)
+            for b in range(6):
+                ti.atomic_add(data[base + a * st + b], k * ua * vec[c, su, b])
+            if rj >= 0:
+                for b in range(6):
+                    ti.atomic_add(data[sij + a * st + b], k * ua * vec[c, sw, b])
+    if rj >= 0:
+        base = diag_slot[rj]
+        st = stride[rj]
+        for a in range(6):
+            wa = vec[c, sw, a]
+            ti.atomic_add(rhs[6 * rj + a], -k * d0 * wa)
+            for b in range(6):
+                ti.atomic_add(data[base + a * st + b], k * wa * vec[c, sw, b])
+            if ri >= 0:
+                for b in range(6):
+                    ti.atomic_add(data[sji + a * st + b], k * wa * vec[c, su, b])
+
+
+@ti.kernel
+def assemble_contacts(cint: I32_2, state: I8_1, line: I8_1, vblock: I32_1, dof: I32_1,
+                      vec: F64_3, sca: F64_2, friction_force: F64_1, shear_dir: I8_1,
+                      slot_ab: I32_1, slot_ba: I32_1, diag_slot: I32_1, stride: I32_1,
+                      penalty: ti.f64, shear_penalty: ti.f64, data: F64_1, rhs: F64_1):
+    """Contact springs for the assumed states, and friction loads of sliding contacts (§2.8).
+
+    `friction_force` is the Coulomb + cohesion limit of each sliding contact from the previous
+    iterate (explicit, as in Shi's method); `slot_ab`/`slot_ba` locate the off-diagonal blocks
+    of the pair (block of vertex0, block of edge0) in the CSR data array.
+    """
+    for c in range(cint.shape[0]):
+        st = state[c]
+        if st != STATE_OPEN:
+            q = ti.cast(line[c], ti.i32)
+            i = vblock[cint[c, 1 + 2 * q]]
+            j = vblock[cint[c, 2 + 2 * q]]
+            ri = dof[i]
+            rj = dof[j]
+            sij = slot_ab[c]
+            sji = slot_ba[c]
+            if q == 1:
+                sij = slot_ba[c]
+                sji = slot_ab[c]
+            _spring(vec, c, E0 + 2 * q, G0 + 2 * q, penalty, sca[c, q], ri, rj, sij, sji,
+                    diag_slot, stride, data, rhs)
+            if cint[c, 0] == KIND_VE:
+                if st == STATE_LOCK:
+                    _spring(vec, c, ES, GS, shear_penalty, sca[c, 2], ri, rj, sij, sji,
+                            diag_slot, stride, data, rhs)
+                else:
+                    f = friction_force[c] * ti.cast(shear_dir[c], ti.f64)
+                    for a in range(6):
+                        if ri >= 0:
+                            ti.atomic_add(rhs[6 * ri + a], -f * vec[c, ES, a])
+                        if rj >= 0:
+                            ti.atomic_add(rhs[6 * rj + a], f * vec[c, TJ, a])

@@ -1,0 +1,339 @@
+"""Model (static arrays built once), State (what a step rewrites) and the contact memory.
+
+Data flows one way: `Scene` -> `build_model` -> `Model` + `Model.initial_state()` -> `step`.
+Everything is flat NumPy arrays with offsets; block b owns vertices
+``vertex_offset[b]:vertex_offset[b+1]``, and its edge k runs from vertex k to
+``vertex_next[k]`` (edges are identified by their start vertex).
+
+Internally all coordinates are relative to ``Model.origin`` (the centre of the model's
+bounding box), so that penetrations of ~1e-8 m stay representable on models placed far from
+the origin (dda-method.md §8.9). Results are returned in the user's coordinates.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from enum import IntEnum
+from typing import Callable, Optional
+
+import numpy as np
+
+from .geometry import polygon_integrals
+from .params import Params
+from .scene import Scene
+
+
+class ContactState(IntEnum):
+    """State of a contact in the open-close iteration (dda-method.md §4.1)."""
+
+    OPEN = 0
+    SLIDE = 1  # normal spring + Coulomb friction loads (for vertex-vertex: normal spring only)
+    LOCK = 2   # normal and shear springs
+
+
+class ContactKind(IntEnum):
+    VE = 0  # vertex of one block against an edge of the other (edge-edge = two of these)
+    VV = 1  # vertex against vertex: two candidate entrance lines, the less penetrated one acts
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class Model:
+    """Static description of a DDA model: never changes during a run."""
+
+    origin: np.ndarray
+    """(2,) user coordinates of the internal origin [m]."""
+    vertex_offset: np.ndarray
+    """(B+1,) int32 offsets of each block's vertices."""
+    vertex_block: np.ndarray
+    """(V,) int32 block owning each vertex."""
+    vertex_next: np.ndarray
+    """(V,) int32 next vertex of the same block (CCW); edge k runs k -> vertex_next[k]."""
+    vertex_prev: np.ndarray
+    """(V,) int32 previous vertex of the same block."""
+    vertex_xy0: np.ndarray
+    """(V, 2) initial vertex positions, relative to ``origin`` [m]."""
+    edge_joint: np.ndarray
+    """(V,) int32 joint-table index of each edge (0 = the default joint)."""
+    block_fixed: np.ndarray
+    """(B,) bool fixed blocks (no unknowns)."""
+    block_dof: np.ndarray
+    """(B,) int32 block-row of each free block in the global system, -1 for fixed blocks."""
+    block_density: np.ndarray
+    """(B,) mass density [kg/m³]."""
+    block_elastic: np.ndarray
+    """(B, 3, 3) elasticity matrix C (plane strain or plane stress) [Pa]."""
+    joint_tan_phi: np.ndarray
+    """(J,) tangent of the friction angle [-]."""
+    joint_friction: np.ndarray
+    """(J,) friction angle [degrees]."""
+    joint_cohesion: np.ndarray
+    """(J,) cohesion [Pa]."""
+    joint_tensile: np.ndarray
+    """(J,) tensile strength [Pa]."""
+    pair_key: np.ndarray
+    """(P,) int64 sorted keys i*B + j (i < j) of block pairs with a joint override."""
+    pair_joint: np.ndarray
+    """(P,) int32 joint-table index of each override."""
+    gravity: np.ndarray
+    """(2,) gravitational acceleration vector [m/s²]."""
+    fixed_point_block: np.ndarray
+    """(nf,) int32 block of each fixed point."""
+    fixed_point_xy0: np.ndarray
+    """(nf, 2) target (initial) position of each fixed point [m, internal coordinates]."""
+    load_block: np.ndarray
+    """(nl,) int32 block of each point load."""
+    load_xy0: np.ndarray
+    """(nl, 2) initial position of each load point [m, internal coordinates]."""
+    load_force: tuple
+    """(nl,) constant (fx, fy) [N/m] or function t -> (fx, fy) per load."""
+    measured_block: np.ndarray
+    """(nm,) int32 block of each measured point."""
+    measured_xy0: np.ndarray
+    """(nm, 2) initial position of each measured point [m, internal coordinates]."""
+    ground_acceleration: Optional[Callable[[float], tuple]]
+    """Ground acceleration a_g(t) -> (ax, ay) [m/s²] or None."""
+    initial_velocity: np.ndarray
+    """(B, 6) initial generalized velocities (vx, vy, ω, 0, 0, 0)."""
+    initial_stress: np.ndarray
+    """(B, 3) initial stress (σx, σy, τxy) [Pa]."""
+
+    w0: float
+    """Model scale: half the larger side of the model's bounding box [m]."""
+    max_step: float
+    """g2·w0: largest vertex displacement wanted in one step [m]."""
+    search_distance: float
+    """d0: contact search distance [m]."""
+    max_penetration: float
+    """d9: deepest penetration still detected as a contact [m]."""
+    open_tol: float
+    """Normal distance above which a closed contact opens [m]."""
+    close_tol: float
+    """Penetration beyond which an open contact closes [m]."""
+    penetration_limit: float
+    """Largest penetration accepted at the end of a step [m]."""
+    penalty: float
+    """Normal contact spring p [N/m per m]."""
+    shear_penalty: float
+    """Shear contact spring p/h2 [N/m per m]."""
+    fixed_point_penalty: float
+    """Fixed-point spring [N/m per m]."""
+    params: Params
+    """The parameters the model was built with."""
+
+    @property
+    def n_blocks(self) -> int:
+        return len(self.block_fixed)
+
+    @property
+    def n_vertices(self) -> int:
+        return len(self.vertex_block)
+
+    @property
+    def n_free(self) -> int:
+        return int(np.count_nonzero(~self.block_fixed))
+
+    def initial_state(self) -> "State":
+        """State at t = 0."""
+        return State(
+            time=0.0, step=0,
+            vertex_xy=self.vertex_xy0.copy(),
+            block_velocity=self.initial_velocity.copy(),
+            block_stress=self.initial_stress.copy(),
+            block_rotation=np.zeros(self.n_blocks),
+            fixed_point_xy=self.fixed_point_xy0.copy(),
+            load_xy=self.load_xy0.copy(),
+            measured_xy=self.measured_xy0.copy(),
+            dt=0.0, accel=0.0,
+            memory=ContactMemory.empty(),
+        )
+
+    def block_geometry(self, vertex_xy: np.ndarray) -> dict[str, np.ndarray]:
+        """Area, centroid and central moments of every block at the given vertex positions."""
+        return polygon_integrals(vertex_xy, self.vertex_offset)
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class ContactMemory:
+    """What a contact carries from one step to the next (dda-method.md §3.7).
+
+    Rows are sorted by ``key`` (see `contact_keys`), so a new contact finds its predecessor by
+    binary search.
+    """
+
+    key: np.ndarray
+    """(m,) int64 identity of the contact: vertex and reference edge (VE) or both vertices (VV)."""
+    state: np.ndarray
+    """(m,) int8 `ContactState` at the end of the step."""
+    line: np.ndarray
+    """(m,) int8 active entrance line of a VV contact."""
+    omega: np.ndarray
+    """(m,) lock position ω on the reference edge (kept only while locked)."""
+    bond: np.ndarray
+    """(m,) bool joint still intact (cohesion and tensile strength act)."""
+    shear_dir: np.ndarray
+    """(m,) int8 sign of the last sliding direction (friction opposes it)."""
+    dn: np.ndarray
+    """(m,) normal distance at the end of the step [m] (negative: penetration)."""
+    kind: np.ndarray
+    """(m,) int8 `ContactKind` at the end of the step."""
+
+    @staticmethod
+    def empty() -> "ContactMemory":
+        z = np.zeros(0)
+        return ContactMemory(key=np.zeros(0, np.int64), state=z.astype(np.int8), line=z.astype(np.int8),
+                             omega=z, bond=z.astype(bool), shear_dir=z.astype(np.int8), dn=z,
+                             kind=z.astype(np.int8))
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class State:
+    """Everything a step rewrites. `step` returns a new State; the old one is left untouched."""
+
+    time: float
+    """Simulated time [s]."""
+    step: int
+    """Number of accepted steps."""
+    vertex_xy: np.ndarray
+    """(V, 2) current vertex positions [m, internal coordinates]."""
+    block_velocity: np.ndarray
+    """(B, 6) generalized velocities (u̇0, v̇0, ṙ0, ε̇x, ε̇y, γ̇xy) [m/s, rad/s, 1/s]."""
+    block_stress: np.ndarray
+    """(B, 3) stress (σx, σy, τxy) [Pa], compression negative."""
+    block_rotation: np.ndarray
+    """(B,) accumulated rigid rotation [rad], counter-clockwise positive."""
+    fixed_point_xy: np.ndarray
+    """(nf, 2) current positions of the fixed points (material points of their blocks) [m]."""
+    load_xy: np.ndarray
+    """(nl, 2) current positions of the load points [m]."""
+    measured_xy: np.ndarray
+    """(nm, 2) current positions of the measured points [m]."""
+    dt: float
+    """Time step of the last accepted step [s] (0 before the first)."""
+    accel: float
+    """Largest block acceleration seen in the last step [m/s²] (for the automatic time step)."""
+    memory: ContactMemory = field(default_factory=ContactMemory.empty)
+    """Contact data carried to the next step."""
+
+    def replace(self, **changes) -> "State":
+        return replace(self, **changes)
+
+
+def _elastic_matrix(young: float, poisson: float, plane: str) -> np.ndarray:
+    """C of dda-method.md §2.1 (plane strain = plane stress with E/(1-ν²), ν/(1-ν))."""
+    if plane == "strain":
+        e = young / (1.0 - poisson ** 2)
+        nu = poisson / (1.0 - poisson)
+    else:
+        e, nu = young, poisson
+    f = e / (1.0 - nu * nu)
+    return f * np.array([[1.0, nu, 0.0], [nu, 1.0, 0.0], [0.0, 0.0, (1.0 - nu) / 2.0]])
+
+
+def build_model(scene: Scene, params: Optional[Params] = None) -> Model:
+    """Turn a `Scene` into a `Model`, validating what can only be checked on the whole model
+    (at least one free block, no overlapping blocks)."""
+    params = params or Params()
+    if not isinstance(params, Params):
+        raise ValueError(f"params must be a ddatai.Params, got {type(params).__name__}")
+    specs = scene.blocks
+    if not specs:
+        raise ValueError("the scene has no blocks")
+    _check_overlaps(scene)
+    nb = len(specs)
+    counts = np.array([len(s.vertices) for s in specs])
+    offset = np.concatenate([[0], np.cumsum(counts)]).astype(np.int32)
+    xy_user = np.concatenate([s.vertices for s in specs])
+    lo, hi = xy_user.min(axis=0), xy_user.max(axis=0)
+    origin = 0.5 * (lo + hi)
+    xy0 = xy_user - origin
+    w0 = 0.5 * float(np.max(hi - lo))
+
+    vblock = np.repeat(np.arange(nb, dtype=np.int32), counts)
+    idx = np.arange(len(xy0), dtype=np.int32)
+    vnext = idx + 1
+    vnext[offset[1:] - 1] = offset[:-1]
+    vprev = idx - 1
+    vprev[offset[:-1]] = offset[1:] - 1
+    edge_joint = np.concatenate([s.edge_joint for s in specs]).astype(np.int32)
+    edge_joint[edge_joint < 0] = 0
+
+    fixed = np.array([s.fixed for s in specs], dtype=bool)
+    dof = np.full(nb, -1, dtype=np.int32)
+    dof[~fixed] = np.arange(np.count_nonzero(~fixed), dtype=np.int32)
+    density = np.array([s.material.density for s in specs], dtype=float)
+    elastic = np.stack([_elastic_matrix(s.material.young, s.material.poisson, params.plane) for s in specs])
+
+    joints = scene.joints
+    friction = np.array([j.friction for j in joints], dtype=float)
+    pkeys = np.array([i * nb + j for (i, j) in scene.pair_joints], dtype=np.int64)
+    pjoint = np.array(list(scene.pair_joints.values()), dtype=np.int32)
+    order = np.argsort(pkeys)
+
+    def points(specs_, with_force=False):
+        blk = np.array([p.block for p in specs_], dtype=np.int32)
+        pxy = np.array([p.xy for p in specs_], dtype=float).reshape(-1, 2) - origin
+        if with_force:
+            return blk, pxy, tuple(p.force for p in specs_)
+        return blk, pxy
+
+    fp_block, fp_xy = points(scene.fixed_points)
+    ld_block, ld_xy, ld_force = points(scene.point_loads, with_force=True)
+    ms_block, ms_xy = points(scene.measured_points)
+
+    vel = np.zeros((nb, 6))
+    vel[:, 0] = [s.velocity[0] for s in specs]
+    vel[:, 1] = [s.velocity[1] for s in specs]
+    vel[:, 2] = [s.angular_velocity for s in specs]
+    vel[fixed] = 0.0
+    stress = np.array([s.stress for s in specs], dtype=float)
+
+    max_step = params.max_displacement_ratio * w0
+    d0 = 2.5 * max_step
+    d9 = max(0.3 * d0, 3.0 * params.penetration_ratio * w0)
+    d0 = max(d0, d9)
+    penalty = params.penalty if params.penalty is not None else \
+        params.penalty_ratio * max(s.material.young for s in specs)
+
+    return Model(
+        origin=origin, vertex_offset=offset, vertex_block=vblock, vertex_next=vnext, vertex_prev=vprev,
+        vertex_xy0=xy0, edge_joint=edge_joint, block_fixed=fixed, block_dof=dof,
+        block_density=density, block_elastic=elastic,
+        joint_tan_phi=np.tan(np.radians(friction)), joint_friction=friction,
+        joint_cohesion=np.array([j.cohesion for j in joints], dtype=float),
+        joint_tensile=np.array([j.tensile for j in joints], dtype=float),
+        pair_key=pkeys[order], pair_joint=pjoint[order],
+        gravity=np.array([0.0, -scene.gravity]),
+        fixed_point_block=fp_block, fixed_point_xy0=fp_xy,
+        load_block=ld_block, load_xy0=ld_xy, load_force=ld_force,
+        measured_block=ms_block, measured_xy0=ms_xy,
+        ground_acceleration=scene.ground_acceleration,
+        initial_velocity=vel, initial_stress=stress,
+        w0=w0, max_step=max_step, search_distance=d0, max_penetration=d9,
+        open_tol=params.open_tolerance * w0, close_tol=params.close_tolerance * w0,
+        penetration_limit=2.5 * params.penetration_ratio * w0,
+        penalty=float(penalty), shear_penalty=float(penalty) / params.shear_ratio,
+        fixed_point_penalty=params.fixed_point_ratio * float(penalty),
+        params=params,
+    )
+
+
+def _check_overlaps(scene: Scene) -> None:
+    """Raise ValueError naming the first pair of blocks whose interiors overlap."""
+    import shapely
+
+    polys = np.array([shapely.Polygon(s.vertices) for s in scene.blocks], dtype=object)
+    if len(polys) < 2:
+        return
+    tree = shapely.STRtree(polys)
+    a, b = tree.query(polys, predicate="intersects")
+    keep = a < b
+    a, b = a[keep], b[keep]
+    if not len(a):
+        return
+    inter = shapely.area(shapely.intersection(polys[a], polys[b]))
+    areas = shapely.area(polys)
+    bad = inter > 1e-9 * np.minimum(areas[a], areas[b])
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise ValueError(f"blocks {a[k]} and {b[k]} overlap at the start "
+                         f"(overlap area {inter[k]:.3g} m²)")

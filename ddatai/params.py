@@ -1,0 +1,180 @@
+"""Material, joint and solver parameters: frozen keyword-only dataclasses.
+
+Everything here is plain Python (no NumPy, no Taichi), validated on construction so that a bad
+value fails with a `ValueError` naming the parameter before any simulation work is done.
+
+Units are SI throughout (m, kg, s, N, Pa); friction angles are the one exception and are given
+in degrees. Forces and stiffnesses are per metre of thickness (plane problems of unit
+thickness), so a contact penalty has units of N/m per m = Pa.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal, Optional
+
+
+def _require(cond: bool, message: str) -> None:
+    if not cond:
+        raise ValueError(message)
+
+
+def _finite(x: float) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Material:
+    """Linear elastic, isotropic block material."""
+
+    density: float
+    """Mass density ρ [kg/m³], > 0. Used for inertia and for gravity (body force ρ·g)."""
+    young: float
+    """Young's modulus E [Pa], > 0."""
+    poisson: float
+    """Poisson's ratio ν [-], in [0, 0.5)."""
+
+    def __post_init__(self) -> None:
+        _require(_finite(self.density) and self.density > 0,
+                 f"Material.density must be a finite number > 0 kg/m³, got {self.density!r}")
+        _require(_finite(self.young) and self.young > 0,
+                 f"Material.young (Young's modulus) must be a finite number > 0 Pa, got {self.young!r}")
+        _require(_finite(self.poisson) and 0.0 <= self.poisson < 0.5,
+                 f"Material.poisson must be in [0, 0.5), got {self.poisson!r}")
+        for name in ("density", "young", "poisson"):
+            object.__setattr__(self, name, float(getattr(self, name)))
+
+
+@dataclass(frozen=True, kw_only=True)
+class Joint:
+    """Mohr–Coulomb joint (contact) properties with a tensile cut-off.
+
+    Cohesion and tensile strength act only while a contact is intact ("bonded"): on an
+    edge-to-edge contact of the initial geometry, until the contact first leaves the locked
+    state. After that only friction remains (residual strength).
+    """
+
+    friction: float = 30.0
+    """Friction angle φ [degrees], in [0, 90)."""
+    cohesion: float = 0.0
+    """Cohesion c [Pa], >= 0; acts over the contact length of an edge-to-edge contact."""
+    tensile: float = 0.0
+    """Tensile strength T [Pa], >= 0; acts over the contact length of an edge-to-edge contact."""
+
+    def __post_init__(self) -> None:
+        _require(_finite(self.friction) and 0.0 <= self.friction < 90.0,
+                 f"Joint.friction (angle in degrees) must be in [0, 90), got {self.friction!r}")
+        _require(_finite(self.cohesion) and self.cohesion >= 0,
+                 f"Joint.cohesion must be a finite number >= 0 Pa, got {self.cohesion!r}")
+        _require(_finite(self.tensile) and self.tensile >= 0,
+                 f"Joint.tensile (tensile strength) must be a finite number >= 0 Pa, got {self.tensile!r}")
+        for name in ("friction", "cohesion", "tensile"):
+            object.__setattr__(self, name, float(getattr(self, name)))
+
+
+@dataclass(frozen=True, kw_only=True)
+class Params:
+    """Numerical parameters of a DDA run. ``None`` means "choose automatically" (documented rule).
+
+    The defaults are meant to give accurate answers on the verification cases of
+    ``tests/test_verification.py`` without tuning; see README "Numerical defaults".
+    """
+
+    dt: Optional[float] = None
+    """Time step [s]. ``None``: automatic (displacement rule below, capped by ``dt_max``).
+    A fixed value is the step used whenever a step converges; a step that fails the
+    open-close iteration or the displacement check is retried with a shorter one and the
+    step then grows back towards ``dt`` (at most ``dt_growth`` per step)."""
+    dt_max: float = 0.01
+    """Largest automatic time step [s]."""
+    dt_min_ratio: float = 1e-4
+    """Smallest time step, as a fraction of ``dt`` (or ``dt_max``) [-]. A step that cannot be
+    made to converge above it stops the run with a `SimulationError`."""
+    dt_growth: float = 1.3
+    """Largest growth of the automatic time step from one step to the next [-]."""
+    dt_cut: float = 0.3
+    """Factor applied to the time step when the open-close iteration fails [-] (Shi: 0.3)."""
+    max_displacement_ratio: float = 0.005
+    """g2: largest vertex displacement allowed in one step, as a fraction of the model scale
+    w0 = half the larger side of the model's bounding box [-]. Sets the automatic time step
+    and the contact search distance d0 = 2.5·g2·w0."""
+    displacement_reject: float = 3.0
+    """A step whose largest vertex displacement exceeds this many times g2·w0 is redone with
+    dt/√R [-] (ntdda: 3)."""
+
+    penalty: Optional[float] = None
+    """Normal contact spring p [N/m per m thickness = Pa]. ``None``: ``penalty_ratio`` × the
+    largest Young's modulus of the model."""
+    penalty_ratio: float = 50.0
+    """Automatic penalty as a multiple of the largest Young's modulus [-] (ntdda: 50)."""
+    shear_ratio: float = 2.5
+    """h2: normal / shear contact spring ratio [-]; the shear spring is p/h2 (Shi: 2.5)."""
+    fixed_point_ratio: float = 100.0
+    """Fixed-point spring as a multiple of the contact penalty [-] (ntdda: 100)."""
+
+    static: bool = False
+    """Static (quasi-static) analysis: block velocities are reset to zero after every step."""
+    dynamic_ratio: float = 1.0
+    """k: fraction of the velocity carried into the next step [-], 1 = fully dynamic;
+    0 < k < 1 is kinetic damping. Ignored (taken as 0) when ``static`` is true."""
+    plane: Literal["strain", "stress"] = "strain"
+    """Plane strain or plane stress elasticity."""
+
+    oc_max_iterations: int = 10
+    """Largest number of open-close iterations in one step before the time step is cut."""
+    open_tolerance: float = 1e-12
+    """A closed contact opens when its normal distance exceeds this fraction of w0 plus the
+    tensile allowance T·L/p of a bonded contact [-]. It only absorbs round-off: the spring of
+    a closed contact with normal distance dn pulls with p·dn, so a tolerance like ntdda's
+    f0 = 2e-7 would let contacts carry tensions of p·f0·w0 (thousands of kN at rock
+    penalties) and blocks could never topple."""
+    close_tolerance: float = 1e-7
+    """An open contact closes when its penetration exceeds this fraction of w0 [-]."""
+    penetration_ratio: float = 4e-4
+    """g3: penetration allowed, as a fraction of w0 [-]; a step whose largest penetration
+    exceeds 2.5·g3·w0 is redone with a shorter time step, and a run that cannot keep under it
+    stops with a `SimulationError` (runaway penetration)."""
+    angle_tolerance: float = 3.0
+    """h1: angle tolerance of the contact entrance test and of edge parallelism [degrees]."""
+
+    arch: str = "cpu"
+    """Taichi backend for contact detection and assembly: "cpu", "gpu" (CUDA/Vulkan/Metal,
+    whichever is present) or "cuda"."""
+
+    def __post_init__(self) -> None:
+        def pos(name: str, allow_none: bool = False) -> None:
+            v = getattr(self, name)
+            if v is None and allow_none:
+                return
+            _require(_finite(v) and v > 0, f"Params.{name} must be a finite number > 0, got {v!r}")
+
+        pos("dt", allow_none=True)
+        pos("dt_max")
+        pos("penalty", allow_none=True)
+        for name in ("penalty_ratio", "shear_ratio", "fixed_point_ratio", "max_displacement_ratio",
+                     "open_tolerance", "close_tolerance", "penetration_ratio", "angle_tolerance",
+                     "dt_min_ratio"):
+            pos(name)
+        _require(_finite(self.dt_growth) and self.dt_growth >= 1.0,
+                 f"Params.dt_growth must be >= 1, got {self.dt_growth!r}")
+        _require(_finite(self.dt_cut) and 0.0 < self.dt_cut < 1.0,
+                 f"Params.dt_cut must be in (0, 1), got {self.dt_cut!r}")
+        _require(_finite(self.displacement_reject) and self.displacement_reject >= 1.0,
+                 f"Params.displacement_reject must be >= 1, got {self.displacement_reject!r}")
+        _require(_finite(self.dynamic_ratio) and 0.0 <= self.dynamic_ratio <= 1.0,
+                 f"Params.dynamic_ratio must be in [0, 1], got {self.dynamic_ratio!r}")
+        _require(self.plane in ("strain", "stress"),
+                 f"Params.plane must be 'strain' or 'stress', got {self.plane!r}")
+        _require(isinstance(self.oc_max_iterations, int) and self.oc_max_iterations >= 2,
+                 f"Params.oc_max_iterations must be an integer >= 2, got {self.oc_max_iterations!r}")
+        _require(self.angle_tolerance < 30.0,
+                 f"Params.angle_tolerance must be < 30 degrees, got {self.angle_tolerance!r}")
+        _require(self.dt_min_ratio < 1.0, f"Params.dt_min_ratio must be < 1, got {self.dt_min_ratio!r}")
+        _require(isinstance(self.arch, str) and self.arch in ("cpu", "gpu", "cuda", "vulkan", "metal"),
+                 f"Params.arch must be one of 'cpu', 'gpu', 'cuda', 'vulkan', 'metal', got {self.arch!r}")
+
+    @property
+    def velocity_carry(self) -> float:
+        """k actually used: 0 in static mode, ``dynamic_ratio`` otherwise."""
+        return 0.0 if self.static else self.dynamic_ratio

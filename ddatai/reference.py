@@ -1,0 +1,262 @@
+"""Plain NumPy reference implementations of the Taichi kernels (for tests and debugging).
+
+Slow and obvious: Python loops over pairs and vertices, dense matrices. Each function here
+computes what one kernel (or kernel group) of :mod:`ddatai.kernels` computes, written
+independently from the formulas of dda-method.md, so that the tests comparing the two catch
+mistakes in either. Use only on small models.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .geometry import displacement_matrix, mass_matrix
+from .model import ContactKind, ContactState, Model
+
+VE, VV = int(ContactKind.VE), int(ContactKind.VV)
+
+
+# --------------------------------------------------------------------------- broad phase
+def broad_phase(model: Model, vertex_xy: np.ndarray, margin: float) -> np.ndarray:
+    """All pairs (i < j, not both fixed) whose boxes enlarged by margin/2 overlap (brute force)."""
+    starts = model.vertex_offset[:-1]
+    lo = np.minimum.reduceat(vertex_xy, starts, axis=0) - 0.5 * margin
+    hi = np.maximum.reduceat(vertex_xy, starts, axis=0) + 0.5 * margin
+    out = []
+    nb = len(lo)
+    for i in range(nb):
+        j = np.arange(i + 1, nb)
+        hit = (lo[i, 0] <= hi[j, 0]) & (lo[j, 0] <= hi[i, 0]) & (lo[i, 1] <= hi[j, 1]) & (lo[j, 1] <= hi[i, 1])
+        hit &= ~(model.block_fixed[i] & model.block_fixed[j])
+        out.extend((i, int(k)) for k in j[hit])
+    return np.array(out, dtype=np.int32).reshape(-1, 2)
+
+
+# --------------------------------------------------------------------------- narrow phase
+def _angle(v) -> float:
+    return math.atan2(v[1], v[0])
+
+
+def _wrap(a: float, lower: float) -> float:
+    return a - 2 * math.pi * math.floor((a - lower) / (2 * math.pi))
+
+
+def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Shi's vertex-edge / vertex-vertex contact rules (dda-method.md §3.3–3.6), pair by pair.
+
+    Returns (cint (m, 5): kind, vertex0, edge0, vertex1, edge1; length (m,)), unsorted.
+    """
+    xy = vertex_xy
+    nxt, prv, off = model.vertex_next, model.vertex_prev, model.vertex_offset
+    d0, d9 = model.search_distance, model.max_penetration
+    h1 = math.radians(model.params.angle_tolerance)
+    sin_h1 = math.sin(h1)
+    rows, lengths = [], []
+
+    def emit(kind, v0, e0, v1=-1, e1=-1, length=0.0):
+        rows.append((kind, v0, e0, v1, e1))
+        lengths.append(length)
+
+    def param(e, p):
+        q0, q1 = xy[e], xy[nxt[e]]
+        d = q1 - q0
+        return float(np.dot(xy[p] - q0, d) / np.dot(d, d))
+
+    def half_overlap(e, a, b):
+        ta, tb = param(e, a), param(e, b)
+        lo, hi = max(0.0, min(ta, tb)), min(1.0, max(ta, tb))
+        return 0.5 * max(0.0, hi - lo) * float(np.linalg.norm(xy[nxt[e]] - xy[e]))
+
+    def convex(p):
+        r1, r2 = xy[nxt[p]] - xy[p], xy[prv[p]] - xy[p]
+        return r1[0] * r2[1] - r1[1] * r2[0] > 0
+
+    def ve_test(p, e, check_projection):
+        q0, q1, P = xy[e], xy[nxt[e]], xy[p]
+        d = q1 - q0
+        l = float(np.linalg.norm(d))
+        t = float(np.dot(P - q0, d)) / l ** 2
+        n = np.array([d[1], -d[0]]) / l
+        dn = float(np.dot(P - q0, n))
+        if check_projection and not 0.0 <= t <= 1.0:
+            return False, 0.0
+        if dn > d0 or dn < -d9 or not convex(p):
+            return False, 0.0
+        r1, r2 = xy[nxt[p]] - P, xy[prv[p]] - P
+        n1, n2 = np.linalg.norm(r1), np.linalg.norm(r2)
+        if np.dot(r1, n) < -sin_h1 * n1 or np.dot(r2, n) < -sin_h1 * n2:
+            return False, 0.0
+        if abs(np.dot(r1, n)) <= sin_h1 * n1:
+            return True, half_overlap(e, p, nxt[p])
+        if abs(np.dot(r2, n)) <= sin_h1 * n2:
+            return True, half_overlap(e, p, prv[p])
+        return True, 0.0
+
+    def nearest(P, lo, hi):
+        dist = np.linalg.norm(xy[lo:hi] - P, axis=1)
+        k = int(np.argmin(dist))
+        return lo + k if dist[k] <= d0 else -1
+
+    for A, B in pairs:
+        a0, a1, b0, b1 = off[A], off[A + 1], off[B], off[B + 1]
+        for ia in range(a0, a1):
+            ib = nearest(xy[ia], b0, b1)
+            if ib < 0 or nearest(xy[ib], a0, a1) != ia:
+                continue
+            cP, cQ = convex(ia), convex(ib)
+            if cP and not cQ:
+                for e in (prv[ib], ib):
+                    ok, L = ve_test(ia, e, False)
+                    if ok:
+                        emit(VE, ia, e, length=L)
+            elif cQ and not cP:
+                for e in (prv[ia], ia):
+                    ok, L = ve_test(ib, e, False)
+                    if ok:
+                        emit(VE, ib, e, length=L)
+            elif cP and cQ:
+                P, Q = xy[ia], xy[ib]
+                a1_, a2_ = _angle(xy[nxt[ia]] - P), _angle(xy[prv[ia]] - P)
+                b1_, b2_ = _angle(xy[nxt[ib]] - Q), _angle(xy[prv[ib]] - Q)
+                wA, wB = _wrap(a2_ - a1_, 0.0), _wrap(b2_ - b1_, 0.0)
+                e5, e6 = _wrap(b1_ - a2_, -h1), _wrap(a1_ - b2_, -h1)
+                if abs(wA + wB + e5 + e6 - 2 * math.pi) >= 1e-6:
+                    continue  # wedges overlap: already interpenetrated
+                if e5 < h1:
+                    tP, tQ = param(ib, ia), param(prv[ia], ib)
+                    if min(tP, 1 - tP) >= min(tQ, 1 - tQ):
+                        emit(VE, ia, ib, length=half_overlap(ib, ia, prv[ia]))
+                    else:
+                        emit(VE, ib, prv[ia], length=half_overlap(prv[ia], ib, nxt[ib]))
+                elif e6 < h1:
+                    tP, tQ = param(prv[ib], ia), param(ia, ib)
+                    if min(tP, 1 - tP) >= min(tQ, 1 - tQ):
+                        emit(VE, ia, prv[ib], length=half_overlap(prv[ib], ia, nxt[ia]))
+                    else:
+                        emit(VE, ib, ia, length=half_overlap(ia, ib, prv[ib]))
+                elif e5 <= e6:
+                    emit(VV, ia, ib, ib, prv[ia])
+                else:
+                    emit(VV, ia, prv[ib], ib, ia)
+        for (v_lo, v_hi), (e_lo, e_hi) in (((a0, a1), (b0, b1)), ((b0, b1), (a0, a1))):
+            for iv in range(v_lo, v_hi):
+                for ie in range(e_lo, e_hi):
+                    if np.linalg.norm(xy[iv] - xy[ie]) > d0 and np.linalg.norm(xy[iv] - xy[nxt[ie]]) > d0:
+                        ok, L = ve_test(iv, ie, True)
+                        if ok:
+                            emit(VE, iv, ie, length=L)
+    return np.array(rows, dtype=np.int32).reshape(-1, 5), np.array(lengths, dtype=float)
+
+
+def detect_contacts(model: Model, vertex_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Reference broad + narrow phase, in canonical order."""
+    from .contacts import sort_contacts
+
+    pairs = broad_phase(model, vertex_xy, model.search_distance)
+    return sort_contacts(*narrow_phase(model, vertex_xy, pairs))
+
+
+# --------------------------------------------------------------------------- contact vectors
+def contact_vectors(model: Model, vertex_xy: np.ndarray, centroid: np.ndarray, cint: np.ndarray,
+                    omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(vec (m, 7, 6), sca (m, 3)) as `kernels.contact_vectors`, from the T matrix (§1.1, §2.8)."""
+    m = len(cint)
+    vec = np.zeros((m, 7, 6))
+    sca = np.zeros((m, 3))
+    nxt, vb = model.vertex_next, model.vertex_block
+    for c in range(m):
+        kind = cint[c, 0]
+        for q in range(1 + kind):
+            p1, k = cint[c, 1 + 2 * q], cint[c, 2 + 2 * q]
+            P1, P2, P3 = vertex_xy[p1], vertex_xy[nxt[k]], vertex_xy[k]
+            i, j = vb[p1], vb[k]
+            T1 = displacement_matrix(P1, centroid[i])
+            T2 = displacement_matrix(P2, centroid[j])
+            T3 = displacement_matrix(P3, centroid[j])
+            (x1, y1), (x2, y2), (x3, y3) = P1, P2, P3
+            l = math.hypot(x3 - x2, y3 - y2)
+            delta = (x2 - x1) * (y3 - y1) - (y2 - y1) * (x3 - x1)
+            sca[c, q] = delta / l
+            vec[c, 2 * q] = (T1.T @ np.array([y2 - y3, x3 - x2])) / l
+            vec[c, 2 * q + 1] = (T2.T @ np.array([y3 - y1, x1 - x3]) + T3.T @ np.array([y1 - y2, x2 - x1])) / l
+            if q == 0 and kind == VE:
+                w = omega[c]
+                t = (P3 - P2) / l
+                P0 = (1 - w) * P2 + w * P3
+                sca[c, 2] = np.dot(P1 - P0, P3 - P2) / l
+                vec[c, 4] = T1.T @ t
+                vec[c, 5] = (T2.T @ (-P1 + 2 * (1 - w) * P2 - (1 - 2 * w) * P3) +
+                             T3.T @ (P1 - (1 - 2 * w) * P2 - 2 * w * P3)) / l
+                vec[c, 6] = ((1 - w) * T2 + w * T3).T @ t
+    return vec, sca
+
+
+# --------------------------------------------------------------------------- assembly
+def assemble_dense(model: Model, vertex_xy: np.ndarray, velocity: np.ndarray, stress: np.ndarray,
+                   fixed_point_xy: np.ndarray, load_xy: np.ndarray, load_force: np.ndarray,
+                   dt: float, body_acc: np.ndarray, contacts, vec: np.ndarray, sca: np.ndarray,
+                   friction_force: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Dense K (6n × 6n) and F over the free blocks, term by term (§2.1–2.8)."""
+    geom = model.block_geometry(vertex_xy)
+    free = np.flatnonzero(~model.block_fixed)
+    row = {int(b): r for r, b in enumerate(free)}
+    n = 6 * len(free)
+    K = np.zeros((n, n))
+    F = np.zeros(n)
+    carry = model.params.velocity_carry
+    M = mass_matrix(geom["area"], geom["s1"], geom["s2"], geom["s3"])
+
+    def sl(b):
+        r = row[int(b)]
+        return slice(6 * r, 6 * r + 6)
+
+    for b in free:
+        rho, s = model.block_density[b], geom["area"][b]
+        K[sl(b), sl(b)] += 2 * rho / dt ** 2 * M[b]
+        K[sl(b), sl(b)][3:, 3:] += s * model.block_elastic[b]
+        F[sl(b)] += 2 * rho / dt * M[b] @ (carry * velocity[b])
+        F[sl(b)][3:] -= s * stress[b]
+        F[sl(b)][:2] += rho * s * body_acc
+    for p, b in enumerate(model.fixed_point_block):
+        if b in row:
+            T = displacement_matrix(fixed_point_xy[p], geom["centroid"][b])
+            K[sl(b), sl(b)] += model.fixed_point_penalty * T.T @ T
+            F[sl(b)] += model.fixed_point_penalty * T.T @ (model.fixed_point_xy0[p] - fixed_point_xy[p])
+    for p, b in enumerate(model.load_block):
+        if b in row:
+            T = displacement_matrix(load_xy[p], geom["centroid"][b])
+            F[sl(b)] += T.T @ load_force[p]
+
+    vb = model.vertex_block
+
+    def spring(k, u, w, d, i, j):
+        if i in row:
+            K[sl(i), sl(i)] += k * np.outer(u, u)
+            F[sl(i)] -= k * d * u
+        if j in row:
+            K[sl(j), sl(j)] += k * np.outer(w, w)
+            F[sl(j)] -= k * d * w
+        if i in row and j in row:
+            K[sl(i), sl(j)] += k * np.outer(u, w)
+            K[sl(j), sl(i)] += k * np.outer(w, u)
+
+    for c in range(contacts.n):
+        st = contacts.state[c]
+        if st == ContactState.OPEN:
+            continue
+        q = int(contacts.line[c])
+        i = int(vb[contacts.cint[c, 1 + 2 * q]])
+        j = int(vb[contacts.cint[c, 2 + 2 * q]])
+        spring(model.penalty, vec[c, 2 * q], vec[c, 2 * q + 1], sca[c, q], i, j)
+        if contacts.cint[c, 0] == VE:
+            if st == ContactState.LOCK:
+                spring(model.shear_penalty, vec[c, 4], vec[c, 5], sca[c, 2], i, j)
+            else:
+                f = friction_force[c] * contacts.shear_dir[c]
+                if i in row:
+                    F[sl(i)] -= f * vec[c, 4]
+                if j in row:
+                    F[sl(j)] += f * vec[c, 6]
+    return K, F

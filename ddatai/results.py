@@ -1,0 +1,198 @@
+"""Results of a run: recorded frames, one record per step, `.npz` save/load.
+
+Plain NumPy, no Taichi: the renderer, `kgm` and users read results without starting the
+solver. Frame 0 is the initial state.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+
+#: One record per accepted step. Times in seconds of wall-clock, except ``time`` and ``dt``.
+STEP_DTYPE = np.dtype([
+    ("time", "f8"),             # simulated time at the end of the step [s]
+    ("dt", "f8"),               # time step used [s]
+    ("oc_iterations", "i4"),    # open-close iterations of the accepted attempt
+    ("oc_total", "i4"),         # open-close iterations including rejected attempts
+    ("dt_cuts", "i4"),          # rejected attempts (time-step cuts) before acceptance
+    ("contacts", "i4"),         # contacts detected
+    ("closed", "i4"),           # contacts closed (sliding or locked) at the end of the step
+    ("max_penetration", "f8"),  # deepest penetration of a closed contact [m]
+    ("max_displacement", "f8"), # largest vertex displacement in the step [m]
+    ("t_contacts", "f8"),       # wall time: contact detection and transfer [s]
+    ("t_assembly", "f8"),       # wall time: block and contact terms [s]
+    ("t_solve", "f8"),          # wall time: sparse factorisation and solves [s]
+    ("t_update", "f8"),         # wall time: open-close judgement and geometry update [s]
+])
+
+
+class SimulationError(RuntimeError):
+    """A run stopped because it diverged or could not converge.
+
+    Attributes
+    ----------
+    step : int
+        The step (1-based) that failed.
+    time : float
+        Simulated time at the start of that step [s].
+    cause : str
+        "nan", "penetration", "open-close" or "displacement".
+    results : Results or None
+        Everything recorded up to the last accepted step.
+    """
+
+    def __init__(self, message: str, *, step: int, time: float, cause: str,
+                 results: Optional["Results"] = None):
+        super().__init__(message)
+        self.step = step
+        self.time = time
+        self.cause = cause
+        self.results = results
+
+
+@dataclass(kw_only=True, eq=False)
+class Results:
+    """Recorded frames of a run (F frames, B blocks, V vertices) and per-step records."""
+
+    time: np.ndarray
+    """(F,) simulated time of each frame [s]."""
+    centroid: np.ndarray
+    """(F, B, 2) block centroids [m]."""
+    rotation: np.ndarray
+    """(F, B) accumulated rigid rotation [rad], counter-clockwise positive."""
+    velocity: np.ndarray
+    """(F, B, 2) centroid velocities [m/s] (relative to the ground under seismic input)."""
+    angular_velocity: np.ndarray
+    """(F, B) angular velocities [rad/s]."""
+    stress: np.ndarray
+    """(F, B, 3) block stresses (σx, σy, τxy) [Pa], compression negative."""
+    vertices: np.ndarray
+    """(F, V, 2) vertex positions [m]."""
+    vertex_offset: np.ndarray
+    """(B+1,) block b owns vertices ``vertex_offset[b]:vertex_offset[b+1]``."""
+    block_fixed: np.ndarray
+    """(B,) fixed blocks."""
+    measured: np.ndarray
+    """(F, nm, 2) positions of the scene's measured points [m]."""
+    contact_offset: np.ndarray
+    """(F+1,) frame f owns contacts ``contact_offset[f]:contact_offset[f+1]`` (empty unless
+    contacts were recorded)."""
+    contact_xy: np.ndarray
+    """(C, 2) contact points (the contacting vertex) [m]."""
+    contact_state: np.ndarray
+    """(C,) int8 `ContactState` (0 open, 1 sliding, 2 locked)."""
+    steps: np.ndarray
+    """(S,) structured array, one record per accepted step (`STEP_DTYPE`)."""
+
+    @property
+    def n_frames(self) -> int:
+        return len(self.time)
+
+    @property
+    def n_blocks(self) -> int:
+        return len(self.vertex_offset) - 1
+
+    def polygons(self, frame: int = -1) -> list[np.ndarray]:
+        """Deformed block polygons of a frame: list of (n, 2) CCW vertex arrays [m]."""
+        xy = self.vertices[frame]
+        o = self.vertex_offset
+        return [xy[o[b]:o[b + 1]] for b in range(len(o) - 1)]
+
+    def displacement(self, frame: int = -1) -> np.ndarray:
+        """(B, 2) centroid displacement of a frame from frame 0 [m]."""
+        return self.centroid[frame] - self.centroid[0]
+
+    def contacts(self, frame: int = -1) -> tuple[np.ndarray, np.ndarray]:
+        """Contact points (n, 2) and states (n,) recorded at a frame."""
+        f = range(self.n_frames)[frame]
+        a, b = self.contact_offset[f], self.contact_offset[f + 1]
+        return self.contact_xy[a:b], self.contact_state[a:b]
+
+    def save(self, path) -> None:
+        """Write all arrays to an `.npz` file."""
+        np.savez_compressed(Path(path), **{f.name: getattr(self, f.name) for f in fields(self)})
+
+    def summary(self) -> dict:
+        """A few totals of the run (steps, time-step cuts, open-close iterations, wall time)."""
+        s = self.steps
+        wall = float(sum(s[k].sum() for k in ("t_contacts", "t_assembly", "t_solve", "t_update")))
+        return {
+            "blocks": self.n_blocks,
+            "steps": int(len(s)),
+            "simulated_time": float(self.time[-1]) if len(self.time) else 0.0,
+            "dt_cuts": int(s["dt_cuts"].sum()) if len(s) else 0,
+            "oc_iterations": int(s["oc_total"].sum()) if len(s) else 0,
+            "wall_time": wall,
+        }
+
+
+def load_results(path) -> Results:
+    """Read results written by `Results.save`."""
+    with np.load(Path(path), allow_pickle=False) as data:
+        kwargs = {f.name: data[f.name] for f in fields(Results)}
+    return Results(**kwargs)
+
+
+class Recorder:
+    """Accumulates frames during a run and builds `Results` (also a partial one on failure)."""
+
+    def __init__(self, model, record_contacts: bool):
+        self.model = model
+        self.record_contacts = record_contacts
+        self.frames: dict[str, list] = {k: [] for k in (
+            "time", "centroid", "rotation", "velocity", "angular_velocity", "stress", "vertices",
+            "measured")}
+        self.contact_xy: list[np.ndarray] = []
+        self.contact_state: list[np.ndarray] = []
+        self.contact_count: list[int] = []
+        self.steps: list[tuple] = []
+
+    def frame(self, state, centroid: np.ndarray, contact_xy=None, contact_state=None) -> None:
+        origin = self.model.origin
+        f = self.frames
+        f["time"].append(state.time)
+        f["centroid"].append(centroid + origin)
+        f["rotation"].append(state.block_rotation.copy())
+        f["velocity"].append(state.block_velocity[:, :2].copy())
+        f["angular_velocity"].append(state.block_velocity[:, 2].copy())
+        f["stress"].append(state.block_stress.copy())
+        f["vertices"].append(state.vertex_xy + origin)
+        f["measured"].append(state.measured_xy + origin)
+        if self.record_contacts and contact_xy is not None:
+            self.contact_xy.append(contact_xy + origin)
+            self.contact_state.append(contact_state.astype(np.int8))
+            self.contact_count.append(len(contact_xy))
+        else:
+            self.contact_count.append(0)
+
+    def step(self, record: tuple) -> None:
+        self.steps.append(record)
+
+    def results(self) -> Results:
+        f = self.frames
+        m = self.model
+        nb, nv, nm = m.n_blocks, m.n_vertices, len(m.measured_block)
+
+        def stack(name, shape):
+            return np.array(f[name]) if f[name] else np.zeros((0,) + shape)
+
+        return Results(
+            time=np.array(f["time"], dtype=float),
+            centroid=stack("centroid", (nb, 2)),
+            rotation=stack("rotation", (nb,)),
+            velocity=stack("velocity", (nb, 2)),
+            angular_velocity=stack("angular_velocity", (nb,)),
+            stress=stack("stress", (nb, 3)),
+            vertices=stack("vertices", (nv, 2)),
+            vertex_offset=m.vertex_offset.astype(np.int64),
+            block_fixed=m.block_fixed.copy(),
+            measured=stack("measured", (nm, 2)),
+            contact_offset=np.concatenate([[0], np.cumsum(self.contact_count)]).astype(np.int64),
+            contact_xy=np.concatenate(self.contact_xy) if self.contact_xy else np.zeros((0, 2)),
+            contact_state=np.concatenate(self.contact_state) if self.contact_state else np.zeros(0, np.int8),
+            steps=np.array(self.steps, dtype=STEP_DTYPE),
+        )

@@ -1,0 +1,304 @@
+"""`Scene`: the user-facing builder of a DDA model (blocks, joints, points, loads, shaking).
+
+A scene is plain Python/NumPy data. Every input is validated when it is added, so an error
+names the offending block, joint or parameter before any simulation work. `build_model`
+(in :mod:`ddatai.model`) turns a scene into the flat static arrays the solver uses.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, Optional, Sequence, Union
+
+import numpy as np
+
+from .geometry import cut as _cut_domain
+from .geometry import validate_polygon
+from .params import Joint, Material
+
+Force = Union[Sequence[float], Callable[[float], Sequence[float]]]
+
+
+@dataclass(frozen=True, kw_only=True)
+class BlockSpec:
+    """One block as the user gave it (after validation)."""
+
+    vertices: np.ndarray
+    """(n, 2) CCW vertices [m]."""
+    material: Material
+    """Block material."""
+    fixed: bool
+    """Fixed blocks do not move (they move with the ground under seismic input)."""
+    velocity: tuple[float, float]
+    """Initial velocity of the centroid (vx, vy) [m/s]."""
+    angular_velocity: float
+    """Initial angular velocity [rad/s], counter-clockwise positive."""
+    stress: tuple[float, float, float]
+    """Initial stress (σx, σy, τxy) [Pa], compression negative."""
+    edge_joint: np.ndarray
+    """(n,) index into the scene's joint table of the joint each edge (vertex k → k+1) lies
+    on, or -1 (no joint line: the default joint applies)."""
+
+
+@dataclass(frozen=True, kw_only=True)
+class PointSpec:
+    block: int
+    """Block the point belongs to."""
+    xy: tuple[float, float]
+    """Initial position [m]."""
+    force: Optional[Force] = None
+    """Point load: (fx, fy) [N per m thickness] or a function t [s] -> (fx, fy)."""
+
+
+class Scene:
+    """A 2D block system to simulate.
+
+    Parameters
+    ----------
+    gravity : float
+        Gravitational acceleration [m/s²], acting in -y. 0 switches gravity off.
+
+    Examples
+    --------
+    >>> import ddatai as dd
+    >>> scene = dd.Scene(gravity=9.81)
+    >>> rock = dd.Material(density=2500.0, young=5e9, poisson=0.25)
+    >>> base = scene.add_block([(0, 0), (4, 0), (4, 1), (0, 1)], material=rock, fixed=True)
+    >>> top = scene.add_block([(1, 1), (2, 1), (2, 2), (1, 2)], material=rock)
+    >>> scene.set_joint(dd.Joint(friction=35.0))
+    >>> scene.n_blocks
+    2
+    """
+
+    def __init__(self, gravity: float = 9.81):
+        if not (isinstance(gravity, (int, float)) and np.isfinite(gravity) and gravity >= 0):
+            raise ValueError(f"Scene.gravity must be a finite number >= 0 m/s², got {gravity!r}")
+        self.gravity = float(gravity)
+        self.blocks: list[BlockSpec] = []
+        #: joint table; entry 0 is the default joint (see `set_joint`)
+        self.joints: list[Joint] = [Joint()]
+        self.pair_joints: dict[tuple[int, int], int] = {}
+        self.fixed_points: list[PointSpec] = []
+        self.point_loads: list[PointSpec] = []
+        self.measured_points: list[PointSpec] = []
+        self.ground_acceleration: Optional[Callable[[float], Sequence[float]]] = None
+
+    # ------------------------------------------------------------------ blocks
+    @property
+    def n_blocks(self) -> int:
+        return len(self.blocks)
+
+    def add_block(self, vertices, *, material: Material, fixed: bool = False,
+                  velocity: Sequence[float] = (0.0, 0.0), angular_velocity: float = 0.0,
+                  stress: Sequence[float] = (0.0, 0.0, 0.0)) -> int:
+        """Add a polygonal block; returns its id (0-based, in the order blocks are added).
+
+        ``vertices`` is a simple polygon in either orientation [m]; ``velocity`` the initial
+        centroid velocity [m/s]; ``angular_velocity`` [rad/s]; ``stress`` the initial stress
+        (σx, σy, τxy) [Pa].
+        """
+        bid = len(self.blocks)
+        name = f"block {bid}"
+        xy = validate_polygon(vertices, name=name)
+        self._check_block_args(name, material, velocity, angular_velocity, stress)
+        self.blocks.append(BlockSpec(
+            vertices=xy, material=material, fixed=bool(fixed),
+            velocity=(float(velocity[0]), float(velocity[1])),
+            angular_velocity=float(angular_velocity),
+            stress=(float(stress[0]), float(stress[1]), float(stress[2])),
+            edge_joint=np.full(len(xy), -1, dtype=np.int64)))
+        return bid
+
+    @staticmethod
+    def _check_block_args(name, material, velocity, angular_velocity, stress) -> None:
+        if not isinstance(material, Material):
+            raise ValueError(f"{name}: material must be a ddatai.Material, got {type(material).__name__}")
+        v = np.asarray(velocity, dtype=float)
+        if v.shape != (2,) or not np.all(np.isfinite(v)):
+            raise ValueError(f"{name}: velocity must be a finite (vx, vy) pair, got {velocity!r}")
+        if not np.isfinite(angular_velocity):
+            raise ValueError(f"{name}: angular_velocity must be finite, got {angular_velocity!r}")
+        s = np.asarray(stress, dtype=float)
+        if s.shape != (3,) or not np.all(np.isfinite(s)):
+            raise ValueError(f"{name}: stress must be a finite (σx, σy, τxy) triple, got {stress!r}")
+
+    def cut(self, boundary, joints: Sequence, material: Material, *, fixed: bool = False) -> list[int]:
+        """Cut the domain polygon ``boundary`` by joint traces and add the resulting blocks.
+
+        ``joints`` is a list of ``(polyline, Joint)``: each polyline (k >= 2 points) is a
+        persistent or finite trace. Traces, or parts of them, that do not close a block are
+        dropped. Every block edge remembers the joint it lies on, and contacts along that edge
+        use that joint's properties. Returns the ids of the new blocks (ordered by centroid,
+        bottom to top, then left to right).
+        """
+        if not isinstance(material, Material):
+            raise ValueError(f"cut: material must be a ddatai.Material, got {type(material).__name__}")
+        traces, jts = [], []
+        for k, item in enumerate(joints):
+            try:
+                trace, jt = item
+            except (TypeError, ValueError):
+                raise ValueError(f"joint {k}: expected a (polyline, Joint) pair") from None
+            if not isinstance(jt, Joint):
+                raise ValueError(f"joint {k}: expected a ddatai.Joint, got {type(jt).__name__}")
+            traces.append(trace)
+            jts.append(jt)
+        pieces = _cut_domain(boundary, traces)
+        # one joint-table entry per distinct Joint value
+        table_index = {}
+        for jt in jts:
+            if jt not in table_index:
+                table_index[jt] = self._joint_index(jt)
+        ids = []
+        for xy, edge_trace in pieces:
+            edge_joint = np.array([table_index[jts[t]] if t >= 0 else -1 for t in edge_trace],
+                                  dtype=np.int64)
+            bid = len(self.blocks)
+            self.blocks.append(BlockSpec(vertices=xy, material=material, fixed=bool(fixed),
+                                         velocity=(0.0, 0.0), angular_velocity=0.0,
+                                         stress=(0.0, 0.0, 0.0), edge_joint=edge_joint))
+            ids.append(bid)
+        return ids
+
+    def set_fixed(self, block: int, fixed: bool = True) -> None:
+        """Mark a block fixed (or free)."""
+        b = self._block_id(block)
+        spec = self.blocks[b]
+        self.blocks[b] = BlockSpec(vertices=spec.vertices, material=spec.material, fixed=bool(fixed),
+                                   velocity=spec.velocity, angular_velocity=spec.angular_velocity,
+                                   stress=spec.stress, edge_joint=spec.edge_joint)
+
+    def polygon(self, block: int) -> np.ndarray:
+        """The (n, 2) CCW vertices of a block as given [m]."""
+        return self.blocks[self._block_id(block)].vertices.copy()
+
+    # ------------------------------------------------------------------ joints
+    def _joint_index(self, joint: Joint) -> int:
+        for k, jt in enumerate(self.joints[1:], start=1):
+            if jt == joint:
+                return k
+        self.joints.append(joint)
+        return len(self.joints) - 1
+
+    def set_joint(self, joint: Joint, between: Optional[tuple[int, int]] = None) -> None:
+        """Set the default joint (``between=None``) or override it for all contacts of a pair.
+
+        Precedence for a contact: the pair override, then the joint line its reference edge
+        lies on (from `cut`), then the default joint.
+        """
+        if not isinstance(joint, Joint):
+            raise ValueError(f"set_joint: expected a ddatai.Joint, got {type(joint).__name__}")
+        if between is None:
+            self.joints[0] = joint
+            return
+        try:
+            i, j = between
+        except (TypeError, ValueError):
+            raise ValueError(f"set_joint: between must be a pair of block ids, got {between!r}") from None
+        i, j = self._block_id(i), self._block_id(j)
+        if i == j:
+            raise ValueError(f"set_joint: between must name two different blocks, got ({i}, {j})")
+        self.pair_joints[(min(i, j), max(i, j))] = self._joint_index(joint)
+
+    # ------------------------------------------------------------------ points and loads
+    def _block_id(self, block) -> int:
+        if isinstance(block, (bool, np.bool_)) or not isinstance(block, (int, np.integer)):
+            raise ValueError(f"block id must be an integer, got {block!r}")
+        if not 0 <= int(block) < len(self.blocks):
+            raise ValueError(f"unknown block id {block} (the scene has {len(self.blocks)} blocks)")
+        return int(block)
+
+    def _point_in_block(self, block, xy, what: str) -> tuple[int, tuple[float, float]]:
+        b = self._block_id(block)
+        p = np.asarray(xy, dtype=float)
+        if p.shape != (2,) or not np.all(np.isfinite(p)):
+            raise ValueError(f"{what} on block {b}: point must be a finite (x, y) pair, got {xy!r}")
+        import shapely
+
+        poly = shapely.Polygon(self.blocks[b].vertices)
+        size = float(np.ptp(self.blocks[b].vertices, axis=0).max())
+        if poly.distance(shapely.Point(p)) > 1e-9 * size:
+            raise ValueError(f"{what} at ({p[0]:g}, {p[1]:g}) is outside block {b}")
+        return b, (float(p[0]), float(p[1]))
+
+    def add_fixed_point(self, block: int, xy: Sequence[float]) -> None:
+        """Pin a point of a block to its initial position with a stiff spring."""
+        b, p = self._point_in_block(block, xy, "fixed point")
+        self.fixed_points.append(PointSpec(block=b, xy=p))
+
+    def add_point_load(self, block: int, xy: Sequence[float], force: Force) -> None:
+        """Apply a point load at a material point of a block.
+
+        ``force`` is a constant (fx, fy) [N per m thickness] or a function t [s] -> (fx, fy),
+        evaluated at the middle of each time step. The point moves with the block.
+        """
+        b, p = self._point_in_block(block, xy, "point load")
+        if callable(force):
+            try:
+                f0 = np.asarray(force(0.0), dtype=float)
+            except Exception as exc:  # noqa: BLE001 - report any failure of the user's function
+                raise ValueError(f"point load on block {b}: force(0.0) failed: {exc}") from None
+            if f0.shape != (2,) or not np.all(np.isfinite(f0)):
+                raise ValueError(f"point load on block {b}: force(t) must return a finite (fx, fy), "
+                                 f"got {f0!r} at t=0")
+        else:
+            f = np.asarray(force, dtype=float)
+            if f.shape != (2,) or not np.all(np.isfinite(f)):
+                raise ValueError(f"point load on block {b}: force must be a finite (fx, fy) pair "
+                                 f"or a function of time, got {force!r}")
+            force = (float(f[0]), float(f[1]))
+        self.point_loads.append(PointSpec(block=b, xy=p, force=force))
+
+    def add_measured_point(self, block: int, xy: Sequence[float]) -> int:
+        """Track a material point of a block; its positions are recorded in the results.
+        Returns the point's index in ``Results.measured``."""
+        b, p = self._point_in_block(block, xy, "measured point")
+        self.measured_points.append(PointSpec(block=b, xy=p))
+        return len(self.measured_points) - 1
+
+    def set_ground_acceleration(self, fn) -> None:
+        """Shake the ground: ``fn(t) -> (ax, ay)`` [m/s²], or a sampled record
+        ``(times, accelerations)`` with times (n,) [s] and accelerations (n, 2) or (n,)
+        (horizontal only), linearly interpolated and zero outside the record.
+
+        Fixed blocks move with the ground; the simulation runs in the ground's frame, where
+        every free block feels the inertial body force -ρ·a_g(t). All results (positions,
+        velocities) are therefore relative to the ground.
+        """
+        if fn is None:
+            self.ground_acceleration = None
+            return
+        if not callable(fn):
+            fn = _sampled_record(fn)
+        try:
+            a0 = np.asarray(fn(0.0), dtype=float)
+        except Exception as exc:  # noqa: BLE001
+            raise ValueError(f"ground acceleration: fn(0.0) failed: {exc}") from None
+        if a0.shape != (2,) or not np.all(np.isfinite(a0)):
+            raise ValueError(f"ground acceleration: fn(t) must return a finite (ax, ay), got {a0!r} at t=0")
+        self.ground_acceleration = fn
+
+
+def _sampled_record(record) -> Callable[[float], tuple[float, float]]:
+    try:
+        times, acc = record
+    except (TypeError, ValueError):
+        raise ValueError("ground acceleration: expected a function fn(t) -> (ax, ay) "
+                         "or a (times, accelerations) record") from None
+    t = np.asarray(times, dtype=float)
+    a = np.asarray(acc, dtype=float)
+    if a.ndim == 1:
+        a = np.stack([a, np.zeros_like(a)], axis=1)
+    if t.ndim != 1 or len(t) < 2 or a.shape != (len(t), 2):
+        raise ValueError(f"ground acceleration record: times (n,) and accelerations (n, 2) or (n,) "
+                         f"with n >= 2 expected, got {t.shape} and {np.shape(acc)}")
+    if not (np.all(np.isfinite(t)) and np.all(np.isfinite(a)) and np.all(np.diff(t) > 0)):
+        raise ValueError("ground acceleration record: times must be finite and strictly increasing, "
+                         "accelerations finite")
+
+    def fn(time: float) -> tuple[float, float]:
+        return (float(np.interp(time, t, a[:, 0], left=0.0, right=0.0)),
+                float(np.interp(time, t, a[:, 1], left=0.0, right=0.0)))
+
+    fn.record = (t, a)  # type: ignore[attr-defined]
+    return fn
