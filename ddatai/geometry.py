@@ -41,12 +41,11 @@ def validate_polygon(vertices, *, name: str = "block") -> np.ndarray:
         raise ValueError(f"{name}: a polygon needs at least 3 distinct vertices, got {len(xy)}")
     import shapely
 
-    ring = shapely.LinearRing(xy)
-    if not ring.is_simple:
-        raise ValueError(f"{name}: polygon is self-intersecting (not a simple polygon)")
     area = signed_area(xy)
     if abs(area) <= 1e-12 * scale * scale:
         raise ValueError(f"{name}: polygon has zero area")
+    if not shapely.LinearRing(xy).is_simple:
+        raise ValueError(f"{name}: polygon is self-intersecting (not a simple polygon)")
     if area < 0:
         xy = xy[::-1].copy()
     xy = _drop_collinear(xy)

@@ -1,0 +1,185 @@
+"""Contact detection: Taichi kernels against the NumPy reference, and the contact geometry of
+dda-method.md §2.8, §3 on hand-made cases (sign of dn, edge-edge lengths, vertex-vertex)."""
+
+import numpy as np
+import pytest
+
+import ddatai as dd
+from cases import ROCK, perturbed_vertices, random_jointed_scene
+from ddatai import reference
+from ddatai.contacts import Contacts, _Buffers, broad_phase, detect_contacts
+from ddatai.geometry import displacement_matrix
+from ddatai.model import ContactMemory, ContactState, build_model
+from ddatai.step import Stepper
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_taichi_detection_equals_reference(seed):
+    """Broad phase and narrow phase agree exactly with the brute-force NumPy reference."""
+    model = build_model(random_jointed_scene(seed))
+    xy = perturbed_vertices(model, seed + 100, shift=0.2 * model.search_distance)
+    assert np.array_equal(broad_phase(model, xy, model.search_distance, _Buffers()),
+                          reference.broad_phase(model, xy, model.search_distance))
+    cint, length = detect_contacts(model, xy)
+    cint_r, length_r = reference.detect_contacts(model, xy)
+    assert len(cint) > 0
+    assert np.array_equal(cint, cint_r)
+    assert np.allclose(length, length_r, rtol=1e-12, atol=1e-12)
+
+
+def test_broad_phase_with_big_boxes_equals_reference():
+    """Blocks larger than 4× the median size take the all-against-one path."""
+    scene = dd.Scene()
+    scene.add_block([(-50, -5), (50, -5), (50, 0), (-50, 0)], material=ROCK, fixed=True)
+    scene.add_block([(-50, 0), (-45, 0), (-45, 40), (-50, 40)], material=ROCK, fixed=True)
+    rng = np.random.default_rng(3)
+    for k in range(60):
+        x, y = -44 + 1.5 * (k % 12) + rng.uniform(0, 0.5), 1.0 * (k // 12) + rng.uniform(0, 0.05)
+        scene.add_block([(x, y), (x + 0.9, y), (x + 0.9, y + 0.9), (x, y + 0.9)], material=ROCK)
+    scene.add_block([(10, 35), (30, 35), (30, 38), (10, 38)], material=ROCK)  # big and free
+    model = build_model(scene)
+    xy = model.vertex_xy0
+    for margin in (model.search_distance, 3.0):
+        assert np.array_equal(broad_phase(model, xy, margin, _Buffers()),
+                              reference.broad_phase(model, xy, margin))
+
+
+def _model(*blocks, fixed=(0,)):
+    scene = dd.Scene()
+    for k, b in enumerate(blocks):
+        scene.add_block(b, material=ROCK, fixed=k in fixed)
+    return build_model(scene)
+
+
+def test_block_on_base_is_two_edge_edge_contacts():
+    m = _model([(-2, -1), (3, -1), (3, 0), (-2, 0)], [(0, 0), (1, 0), (1, 1), (0, 1)])
+    cint, length = detect_contacts(m, m.vertex_xy0)
+    assert len(cint) == 2
+    assert np.all(cint[:, 0] == dd.ContactKind.VE)
+    assert np.all(m.vertex_block[cint[:, 1]] == 1)  # the block's corners against the base edge
+    assert np.allclose(length, 0.5)                   # half of the 1 m overlap each
+
+
+def test_offset_edges_give_one_vertex_from_each_block():
+    """Overlap [1.5, 2] of two parallel edges: the square's corner at 1.5 on the base's edge,
+    and the base's corner at 2 on the square's edge (§3.6)."""
+    m = _model([(0, -1), (2, -1), (2, 0), (0, 0)], [(1.5, 0), (2.5, 0), (2.5, 1), (1.5, 1)])
+    cint, length = detect_contacts(m, m.vertex_xy0)
+    assert len(cint) == 2
+    owners = sorted(m.vertex_block[cint[:, 1]])
+    assert owners == [0, 1]
+    assert np.allclose(length, 0.25)
+
+
+def test_corner_to_corner_is_vertex_vertex():
+    m = _model([(-1, -1), (0, -1), (0, 0), (-1, 0)], [(0.0, 1e-4), (1, 1e-4), (1, 1), (0.0, 1)])
+    cint, _ = detect_contacts(m, m.vertex_xy0)
+    assert len(cint) == 1 and cint[0, 0] == dd.ContactKind.VV
+
+
+def test_concave_corner_gives_vertex_against_both_edges():
+    """A square corner pushed into the concave corner of an L-shaped block."""
+    L = [(0, 0), (3, 0), (3, 1), (1, 1), (1, 3), (0, 3)]
+    m = _model(L, [(1 + 1e-4, 1 + 1e-4), (2, 1 + 1e-4), (2, 2), (1 + 1e-4, 2)])
+    cint, _ = detect_contacts(m, m.vertex_xy0)
+    corner = m.vertex_offset[1]  # the square's first vertex, nearest the concave corner
+    hits = cint[cint[:, 1] == corner]
+    assert len(hits) == 2 and np.all(hits[:, 0] == dd.ContactKind.VE)
+    assert set(m.vertex_block[hits[:, 2]]) == {0}
+
+
+def test_normal_distance_sign():
+    """A vertex 1 m above a horizontal edge has dn = +1; 0.1 m inside it, dn = −0.1 (§7j)."""
+    m = _model([(-2, -1), (3, -1), (3, 0), (-2, 0)], [(0, 1), (1, 1.5), (0.5, 2.5)])
+    stepper = Stepper(m)
+    # vertex 0 of block 1 against the top edge of the base (edge from vertex 2 to vertex 3)
+    cint = np.array([[0, m.vertex_offset[1], 2, -1, -1]], np.int32)
+    for drop, expect in ((0.0, 1.0), (1.1, -0.1)):
+        xy = m.vertex_xy0.copy()
+        xy[m.vertex_offset[1]:, 1] -= drop
+        c = Contacts.start(m, xy, cint, np.zeros(1), ContactMemory.empty(), False)
+        _, sca = stepper.contact_vectors(xy, m.block_geometry(xy), c)
+        assert sca[0, 0] == pytest.approx(expect, abs=1e-14)
+        assert c.dn[0] == pytest.approx(expect, abs=1e-14)
+
+
+def _exact_dn_ds(P1, P2, P3, omega, l0):
+    """Δ/l0 and (P1 − P0)·(P3 − P2)/l0 of P1 against the line P2 -> P3, with the edge length
+    l0 held at its step-start value as in DDA's linearisation (§2.8.1)."""
+    dn = ((P2[0] - P1[0]) * (P3[1] - P1[1]) - (P2[1] - P1[1]) * (P3[0] - P1[0])) / l0
+    P0 = (1 - omega) * P2 + omega * P3
+    return dn, np.dot(P1 - P0, P3 - P2) / l0
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_contact_vectors_are_derivatives(seed):
+    """e, g, e_s, g_s equal finite differences of dn, ds with respect to D (§7j), and the
+    Taichi kernel equals the reference."""
+    model = build_model(random_jointed_scene(seed))
+    xy = perturbed_vertices(model, seed, shift=0.1 * model.search_distance)
+    cint, length = detect_contacts(model, xy)
+    rng = np.random.default_rng(seed)
+    c = Contacts.start(model, xy, cint, length, ContactMemory.empty(), False)
+    c.omega[:] = rng.uniform(0, 1, c.n)
+    geom = model.block_geometry(xy)
+    vec, sca = Stepper(model).contact_vectors(xy, geom, c)
+    vec_r, sca_r = reference.contact_vectors(model, xy, geom["centroid"], cint, c.omega)
+    assert np.allclose(vec, vec_r, rtol=1e-11, atol=1e-11 * np.abs(vec_r).max())
+    assert np.allclose(sca, sca_r, rtol=1e-11, atol=1e-12)
+    h = 1e-7
+    nxt = model.vertex_next
+    for k in range(min(c.n, 25)):
+        kind, v0, e0 = cint[k, :3]
+        if kind != dd.ContactKind.VE:
+            continue
+        i, j = model.vertex_block[v0], model.vertex_block[e0]
+        pts = [xy[v0], xy[nxt[e0]], xy[e0]]
+        owner = [i, j, j]
+        l0 = np.linalg.norm(pts[2] - pts[1])
+        base_dn, base_ds = _exact_dn_ds(*pts, c.omega[k], l0)
+        for blk, slot_n, slot_s in ((i, 0, 4), (j, 1, 5)):
+            if i == j:
+                continue
+            for a in range(6):
+                D = np.zeros(6)
+                D[a] = h
+                moved = [p + (displacement_matrix(p, geom["centroid"][o]) @ D if o == blk else 0)
+                         for p, o in zip(pts, owner)]
+                dn, ds = _exact_dn_ds(*moved, c.omega[k], l0)
+                scale = 1.0 + np.abs(vec[k, slot_n]).max()
+                assert (dn - base_dn) / h == pytest.approx(vec[k, slot_n, a], abs=1e-6 * scale)
+                scale = 1.0 + np.abs(vec[k, slot_s]).max()
+                assert (ds - base_ds) / h == pytest.approx(vec[k, slot_s, a], abs=1e-6 * scale)
+
+
+def test_common_translation_leaves_contacts_unchanged():
+    """Rigid-body invariance: the same translation of both blocks changes no dn or ds."""
+    model = build_model(random_jointed_scene(5))
+    xy = perturbed_vertices(model, 1, shift=0.1 * model.search_distance)
+    cint, length = detect_contacts(model, xy)
+    c = Contacts.start(model, xy, cint, length, ContactMemory.empty(), False)
+    vec, _ = Stepper(model).contact_vectors(xy, model.block_geometry(xy), c)
+    for D in (np.array([1.0, 0, 0, 0, 0, 0]), np.array([0, 1.0, 0, 0, 0, 0])):
+        assert np.allclose(vec[:, 0] @ D + vec[:, 1] @ D, 0, atol=1e-12)
+        ve = cint[:, 0] == dd.ContactKind.VE
+        assert np.allclose(vec[ve, 4] @ D + vec[ve, 5] @ D, 0, atol=1e-12)
+
+
+def test_contact_memory_transfer():
+    """A persisting locked contact keeps its lock position ω; a sliding one keeps its state and
+    sliding direction but is re-anchored; a new contact starts open (§3.7)."""
+    m = _model([(-2, -1), (3, -1), (3, 0), (-2, 0)], [(0, 0), (1, 0), (1, 1), (0, 1)])
+    cint, length = detect_contacts(m, m.vertex_xy0)
+    first = Contacts.start(m, m.vertex_xy0, cint, length, ContactMemory.empty(), True)
+    assert np.all(first.state == ContactState.LOCK) and np.all(first.bond)
+    first.state[:] = [ContactState.LOCK, ContactState.SLIDE]
+    first.shear_dir[:] = [1, -1]
+    first.omega[:] = [0.3, 0.7]
+    mem = first.memory()
+    assert list(mem.bond) == [True, False]  # a sliding contact loses its bond
+    again = Contacts.start(m, m.vertex_xy0, cint, length, mem, False)
+    assert list(again.state) == [ContactState.LOCK, ContactState.SLIDE]
+    assert again.omega[0] == 0.3
+    assert again.omega[1] != 0.7 and again.shear_dir[1] == -1
+    fresh = Contacts.start(m, m.vertex_xy0, cint, length, ContactMemory.empty(), False)
+    assert np.all(fresh.state == ContactState.OPEN)

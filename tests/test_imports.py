@@ -1,0 +1,39 @@
+"""Import hygiene: `import ddatai` (and its geometry, scene, results modules) must not load
+Taichi or any imaging library; only a simulation starts Taichi (in a fresh interpreter)."""
+
+import subprocess
+import sys
+
+HEAVY = ("taichi", "imageio", "PIL", "matplotlib")
+
+
+def _loaded_after(code: str) -> set:
+    out = subprocess.run([sys.executable, "-c", code + f"\nimport sys\nprint([m for m in {HEAVY!r} if m in sys.modules])"],
+                         capture_output=True, text=True, check=True).stdout
+    return set(eval(out.strip().splitlines()[-1]))
+
+
+def test_import_ddatai_is_light():
+    assert _loaded_after("import ddatai") == set()
+
+
+def test_building_a_scene_and_model_is_light():
+    code = """
+import ddatai as dd
+s = dd.Scene()
+r = dd.Material(density=2500.0, young=1e9, poisson=0.2)
+s.cut([(0, 0), (2, 0), (2, 2), (0, 2)], [([(1, -1), (1, 3)], dd.Joint())], material=r)
+m = dd.build_model(s)
+import ddatai.results, ddatai.geometry, ddatai.reference
+"""
+    assert _loaded_after(code) == set()
+
+
+def test_simulation_starts_taichi():
+    code = """
+import ddatai as dd
+s = dd.Scene()
+s.add_block([(0, 0), (1, 0), (1, 1)], material=dd.Material(density=2500.0, young=1e9, poisson=0.2))
+dd.simulate(s, steps=1)
+"""
+    assert "taichi" in _loaded_after(code)

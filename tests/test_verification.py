@@ -1,0 +1,279 @@
+"""Verification: DDA against closed-form answers (dda-method.md §7).
+
+Every tolerance below comes from the method, not from what the code happens to give:
+- the DDA integrator (Newmark β = 1/2, γ = 1) is exact for constant acceleration, so free
+  flight and rigid rotation are checked to round-off (§5.1, §7e, §7h);
+- sliding on an incline carries only the start-up perturbation and the one-iteration lag of the
+  friction load: < 0.1 % when θ − φ ≥ 5°, < 2 % within 0.5° of the threshold (§7a);
+- a block at rest moves only by the elastic offset of its contact springs, h2·W·sinθ/(2p)
+  ~ 1e-7 m here: the bound 1e-5 × block size (§7b);
+- the stacked column's constant-strain blocks carry the exact average stress (§7f);
+- the Goodman–Bray cases are classified with the refined initial-motion criterion and chosen
+  robust to ±3° of φ and θ (§7d).
+All runs use the default parameters (`params=None`) unless a case needs a fixed time step.
+"""
+
+import numpy as np
+import pytest
+
+import ddatai as dd
+from cases import (G, ROCK, block_on_incline, downslope_displacement, incline_base, incline_frame,
+                   sliding_scene)
+from ddatai.geometry import polygon_integrals
+
+
+# ----------------------------------------------------------------------------- §7a sliding
+@pytest.mark.parametrize("theta, phi, tol", [
+    (30.0, 20.0, 1e-3),
+    (30.0, 0.0, 1e-3),
+    (45.0, 30.0, 1e-3),
+    (40.0, 15.0, 1e-3),
+    (30.0, 29.5, 2e-2),   # within 0.5° of the threshold: the start-up perturbation dominates
+])
+def test_block_slides_down_incline(theta, phi, tol):
+    """d(1 s) = ½ g (sinθ − cosθ tanφ) t² on real inclined geometry; contacts end sliding."""
+    scene, block = sliding_scene(theta, phi)
+    res = dd.simulate(scene, duration=1.0, record_contacts=True)
+    th, ph = np.radians(theta), np.radians(phi)
+    exact = 0.5 * G * (np.sin(th) - np.cos(th) * np.tan(ph)) * 1.0 ** 2
+    d = downslope_displacement(res, block, theta)
+    assert res.time[-1] == pytest.approx(1.0, abs=1e-12)
+    assert abs(d - exact) / exact < tol, (d, exact)
+    _, states = res.contacts(-1)
+    assert len(states) == 2 and np.all(states == dd.ContactState.SLIDE)
+
+
+# ----------------------------------------------------------------------------- §7b resting
+@pytest.mark.parametrize("theta, phi", [(20.0, 30.0), (30.0, 35.0), (10.0, 40.0)])
+def test_block_rests_on_incline(theta, phi):
+    """φ ≥ θ + 5°: the block does not move; drift after 1 s below 1e-5 × block size."""
+    scene, block = sliding_scene(theta, phi)
+    res = dd.simulate(scene, duration=1.0, record_contacts=True)
+    drift = np.linalg.norm(res.centroid[-1, block] - res.centroid[0, block])
+    assert drift < 1e-5 * 1.0
+    _, states = res.contacts(-1)
+    assert np.all(states == dd.ContactState.LOCK)
+
+
+# ----------------------------------------------------------------------------- §7e free flight
+def test_free_flight_is_exact():
+    """x = x0 + vx t, y = y0 + vy t − ½ g t², spin constant: exact to round-off (1e-10 rel)."""
+    scene = dd.Scene(gravity=G)
+    scene.add_block([(0, 0), (2, 0), (2, 1), (0, 1)], material=ROCK, velocity=(3.0, 4.0),
+                    angular_velocity=0.5)
+    res = dd.simulate(scene, duration=1.5)
+    t = res.time
+    c0 = res.centroid[0, 0]
+    exact = c0 + np.stack([3.0 * t, 4.0 * t - 0.5 * G * t * t], axis=1)
+    err = np.abs(res.centroid[:, 0] - exact).max() / np.abs(exact).max()
+    assert err < 1e-10
+    assert np.allclose(res.velocity[:, 0, 1], 4.0 - G * t, rtol=0, atol=1e-9)
+    assert np.allclose(res.rotation[:, 0], 0.5 * t, rtol=0, atol=1e-10)
+
+
+# ----------------------------------------------------------------------------- §7h rotation
+def test_free_rotation_keeps_area():
+    """Exact rotation update: area constant to 1e-10 and angle error < 1e-10·ωt (§5.3)."""
+    scene = dd.Scene(gravity=0.0)
+    scene.add_block([(0, 0), (2, 0), (2, 1), (0, 1)], material=ROCK, angular_velocity=1.0)
+    res = dd.simulate(scene, params=dd.Params(dt=0.01), steps=1000, record_every=50)
+    areas = np.array([polygon_integrals(p, np.array([0, len(p)]))["area"][0]
+                      for p in (res.polygons(f)[0] for f in range(res.n_frames))])
+    assert np.abs(areas / 2.0 - 1.0).max() < 1e-10
+    assert abs(res.rotation[-1, 0] - res.time[-1]) < 1e-10 * res.time[-1]
+    # the centroid does not move
+    assert np.abs(res.centroid[:, 0] - res.centroid[0, 0]).max() < 1e-10
+
+
+# ----------------------------------------------------------------------------- point loads
+def _pushed_block(force):
+    scene = dd.Scene(gravity=G)
+    scene.add_block([(-5, -1), (15, -1), (15, 0), (-5, 0)], material=ROCK, fixed=True)
+    block = scene.add_block([(0, 0), (1, 0), (1, 1), (0, 1)], material=ROCK)
+    scene.set_joint(dd.Joint(friction=0.0))
+    scene.add_point_load(block, (0.5, 0.5), force)
+    return scene, block
+
+
+def test_constant_point_load_on_frictionless_base():
+    """x = x0 + F t²/(2m): exact for constant acceleration up to the block's elastic
+    deformation under the load (F/(E·1 m) ~ 1e-6 relative); tolerance 1e-4."""
+    F = 5000.0
+    scene, block = _pushed_block((F, 0.0))
+    res = dd.simulate(scene, duration=1.0)
+    m = ROCK.density * 1.0
+    exact = F * res.time ** 2 / (2 * m)
+    dx = res.centroid[:, block, 0] - res.centroid[0, block, 0]
+    assert np.abs(dx - exact).max() < 1e-4 * exact[-1]
+    assert abs(res.centroid[-1, block, 1] - res.centroid[0, block, 1]) < 1e-5
+
+
+def test_time_dependent_point_load():
+    """F(t) = F0·t gives x = F0 t³/(6m). The load is sampled at mid-step, so each step's
+    position carries a'Δt³/12 (a' = F0/m): relative error Δt²/(2T²) = 5e-5 at Δt = 0.01 s."""
+    F0 = 10000.0
+    scene, block = _pushed_block(lambda t: (F0 * t, 0.0))
+    res = dd.simulate(scene, duration=1.0)
+    m = ROCK.density * 1.0
+    exact = F0 * 1.0 ** 3 / (6 * m)
+    dx = res.centroid[-1, block, 0] - res.centroid[0, block, 0]
+    assert abs(dx - exact) < 2e-4 * exact
+
+
+# ----------------------------------------------------------------------------- §7f column
+@pytest.mark.parametrize("plane", ["stress", "strain"])
+def test_stacked_column_stress(plane):
+    """n blocks on a fixed base, φ = 0, static: σy,k = −ρ g h (k − ½) from the top, σx = τ = 0."""
+    n, h = 5, 1.0
+    scene = dd.Scene(gravity=G)
+    scene.add_block([(-1, -1), (2, -1), (2, 0), (-1, 0)], material=ROCK, fixed=True)
+    ids = [scene.add_block([(0, k * h), (1, k * h), (1, (k + 1) * h), (0, (k + 1) * h)], material=ROCK)
+           for k in range(n)]
+    scene.set_joint(dd.Joint(friction=0.0))
+    res = dd.simulate(scene, params=dd.Params(static=True, plane=plane), steps=150)
+    sy = res.stress[-1, ids, 1]
+    exact = np.array([-ROCK.density * G * h * (n - k - 0.5) for k in range(n)])
+    assert np.abs(sy / exact - 1).max() < 0.01
+    assert np.abs(res.stress[-1, ids, 0]).max() < 0.01 * np.abs(exact).max()
+    assert np.abs(res.stress[-1, ids, 2]).max() < 0.01 * np.abs(exact).max()
+    assert np.all(res.velocity[1:] == 0.0)  # static mode: velocities reset every step
+
+
+# ----------------------------------------------------------------------------- §7d Goodman–Bray
+def refined_mode(r: float, theta: float, phi: float) -> str:
+    """Initial motion of a rigid b × h block (r = b/h) released on a plane (dda-method.md §7d)."""
+    t, mu = np.tan(np.radians(theta)), np.tan(np.radians(phi))
+    if r >= t:
+        return "stable" if t <= mu else "slide"
+    f = (t + 3 * r + 4 * r * r * t) / (4 + r * r + 3 * r * t)
+    if mu >= f:
+        return "topple"
+    return "slide" if r >= mu else "slide+topple"
+
+
+GB_CASES = [
+    (1.0, 30.0, 40.0, "stable"),
+    (0.5, 20.0, 30.0, "stable"),
+    (1.0, 30.0, 20.0, "slide"),
+    (0.4, 35.0, 10.0, "slide"),
+    (0.2, 30.0, 40.0, "topple"),
+    (0.15, 30.0, 20.0, "topple"),
+    (0.05, 40.0, 8.0, "slide+topple"),
+]
+
+
+@pytest.mark.parametrize("r, theta, phi, mode", GB_CASES)
+def test_goodman_bray_case_is_robust(r, theta, phi, mode):
+    """The chosen cases keep their mode under ±3° of φ and θ (so they test the code, not the
+    boundary); pure-sliding cases also have tilt margin tanβ_c = (r − μ)/(1 + μr) > 0.1."""
+    for dth in (-3, 0, 3):
+        for dph in (-3, 0, 3):
+            assert refined_mode(r, theta + dth, phi + dph) == mode
+    if mode == "slide":
+        mu = np.tan(np.radians(phi))
+        assert (r - mu) / (1 + mu * r) > 0.1
+
+
+@pytest.mark.parametrize("r, theta, phi, mode", GB_CASES)
+def test_goodman_bray_regimes(r, theta, phi, mode):
+    """Stable / slide / topple / slide+topple at T = 0.3 s: toppling if the block rotated more
+    than 2e-3 rad, sliding if its down-slope corner slid more than 2e-3 m (§7d)."""
+    h = 2.0 if r < 0.1 else 1.0
+    scene = dd.Scene(gravity=G)
+    incline_base(scene, theta)
+    block = block_on_incline(scene, theta, at=4.0, width=r * h, height=h)
+    scene.set_joint(dd.Joint(friction=phi))
+    res = dd.simulate(scene, duration=0.3)
+    t, _ = incline_frame(theta)
+    corner0 = res.polygons(0)[block][0]  # lower down-slope corner
+    slide = float(-(res.polygons(-1)[block][0] - corner0) @ t)
+    rotation = float(res.rotation[-1, block])
+    got = {(False, False): "stable", (True, False): "slide", (False, True): "topple",
+           (True, True): "slide+topple"}[(slide > 2e-3, rotation > 2e-3)]
+    assert got == mode, (slide, rotation)
+    if mode == "topple":
+        assert rotation > 0  # counter-clockwise: it falls down-slope (down-slope is −t)
+
+
+# ----------------------------------------------------------------------------- §7i two blocks
+@pytest.mark.parametrize("phi1, phi2", [(20.0, 10.0), (20.0, 25.0), (35.0, 10.0)])
+def test_two_stacked_blocks_on_incline(phi1, phi2):
+    """Bottom 2×1 block on the plane (φ1), top 1×1 block on it (φ2), θ = 30°, T = 0.5 s."""
+    theta, T = 30.0, 0.5
+    scene = dd.Scene(gravity=G)
+    base = incline_base(scene, theta)
+    b1 = block_on_incline(scene, theta, at=3.0, width=2.0, height=1.0)
+    b2 = block_on_incline(scene, theta, at=3.5, width=1.0, height=1.0, lift=1.0)
+    scene.set_joint(dd.Joint(friction=phi1), between=(base, b1))
+    scene.set_joint(dd.Joint(friction=phi2), between=(b1, b2))
+    res = dd.simulate(scene, duration=T)
+    th = np.radians(theta)
+    m1, m2 = 2.0, 1.0
+    mu1, mu2 = np.tan(np.radians(phi1)), np.tan(np.radians(phi2))
+    if mu2 >= mu1:
+        a1 = a2 = max(0.0, G * (np.sin(th) - np.cos(th) * mu1))
+    else:
+        a2 = G * (np.sin(th) - np.cos(th) * mu2)
+        a1 = max(0.0, G * np.sin(th) + mu2 * (m2 / m1) * G * np.cos(th) - mu1 * (m1 + m2) / m1 * G * np.cos(th))
+    for block, a in ((b1, a1), (b2, a2)):
+        exact = 0.5 * a * T * T
+        d = downslope_displacement(res, block, theta)
+        if exact == 0:
+            assert abs(d) < 1e-5
+        else:
+            assert abs(d - exact) / exact < 5e-3, (block, d, exact)
+
+
+# ----------------------------------------------------------------------------- joint strength
+def test_cohesion_holds_or_fails_a_block():
+    """A bonded joint holds while c·L ≥ W(sinθ − cosθ tanφ); below it the bond breaks and the
+    block slides (θ = 30°, φ = 20°, L = 1 m)."""
+    theta, phi = 30.0, 20.0
+    th = np.radians(theta)
+    need = ROCK.density * G * (np.sin(th) - np.cos(th) * np.tan(np.radians(phi)))
+    moved = {}
+    for factor in (2.0, 0.5):
+        scene, block = sliding_scene(theta, phi)
+        scene.set_joint(dd.Joint(friction=phi, cohesion=factor * need))
+        res = dd.simulate(scene, duration=0.5)
+        moved[factor] = downslope_displacement(res, block, theta)
+    assert abs(moved[2.0]) < 1e-5
+    free_slide = 0.5 * G * (np.sin(th) - np.cos(th) * np.tan(np.radians(phi))) * 0.5 ** 2
+    assert 0.8 * free_slide < moved[0.5] <= free_slide * 1.001
+
+
+def test_tensile_strength_holds_a_hanging_block():
+    """A 1 m block glued under a fixed block hangs while T·L ≥ W and falls freely otherwise."""
+    W = ROCK.density * G * 1.0
+    drop = {}
+    for factor in (2.0, 0.5):
+        scene = dd.Scene(gravity=G)
+        scene.add_block([(-2, 0), (3, 0), (3, 1), (-2, 1)], material=ROCK, fixed=True)
+        block = scene.add_block([(0, -1), (1, -1), (1, 0), (0, 0)], material=ROCK)
+        scene.set_joint(dd.Joint(friction=30.0, cohesion=1e5, tensile=factor * W))
+        res = dd.simulate(scene, duration=0.3)
+        drop[factor] = res.centroid[0, block, 1] - res.centroid[-1, block, 1]
+    assert abs(drop[2.0]) < 1e-5
+    assert drop[0.5] == pytest.approx(0.5 * G * 0.3 ** 2, rel=1e-3)
+
+
+# ----------------------------------------------------------------------------- seismic input
+@pytest.mark.parametrize("as_record", [False, True])
+def test_block_slides_under_constant_ground_acceleration(as_record):
+    """Ground acceleration a_g = 0.5 g on a block with φ = 10°: relative to the ground the
+    block slides back with a = a_g − g tanφ (exact, constant acceleration); the fixed base stays
+    put in the ground frame."""
+    ag = 0.5 * G
+    scene = dd.Scene(gravity=G)
+    base = scene.add_block([(-10, -1), (10, -1), (10, 0), (-10, 0)], material=ROCK, fixed=True)
+    block = scene.add_block([(0, 0), (1, 0), (1, 1), (0, 1)], material=ROCK)
+    scene.set_joint(dd.Joint(friction=10.0))
+    if as_record:
+        scene.set_ground_acceleration((np.array([0.0, 10.0]), np.array([ag, ag])))
+    else:
+        scene.set_ground_acceleration(lambda t: (ag, 0.0))
+    res = dd.simulate(scene, duration=1.0)
+    exact = -0.5 * (ag - G * np.tan(np.radians(10.0))) * 1.0 ** 2
+    dx = res.centroid[-1, block, 0] - res.centroid[0, block, 0]
+    assert abs(dx - exact) < 1e-3 * abs(exact)
+    assert np.all(res.centroid[:, base] == res.centroid[0, base])
