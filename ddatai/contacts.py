@@ -179,8 +179,9 @@ class Contacts:
         """Attach joint properties and last step's memory to freshly detected contacts.
 
         Transferred (same vertex and reference edge): state, active line, bond, sliding
-        direction; the lock position ω only if the contact was locked (others are re-anchored
-        at the projection of the vertex, so their shear displacement restarts at 0).
+        direction; the lock position ω only if the contact was locked. Others are re-anchored
+        at the projection of the vertex, so their shear displacement restarts at 0 — except
+        sliding contacts, anchored so that a lock would start with their friction force.
         New contacts start open, except on the first step, where contacts touching within the
         opening tolerance start closed and locked (vertex-edge), and edge-edge contacts of the
         initial geometry are bonded (dda-method.md §3.7, §2.8.5).
@@ -215,6 +216,21 @@ class Contacts:
             locked = found.copy()
             locked[found] = memory.state[src] == ContactState.LOCK
             omega[locked] = memory.omega[pos[locked]]
+            sliding = found & (state == ContactState.SLIDE) & ve
+            if sliding.any():
+                # A sliding contact carries the friction force S opposite to its sliding
+                # direction. Its lock point is placed S/ks behind the vertex, so that if it
+                # locks again its shear spring starts from that same force: no force jump at the
+                # slide -> lock transition, hence no endless stick-slip chatter at exactly
+                # mobilised friction (Shi re-anchors at zero force).
+                joint_s = joint[sliding]
+                normal = model.penalty * np.maximum(-dn0[sliding], 0.0)
+                length_s = length[sliding]
+                strength = normal * model.joint_tan_phi[joint_s] + \
+                    model.joint_cohesion[joint_s] * length_s * bond[sliding]
+                edge_len = np.linalg.norm(vertex_xy[cint[sliding, E0]] -
+                                          vertex_xy[model.vertex_next[cint[sliding, E0]]], axis=1)
+                omega[sliding] -= shear_dir[sliding] * strength / (model.shear_penalty * edge_len)
         if first_step and m:
             dn1 = np.full(m, -np.inf)
             vv = ~ve

@@ -36,6 +36,11 @@ STATE_LOCK = 2
 E0, G0, E1, G1, ES, GS, TJ = 0, 1, 2, 3, 4, 5, 6
 N_SLOTS = 7
 TWO_PI = 2.0 * math.pi
+#: When the corners of two parallel edges (nearly) coincide, either corner can be the contact
+#: vertex; block A's is kept unless B's lies clearly (TIE × edge length) further inside the
+#: other edge. Without this the choice follows round-off and the contact's identity, and with
+#: it its memory, changes from step to step (aligned grids: every X-junction).
+TIE = 1e-3
 
 
 # --------------------------------------------------------------------------- helpers
@@ -186,10 +191,10 @@ def _vertex_vertex(xy: ti.template(), vnext: ti.template(), vprev: ti.template()
         if ti.abs(wA + wB + e5 + e6 - TWO_PI) < 1e-6:
             if e5 < h1:
                 # A's edge (prev[ia], ia) is parallel to B's edge (ib, next[ib]): edge-edge;
-                # the contact vertex is whichever lies inside the other's edge
+                # the contact vertex is whichever lies inside the other's edge (ties: A's)
                 tP = _edge_param(xy, vnext, ib, ia)
                 tQ = _edge_param(xy, vnext, vprev[ia], ib)
-                if ti.min(tP, 1.0 - tP) >= ti.min(tQ, 1.0 - tQ):
+                if ti.min(tP, 1.0 - tP) >= ti.min(tQ, 1.0 - tQ) - TIE:
                     _emit(out_int, out_len, count, KIND_VE, ia, ib, -1, -1,
                           _half_overlap(xy, vnext, ib, ia, vprev[ia]))
                 else:
@@ -199,14 +204,15 @@ def _vertex_vertex(xy: ti.template(), vnext: ti.template(), vprev: ti.template()
                 # A's edge (ia, next[ia]) is parallel to B's edge (prev[ib], ib)
                 tP = _edge_param(xy, vnext, vprev[ib], ia)
                 tQ = _edge_param(xy, vnext, ia, ib)
-                if ti.min(tP, 1.0 - tP) >= ti.min(tQ, 1.0 - tQ):
+                if ti.min(tP, 1.0 - tP) >= ti.min(tQ, 1.0 - tQ) - TIE:
                     _emit(out_int, out_len, count, KIND_VE, ia, vprev[ib], -1, -1,
                           _half_overlap(xy, vnext, vprev[ib], ia, vnext[ia]))
                 else:
                     _emit(out_int, out_len, count, KIND_VE, ib, ia, -1, -1,
                           _half_overlap(xy, vnext, ia, ib, vprev[ib]))
-            elif e5 <= e6:
+            elif e5 <= e6 + h1:
                 # genuine vertex-vertex: the entrance lines are the edges across the smaller gap
+                # (e5 unless e6 is clearly smaller, so equal gaps do not flip between steps)
                 _emit(out_int, out_len, count, KIND_VV, ia, ib, ib, vprev[ia], 0.0)
             else:
                 _emit(out_int, out_len, count, KIND_VV, ia, vprev[ib], ib, ia, 0.0)

@@ -131,6 +131,11 @@ class Params:
     penalties) and blocks could never topple."""
     close_tolerance: float = 1e-7
     """An open contact closes when its penetration exceeds this fraction of w0 [-]."""
+    reversal_tolerance: float = 1e-7
+    """A sliding contact locks again when its sliding direction reverses by more than this
+    fraction of w0 [-] (Shi, ntdda: 1e-7). Without it, contacts that carry almost no normal
+    force (side joints of a resting pile) flip between locked and sliding on round-off-sized
+    reversals and the open-close iteration never settles."""
     penetration_ratio: float = 4e-4
     """g3: penetration allowed, as a fraction of w0 [-]; a step whose largest penetration
     exceeds 2.5·g3·w0 is redone with a shorter time step, and a run that cannot keep under it
@@ -154,6 +159,7 @@ class Params:
         pos("penalty", allow_none=True)
         for name in ("penalty_ratio", "shear_ratio", "fixed_point_ratio", "max_displacement_ratio",
                      "open_tolerance", "close_tolerance", "penetration_ratio", "angle_tolerance",
+                     "reversal_tolerance",
                      "dt_min_ratio"):
             pos(name)
         _require(_finite(self.dt_growth) and self.dt_growth >= 1.0,

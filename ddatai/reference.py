@@ -16,6 +16,7 @@ from .geometry import displacement_matrix, mass_matrix
 from .model import ContactKind, ContactState, Model
 
 VE, VV = int(ContactKind.VE), int(ContactKind.VV)
+TIE = 1e-3  # same as ddatai.kernels.TIE
 
 
 # --------------------------------------------------------------------------- broad phase
@@ -126,17 +127,17 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray) -> tupl
                     continue  # wedges overlap: already interpenetrated
                 if e5 < h1:
                     tP, tQ = param(ib, ia), param(prv[ia], ib)
-                    if min(tP, 1 - tP) >= min(tQ, 1 - tQ):
+                    if min(tP, 1 - tP) >= min(tQ, 1 - tQ) - TIE:
                         emit(VE, ia, ib, length=half_overlap(ib, ia, prv[ia]))
                     else:
                         emit(VE, ib, prv[ia], length=half_overlap(prv[ia], ib, nxt[ib]))
                 elif e6 < h1:
                     tP, tQ = param(prv[ib], ia), param(ia, ib)
-                    if min(tP, 1 - tP) >= min(tQ, 1 - tQ):
+                    if min(tP, 1 - tP) >= min(tQ, 1 - tQ) - TIE:
                         emit(VE, ia, prv[ib], length=half_overlap(prv[ib], ia, nxt[ia]))
                     else:
                         emit(VE, ib, ia, length=half_overlap(ia, ib, prv[ib]))
-                elif e5 <= e6:
+                elif e5 <= e6 + h1:
                     emit(VV, ia, ib, ib, prv[ia])
                 else:
                     emit(VV, ia, prv[ib], ib, ia)

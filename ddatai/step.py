@@ -276,7 +276,7 @@ class Stepper:
         Normal: an open contact closes when it penetrates deeper than close_tol; a closed one
         opens when its normal distance exceeds open_tol (+ T·L/p while bonded). Shear (vertex-
         edge contacts, force form): locked while k_s|ds| <= N tanφ + cL; a sliding contact
-        locks again when the sliding direction reverses (φ > 0.9°).
+        locks again when the sliding direction reverses by more than reversal_tol (φ > 0.9°).
         """
         m = self.model
         ci = contacts.cint
@@ -287,15 +287,22 @@ class Stepper:
         vv = kind == VV
         ve = ~vv
         dn = dn0.copy()
-        line = np.zeros(contacts.n, np.int8)
-        if vv.any():
-            # line 1: vertex1 (of block b) against an edge of block a
-            dn1 = sca[vv, 1] + np.einsum("ij,ij->i", vec[vv, S_E1], db[vv]) + \
-                np.einsum("ij,ij->i", vec[vv, S_G1], da[vv])
-            line[vv] = (dn1 > dn0[vv]).astype(np.int8)
-            dn[vv] = np.maximum(dn0[vv], dn1)
+        line = contacts.line.copy()
         prev = contacts.state
         was_open = prev == OPEN
+        if vv.any():
+            # line 1: vertex1 (of block b) against an edge of block a. The less penetrated line
+            # acts; a closed contact switches only when the other line is clearly less
+            # penetrated (beyond open_tol), so exact ties (touching corners) do not flip.
+            dn1 = sca[vv, 1] + np.einsum("ij,ij->i", vec[vv, S_E1], db[vv]) + \
+                np.einsum("ij,ij->i", vec[vv, S_G1], da[vv])
+            dnl = np.stack([dn0[vv], dn1], axis=1)
+            cur = line[vv].astype(np.int64)
+            other = 1 - cur
+            rows = np.arange(len(cur))
+            switch = dnl[rows, other] > dnl[rows, cur] + np.where(was_open[vv], 0.0, m.open_tol)
+            line[vv] = np.where(switch, other, cur).astype(np.int8)
+            dn[vv] = dnl[rows, line[vv]]
         allowance = np.where(contacts.bond, contacts.tensile * contacts.length / m.penalty, 0.0)
         closed = np.where(was_open, dn < -m.close_tol, dn <= allowance + m.open_tol)
 
@@ -311,16 +318,28 @@ class Stepper:
         ds = sca[:, 2] + np.einsum("ij,ij->i", vec[:, S_ES], da) + np.einsum("ij,ij->i", vec[:, S_GS], db)
         normal = m.penalty * np.maximum(-dn, 0.0)
         strength = normal * contacts.tan_phi + contacts.cohesion * contacts.length * contacts.bond
-        holds = m.shear_penalty * np.abs(ds) <= strength
+        # open_tol absorbs round-off in ds as it does in dn
+        holds = m.shear_penalty * (np.abs(ds) - m.open_tol) <= strength
         sliding_before = prev == SLIDE
-        reversed_ = sliding_before & (ds * contacts.shear_dir < 0) & (contacts.friction_deg > 0.9)
-        lock = closed & ve & np.where(sliding_before, reversed_, holds)
+        # a sliding contact locks when its motion in this step runs against its sliding
+        # direction (ds is measured from an anchor that carries the friction force, so the
+        # motion is ds - ds at the step start)
+        motion = ds - sca[:, 2]
+        turned = sliding_before & (motion * contacts.shear_dir < -m.reversal_tol)
+        frictional = contacts.friction_deg > 0.9
+        lock = closed & ve & np.where(sliding_before, turned & frictional, holds)
         new_state[lock] = LOCK
-        start_slide = closed & ve & ~lock & ((prev != SLIDE) | (ds * contacts.shear_dir < 0))
-        new_dir = np.where(ds >= 0, 1, -1).astype(np.int8)
+        # a new sliding direction: contacts that start sliding, and frictionless ones that turn
+        # round (smaller reversals keep the direction: they are round-off, not stick)
+        start_slide = closed & ve & ~lock & ((prev != SLIDE) | (turned & ~frictional))
+        # direction of the new sliding: of the spring's stretch when leaving lock or open, of
+        # the motion when a frictionless sliding contact turns round
+        new_dir = np.where(np.where(sliding_before, motion, ds) >= 0, 1, -1).astype(np.int8)
         contacts.shear_dir[start_slide] = new_dir[start_slide]
 
-        changed = bool(np.any(new_state != prev) or np.any(line[vv] != contacts.line[vv]))
+        # the entrance line of a vertex-vertex contact matters only while it is closed
+        switched = vv & (line != contacts.line) & (new_state != OPEN) & (prev != OPEN)
+        changed = bool(np.any(new_state != prev) or np.any(switched))
         contacts.state[:] = new_state
         contacts.line[:] = line
         contacts.dn[:] = dn
