@@ -12,32 +12,36 @@ from __future__ import annotations
 import os
 
 _current_arch: str | None = None
+_requested_arch: str | None = None
 
 
 def ensure(arch: str = "cpu") -> str:
     """Initialise Taichi for ``arch`` ("cpu", "gpu", "cuda", "vulkan", "metal") if not done.
 
-    Returns the arch really in use. "gpu" picks any available GPU backend and falls back to
-    the CPU when there is none; naming a specific GPU backend that is absent raises
-    ``RuntimeError``.
+    Returns the arch really in use. "gpu" picks the first available of CUDA, Vulkan, Metal and
+    falls back to the CPU when there is none; naming a specific GPU backend that is absent
+    raises ``RuntimeError``.
     """
-    global _current_arch
-    if _current_arch is not None and (arch == _current_arch or
-                                      (arch == "gpu" and _current_arch != "cpu")):
+    global _current_arch, _requested_arch
+    if _current_arch is not None and arch in (_current_arch, _requested_arch):
         return _current_arch
     os.environ.setdefault("TI_SKIP_VERSION_CHECK", "ON")  # no network look-up from CI
     import taichi as ti
 
-    targets = {"cpu": ti.cpu, "gpu": ti.gpu, "cuda": ti.cuda, "vulkan": ti.vulkan, "metal": ti.metal}
+    # "gpu" tries CUDA, then Vulkan, then Metal. Not ti.gpu: it also probes OpenGL, which
+    # crashes the process (segfault) on headless machines without a GPU driver.
+    targets = {"cpu": ti.cpu, "gpu": [ti.cuda, ti.vulkan, ti.metal], "cuda": ti.cuda,
+               "vulkan": ti.vulkan, "metal": ti.metal}
     if arch not in targets:
         raise ValueError(f"unknown Taichi arch {arch!r}; expected one of {sorted(targets)}")
     ti.init(arch=targets[arch], default_fp=ti.f64, default_ip=ti.i32,
-            enable_fallback=(arch == "gpu"), offline_cache=True, log_level=ti.WARN)
+            enable_fallback=True, offline_cache=True, log_level=ti.WARN)
     actual = ti.lang.impl.current_cfg().arch
     name = {ti.cpu: "cpu", ti.x64: "cpu", ti.arm64: "cpu"}.get(actual, str(actual).split(".")[-1])
     if arch not in ("gpu", name):
         raise RuntimeError(f"Taichi arch {arch!r} requested but {name!r} was initialised")
-    _current_arch = name if arch != "gpu" else ("cpu" if name == "cpu" else name)
+    _current_arch = name
+    _requested_arch = arch
     return _current_arch
 
 

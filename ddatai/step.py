@@ -26,7 +26,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from .contacts import E0, E1, KIND, V0, V1, BlockPattern, Contacts, _Buffers, detect_contacts, N_SLOTS
+from .contacts import E0, KIND, V0, BlockPattern, Contacts, _Buffers, detect_contacts, N_SLOTS
 from .geometry import mass_matrix
 from .model import ContactKind, ContactState, Model, State, build_model
 from .params import Params
