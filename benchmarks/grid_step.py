@@ -29,7 +29,7 @@ def main() -> None:
     ap.add_argument("--dt", type=float, default=0.001)
     ap.add_argument("--dynamic", action="store_true", help="dynamic run (default: static)")
     a = ap.parse_args()
-    scene, params = build(a.n, static=not a.dynamic, dt=a.dt)
+    scene, params = build(a.n, gap=0.0, static=not a.dynamic, dt=a.dt)
     t0 = time.perf_counter()
     res = dd.simulate(scene, params=params, steps=a.warmup + a.steps, record_every=10 ** 9)
     wall = time.perf_counter() - t0

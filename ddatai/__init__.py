@@ -34,6 +34,8 @@ _EXPORTS = {
     "STEP_DTYPE": "results",
     "simulate": "step", "Stepper": "step",
     "polygon_integrals": "geometry", "validate_polygon": "geometry",
+    "write_gif": "render", "write_png": "render", "render_frames": "render",
+    "joint_sets": "jointsets", "JointSet": "jointsets",
 }
 
 __all__ = sorted(_EXPORTS)

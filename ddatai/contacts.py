@@ -165,6 +165,10 @@ class Contacts:
     """(m,) normal distance of the active line from the last solve (start: dn0) [m]."""
     ds: np.ndarray
     """(m,) shear displacement from the last solve [m]."""
+    normal_force: np.ndarray
+    """(m,) compressive normal force p·(−dn) of the contact from the last solve in which it was
+    closed (the end of the last step, or the start penetration) [N/m]. Sets the friction load.
+    An open contact's penetration is unresisted overshoot, and p times it is no contact force."""
 
     @property
     def n(self) -> int:
@@ -179,7 +183,8 @@ class Contacts:
         """Attach joint properties and last step's memory to freshly detected contacts.
 
         Transferred (same vertex and reference edge): state, active line, bond, sliding
-        direction; the lock position ω only if the contact was locked. Others are re-anchored
+        direction, normal force (of a closed contact); the lock position ω only if the contact
+        was locked. Others are re-anchored
         at the projection of the vertex, so their shear displacement restarts at 0 — except
         sliding contacts, anchored so that a lock would start with their friction force.
         New contacts start open, except on the first step, where contacts touching within the
@@ -205,6 +210,7 @@ class Contacts:
         bond = np.zeros(m, bool)
         shear_dir = np.ones(m, np.int8)
         omega = edge_projection(vertex_xy, model.vertex_next, cint[:, V0], cint[:, E0])
+        normal_force = model.penalty * np.maximum(-dn0, 0.0)
         if len(memory.key) and m:
             pos = np.minimum(np.searchsorted(memory.key, key), len(memory.key) - 1)
             found = memory.key[pos] == key
@@ -213,6 +219,9 @@ class Contacts:
             line[found] = memory.line[src]
             bond[found] = memory.bond[src]
             shear_dir[found] = memory.shear_dir[src]
+            closed = found.copy()
+            closed[found] = memory.state[src] != ContactState.OPEN
+            normal_force[closed] = memory.normal_force[pos[closed]]
             locked = found.copy()
             locked[found] = memory.state[src] == ContactState.LOCK
             omega[locked] = memory.omega[pos[locked]]
@@ -224,9 +233,8 @@ class Contacts:
                 # slide -> lock transition, hence no endless stick-slip chatter at exactly
                 # mobilised friction (Shi re-anchors at zero force).
                 joint_s = joint[sliding]
-                normal = model.penalty * np.maximum(-dn0[sliding], 0.0)
                 length_s = length[sliding]
-                strength = normal * model.joint_tan_phi[joint_s] + \
+                strength = normal_force[sliding] * model.joint_tan_phi[joint_s] + \
                     model.joint_cohesion[joint_s] * length_s * bond[sliding]
                 edge_len = np.linalg.norm(vertex_xy[cint[sliding, E0]] -
                                           vertex_xy[model.vertex_next[cint[sliding, E0]]], axis=1)
@@ -246,7 +254,7 @@ class Contacts:
             tan_phi=model.joint_tan_phi[joint], friction_deg=model.joint_friction[joint],
             cohesion=model.joint_cohesion[joint], tensile=model.joint_tensile[joint],
             state=state, line=line, omega=omega, bond=bond, shear_dir=shear_dir,
-            dn=dn0, ds=np.zeros(m))
+            dn=dn0, ds=np.zeros(m), normal_force=normal_force)
 
     def memory(self) -> ContactMemory:
         """What this step hands to the next (bond survives only on locked contacts)."""
@@ -254,7 +262,7 @@ class Contacts:
         return ContactMemory(key=self.key.copy(), state=self.state.copy(), line=self.line.copy(),
                              omega=self.omega.copy(), bond=self.bond & locked,
                              shear_dir=self.shear_dir.copy(), dn=self.dn.copy(),
-                             kind=self.cint[:, KIND].astype(np.int8))
+                             normal_force=self.normal_force.copy(), kind=self.cint[:, KIND].astype(np.int8))
 
 
 def signed_distance(xy: np.ndarray, vnext: np.ndarray, vertex: np.ndarray, edge: np.ndarray) -> np.ndarray:

@@ -386,18 +386,23 @@ def contact_vectors(xy: F64_2, vblock: I32_1, vnext: I32_1, centroid: F64_2, cin
 # --------------------------------------------------------------------------- assembly
 @ti.kernel
 def assemble_blocks(dof: I32_1, density: F64_1, elastic: F64_3, area: F64_1, mass: F64_3,
-                    velocity: F64_2, stress: F64_2, body_acc_x: ti.f64, body_acc_y: ti.f64,
-                    dt: ti.f64, carry: ti.f64, diag_slot: I32_1, stride: I32_1,
-                    data: F64_1, rhs: F64_1):
-    """Per-block terms: inertia + velocity carry-over (§2.5), elasticity (§2.1),
-    initial stress (§2.2) and body force (§2.4; gravity minus ground acceleration)."""
+                    velocity: F64_2, accel: F64_2, stress: F64_2, body_acc_x: ti.f64,
+                    body_acc_y: ti.f64, dt: ti.f64, carry: ti.f64, beta: ti.f64,
+                    diag_slot: I32_1, stride: I32_1, data: F64_1, rhs: F64_1):
+    """Per-block terms: inertia with velocity and acceleration carry-over (Newmark, γ = 1;
+    β = ½ is Shi's §2.5), elasticity (§2.1), initial stress (§2.2) and body force (§2.4;
+    gravity minus ground acceleration).
+
+    With D = v Δt + Δt²((½ − β) a_n + β a_{n+1}) the inertia force ρ M a_{n+1} adds
+    ρM/(βΔt²) to K and ρM (v/(βΔt) + (1/(2β) − 1) a_n) to F (v = carry × velocity)."""
     for b in range(dof.shape[0]):
         r = dof[b]
         if r >= 0:
             rho = density[b]
             s = area[b]
-            c_inertia = 2.0 * rho / (dt * dt)
-            c_velocity = 2.0 * rho / dt * carry
+            c_inertia = rho / (beta * dt * dt)
+            c_velocity = rho / (beta * dt) * carry
+            c_accel = rho * (0.5 / beta - 1.0)
             base = diag_slot[r]
             st = stride[r]
             for a in range(6):
@@ -407,8 +412,8 @@ def assemble_blocks(dof: I32_1, density: F64_1, elastic: F64_3, area: F64_1, mas
                     if a >= 3 and c >= 3:
                         k += s * elastic[b, a - 3, c - 3]
                     data[base + a * st + c] += k
-                    mv += mass[b, a, c] * velocity[b, c]
-                rhs[6 * r + a] += c_velocity * mv
+                    mv += mass[b, a, c] * (c_velocity * velocity[b, c] + c_accel * accel[b, c])
+                rhs[6 * r + a] += mv
             for a in range(3):
                 rhs[6 * r + 3 + a] -= s * stress[b, a]
             rhs[6 * r + 0] += rho * s * body_acc_x

@@ -141,6 +141,7 @@ class Model:
             vertex_xy=self.vertex_xy0.copy(),
             block_velocity=self.initial_velocity.copy(),
             block_stress=self.initial_stress.copy(),
+            block_accel=np.zeros((self.n_blocks, 6)),
             block_rotation=np.zeros(self.n_blocks),
             fixed_point_xy=self.fixed_point_xy0.copy(),
             load_xy=self.load_xy0.copy(),
@@ -176,6 +177,8 @@ class ContactMemory:
     """(m,) int8 sign of the last sliding direction (friction opposes it)."""
     dn: np.ndarray
     """(m,) normal distance at the end of the step [m] (negative: penetration)."""
+    normal_force: np.ndarray
+    """(m,) compressive normal force at the end of the step [N/m]."""
     kind: np.ndarray
     """(m,) int8 `ContactKind` at the end of the step."""
 
@@ -184,7 +187,7 @@ class ContactMemory:
         z = np.zeros(0)
         return ContactMemory(key=np.zeros(0, np.int64), state=z.astype(np.int8), line=z.astype(np.int8),
                              omega=z, bond=z.astype(bool), shear_dir=z.astype(np.int8), dn=z,
-                             kind=z.astype(np.int8))
+                             normal_force=z, kind=z.astype(np.int8))
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -201,6 +204,8 @@ class State:
     """(B, 6) generalized velocities (u̇0, v̇0, ṙ0, ε̇x, ε̇y, γ̇xy) [m/s, rad/s, 1/s]."""
     block_stress: np.ndarray
     """(B, 3) stress (σx, σy, τxy) [Pa], compression negative."""
+    block_accel: np.ndarray
+    """(B, 6) generalized accelerations at the end of the last step (Newmark) [m/s², ...]."""
     block_rotation: np.ndarray
     """(B,) accumulated rigid rotation [rad], counter-clockwise positive."""
     fixed_point_xy: np.ndarray

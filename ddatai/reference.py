@@ -198,7 +198,8 @@ def contact_vectors(model: Model, vertex_xy: np.ndarray, centroid: np.ndarray, c
 def assemble_dense(model: Model, vertex_xy: np.ndarray, velocity: np.ndarray, stress: np.ndarray,
                    fixed_point_xy: np.ndarray, load_xy: np.ndarray, load_force: np.ndarray,
                    dt: float, body_acc: np.ndarray, contacts, vec: np.ndarray, sca: np.ndarray,
-                   friction_force: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                   friction_force: np.ndarray, accel: np.ndarray | None = None,
+                   beta: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
     """Dense K (6n × 6n) and F over the free blocks, term by term (§2.1–2.8)."""
     geom = model.block_geometry(vertex_xy)
     free = np.flatnonzero(~model.block_fixed)
@@ -213,11 +214,13 @@ def assemble_dense(model: Model, vertex_xy: np.ndarray, velocity: np.ndarray, st
         r = row[int(b)]
         return slice(6 * r, 6 * r + 6)
 
+    accel = np.zeros_like(velocity) if accel is None else accel
     for b in free:
         rho, s = model.block_density[b], geom["area"][b]
-        K[sl(b), sl(b)] += 2 * rho / dt ** 2 * M[b]
+        # inertia ρ M a_{n+1} with a_{n+1} = (D − vΔt)/(βΔt²) − (1/(2β) − 1) a_n (Newmark, γ = 1)
+        K[sl(b), sl(b)] += rho / (beta * dt ** 2) * M[b]
         K[sl(b), sl(b)][3:, 3:] += s * model.block_elastic[b]
-        F[sl(b)] += 2 * rho / dt * M[b] @ (carry * velocity[b])
+        F[sl(b)] += rho * M[b] @ (carry * velocity[b] / (beta * dt) + (1 / (2 * beta) - 1) * accel[b])
         F[sl(b)][3:] -= s * stress[b]
         F[sl(b)][:2] += rho * s * body_acc
     for p, b in enumerate(model.fixed_point_block):

@@ -35,6 +35,8 @@ from .scene import Scene
 
 OPEN, SLIDE, LOCK = int(ContactState.OPEN), int(ContactState.SLIDE), int(ContactState.LOCK)
 VE, VV = int(ContactKind.VE), int(ContactKind.VV)
+#: open-close iteration from which contacts cycling between locked and sliding are held locked
+ANTI_CYCLING_FROM = 4
 # contact-vector slots (see ddatai.kernels)
 S_E0, S_G0, S_E1, S_G1, S_ES, S_GS, S_TJ = range(7)
 
@@ -218,8 +220,9 @@ class Stepper:
             body -= np.asarray(model.ground_acceleration(t_mid), dtype=float)
         mass = mass_matrix(geom["area"], geom["s1"], geom["s2"], geom["s3"])
         K.assemble_blocks(self.dof, model.block_density, model.block_elastic, geom["area"], mass,
-                          state.block_velocity, state.block_stress, float(body[0]), float(body[1]),
-                          dt, self.params.velocity_carry, pattern.diag_slot, pattern.stride, data, rhs)
+                          state.block_velocity, state.block_accel, state.block_stress, float(body[0]),
+                          float(body[1]), dt, self.params.velocity_carry, self.newmark_beta(state),
+                          pattern.diag_slot, pattern.stride, data, rhs)
         centroid = np.ascontiguousarray(geom["centroid"])
         if len(model.fixed_point_block):
             # restoring spring towards the original position (§2.6)
@@ -230,6 +233,10 @@ class Stepper:
             K.assemble_points(model.load_block, state.load_xy, self._load_forces(t_mid), self._load_stiff,
                               self.dof, centroid, pattern.diag_slot, pattern.stride, data, rhs)
         return data, rhs
+
+    def newmark_beta(self, state: State) -> float:
+        """β for this step: Shi's ½ on the first step (no acceleration history), then Params'."""
+        return 0.5 if state.step == 0 else self.params.newmark_beta
 
     def assemble_contacts(self, contacts: Contacts, pattern: BlockPattern, vec: np.ndarray,
                           sca: np.ndarray, data: np.ndarray, rhs: np.ndarray) -> None:
@@ -245,9 +252,9 @@ class Stepper:
                             m.penalty, m.shear_penalty, data, rhs)
 
     def friction_force(self, contacts: Contacts) -> np.ndarray:
-        """Coulomb limit N·tanφ + c·L (bonded) of each contact, N from the last solve (§2.8.4)."""
-        normal = self.model.penalty * np.maximum(-contacts.dn, 0.0)
-        return normal * contacts.tan_phi + contacts.cohesion * contacts.length * contacts.bond
+        """Coulomb limit N·tanφ + c·L (bonded) of each contact, N from the last solve in which
+        the contact was closed (§2.8.4)."""
+        return contacts.normal_force * contacts.tan_phi + contacts.cohesion * contacts.length * contacts.bond
 
     def solve(self, pattern: BlockPattern, data: np.ndarray, rhs: np.ndarray) -> np.ndarray:
         """Solve K D = F; returns D as (B, 6) with zeros for fixed blocks."""
@@ -270,7 +277,8 @@ class Stepper:
         return d
 
     def judge(self, contacts: Contacts, vec: np.ndarray, sca: np.ndarray, disp: np.ndarray,
-              vertex_xy: np.ndarray, geom: dict) -> bool:
+              vertex_xy: np.ndarray, geom: dict, flips: Optional[np.ndarray] = None,
+              hold: bool = False) -> bool:
         """Open-close judgement (§4.2–4.3) in place; returns True if any state changed.
 
         Normal: an open contact closes when it penetrates deeper than close_tol; a closed one
@@ -303,6 +311,8 @@ class Stepper:
             switch = dnl[rows, other] > dnl[rows, cur] + np.where(was_open[vv], 0.0, m.open_tol)
             line[vv] = np.where(switch, other, cur).astype(np.int8)
             dn[vv] = dnl[rows, line[vv]]
+        # an open contact closes when it penetrates; a closed one opens as soon as it pulls
+        # harder than the tensile strength of a bonded joint (force p·dn > T·L)
         allowance = np.where(contacts.bond, contacts.tensile * contacts.length / m.penalty, 0.0)
         closed = np.where(was_open, dn < -m.close_tol, dn <= allowance + m.open_tol)
 
@@ -332,14 +342,30 @@ class Stepper:
         # a new sliding direction: contacts that start sliding, and frictionless ones that turn
         # round (smaller reversals keep the direction: they are round-off, not stick)
         start_slide = closed & ve & ~lock & ((prev != SLIDE) | (turned & ~frictional))
-        # direction of the new sliding: of the spring's stretch when leaving lock or open, of
-        # the motion when a frictionless sliding contact turns round
-        new_dir = np.where(np.where(sliding_before, motion, ds) >= 0, 1, -1).astype(np.int8)
+        # direction of the new sliding: the motion in this step when it is significant (in an
+        # impact the vertex may move against the spring's stretch, and friction must oppose the
+        # motion), else the spring's stretch (Shi's rule, right for quasi-static loading); for a
+        # contact that just closed, ds is the motion since the crossing
+        significant = ~was_open & (np.abs(motion) > m.reversal_tol)
+        new_dir = np.where(np.where(significant, motion, ds) >= 0, 1, -1).astype(np.int8)
         contacts.shear_dir[start_slide] = new_dir[start_slide]
 
         # the entrance line of a vertex-vertex contact matters only while it is closed
         switched = vv & (line != contacts.line) & (new_state != OPEN) & (prev != OPEN)
-        changed = bool(np.any(new_state != prev) or np.any(switched))
+        change = (new_state != prev) | switched
+        if flips is not None:
+            if hold:
+                # anti-cycling: a closed contact switching between locked and sliding for the
+                # third time in this attempt is cycling with others at the friction limit;
+                # hold it locked (its force stays within the cycle's amplitude of the limit) so
+                # that the rest can settle. Open/closed decisions are never held: forcing a
+                # separating contact shut, or a penetrating one open, injects energy.
+                cycling = change & (flips >= 2) & ve & (prev != OPEN) & (new_state != OPEN)
+                new_state[cycling] = LOCK
+                change = (new_state != prev) | switched
+            flips += change
+        changed = bool(np.any(change))
+        contacts.normal_force[~was_open] = normal[~was_open]
         contacts.state[:] = new_state
         contacts.line[:] = line
         contacts.dn[:] = dn
@@ -376,6 +402,7 @@ class Stepper:
         converged = False
         disp = None
         it = 0
+        flips = np.zeros(contacts.n, np.int64)
         for it in range(1, p.oc_max_iterations + 1):
             data, rhs = data0.copy(), rhs0.copy()
             self.assemble_contacts(contacts, pattern, vec, sca, data, rhs)
@@ -384,7 +411,8 @@ class Stepper:
             t0 = timer.add("solve", t0)
             if not np.all(np.isfinite(disp)):
                 return _Attempt(ok=False, cause="nan", iterations=it)
-            changed = self.judge(contacts, vec, sca, disp, state.vertex_xy, geom)
+            changed = self.judge(contacts, vec, sca, disp, state.vertex_xy, geom, flips=flips,
+                                 hold=it >= ANTI_CYCLING_FROM)
             t0 = timer.add("update", t0)
             if not changed:
                 converged = True
@@ -417,16 +445,23 @@ class Stepper:
         stress = state.block_stress + np.einsum("bij,bj->bi", m.block_elastic, strain)
         stress = _rotate_stress(stress, disp[:, 2])
         stress[m.block_fixed] = state.block_stress[m.block_fixed]
-        velocity = 2.0 * disp / dt - p.velocity_carry * state.block_velocity
+        # Newmark, γ = 1: a_{n+1} = (D − v Δt)/(βΔt²) − (1/(2β) − 1) a_n, v_{n+1} = v + Δt a_{n+1}
+        # (β = ½: v_{n+1} = 2D/Δt − v, Shi's update, §5.2)
+        beta = self.newmark_beta(state)
+        carried = p.velocity_carry * state.block_velocity
+        block_accel = (disp - carried * dt) / (beta * dt * dt) - (0.5 / beta - 1.0) * state.block_accel
+        velocity = carried + dt * block_accel
         velocity[m.block_fixed] = 0.0
+        block_accel[m.block_fixed] = 0.0
         radius = self._block_radius(state.vertex_xy, centroid)
         dv = velocity - state.block_velocity
         accel = float(np.max(np.hypot(dv[:, 0], dv[:, 1]) + np.abs(dv[:, 2]) * radius, initial=0.0)) / dt
         if p.static:
             velocity[:] = 0.0
+            block_accel[:] = 0.0
         return State(
             time=state.time + dt, step=state.step + 1, vertex_xy=xy, block_velocity=velocity,
-            block_stress=stress, block_rotation=state.block_rotation + disp[:, 2],
+            block_stress=stress, block_accel=block_accel, block_rotation=state.block_rotation + disp[:, 2],
             fixed_point_xy=fp, load_xy=lp, measured_xy=mp, dt=dt, accel=accel,
             memory=contacts.memory())
 

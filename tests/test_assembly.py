@@ -27,6 +27,7 @@ def _random_case(seed, static=False, plane="strain"):
         vertex_xy=xy,
         block_velocity=rng.normal(0, 1, (nb, 6)),
         block_stress=rng.normal(0, 1e5, (nb, 3)),
+        block_accel=rng.normal(0, 1, (nb, 6)), step=3,
         fixed_point_xy=model.fixed_point_xy0 + rng.normal(0, 1e-4, model.fixed_point_xy0.shape),
         load_xy=model.load_xy0 + rng.normal(0, 1e-3, model.load_xy0.shape))
     cint, length = detect_contacts(model, xy)
@@ -37,6 +38,7 @@ def _random_case(seed, static=False, plane="strain"):
     c.shear_dir[:] = rng.choice([-1, 1], c.n)
     c.omega[:] = rng.uniform(0, 1, c.n)
     c.dn[:] = rng.normal(-1e-6, 1e-6, c.n)
+    c.normal_force[:] = rng.uniform(0, 1e5, c.n)
     c.cohesion[:] = rng.uniform(0, 1e5, c.n)
     return model, state, c
 
@@ -57,7 +59,8 @@ def test_taichi_assembly_equals_dense_reference(seed, static, plane):
     friction = stepper.friction_force(c)
     Kr, Fr = reference.assemble_dense(
         model, state.vertex_xy, state.block_velocity, state.block_stress, state.fixed_point_xy,
-        state.load_xy, np.array([f for f in model.load_force]), dt, model.gravity, c, vec, sca, friction)
+        state.load_xy, np.array([f for f in model.load_force]), dt, model.gravity, c, vec, sca, friction,
+        accel=state.block_accel, beta=model.params.newmark_beta)
     scale = np.abs(Kr).max()
     assert np.allclose(K, Kr, rtol=1e-12, atol=1e-13 * scale)
     assert np.allclose(rhs, Fr, rtol=1e-12, atol=1e-13 * np.abs(Fr).max())

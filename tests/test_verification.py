@@ -171,7 +171,7 @@ def test_fitted_grid_with_friction_reaches_equilibrium():
     from scenes.stacked_grid import build
 
     n = 6
-    scene, params = build(n, static=True, dt=0.005)
+    scene, params = build(n, gap=0.0, static=True, dt=0.005)
     res = dd.simulate(scene, params=params, steps=80, record_every=80)
     sy = res.stress[-1, 1:, 1].reshape(n, n)
     exact = -ROCK.density * G * 1.0 * (n - np.arange(n) - 0.5)
