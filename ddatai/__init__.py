@@ -34,6 +34,8 @@ _EXPORTS = {
     "STEP_DTYPE": "results",
     "simulate": "step", "Stepper": "step",
     "polygon_integrals": "geometry", "validate_polygon": "geometry",
+    "read_ntdda": "ntdda", "NtddaCase": "ntdda", "NtddaFormatError": "ntdda",
+    "NtddaWarning": "ntdda", "NtddaQuirkWarning": "ntdda", "NtddaUnsupportedWarning": "ntdda",
 }
 
 __all__ = sorted(_EXPORTS)
