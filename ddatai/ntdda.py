@@ -218,8 +218,16 @@ class NtddaAnalysis:
 
 # ============================================================================ small helpers
 def _warn(log: list, category, message: str) -> None:
+    """Record the message and warn, attributing the warning to the first caller outside
+    ddatai (the user's ``read_ntdda`` line)."""
+    import sys
+
     log.append(message)
-    warnings.warn(message, category, stacklevel=3)
+    package = str(Path(__file__).resolve().parent)
+    frame, level = sys._getframe(1), 2
+    while frame is not None and str(Path(frame.f_code.co_filename).resolve()).startswith(package):
+        frame, level = frame.f_back, level + 1
+    warnings.warn(message, category, stacklevel=level)
 
 
 _NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$")
