@@ -38,7 +38,7 @@ from typing import Literal, Optional, Sequence
 
 import numpy as np
 
-from .ntdda_geometry import (block_containing, block_materials, blocks_inside_other_blocks,
+from .ntdda_geometry import (BlockLocator, block_materials, blocks_inside_other_blocks,
                              clip_fixed_line, cut_segments, ntdda_fixed_points)
 from .params import Joint, Material, Params
 from .scene import Scene
@@ -98,6 +98,7 @@ class NtddaGeometry:
     joint_type: np.ndarray
     """(n,) joint-material index of each segment, 1-based."""
     joint_where: tuple
+    """Where each joint line is in the file."""
     n_boundary_lines: int
     """The first segments treated as GHS boundary lines (original format only)."""
     material_lines: np.ndarray
@@ -105,23 +106,29 @@ class NtddaGeometry:
     material_line_type: np.ndarray
     """(m,) block-material index of each material line, 1-based."""
     material_line_where: tuple
+    """Where each material line is in the file."""
     fixed_lines: np.ndarray
     """(k, 4) fixed lines x1 y1 x2 y2 [length]; a fixed point is a zero-length line."""
     fixed_where: tuple
+    """Where each fixed line or point is in the file."""
     load_points: np.ndarray
     """(nl, 2) load points [length]; the i-th pairs with the i-th load history."""
     load_where: tuple
+    """Where each load point is in the file."""
     measured_points: np.ndarray
     """(nm, 2) measured points [length]."""
     measured_where: tuple
+    """Where each measured point is in the file."""
     hole_points: np.ndarray
     """(nh, 2) hole points [length]: blocks containing one are deleted."""
     hole_where: tuple
+    """Where each hole point is in the file."""
     seismic_points: np.ndarray
     """(ns, 2) seismic points [length] (DDAML; ignored, as ntdda does in effect)."""
     n_bolts: int
     """Rock bolts declared (not supported)."""
     bolts_where: str
+    """Where the first bolt is declared."""
     warnings: tuple = ()
     """Warning messages issued while reading."""
 
@@ -149,6 +156,7 @@ class NtddaBlockMaterial:
     strain: tuple
     """DDAML ``Istrain`` (never used by ntdda; not supported)."""
     where: str
+    """Where the record is in the file."""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -162,6 +170,7 @@ class NtddaJointMaterial:
     tensile: float
     """Tensile strength T [force/length²]."""
     where: str
+    """Where the record is in the file."""
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -169,7 +178,9 @@ class NtddaAnalysis:
     """Content of an ntdda analysis file, with ntdda's implicit settings filled in."""
 
     path: str
+    """The file read."""
     format: Format
+    """"original" (GHS text) or "ddaml" (XML)."""
     dynamic: bool
     """Dynamic analysis (velocities carried between steps); False: static."""
     n_steps: int
@@ -185,6 +196,7 @@ class NtddaAnalysis:
     penalty_factor: float
     """Penalty = factor × the largest Young's modulus [-]."""
     plane_strain: bool
+    """Plane strain (DDAML ``Planestrain``); plane stress otherwise."""
     rotation: str
     """"linear", "secondorder" or "exact" (ddatai always updates rotations exactly)."""
     gravity_turn_on: bool
@@ -196,6 +208,7 @@ class NtddaAnalysis:
     save_interval: int
     """Record every this many steps."""
     contact_damping: float
+    """``ContactDamping`` (not supported)."""
     openclose: float
     """ntdda's re-closing tolerance / w0 (read; ddatai keeps its own, README)."""
     opencriteria: float
@@ -213,7 +226,9 @@ class NtddaAnalysis:
     load_histories: tuple
     """Per load point, an (n, 3) array of records t fx fy [time, force]."""
     load_where: tuple
+    """Where each load history is in the file."""
     warnings: tuple = ()
+    """Warning messages issued while reading."""
 
 
 # ============================================================================ small helpers
@@ -931,6 +946,7 @@ class NtddaBlocks:
     measured_block: np.ndarray
     """(nm,) block of each measured point."""
     warnings: tuple = ()
+    """Warning messages issued while cutting and placing points."""
 
 
 def cut_ntdda_geometry(geometry: NtddaGeometry) -> NtddaBlocks:
@@ -955,8 +971,9 @@ def cut_ntdda_geometry(geometry: NtddaGeometry) -> NtddaBlocks:
 
     # hole points delete the first block containing them (dc11)
     doomed = set()
+    locator = BlockLocator(polygons, w0)
     for k, xy in enumerate(g.hole_points):
-        b = block_containing(polygons, xy, w0)
+        b = locator.locate(xy)
         if b < 0:
             _warn(log, NtddaWarning, f"{g.path}, {g.hole_where[k]}: hole point ({xy[0]:g}, {xy[1]:g}) "
                   "lies outside every block; ignored")
@@ -985,10 +1002,12 @@ def cut_ntdda_geometry(geometry: NtddaGeometry) -> NtddaBlocks:
 
     fixed_block, fixed_xy = _fixed_points(g, polygons, w0, log)
 
+    locator = BlockLocator(polygons, w0)
+
     def locate(points, where, what):
         out = []
         for k, xy in enumerate(points):
-            b = block_containing(polygons, xy, w0)
+            b = locator.locate(xy)
             if b < 0:
                 raise NtddaFormatError(f"{g.path}, {where[k]}: {what} ({xy[0]:g}, {xy[1]:g}) lies outside "
                                        "every block")
@@ -1017,6 +1036,7 @@ def _fixed_points(g: NtddaGeometry, polygons, w0: float, log: list) -> tuple[np.
     import shapely
 
     tol = 1e-9 * w0
+    locator = BlockLocator(polygons, w0)
     blocks, points = [], []
 
     def add(b, xy):
@@ -1029,7 +1049,7 @@ def _fixed_points(g: NtddaGeometry, polygons, w0: float, log: list) -> tuple[np.
     for k, line in enumerate(g.fixed_lines):
         where = f"{g.path}, {g.fixed_where[k]}"
         if abs(line[0] - line[2]) + abs(line[1] - line[3]) <= tol:
-            b = block_containing(polygons, line[:2], w0)
+            b = locator.locate(line[:2])
             if b < 0:
                 raise NtddaFormatError(f"{where}: fixed point ({line[0]:g}, {line[1]:g}) lies outside every block")
             add(b, _onto_block(polygons[b], line[:2], w0))
@@ -1045,7 +1065,7 @@ def _fixed_points(g: NtddaGeometry, polygons, w0: float, log: list) -> tuple[np.
             continue
         inside = []
         for end in (line[:2], line[2:]):
-            b = block_containing(polygons, end, w0)
+            b = locator.locate(end)
             if b >= 0 and shapely.Polygon(polygons[b]).exterior.distance(shapely.Point(end)) > tol:
                 inside.append((b, end))
         if inside:
@@ -1102,8 +1122,11 @@ class NtddaCase:
     points: tuple
     """`NtddaPoint` per recorded point: measured points, then load points."""
     geometry: NtddaGeometry
+    """What the geometry file says."""
     analysis: NtddaAnalysis
+    """What the analysis file says."""
     blocks: NtddaBlocks
+    """The cut blocks, their materials and where the points went."""
     gravity: float
     """Effective gravitational acceleration γ/ρ [length/time²]."""
     warnings: tuple = ()

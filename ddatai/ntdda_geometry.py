@@ -429,21 +429,35 @@ def _merge_collinear(ring: np.ndarray, ring_line: np.ndarray, w0: float):
 
 
 # ---------------------------------------------------------------------------- after cutting
+class BlockLocator:
+    """Finds the block carrying a point the way ntdda's crr does: the first block (in order)
+    that has a vertex within 1e-5·w0 of the point, or contains it, or has it on an edge."""
+
+    def __init__(self, polygons, w0: float):
+        import shapely
+
+        self.polygons = [np.asarray(p, dtype=float) for p in polygons]
+        self.w0 = w0
+        self._shapes = [shapely.Polygon(p) for p in self.polygons]
+        self._tree = shapely.STRtree(self._shapes)
+
+    def locate(self, xy) -> int:
+        """Block index, or -1 if no block carries the point."""
+        import shapely
+
+        p = np.asarray(xy, dtype=float)
+        probe = shapely.Point(float(p[0]), float(p[1]))
+        near = 1e-5 * self.w0
+        for b in sorted(self._tree.query(probe, predicate="dwithin", distance=near).tolist()):
+            if np.min(np.hypot(*(self.polygons[b] - p).T)) < near or \
+                    self._shapes[b].distance(probe) <= 1e-9 * self.w0:
+                return b
+        return -1
+
+
 def block_containing(polygons, xy, w0: float) -> int:
-    """First block (in order) that contains the point or has it on its boundary, or -1.
-
-    ntdda's crr: a point within 1e-5·w0 of a vertex belongs to that vertex's block; a point on
-    an edge belongs to the first block having that edge.
-    """
-    import shapely
-
-    p = shapely.Point(float(xy[0]), float(xy[1]))
-    for b, poly in enumerate(polygons):
-        if np.min(np.hypot(*(poly - np.asarray(xy, dtype=float)).T)) < 1e-5 * w0:
-            return b
-        if shapely.Polygon(poly).distance(p) <= 1e-9 * w0:
-            return b
-    return -1
+    """First block (in order) carrying the point (see `BlockLocator`), or -1."""
+    return BlockLocator(polygons, w0).locate(xy)
 
 
 def blocks_inside_other_blocks(polygons) -> list[int]:
@@ -484,7 +498,7 @@ def block_materials(polygons, material_lines, w0: float) -> tuple[np.ndarray, li
                 mat[b] = int(m)
                 touched = True
         if not touched:
-            b = block_containing(polygons, (x1, y1), w0)
+            b = BlockLocator(polygons, w0).locate((x1, y1))
             if b >= 0:
                 mat[b] = int(m)
             else:

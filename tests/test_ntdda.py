@@ -489,3 +489,43 @@ def test_material_lines_and_hole_points(tmp_path):
     case = dd.read_ntdda(*three_blocks(tmp_path, hole="<Point> 1.5 0.5 </Point>"))
     assert case.scene.n_blocks == 2
     assert sorted(round(float(np.mean(b.vertices[:, 0])), 3) for b in case.scene.blocks) == [0.5, 2.5]
+
+
+BOUNDARY_GEO = """0.001
+5 NB
+0 0 1 0 1 0
+0 0 2 0 1
+2 0 2 1 1
+2 1 0 1 1
+0 1 0 0 1
+1 -0.01 1 1.01 2
+0.5 0.5 0.5 0.5
+1.5 0.5
+"""
+BOUNDARY_ANA = """1 2 1 2 0.01 0.001
+2000 19620 1e9 0.25  0 0 0  0 0 0  0 0 0
+30 0 0
+40 0 0
+"""
+
+
+@pytest.mark.parametrize("n_boundary", [0, 4])
+def test_original_format_with_boundary_lines(tmp_path, n_boundary):
+    """GHS boundary lines (the first n lines) change only the merging rules: a square cut by
+    one joint gives two unit blocks either way; the joint's edges carry joint type 2."""
+    geo, ana = tmp_path / "sq.geo", tmp_path / "sq.ana"
+    geo.write_text(BOUNDARY_GEO.replace("NB", str(n_boundary)))
+    ana.write_text(BOUNDARY_ANA)
+    case = read_quietly(geo, ana)
+    assert case.geometry.n_boundary_lines == n_boundary and case.analysis.dynamic
+    areas = sorted(float(dd.polygon_integrals(b.vertices, np.array([0, len(b.vertices)]))["area"][0])
+                   for b in case.scene.blocks)
+    assert areas == pytest.approx([1.0, 1.0], rel=1e-12)
+    assert case.gravity == pytest.approx(9.81)
+    fp, = case.scene.fixed_points
+    assert fp.xy == (0.5, 0.5) and np.mean(case.scene.blocks[fp.block].vertices[:, 0]) < 1
+    (pt,) = case.points
+    assert pt.name == "M1" and np.mean(case.scene.blocks[pt.block].vertices[:, 0]) > 1
+    for b in case.scene.blocks:
+        on_joint = [k for k in range(len(b.vertices)) if np.allclose(b.vertices[[k, (k + 1) % len(b.vertices)], 0], 1.0)]
+        assert [case.scene.joints[b.edge_joint[k]].friction for k in on_joint] == [40.0]
