@@ -10,7 +10,8 @@ each file is detected from its first characters.
 >>> case = dd.read_ntdda("pushblock.geo", "pushblock.ana")     # doctest: +SKIP
 >>> print(case.summary())                                       # doctest: +SKIP
 >>> res = case.simulate()                                       # doctest: +SKIP
->>> dd.ntdda.write_measured_csv(res, case, "pushblock.csv")     # doctest: +SKIP
+>>> from ddatai.ntdda import write_measured_csv
+>>> write_measured_csv(res, case, "pushblock.csv")               # doctest: +SKIP
 
 Where ntdda behaves oddly (peers.md §3.1.6, §7; ntdda-baseline.md §8) the reader makes an
 explicit choice, documented where it is made and in README "Reading ntdda files", and warns
