@@ -1367,10 +1367,14 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     ap.add_argument("--steps", type=int, default=None, help="override the number of steps")
     args = ap.parse_args(argv)
     try:
-        case = read_ntdda(args.geo, args.ana)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", NtddaWarning)
+            case = read_ntdda(args.geo, args.ana)
     except NtddaFormatError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    for w in caught:
+        print(f"warning ({w.category.__name__}): {w.message}", file=sys.stderr)
     print(case.summary())
     over = {}
     if args.duration is not None or args.steps is not None:

@@ -69,13 +69,15 @@ def domain_scale(segments: np.ndarray) -> float:
     return 1.02 * w0
 
 
-def segment_intersection(w0: float, p1, p2, p3, p4) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def segment_intersection(w0: float, p1, p2, p3, p4, *, collinear: bool = True
+                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """ntdda's segment intersection test (lns), vectorised over broadcast end points.
 
     Segment i runs p1 -> p2, segment j runs p3 -> p4. Returns ``(hit, t1, t2)``: whether they
     meet, and the parameters along i and j. Parameters within 1e-7 outside [0, 1] still count
     (touching end points meet). Parallel segments meet only when collinear and exactly one end
-    point of j lies on i (end-to-end contact); collinear overlaps do not meet.
+    point of j lies on i (end-to-end contact); collinear overlaps do not meet. With
+    ``collinear=False`` parallel segments never meet (ntdda's edge-crossing test in dc06).
     """
     p1, p2, p3, p4 = (np.asarray(p, dtype=float) for p in (p1, p2, p3, p4))
     x21, y21 = p2[..., 0] - p1[..., 0], p2[..., 1] - p1[..., 1]
@@ -101,7 +103,7 @@ def segment_intersection(w0: float, p1, p2, p3, p4) -> tuple[np.ndarray, np.ndar
         s4 = np.where(use_x, x41, y41) / a1
     in3 = (s3 >= lo) & (s3 <= hi)
     in4 = (s4 >= lo) & (s4 <= hi)
-    hit_c = colinear & (in3 ^ in4)
+    hit_c = colinear & (in3 ^ in4) & collinear
     hit = hit_n | hit_c
     t1 = np.where(hit_n, t1n, np.where(in3, s3, s4))
     t2 = np.where(hit_n, t2n, np.where(in3, 0.0, 1.0))
@@ -281,7 +283,8 @@ def _delete_crossing_edges(node_xy, neighbours, edge_line, is_boundary, w0) -> N
         (a, b), (c, d) = keys[e], keys[f]
         if len({a, b, c, d}) < 4 or (is_boundary(keys[e]) and is_boundary(keys[f])):
             continue
-        hit, _, _ = segment_intersection(w0, node_xy[a], node_xy[b], node_xy[c], node_xy[d])
+        hit, _, _ = segment_intersection(w0, node_xy[a], node_xy[b], node_xy[c], node_xy[d],
+                                         collinear=False)
         if not hit:
             continue
         # every way ntdda's loops meet this pair: (i, i1) one edge, (j, j1) the other
@@ -472,12 +475,30 @@ def blocks_inside_other_blocks(polygons) -> list[int]:
     tree = shapely.STRtree(polys)
     inside = []
     for b, poly in enumerate(polys):
-        probe = poly.representative_point()
+        probe = _probe_inside_first_edge(np.asarray(polygons[b], dtype=float), poly)
         for other in tree.query(probe, predicate="within"):
             if other != b:
                 inside.append(b)
                 break
     return inside
+
+
+def _probe_inside_first_edge(ring: np.ndarray, poly):
+    """A point just inside the block next to the middle of its first edge (ntdda's dc16 probe:
+    a block's centre may lie in a hole it does not have)."""
+    import shapely
+
+    edge = ring[1] - ring[0]
+    length = float(np.hypot(*edge))
+    inward = np.array([-edge[1], edge[0]]) / length
+    mid = 0.5 * (ring[0] + ring[1])
+    step = 1e-6 * length
+    for _ in range(20):
+        probe = shapely.Point(*(mid + step * inward))
+        if poly.contains(probe):
+            return probe
+        step *= 0.5
+    return poly.representative_point()
 
 
 def block_materials(polygons, material_lines, w0: float) -> tuple[np.ndarray, list[int]]:

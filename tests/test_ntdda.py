@@ -540,3 +540,29 @@ def test_automatic_time_step_runs_the_file_s_steps(tmp_path):
     case = pushblock_with(tmp_path, lambda s: s.replace('<Autotimestep flag="no"/>', '<Autotimestep flag="yes"/>', 1))
     assert case.params.dt is None and case.params.dt_max == 0.01
     assert case.steps == 500 and case.duration is None
+
+
+NESTED = """<?xml version="1.0"?>
+<DDA><Geometry><Edgenodedist distance="0.001"/><Jointlist>
+  <Joint type="1"> 0 0 4 0 </Joint> <Joint type="1"> 4 0 4 4 </Joint>
+  <Joint type="1"> 4 4 0 4 </Joint> <Joint type="1"> 0 4 0 0 </Joint>
+  <Joint type="1"> 1 1 3 1 </Joint> <Joint type="1"> 3 1 3 3 </Joint>
+  <Joint type="1"> 3 3 1 3 </Joint> <Joint type="1"> 1 3 1 1 </Joint>
+  BRIDGE
+</Jointlist></Geometry></DDA>
+"""
+
+
+def test_unconnected_loops_and_bridges(tmp_path):
+    """A joint loop not connected to the rest: as in ntdda the inner block is deleted and the
+    outer one keeps its full outline (warned). Joined by a single segment (a bridge), the
+    outer block would wrap around it twice: an error, not a broken polygon."""
+    geo = tmp_path / "nested.geo"
+    geo.write_text(NESTED.replace("BRIDGE", ""))
+    with pytest.warns(NtddaQuirkWarning, match="inside another block"):
+        blocks = cut_ntdda_geometry(read_ntdda_geometry(geo))
+    (outer,) = blocks.polygons
+    assert np.ptp(outer, axis=0).tolist() == [4.0, 4.0] and len(outer) == 4
+    geo.write_text(NESTED.replace("BRIDGE", '<Joint type="1"> 2 0 2 1 </Joint>'))
+    with pytest.raises(NtddaFormatError, match=r"nested.geo: .*twice through the node .*simple polygons"):
+        cut_ntdda_geometry(read_ntdda_geometry(geo))
