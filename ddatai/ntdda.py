@@ -325,7 +325,8 @@ class _Tokens:
         tok, line = self._next(what)
         x = _to_float(tok)
         if x is None or x != math.floor(x) or x < 1:
-            raise NtddaFormatError(f"{self.path}, line {line}: expected {what} (a whole number >= 1), got {tok!r}")
+            raise NtddaFormatError(f"{self.path}, line {line}: expected {what} (a whole number >= 1), "
+                                   f"got {tok!r}")
         return int(x)
 
     def records(self, count: int, width: int, what: str) -> tuple[np.ndarray, tuple]:
@@ -641,7 +642,8 @@ def _read_original_analysis(path: Path, text: str, log: list) -> NtddaAnalysis:
     where = tk.where()
     kind = tk.integer("the analysis type (0 static, 1 dynamic)")
     if kind not in (0, 1):
-        raise NtddaFormatError(f"{path}, {where}: the analysis type must be 0 (static) or 1 (dynamic), got {kind}")
+        raise NtddaFormatError(f"{path}, {where}: the analysis type must be 0 (static) or 1 (dynamic), "
+                               f"got {kind}")
     n_steps = tk.integer("the number of time steps", minimum=1)
     n_bmat = tk.integer("the number of block materials", minimum=1)
     n_jmat = tk.integer("the number of joint materials", minimum=1)
@@ -1052,7 +1054,8 @@ def _fixed_points(g: NtddaGeometry, polygons, w0: float, log: list) -> tuple[np.
         if abs(line[0] - line[2]) + abs(line[1] - line[3]) <= tol:
             b = locator.locate(line[:2])
             if b < 0:
-                raise NtddaFormatError(f"{where}: fixed point ({line[0]:g}, {line[1]:g}) lies outside every block")
+                raise NtddaFormatError(f"{where}: fixed point ({line[0]:g}, {line[1]:g}) lies outside "
+                                       "every block")
             add(b, _onto_block(polygons[b], line[:2], w0))
             continue
         touched = False
@@ -1336,9 +1339,9 @@ def write_measured_csv(results, case: NtddaCase, path) -> None:
     from the initial position (ntdda's cumulative displacement, without ntdda's D9 bug)."""
     measured = np.asarray(results.measured)
     if measured.ndim != 3 or measured.shape[1] != len(case.points):
-        raise ValueError(f"write_measured_csv: the results hold {measured.shape[1] if measured.ndim == 3 else '?'} "
-                         f"measured points but the case records {len(case.points)}; were they produced "
-                         "by this case?")
+        held = measured.shape[1] if measured.ndim == 3 else "?"
+        raise ValueError(f"write_measured_csv: the results hold {held} measured points but the case "
+                         f"records {len(case.points)}; were they produced by this case?")
     header = ["time"]
     cols = [np.asarray(results.time, dtype=float)]
     for pt in case.points:
