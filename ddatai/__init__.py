@@ -36,6 +36,8 @@ _EXPORTS = {
     "polygon_integrals": "geometry", "validate_polygon": "geometry",
     "write_gif": "render", "write_png": "render", "render_frames": "render",
     "joint_sets": "jointsets", "JointSet": "jointsets",
+    "read_ntdda": "ntdda", "NtddaCase": "ntdda", "NtddaFormatError": "ntdda",
+    "NtddaWarning": "ntdda", "NtddaQuirkWarning": "ntdda", "NtddaUnsupportedWarning": "ntdda",
 }
 
 __all__ = sorted(_EXPORTS)

@@ -52,6 +52,7 @@ class Progress:
         self.enabled = enabled
         self.start = time.perf_counter()
         self.last = 0.0
+        self.next_line = 0.0
         self.n = 0
 
     def __call__(self, state, record) -> None:
@@ -62,7 +63,10 @@ class Progress:
         self.last = now
         self._draw(state.time, now)
 
-    def _draw(self, t: float, now: float) -> None:
+    def _draw(self, t: float, now: float, final: bool = False) -> None:
+        if not sys.stderr.isatty() and not final and now - self.start < self.next_line:
+            return  # not a terminal: a plain line every 10 s instead of a live bar
+        self.next_line = now - self.start + 10.0
         if self.duration:
             frac = min(1.0, t / self.duration)
         elif self.steps:
@@ -72,13 +76,16 @@ class Progress:
         bar = "#" * int(30 * frac) + "." * (30 - int(30 * frac))
         rate = self.n / max(now - self.start, 1e-9)
         total = f"/{self.duration:g}" if self.duration else ""
-        sys.stderr.write(f"\r[{bar}] t = {t:.4g}{total} s  {self.n} steps  {rate:.1f} steps/s ")
+        end = " " if sys.stderr.isatty() else "\n"
+        start = "\r" if sys.stderr.isatty() else ""
+        sys.stderr.write(f"{start}[{bar}] t = {t:.4g}{total} s  {self.n} steps  {rate:.1f} steps/s{end}")
         sys.stderr.flush()
 
     def close(self, t: float) -> None:
         if self.enabled:
-            self._draw(t, time.perf_counter())
-            sys.stderr.write("\n")
+            self._draw(t, time.perf_counter(), final=True)
+            if sys.stderr.isatty():
+                sys.stderr.write("\n")
 
 
 def load_scene_module(path: Path) -> ModuleType:
@@ -99,8 +106,6 @@ def load_scene_module(path: Path) -> ModuleType:
 def run_scene(build: Callable, duration: float, name: str, args: argparse.Namespace) -> int:
     """Build, simulate with a progress bar, save results (and GIF), print a summary."""
     import dataclasses
-
-    import ddatai as dd
 
     scene, params = build()
     if args.arch is not None:
@@ -160,8 +165,15 @@ def _run_ntdda(geo: Path, ana: Path, args: argparse.Namespace) -> int:
     import dataclasses
 
     case = read_ntdda(geo, ana)
+    print(case.summary())
     params = case.params if args.arch is None else dataclasses.replace(case.params, arch=args.arch)
-    duration = args.duration if args.duration is not None else case.duration
+    # an ntdda file gives a number of steps (automatic time step) or a duration (fixed one)
+    if args.duration is not None or args.steps is not None:
+        duration, steps = args.duration, args.steps
+    else:
+        duration, steps = case.duration, case.steps
+    if args.every is None:
+        args.every = case.record_every
     name = Path(geo).stem
 
     def measured(results) -> None:
@@ -170,7 +182,7 @@ def _run_ntdda(geo: Path, ana: Path, args: argparse.Namespace) -> int:
             write_measured_csv(results, case, path)
             print(f"measured points written to {path}")
 
-    return _simulate_and_report(case.scene, params, duration, args.steps, name, args, after=measured)
+    return _simulate_and_report(case.scene, params, duration, steps, name, args, after=measured)
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
