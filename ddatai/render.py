@@ -41,6 +41,7 @@ LABEL_COLOURS = [(31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (
 DEFAULT_FREE = (120, 150, 190)  # moving blocks without a label when colouring by label
 CONTACT_COLOURS = {0: (160, 160, 160), 1: (230, 85, 13), 2: (33, 113, 181)}
 CONTACT_NAMES = {0: "open", 1: "sliding", 2: "locked"}
+MIN_SPEED_SCALE = 1e-3  # m/s: the smallest top of the speed colour scale
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -135,7 +136,8 @@ class _Painter:
             speed = _speed(results)
             free = ~results.block_fixed
             top = float(speed[list(frames)][:, free].max(initial=0.0)) if free.any() else 0.0
-            self.max_speed = float(max_speed) if max_speed is not None else (top if top > 0 else 1.0)
+            # 1 mm/s floor: a model at rest shows round-off speeds, which are not motion
+            self.max_speed = float(max_speed) if max_speed is not None else max(top, MIN_SPEED_SCALE)
             self.speed = speed
         off = results.vertex_offset
         self.offsets = off
