@@ -19,9 +19,10 @@ def build(seed: int = 7, bedding_spacing: float = 3.0, cross_spacing: float = 4.
     scene = dd.Scene(gravity=9.81)
     toe, crest = (10.0, 0.0), (10.0 + 30.0 / np.tan(np.radians(60.0)), 30.0)
     outline = [(0.0, -6.0), (60.0, -6.0), (60.0, 30.0), crest, toe, (0.0, 0.0)]
-    sets = [dd.JointSet(dip=180.0 - 35.0, spacing=bedding_spacing, spacing_spread=0.5, dip_spread=2.0,
+    # the face looks to −x: traces rising to +x at 35° dip out of the face
+    sets = [dd.JointSet(dip=35.0, spacing=bedding_spacing, spacing_spread=0.5, dip_spread=2.0,
                         joint=dd.Joint(friction=22.0)),
-            dd.JointSet(dip=70.0, spacing=cross_spacing, trace_length=14.0, gap=1.0, spacing_spread=0.8,
+            dd.JointSet(dip=105.0, spacing=cross_spacing, trace_length=14.0, gap=1.0, spacing_spread=0.8,
                         dip_spread=4.0, joint=dd.Joint(friction=35.0))]
     ids = scene.cut(outline, dd.joint_sets(outline, sets, seed=seed), material=rock)
     for b in ids:

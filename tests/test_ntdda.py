@@ -24,7 +24,16 @@ from ddatai.ntdda import (NtddaFormatError, NtddaQuirkWarning, NtddaUnsupportedW
                           write_measured_csv)
 from ddatai.ntdda_geometry import ntdda_fixed_points
 
-SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"
+def _shared_data() -> Path:
+    """The shared data folder: next to the checkout (../shared), or the workplace's /work/shared
+    when CI runs from a clone elsewhere."""
+    for root in (Path(__file__).resolve().parents[2] / "shared", Path("/work/shared")):
+        if (root / "data" / "ntdda").is_dir():
+            return root / "data"
+    return Path(__file__).resolve().parents[2] / "shared" / "data"
+
+
+SHARED = _shared_data()
 DATA = Path(os.environ.get("DDATAI_NTDDA_DATA", SHARED / "ntdda"))
 RUNS = DATA.parent / "ntdda-runs"
 
