@@ -220,6 +220,11 @@ class State:
     """Largest block acceleration seen in the last step [m/s²] (for the automatic time step)."""
     memory: ContactMemory = field(default_factory=ContactMemory.empty)
     """Contact data carried to the next step."""
+    energy: Optional[float] = None
+    """Mechanical energy (kinetic, gravitational, strain, contact) at the end of the last step
+    [J/m]; None before the first step."""
+    geometry: Optional[dict] = None
+    """Polygon integrals of ``vertex_xy`` (a cache filled by the step that produced the state)."""
 
     def replace(self, **changes) -> "State":
         return replace(self, **changes)

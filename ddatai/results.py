@@ -27,6 +27,14 @@ STEP_DTYPE = np.dtype([
     ("t_assembly", "f8"),       # wall time: block and contact terms [s]
     ("t_solve", "f8"),          # wall time: sparse factorisation and solves [s]
     ("t_update", "f8"),         # wall time: open-close judgement and geometry update [s]
+    # energy at the end of the step and work during it [J per m of thickness] (ddatai.energy)
+    ("kinetic", "f8"),          # ½ ρ vᵀ M v of the free blocks
+    ("gravitational", "f8"),    # ρ S (−g·c), zero at the model's centre
+    ("strain", "f8"),           # ½ S σᵀ C⁻¹ σ
+    ("contact", "f8"),          # penalty springs of closed / locked contacts and fixed points
+    ("external_work", "f8"),    # work of point loads and of the ground motion in the step
+    ("friction_work", "f8"),    # work dissipated by sliding friction in the step
+    ("integrator_work", "f8"),  # the rest of the balance: dissipated by the integrator (>= 0)
 ])
 
 

@@ -53,6 +53,8 @@ class _Attempt:
     max_displacement: float = 0.0
     max_penetration: float = 0.0
     ratio: float = 0.0
+    friction: Optional[np.ndarray] = None  # friction loads of the accepted solve
+    vec: Optional[np.ndarray] = None       # contact vectors of the accepted solve
 
 
 class _Timer:
@@ -89,7 +91,7 @@ class Stepper:
         timer = _Timer()
         t0 = _time.perf_counter()
         model, p = self.model, self.params
-        geom = model.block_geometry(state.vertex_xy)
+        geom = state.geometry if state.geometry is not None else model.block_geometry(state.vertex_xy)
         dt_nominal = self.choose_time_step(state, geom)
         dt = dt_nominal
         if t_end is not None:
@@ -127,13 +129,42 @@ class Stepper:
 
         t0 = _time.perf_counter()
         new_state = self.update(state, geom, attempt.displacement, attempt.contacts, dt)
+        if state.energy is None:
+            state = state.replace(energy=sum(self.energies(state, geom, contacts0)))
+        energy = self.energies(new_state, new_state.geometry, attempt.contacts)
+        work = self.work(state, geom, attempt, dt)
+        new_state = new_state.replace(energy=sum(energy))
+        # balance: what external work did not go into the energy or friction, the integrator took
+        dissipated = work[0] - (new_state.energy - state.energy) - work[1]
         timer.add("update", t0)
         closed = attempt.contacts.state != OPEN
         record = (new_state.time, dt, attempt.iterations, oc_total, cuts, contacts0.n,
                   int(np.count_nonzero(closed)), attempt.max_penetration, attempt.max_displacement,
-                  timer.t["contacts"], timer.t["assembly"], timer.t["solve"], timer.t["update"])
+                  timer.t["contacts"], timer.t["assembly"], timer.t["solve"], timer.t["update"],
+                  *energy, work[0], work[1], dissipated)
         self.last_contacts = attempt.contacts
         return new_state, record
+
+    def energies(self, state: State, geom: dict, contacts: Optional[Contacts]) -> tuple:
+        """(kinetic, gravitational, strain, contact) energy of a state [J/m] (ddatai.energy)."""
+        from .energy import contact_energy, mechanical_energy
+
+        kinetic, gravitational, strain, springs = mechanical_energy(
+            self.model, geom, state.block_velocity, state.block_stress, state.fixed_point_xy)
+        return kinetic, gravitational, strain, springs + contact_energy(self.model, contacts)
+
+    def work(self, state: State, geom: dict, attempt: _Attempt, dt: float) -> tuple[float, float]:
+        """(external work, friction dissipation) of the accepted step [J/m]."""
+        from .energy import external_work, friction_work
+
+        m = self.model
+        t_mid = state.time + 0.5 * dt
+        ground = np.asarray(m.ground_acceleration(t_mid), float) if m.ground_acceleration is not None else None
+        loads = self._load_forces(t_mid) if len(m.load_block) else np.zeros((0, 2))
+        external = external_work(m, geom, attempt.displacement, state.load_xy, loads, ground)
+        friction = friction_work(attempt.contacts, attempt.vec, attempt.friction, attempt.displacement) \
+            if attempt.contacts.n else 0.0
+        return external, friction
 
     def _failure_message(self, attempt: _Attempt, state: State, dt: float) -> str:
         step = state.step + 1
@@ -411,6 +442,7 @@ class Stepper:
             t0 = timer.add("solve", t0)
             if not np.all(np.isfinite(disp)):
                 return _Attempt(ok=False, cause="nan", iterations=it)
+            friction = self.friction_force(contacts)  # the loads of this solve, for the energy balance
             changed = self.judge(contacts, vec, sca, disp, state.vertex_xy, geom, flips=flips,
                                  hold=it >= ANTI_CYCLING_FROM)
             t0 = timer.add("update", t0)
@@ -424,7 +456,8 @@ class Stepper:
         pen = float(np.max(-contacts.dn[closed], initial=0.0))
         ratio = umax / m.max_step
         result = _Attempt(ok=True, displacement=disp, contacts=contacts, iterations=it,
-                          max_displacement=umax, max_penetration=max(pen, 0.0), ratio=ratio)
+                          max_displacement=umax, max_penetration=max(pen, 0.0), ratio=ratio,
+                          friction=friction, vec=vec)
         if ratio > p.displacement_reject:
             result.ok, result.cause = False, "displacement"
         elif pen > m.penetration_limit:
@@ -460,6 +493,7 @@ class Stepper:
             velocity[:] = 0.0
             block_accel[:] = 0.0
         return State(
+            geometry=m.block_geometry(xy),
             time=state.time + dt, step=state.step + 1, vertex_xy=xy, block_velocity=velocity,
             block_stress=stress, block_accel=block_accel, block_rotation=state.block_rotation + disp[:, 2],
             fixed_point_xy=fp, load_xy=lp, measured_xy=mp, dt=dt, accel=accel,
@@ -556,7 +590,7 @@ def simulate(scene: Scene, params: Optional[Params] = None, duration: Optional[f
                 c = stepper.last_contacts
                 cxy = state.vertex_xy[c.cint[:, V0]]
                 cst = c.state
-            recorder.frame(state, model.block_geometry(state.vertex_xy)["centroid"], cxy, cst)
+            recorder.frame(state, state.geometry["centroid"], cxy, cst)
         if progress is not None:
             progress(state, record)
     return recorder.results()
