@@ -282,6 +282,65 @@ class Stepper:
                             pattern.slot_ab, pattern.slot_ba, pattern.diag_slot, pattern.stride,
                             m.penalty, m.shear_penalty, data, rhs)
 
+    def second_order(self, contacts: Contacts, state: State, geom: dict, rotation: np.ndarray,
+                     pattern: BlockPattern, rhs: np.ndarray) -> np.ndarray:
+        """Second-order rotation terms of the constraints, for the exact-rotation update (§5.3).
+
+        The step equations use the linearised displacement T·D, but points are moved with the
+        exact rotation, which adds q = (cos r − 1)X + (sin r − r)JX (≈ −½r²X, JX = (−Y, X)) to a
+        point at X from its block's centroid. A block swinging about a constrained point (a
+        fixed point, a contact at a pivot corner) would drift outwards by q every step and be
+        pulled back, the constraint doing work: energy grows ∝ ω²Δt. Folding q, evaluated with
+        the rotation r of the latest iterate, into the constant parts of the contact distances
+        (returned, (m, 3): dn line 0, dn line 1, ds) and into the fixed-point springs (added to
+        ``rhs`` in place) makes the constraints hold for the exact update.
+        """
+        m = self.model
+        shift = np.zeros((contacts.n, 3))
+        if not np.any(rotation):
+            return shift
+        xy, centroid, nxt, vb = state.vertex_xy, geom["centroid"], m.vertex_next, m.vertex_block
+
+        def q(points, blocks):
+            X = points - centroid[blocks]
+            r = rotation[blocks]
+            jx = np.stack([-X[:, 1], X[:, 0]], axis=1)
+            return (np.cos(r) - 1.0)[:, None] * X + (np.sin(r) - r)[:, None] * jx
+
+        ci = contacts.cint
+        for line in (0, 1):
+            rows = np.arange(contacts.n) if line == 0 else np.flatnonzero(ci[:, 0] == VV)
+            if not len(rows):
+                continue
+            p1, k = ci[rows, 1 + 2 * line], ci[rows, 2 + 2 * line]
+            P1, P2, P3 = xy[p1], xy[nxt[k]], xy[k]
+            q1, q2, q3 = q(P1, vb[p1]), q(P2, vb[k]), q(P3, vb[k])
+            x1, y1, x2, y2, x3, y3 = P1[:, 0], P1[:, 1], P2[:, 0], P2[:, 1], P3[:, 0], P3[:, 1]
+            length = np.hypot(x3 - x2, y3 - y2)
+            # ∂Δ/∂P1, ∂Δ/∂P2, ∂Δ/∂P3 (§2.8.1)
+            shift[rows, line] = ((y2 - y3) * q1[:, 0] + (x3 - x2) * q1[:, 1] +
+                                 (y3 - y1) * q2[:, 0] + (x1 - x3) * q2[:, 1] +
+                                 (y1 - y2) * q3[:, 0] + (x2 - x1) * q3[:, 1]) / length
+            if line == 0:
+                # ∂s/∂P1, ∂s/∂P2, ∂s/∂P3 of s = (P1 − P0)·(P3 − P2) (§2.8.3)
+                w = contacts.omega[rows][:, None]
+                b1 = P3 - P2
+                b2 = -P1 + 2 * (1 - w) * P2 - (1 - 2 * w) * P3
+                b3 = P1 - (1 - 2 * w) * P2 - 2 * w * P3
+                ve = ci[rows, 0] == VE
+                shift[rows, 2] = np.where(ve, ((b1 * q1).sum(1) + (b2 * q2).sum(1) + (b3 * q3).sum(1)) / length, 0.0)
+        if len(m.fixed_point_block):
+            from .geometry import displacement_matrix
+
+            fb = m.fixed_point_block
+            rows = self.dof[fb]
+            use = rows >= 0
+            pts = state.fixed_point_xy[use]
+            t = displacement_matrix(pts, centroid[fb[use]])
+            load = -m.fixed_point_penalty * np.einsum("nij,ni->nj", t, q(pts, fb[use]))
+            np.add.at(rhs, (6 * rows[use])[:, None] + np.arange(6)[None, :], load)
+        return shift
+
     def friction_force(self, contacts: Contacts) -> np.ndarray:
         """Coulomb limit N·tanφ + c·L (bonded) of each contact, N from the last solve in which
         the contact was closed (§2.8.4)."""
@@ -308,8 +367,8 @@ class Stepper:
         return d
 
     def judge(self, contacts: Contacts, vec: np.ndarray, sca: np.ndarray, disp: np.ndarray,
-              vertex_xy: np.ndarray, geom: dict, flips: Optional[np.ndarray] = None,
-              hold: bool = False) -> bool:
+              vertex_xy: np.ndarray, geom: dict, shift: Optional[np.ndarray] = None,
+              flips: Optional[np.ndarray] = None, hold: bool = False) -> bool:
         """Open-close judgement (§4.2–4.3) in place; returns True if any state changed.
 
         Normal: an open contact closes when it penetrates deeper than close_tol; a closed one
@@ -321,7 +380,9 @@ class Stepper:
         ci = contacts.cint
         a, b = contacts.block_a, contacts.block_b
         da, db = disp[a], disp[b]
-        dn0 = sca[:, 0] + np.einsum("ij,ij->i", vec[:, S_E0], da) + np.einsum("ij,ij->i", vec[:, S_G0], db)
+        shift = np.zeros_like(sca) if shift is None else shift
+        dn0 = sca[:, 0] + shift[:, 0] + np.einsum("ij,ij->i", vec[:, S_E0], da) + \
+            np.einsum("ij,ij->i", vec[:, S_G0], db)
         kind = ci[:, KIND]
         vv = kind == VV
         ve = ~vv
@@ -333,7 +394,7 @@ class Stepper:
             # line 1: vertex1 (of block b) against an edge of block a. The less penetrated line
             # acts; a closed contact switches only when the other line is clearly less
             # penetrated (beyond open_tol), so exact ties (touching corners) do not flip.
-            dn1 = sca[vv, 1] + np.einsum("ij,ij->i", vec[vv, S_E1], db[vv]) + \
+            dn1 = sca[vv, 1] + shift[vv, 1] + np.einsum("ij,ij->i", vec[vv, S_E1], db[vv]) + \
                 np.einsum("ij,ij->i", vec[vv, S_G1], da[vv])
             dnl = np.stack([dn0[vv], dn1], axis=1)
             cur = line[vv].astype(np.int64)
@@ -356,7 +417,8 @@ class Stepper:
             omega_changed = True
         if omega_changed:
             vec[:], sca[:] = self.contact_vectors(vertex_xy, geom, contacts)
-        ds = sca[:, 2] + np.einsum("ij,ij->i", vec[:, S_ES], da) + np.einsum("ij,ij->i", vec[:, S_GS], db)
+        ds = sca[:, 2] + shift[:, 2] + np.einsum("ij,ij->i", vec[:, S_ES], da) + \
+            np.einsum("ij,ij->i", vec[:, S_GS], db)
         normal = m.penalty * np.maximum(-dn, 0.0)
         strength = normal * contacts.tan_phi + contacts.cohesion * contacts.length * contacts.bond
         # open_tol absorbs round-off in ds as it does in dn
@@ -434,16 +496,22 @@ class Stepper:
         disp = None
         it = 0
         flips = np.zeros(contacts.n, np.int64)
+        # rotation of each block in this step: predicted from the carried motion, then the
+        # latest iterate's (for the second-order terms of the constraints)
+        rotation = dt * p.velocity_carry * state.block_velocity[:, 2] + 0.5 * dt * dt * state.block_accel[:, 2]
+        rotation[m.block_fixed] = 0.0
         for it in range(1, p.oc_max_iterations + 1):
             data, rhs = data0.copy(), rhs0.copy()
-            self.assemble_contacts(contacts, pattern, vec, sca, data, rhs)
+            shift = self.second_order(contacts, state, geom, rotation, pattern, rhs)
+            self.assemble_contacts(contacts, pattern, vec, sca + shift, data, rhs)
             t0 = timer.add("assembly", t0)
             disp = self.solve(pattern, data, rhs)
             t0 = timer.add("solve", t0)
             if not np.all(np.isfinite(disp)):
                 return _Attempt(ok=False, cause="nan", iterations=it)
+            rotation = disp[:, 2].copy()
             friction = self.friction_force(contacts)  # the loads of this solve, for the energy balance
-            changed = self.judge(contacts, vec, sca, disp, state.vertex_xy, geom, flips=flips,
+            changed = self.judge(contacts, vec, sca, disp, state.vertex_xy, geom, shift=shift, flips=flips,
                                  hold=it >= ANTI_CYCLING_FROM)
             t0 = timer.add("update", t0)
             if not changed:
