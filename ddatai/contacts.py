@@ -248,11 +248,14 @@ class Contacts:
             state=state, line=line, omega=omega, bond=bond, shear_dir=shear_dir,
             dn=dn0, ds=np.zeros(m))
 
-    def memory(self) -> ContactMemory:
-        """What this step hands to the next (bond survives only on locked contacts)."""
-        locked = self.state == ContactState.LOCK
+    def memory(self, bond_breaks_on_slip: bool = True) -> ContactMemory:
+        """What this step hands to the next. The bond survives on locked contacts, and also on
+        sliding ones when ``bond_breaks_on_slip`` is False (`Params.bond_breaks_on_slip`)."""
+        keep = self.state == ContactState.LOCK
+        if not bond_breaks_on_slip:
+            keep |= self.state == ContactState.SLIDE
         return ContactMemory(key=self.key.copy(), state=self.state.copy(), line=self.line.copy(),
-                             omega=self.omega.copy(), bond=self.bond & locked,
+                             omega=self.omega.copy(), bond=self.bond & keep,
                              shear_dir=self.shear_dir.copy(), dn=self.dn.copy(),
                              kind=self.cint[:, KIND].astype(np.int8))
 

@@ -52,7 +52,8 @@ class Joint:
 
     Cohesion and tensile strength act only while a contact is intact ("bonded"): on an
     edge-to-edge contact of the initial geometry, until the contact first leaves the locked
-    state. After that only friction remains (residual strength).
+    state (or, with ``Params(bond_breaks_on_slip=False)``, until it first opens). After that
+    only friction remains (residual strength).
     """
 
     friction: float = 30.0
@@ -120,6 +121,12 @@ class Params:
     0 < k < 1 is kinetic damping. Ignored (taken as 0) when ``static`` is true."""
     plane: Literal["strain", "stress"] = "strain"
     """Plane strain or plane stress elasticity."""
+    bond_breaks_on_slip: bool = True
+    """True (Shi, ntdda): a bonded joint loses its cohesion and tensile strength for good as
+    soon as it leaves the locked state (slides or opens). False: it keeps them while it slides
+    and loses them only when it opens (tension cut-off) — the Mohr–Coulomb joint of
+    limit-equilibrium methods, where c acts on a sliding surface (kgm-method.md §6.1, §6.6);
+    `kgm`'s DDA evaluator uses it to compare critical friction angles with KGM/SKGM."""
 
     oc_max_iterations: int = 10
     """Largest number of open-close iterations in one step before the time step is cut."""
@@ -170,6 +177,8 @@ class Params:
                  f"Params.displacement_reject must be >= 1, got {self.displacement_reject!r}")
         _require(_finite(self.dynamic_ratio) and 0.0 <= self.dynamic_ratio <= 1.0,
                  f"Params.dynamic_ratio must be in [0, 1], got {self.dynamic_ratio!r}")
+        _require(isinstance(self.bond_breaks_on_slip, bool),
+                 f"Params.bond_breaks_on_slip must be True or False, got {self.bond_breaks_on_slip!r}")
         _require(self.plane in ("strain", "stress"),
                  f"Params.plane must be 'strain' or 'stress', got {self.plane!r}")
         _require(isinstance(self.oc_max_iterations, int) and self.oc_max_iterations >= 2,
