@@ -251,11 +251,11 @@ class Contacts:
     def memory(self, bond_breaks_on_slip: bool = True) -> ContactMemory:
         """What this step hands to the next. The bond survives on locked contacts, and also on
         sliding ones when ``bond_breaks_on_slip`` is False (`Params.bond_breaks_on_slip`)."""
-        keep = self.state == ContactState.LOCK
-        if not bond_breaks_on_slip:
-            keep |= self.state == ContactState.SLIDE
+        locked = self.state == ContactState.LOCK
+        if not bond_breaks_on_slip:  # "locked" then means: keeps its bond
+            locked = locked | (self.state == ContactState.SLIDE)
         return ContactMemory(key=self.key.copy(), state=self.state.copy(), line=self.line.copy(),
-                             omega=self.omega.copy(), bond=self.bond & keep,
+                             omega=self.omega.copy(), bond=self.bond & locked,
                              shear_dir=self.shear_dir.copy(), dn=self.dn.copy(),
                              kind=self.cint[:, KIND].astype(np.int8))
 

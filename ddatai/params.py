@@ -177,8 +177,6 @@ class Params:
                  f"Params.displacement_reject must be >= 1, got {self.displacement_reject!r}")
         _require(_finite(self.dynamic_ratio) and 0.0 <= self.dynamic_ratio <= 1.0,
                  f"Params.dynamic_ratio must be in [0, 1], got {self.dynamic_ratio!r}")
-        _require(isinstance(self.bond_breaks_on_slip, bool),
-                 f"Params.bond_breaks_on_slip must be True or False, got {self.bond_breaks_on_slip!r}")
         _require(self.plane in ("strain", "stress"),
                  f"Params.plane must be 'strain' or 'stress', got {self.plane!r}")
         _require(isinstance(self.oc_max_iterations, int) and self.oc_max_iterations >= 2,
@@ -188,6 +186,8 @@ class Params:
         _require(self.dt_min_ratio < 1.0, f"Params.dt_min_ratio must be < 1, got {self.dt_min_ratio!r}")
         _require(isinstance(self.arch, str) and self.arch in ("cpu", "gpu", "cuda", "vulkan", "metal"),
                  f"Params.arch must be one of 'cpu', 'gpu', 'cuda', 'vulkan', 'metal', got {self.arch!r}")
+        _require(isinstance(self.bond_breaks_on_slip, bool),
+                 f"Params.bond_breaks_on_slip must be True or False, got {self.bond_breaks_on_slip!r}")
 
     @property
     def velocity_carry(self) -> float:

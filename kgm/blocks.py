@@ -379,7 +379,7 @@ def group_faces(system: BlockSystem, blocks: frozenset, removed: frozenset = fro
 
 
 # ---------------------------------------------------------------------- removability
-def removable_arc(normals: np.ndarray, tol: float = ANGLE_TOL) -> Optional[tuple[float, float]]:
+def removable_arc(normals: np.ndarray, tol: float = ANGLE_TOL) -> Optional[tuple[tuple[float, float], ...]]:
     """Joint pyramid of a block or group in 2D (kgm-method.md §2.2, computational form).
 
     ``normals`` (m, 2) are the contact normals pointing into the block. The admissible
@@ -387,16 +387,18 @@ def removable_arc(normals: np.ndarray, tol: float = ANGLE_TOL) -> Optional[tuple
     directions, so JP is not empty if and only if all normals lie in a closed half-circle,
     i.e. the largest circular gap between their angles is ≥ π.
 
-    Returns the arc of admissible directions as (start, width) [rad] (directions start ...
-    start + width, counter-clockwise; width π − spread of the normals, 0 for sliding between
-    parallel faces, 2π with no contacts), or None when the block is not removable.
+    Returns None when the block is not removable, else the arcs of admissible directions as
+    (start, width) [rad] (directions start ... start + width counter-clockwise): one arc of
+    width π − (spread of the normals), or 2π with no contacts; two arcs of width 0 (both
+    directions of a line) when the normals point two exactly opposite ways (a slot).
     """
     normals = np.asarray(normals, dtype=float).reshape(-1, 2)
     if len(normals) == 0:
-        return (-math.pi, 2.0 * math.pi)
+        return ((-math.pi, 2.0 * math.pi),)
     th = np.sort(np.arctan2(normals[:, 1], normals[:, 0]))
     gaps = np.diff(np.append(th, th[0] + 2.0 * math.pi))
-    k = int(np.argmax(gaps))
+    order = np.argsort(gaps)[::-1]
+    k = int(order[0])
     if gaps[k] < math.pi - tol:
         return None
     # the normals span the arc from th[k+1] (min) counter-clockwise to th[k] (max)
@@ -404,8 +406,10 @@ def removable_arc(normals: np.ndarray, tol: float = ANGLE_TOL) -> Optional[tuple
     spread = (th_max - th_min) % (2.0 * math.pi)
     if spread > math.pi:  # all normals equal up to round-off (th_max a hair below th_min)
         spread = 0.0
-    width = max(math.pi - spread, 0.0)
-    return (_wrap(th_max - 0.5 * math.pi), width)
+    if len(th) > 1 and gaps[order[1]] >= math.pi - tol:
+        # two gaps of π: normals in exactly two opposite directions, JP is a line
+        return ((_wrap(th_max - 0.5 * math.pi), 0.0), (_wrap(th_max + 0.5 * math.pi), 0.0))
+    return ((_wrap(th_max - 0.5 * math.pi), max(math.pi - spread, 0.0)),)
 
 
 def _wrap(a: float) -> float:
@@ -481,6 +485,15 @@ def rigid_modes(system: BlockSystem, blocks: frozenset, removed: frozenset = fro
     if len(idx) == 0 or np.all(rn > ANGLE_TOL * rnorm):
         modes.append(Mode(kind=ModeKind.LIFTING, fs=0.0, critical_friction=90.0,
                           sliding_contacts=np.zeros(0, np.int64), direction=r / rnorm))
+        return modes
+    if np.all(rn >= -ANGLE_TOL * rnorm):
+        # r lies on the edge of the joint pyramid: the group moves along r, sliding without
+        # normal force on the contacts parallel to r (e.g. down a vertical slot); only their
+        # cohesion resists (§4.2 with N' = 0)
+        k = idx[np.abs(rn) <= ANGLE_TOL * rnorm]
+        cl = float((system.contact_cohesion[k] * system.contact_length[k]).sum())
+        modes.append(Mode(kind=ModeKind.SLIDING, fs=cl / rnorm, critical_friction=90.0 if cl < rnorm else 0.0,
+                          sliding_contacts=k, direction=r / rnorm))
         return modes
     # faces: contacts grouped by normal direction (parallel faces slide together, §2.4 item 2)
     for face in _parallel_sets(n):
