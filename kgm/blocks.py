@@ -284,7 +284,8 @@ def _find_contacts(specs, offset, xy, scale) -> list[tuple]:
         lb = np.linalg.norm(qb - pb, axis=1)
         ta = (qa - pa) / la[:, None]
         tb = (qb - pb) / lb[:, None]
-        anti = (ta @ tb.T) < -1.0 + 0.5 * ANGLE_TOL ** 2 + 1e-12
+        # opposite directions; collinearity itself is decided by the end-point distances below
+        anti = (ta @ tb.T) < -0.999
         # distances of b's edge ends from a's edge lines
         d0 = _cross(ta[:, None, :], pb[None, :, :] - pa[:, None, :])
         d1 = _cross(ta[:, None, :], qb[None, :, :] - pa[:, None, :])

@@ -11,29 +11,31 @@ The DDA evaluator lives in :mod:`kgm.dda` (it starts Taichi) and is imported onl
 
 Sarma mechanisms (§5.2, generalised to any group): with member velocities v ∈ R^{2n}, every
 contact face k between member a and block b (a member, or stable rock with v_b = 0) must not
-penetrate: (v_a − v_b)·n_k ≥ 0 (n_k into a). The single-degree-of-freedom mechanisms are the
-extreme rays of this cone, i.e. the velocity fields where 2n − 1 independent face conditions
-hold with equality; a face may also be *locked* (no relative motion at all: both its normal and
-tangential rows), which lets several members move as one rigid slice. Each mechanism is
-enumerated from the row subsets, then checked: every member moves, no face penetrates, gravity
-drives it. Its statics: on every closed face the normal force N ≥ 0 and, where it slips, the
-shear opposes the slip at the limit c*·L + N·tanφ*; a face that does not slip (members moving
-together) carries an unknown shear within that limit. With the horizontal inertia force K·W
-this gives 2n equations in the unknown forces and K, solved in the least-squares sense (a
-determinate mechanism is square; a redundant one picks the minimum-norm force distribution).
+penetrate: (v_a − v_b)·n_k ≥ 0 (n_k into a). The single-degree-of-freedom mechanisms Sarma
+assumes — every block slides on its own base, every shared joint slides (or opens) — are the
+extreme rays of this cone, where 2n − 1 independent face conditions hold with equality; they
+are found by the double-description method (or, when the cone contains a line, that line:
+every face stays closed). Members that move together because the geometry makes them (one
+plane under both) share a face with no slip. Each mechanism is checked (every member moves,
+no face penetrates, the active forces drive it), then its statics: on every closed face the
+normal force N ≥ 0 and, where it slips, the shear opposes the slip at the limit c*·L + N·tanφ*;
+a face that does not slip carries an unknown shear within that limit. With the horizontal
+inertia force K·W this gives 2n equations in the unknown forces and K, solved in the
+least-squares sense (a determinate mechanism is square; a redundant one takes any admissible
+force distribution). Like Sarma's slices, the mechanisms see only the faces: a block corner
+that would have to cut into the rock at a joint junction is not checked — DDA checks it on the
+real geometry (scenes/example_2.py).
 """
 
 from __future__ import annotations
 
-import itertools
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Callable, Optional
 
 import numpy as np
 
-from .blocks import (ANGLE_TOL, BlockSystem, Mode, ModeKind, group_faces, rigid_modes, _parallel_sets,
-                     _wrap)
+from .blocks import BlockSystem, Mode, ModeKind, _parallel_sets, group_faces, rigid_modes
 
 #: Velocity tolerance of the mechanism checks, relative to the fastest member [-].
 VELOCITY_TOL = 1e-7
@@ -55,14 +57,12 @@ class Evaluation:
     """All admissible modes found, least safe first."""
 
 
-NO_MODE = Mode(kind=ModeKind.NONE, fs=math.inf, critical_friction=0.0,
-               sliding_contacts=np.zeros(0, dtype=np.int64))
-
-
 def _governing(modes: list[Mode]) -> Evaluation:
     modes = sorted(modes, key=lambda m: (m.fs, -m.critical_friction))
     if not modes:
-        return Evaluation(fs=math.inf, mode=NO_MODE, modes=())
+        none = Mode(kind=ModeKind.NONE, fs=math.inf, critical_friction=0.0,
+                    sliding_contacts=np.zeros(0, dtype=np.int64))
+        return Evaluation(fs=math.inf, mode=none, modes=())
     return Evaluation(fs=modes[0].fs, mode=modes[0], modes=tuple(modes))
 
 
@@ -71,12 +71,11 @@ def evaluate_rigid(system: BlockSystem, blocks: frozenset, removed: frozenset = 
     return _governing(rigid_modes(system, blocks, removed))
 
 
-def evaluate_sarma(system: BlockSystem, blocks: frozenset, removed: frozenset = frozenset(), *,
-                   max_subsets: int = 200_000) -> Evaluation:
+def evaluate_sarma(system: BlockSystem, blocks: frozenset, removed: frozenset = frozenset()) -> Evaluation:
     """SKGM: least safe of the rigid modes and the Sarma mechanisms (kgm-method.md §5.3)."""
     modes = rigid_modes(system, blocks, removed)
     if len(blocks) > 1 and not any(m.fs == 0.0 for m in modes):
-        modes += sarma_modes(system, blocks, removed, max_subsets=max_subsets)
+        modes += sarma_modes(system, blocks, removed)
     return _governing(modes)
 
 
@@ -121,7 +120,7 @@ def _merge_faces(system: BlockSystem, members: list[int], removed: frozenset) ->
         pairs.setdefault((min(i, j), max(i, j)), []).append(k)
     for (i, j), ks in sorted(pairs.items()):
         ks = np.array(ks)
-        nrm = system.contact_normal[ks] * np.where(pos_of(cb[ks, 0], pos) == i, 1.0, -1.0)[:, None]
+        nrm = system.contact_normal[ks] * np.where(_pos_of(cb[ks, 0], pos) == i, 1.0, -1.0)[:, None]
         for grp in _parallel_sets(nrm):
             entries.append((i, j, ks[grp], nrm[grp[0]]))
     f = len(entries)
@@ -136,7 +135,7 @@ def _merge_faces(system: BlockSystem, members: list[int], removed: frozenset) ->
                   cl=cl, length=length, tan_phi=tan_phi, contacts=tuple(e[2] for e in entries))
 
 
-def pos_of(blocks: np.ndarray, pos: dict) -> np.ndarray:
+def _pos_of(blocks: np.ndarray, pos: dict) -> np.ndarray:
     return np.array([pos[int(b)] for b in blocks])
 
 
@@ -158,49 +157,85 @@ class _Mechanism:
     slip_sign: np.ndarray  # (f,) sign of the slip of a relative to b on closed faces (0: none)
 
 
-def _mechanisms(faces: _Faces, force: np.ndarray, n: int, max_subsets: int) -> list[_Mechanism]:
-    """Single-degree-of-freedom velocity fields of the group (see the module docstring)."""
+def _mechanisms(faces: _Faces, force: np.ndarray, n: int) -> list[_Mechanism]:
+    """Single-degree-of-freedom velocity fields of the group (see the module docstring): the
+    extreme rays of the cone of non-penetrating member velocities {v : A v ≥ 0}, or its
+    lineality if that is a single direction (every face stays closed, as in Sarma's
+    mechanism of kgm-method.md §8.3)."""
     d = 2 * n
     nrows = _rows(faces, n, "normal")
-    trows = _rows(faces, n, "tangent")[faces.b >= 0]   # locking rows of internal faces
-    pool = np.concatenate([nrows, trows])
-    if math.comb(len(pool), d - 1) > max_subsets:
-        pool = nrows  # without locking (every shared joint slides or opens)
-        if math.comb(len(pool), d - 1) > max_subsets:
-            return []
-    if len(pool) < d - 1:
+    if len(nrows) == 0:
         return []
-    candidates: dict[tuple, np.ndarray] = {}
-    combos = itertools.combinations(range(len(pool)), d - 1)
-    while True:
-        chunk = np.array(list(itertools.islice(combos, 20000)), dtype=np.int64)
-        if not len(chunk):
-            break
-        sub = pool[chunk]                                   # (m, d-1, d)
-        _, s, vh = np.linalg.svd(sub)
-        ok = s[:, -1] > 1e-9 * s[:, 0]
-        for x in vh[ok, -1, :]:
-            x = x / np.max(np.abs(x))
-            lead = np.flatnonzero(np.abs(x) > 1e-6)[0]
-            x = x * np.sign(x[lead])
-            candidates.setdefault(tuple(np.round(x, 7)), x)
+    _, sv, vh = np.linalg.svd(nrows)
+    rank = int(np.sum(sv > 1e-9 * sv[0]))
+    if rank == d - 1:
+        rays = np.array([vh[-1], -vh[-1]])
+    elif rank == d:
+        rays = _extreme_rays(nrows)
+    else:
+        return []  # two or more free directions: no single mechanism
     out = []
     f = force.reshape(-1)
-    for x in candidates.values():
-        for v in (x, -x):
-            speed = np.hypot(v[0::2], v[1::2])
-            if np.any(speed < 1e-6 * speed.max()):
-                continue  # a member that does not move belongs to no mechanism of this group
-            gap = nrows @ v
-            if np.any(gap < -VELOCITY_TOL):
-                continue  # penetrates a face
-            if f @ v <= 1e-9 * np.abs(f).max() * np.abs(v).max():
-                continue  # the active forces do not drive it
-            closed = np.abs(gap) <= VELOCITY_TOL
-            slip = _rows(faces, n, "tangent") @ v
-            sign = np.where(closed & (np.abs(slip) > VELOCITY_TOL), np.sign(slip), 0.0)
-            out.append(_Mechanism(velocity=v / speed.max(), closed=closed, slip_sign=sign))
+    tangents = _rows(faces, n, "tangent")
+    for v in rays:
+        speed = np.hypot(v[0::2], v[1::2])
+        if np.any(speed < 1e-6 * speed.max()):
+            continue  # a member that does not move belongs to no mechanism of this group
+        v = v / speed.max()
+        gap = nrows @ v
+        if np.any(gap < -VELOCITY_TOL):
+            continue  # penetrates a face
+        if f @ v <= 1e-9 * np.abs(f).max():
+            continue  # the active forces do not drive it
+        closed = np.abs(gap) <= VELOCITY_TOL
+        slip = tangents @ v
+        sign = np.where(closed & (np.abs(slip) > VELOCITY_TOL), np.sign(slip), 0.0)
+        out.append(_Mechanism(velocity=v, closed=closed, slip_sign=sign))
     return out
+
+
+def _extreme_rays(a: np.ndarray, tol: float = 1e-9) -> np.ndarray:
+    """Extreme rays of the pointed cone {x : a·x ≥ 0} (``a`` of full column rank), by the
+    double-description method (Motzkin; Fukuda & Prodon 1996): start from the simplicial cone
+    of d independent rows and add the other rows one at a time, keeping the rays on the
+    feasible side and combining each adjacent pair the new row separates."""
+    m, d = a.shape
+    a = a / np.linalg.norm(a, axis=1, keepdims=True)
+    basis: list[int] = []
+    for i in range(m):
+        if np.linalg.matrix_rank(a[basis + [i]], tol=1e-9) == len(basis) + 1:
+            basis.append(i)
+        if len(basis) == d:
+            break
+    rays = np.linalg.inv(a[basis]).T  # ray j: a[basis]·r = e_j
+    rays /= np.linalg.norm(rays, axis=1, keepdims=True)
+    done = list(basis)
+    for i in (i for i in range(m) if i not in basis):
+        val = rays @ a[i]
+        pos, neg = np.flatnonzero(val > tol), np.flatnonzero(val < -tol)
+        keep = val >= -tol
+        new = []
+        if len(pos) and len(neg):
+            active = np.abs(rays @ a[done].T) <= tol
+            for p in pos:
+                for q in neg:
+                    common = active[p] & active[q]
+                    # adjacent rays share d − 2 independent active constraints
+                    if common.sum() < d - 2 or np.linalg.matrix_rank(a[done][common], tol=1e-9) != d - 2:
+                        continue
+                    r = val[p] * rays[q] - val[q] * rays[p]
+                    new.append(r / np.linalg.norm(r))
+        rays = np.concatenate([rays[keep]] + ([np.array(new)] if new else []))
+        done.append(i)
+    return _unique_rays(rays)
+
+
+def _unique_rays(rays: np.ndarray) -> np.ndarray:
+    out: list[np.ndarray] = []
+    for r in rays:
+        if not any(np.abs(r - o).max() < 1e-7 for o in out):
+            out.append(r)
+    return np.array(out).reshape(-1, rays.shape[1])
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -247,13 +282,13 @@ def _statics(mech: _Mechanism, faces: _Faces, force: np.ndarray, weight: np.ndar
     sol = sol / scale
     if np.linalg.norm(m @ sol - rhs) > 1e-7 * max(np.linalg.norm(rhs), 1.0):
         return None  # no equilibrium with these contacts (e.g. a member with no support)
+    if not check:
+        return _Statics(k=float(sol[-1]), admissible=False, normal=np.zeros(0))
     # K must not depend on the redundant (statically indeterminate) forces
     _, sv, vh = np.linalg.svd(m / scale)
     rank = int(np.sum(sv > 1e-10 * sv[0]))
     if rank < cols and np.any(np.abs(vh[rank:, -1]) > 1e-8):
         return None
-    if not check:
-        return _Statics(k=float(sol[-1]), admissible=False, normal=np.zeros(0))
     tol = 1e-9 * float(weight.sum())
     ok = _forces_admissible(sol, closed, stuck, faces, tphi, reduction, tol)
     if not ok and rank < cols:
@@ -347,8 +382,7 @@ def _admissible_root(fn: Callable[[float], float], admissible: Callable[[float],
     return None
 
 
-def sarma_modes(system: BlockSystem, blocks: frozenset, removed: frozenset = frozenset(), *,
-                max_subsets: int = 200_000) -> list[Mode]:
+def sarma_modes(system: BlockSystem, blocks: frozenset, removed: frozenset = frozenset()) -> list[Mode]:
     """Admissible Sarma mechanisms of a group with their FS, K_c and critical friction angle.
 
     FS: the F at which K(F) = 0 (Sarma 1979: reduce the strength until the critical
@@ -362,7 +396,7 @@ def sarma_modes(system: BlockSystem, blocks: frozenset, removed: frozenset = fro
     force = system.block_force[members]
     weight = system.block_mass[members] * system.gravity
     modes = []
-    for mech in _mechanisms(faces, force, n, max_subsets):
+    for mech in _mechanisms(faces, force, n):
         def k_of_u(u, _m=mech):
             st = _statics(_m, faces, force, weight, math.exp(u), faces.tan_phi, check=False)
             return math.nan if st is None else st.k

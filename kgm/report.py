@@ -154,6 +154,6 @@ def format_paper_table(results: Sequence[GroupResult], *, title: str = "") -> st
     out.append("| method | factor of safety | critical friction angle | verdict |")
     out.append("|---|---|---|---|")
     for g in results:
-        out.append(f"| {names.get(g.evaluator, g.evaluator)} | {_fmt(g.fs, 2)} | "
-                   f"{_fmt(g.critical_friction, 1)}° | {g.verdict} |")
+        out.append(f"| {names.get(g.evaluator, g.evaluator)} | {_fmt(g.fs, 3)} | "
+                   f"{_fmt(g.critical_friction, 2)}° | {g.verdict} |")
     return "\n".join(out)

@@ -64,8 +64,7 @@ class _Evaluator:
             if self.method == "rigid":
                 ev = evaluate_rigid(self.system, blocks, self.removed)
             else:
-                ev = evaluate_sarma(self.system, blocks, self.removed,
-                                    max_subsets=self.settings.sarma_max_subsets)
+                ev = evaluate_sarma(self.system, blocks, self.removed)
             self.cache[blocks] = ev
         return ev
 

@@ -104,9 +104,6 @@ class Settings:
     """Largest number of removal rounds in progressive mode [-]."""
     screening: Literal["rigid", "sarma"] = "sarma"
     """Limit-equilibrium evaluator that proposes the candidate groups DDA judges."""
-    sarma_max_subsets: int = 200_000
-    """Cap on the row subsets enumerated for Sarma mechanisms of one group [-]; beyond it the
-    locked-interface mechanisms are skipped, then all Sarma mechanisms (rigid modes remain)."""
     dda: DdaSettings = field(default_factory=DdaSettings)
     """How the DDA evaluator runs."""
 
@@ -114,7 +111,7 @@ class Settings:
         _positive(self, "fs_target")
         _require(isinstance(self.growth_tolerance, (int, float)) and self.growth_tolerance >= 0,
                  f"Settings.growth_tolerance must be >= 0, got {self.growth_tolerance!r}")
-        for name in ("max_group_size", "max_iterations", "sarma_max_subsets"):
+        for name in ("max_group_size", "max_iterations"):
             v = getattr(self, name)
             _require(isinstance(v, int) and not isinstance(v, bool) and v >= 1,
                      f"Settings.{name} must be an integer >= 1, got {v!r}")

@@ -121,3 +121,29 @@ def test_sarma_can_be_lower_or_equal_but_reports_the_least_safe():
     """FS_sarma = min(rigid modes, Sarma mechanisms) (§5.3): never above the rigid FS."""
     for scene, g in ((example_1.build()[0], [0, 1]), (example_2.build()[0], [0, 1]), (bent_chain()[0], [0, 1, 2])):
         assert kgm.factor_of_safety(scene, g, method="sarma") <= kgm.factor_of_safety(scene, g, method="rigid") + 1e-12
+
+
+def test_extreme_rays_against_brute_force():
+    """Double description against the definition: a ray of {x: A x ≥ 0} is extreme iff the
+    constraints active on it have rank d − 1 (every such null direction that satisfies all
+    constraints, enumerated over all (d − 1)-subsets of rows)."""
+    import itertools
+
+    from kgm.evaluators import _extreme_rays
+
+    rng = np.random.default_rng(7)
+    for d, m in ((2, 5), (3, 7), (4, 8), (5, 9)):
+        a = rng.normal(size=(m, d))
+        a[:, 0] = np.abs(a[:, 0]) + 0.5          # x = e_0 is interior: the cone is not empty
+        got = _extreme_rays(a)
+        want = []
+        for rows in itertools.combinations(range(m), d - 1):
+            _, sv, vh = np.linalg.svd(a[list(rows)])
+            if sv[-1] < 1e-9:
+                continue
+            for x in (vh[-1], -vh[-1]):
+                if np.all(a @ x >= -1e-9) and not any(np.abs(x - w).max() < 1e-7 for w in want):
+                    want.append(x)
+        assert len(got) == len(want), (d, m)
+        for w in want:
+            assert any(np.abs(g - w).max() < 1e-7 for g in got)

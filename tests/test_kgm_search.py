@@ -106,8 +106,8 @@ def test_report_fields_and_table():
     assert "{0, 1}" in rep.table() and "sarma" in rep.table()
     assert rep.history == (c,) and rep.removed == ()
     table = kgm.format_paper_table([kgm.evaluate(example_2.build()[0], [0, 1], m) for m in ("rigid", "sarma")])
-    assert "| KGM (rigid group) | 1.59 | 13.9° | stable |" in table
-    assert "| SKGM (Sarma) | 0.77 |" in table
+    assert "| KGM (rigid group) | 1.586 | 13.87° | stable |" in table
+    assert "| SKGM (Sarma) | 0.771 | 28.23° | unstable |" in table
 
 
 def test_bad_input_is_named():
