@@ -104,6 +104,16 @@ def test_example_2_dda_finds_the_group_unstable():
     assert not j.stable
 
 
+def test_example_2_reconstruction_is_stable_in_dda():
+    """On the geometry of kgm-method.md §8.3 Sarma's mechanism needs the active block's corner
+    to cut into the rock under J1; DDA on the real geometry cannot, and the group that Sarma
+    calls unstable (FS 0.895) holds at 22° (why scenes/example_2.py moves J3's foot)."""
+    scene, params = example_2.build(cross_joint_offset=0.0, cross_joint_angle=45.0)
+    assert kgm.factor_of_safety(scene, [0, 1], method="sarma") < 1.0
+    j = judge(scene, build_block_system(scene), frozenset({0, 1}), settings=kgm.DdaSettings(), params=params)
+    assert j.stable and j.displacement < 0.25 * j.threshold
+
+
 def test_whole_slope_timing_is_reported():
     """`compare_whole` times the sub-model and the whole slope over the same number of steps."""
     scene = dd.Scene()
