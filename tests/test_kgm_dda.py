@@ -7,7 +7,6 @@ The full critical-friction bisections are `slow`; the default run checks the Exa
 
 import math
 
-import numpy as np
 import pytest
 
 import ddatai as dd
