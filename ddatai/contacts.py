@@ -256,9 +256,12 @@ class Contacts:
             state=state, line=line, omega=omega, bond=bond, shear_dir=shear_dir,
             dn=dn0, ds=np.zeros(m), normal_force=normal_force)
 
-    def memory(self) -> ContactMemory:
-        """What this step hands to the next (bond survives only on locked contacts)."""
+    def memory(self, bond_breaks_on_slip: bool = True) -> ContactMemory:
+        """What this step hands to the next. The bond survives on locked contacts, and also on
+        sliding ones when ``bond_breaks_on_slip`` is False (`Params.bond_breaks_on_slip`)."""
         locked = self.state == ContactState.LOCK
+        if not bond_breaks_on_slip:  # "locked" then means: keeps its bond
+            locked = locked | (self.state == ContactState.SLIDE)
         return ContactMemory(key=self.key.copy(), state=self.state.copy(), line=self.line.copy(),
                              omega=self.omega.copy(), bond=self.bond & locked,
                              shear_dir=self.shear_dir.copy(), dn=self.dn.copy(),

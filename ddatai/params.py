@@ -52,7 +52,8 @@ class Joint:
 
     Cohesion and tensile strength act only while a contact is intact ("bonded"): on an
     edge-to-edge contact of the initial geometry, until the contact first leaves the locked
-    state. After that only friction remains (residual strength).
+    state (or, with ``Params(bond_breaks_on_slip=False)``, until it first opens). After that
+    only friction remains (residual strength).
     """
 
     friction: float = 30.0
@@ -128,6 +129,12 @@ class Params:
     acceleration (it carries the previous acceleration). The first step always uses β = ½."""
     plane: Literal["strain", "stress"] = "strain"
     """Plane strain or plane stress elasticity."""
+    bond_breaks_on_slip: bool = True
+    """True (Shi, ntdda): a bonded joint loses its cohesion and tensile strength for good as
+    soon as it leaves the locked state (slides or opens). False: it keeps them while it slides
+    and loses them only when it opens (tension cut-off) — the Mohr–Coulomb joint of
+    limit-equilibrium methods, where c acts on a sliding surface (kgm-method.md §6.1, §6.6);
+    `kgm`'s DDA evaluator uses it to compare critical friction angles with KGM/SKGM."""
 
     oc_max_iterations: int = 20
     """Largest number of open-close iterations in one step before the time step is cut. Calm
@@ -191,6 +198,8 @@ class Params:
         _require(self.dt_min_ratio < 1.0, f"Params.dt_min_ratio must be < 1, got {self.dt_min_ratio!r}")
         _require(isinstance(self.arch, str) and self.arch in ("cpu", "gpu", "cuda", "vulkan", "metal"),
                  f"Params.arch must be one of 'cpu', 'gpu', 'cuda', 'vulkan', 'metal', got {self.arch!r}")
+        _require(isinstance(self.bond_breaks_on_slip, bool),
+                 f"Params.bond_breaks_on_slip must be True or False, got {self.bond_breaks_on_slip!r}")
 
     @property
     def velocity_carry(self) -> float:

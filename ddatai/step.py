@@ -565,7 +565,7 @@ class Stepper:
             time=state.time + dt, step=state.step + 1, vertex_xy=xy, block_velocity=velocity,
             block_stress=stress, block_accel=block_accel, block_rotation=state.block_rotation + disp[:, 2],
             fixed_point_xy=fp, load_xy=lp, measured_xy=mp, dt=dt, accel=accel,
-            memory=contacts.memory())
+            memory=contacts.memory(p.bond_breaks_on_slip))
 
     # ------------------------------------------------------------------ helpers
     def _load_forces(self, t: float) -> np.ndarray:

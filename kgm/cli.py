@@ -1,0 +1,178 @@
+"""Console command ``kgm``.
+
+    kgm analyze SCENE.py [--method rigid|sarma|dda] [--progressive] [--compare] [--gif PATH]
+
+SCENE.py is a scene script with ``build()`` returning a `ddatai.Scene` or ``(scene, params)``
+(the convention of ``scenes/``). Prints the block types, the candidate key groups (least safe
+first) and the critical group; ``--compare`` adds the paper-layout table of the critical group
+under all three evaluators; ``--gif`` draws the scene with the critical group highlighted
+(for ``dda``: its simulated motion) with `ddatai.render.write_gif`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import sys
+import time
+from pathlib import Path
+from typing import Optional, Sequence
+
+import numpy as np
+
+
+def load_scene(path: str):
+    """Run a scene script's ``build()``; returns (scene, params or None)."""
+    p = Path(path)
+    if not p.is_file():
+        raise ValueError(f"scene file not found: {path}")
+    spec = importlib.util.spec_from_file_location(f"_kgm_scene_{p.stem}", p)
+    module = importlib.util.module_from_spec(spec)
+    sys.path.insert(0, str(p.resolve().parent))
+    try:
+        spec.loader.exec_module(module)
+    finally:
+        sys.path.pop(0)
+    if not hasattr(module, "build"):
+        raise ValueError(f"{path}: a scene script must define build() returning a Scene or (scene, params)")
+    built = module.build()
+    scene, params = (built if isinstance(built, tuple) else (built, None))[:2]
+    return scene, params
+
+
+def scene_frame(scene):
+    """The scene as one-frame `ddatai.Results` (for drawing a limit-equilibrium result without
+    running a simulation)."""
+    from ddatai.results import STEP_DTYPE, Results
+
+    xy = np.concatenate([s.vertices for s in scene.blocks])
+    counts = [len(s.vertices) for s in scene.blocks]
+    offset = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    nb = scene.n_blocks
+    centroid = np.array([s.vertices.mean(axis=0) for s in scene.blocks])
+    return Results(time=np.zeros(1), centroid=centroid[None], rotation=np.zeros((1, nb)),
+                   velocity=np.zeros((1, nb, 2)), angular_velocity=np.zeros((1, nb)),
+                   stress=np.zeros((1, nb, 3)), vertices=xy[None], vertex_offset=offset,
+                   block_fixed=np.array([s.fixed for s in scene.blocks]),
+                   measured=np.zeros((1, 0, 2)), contact_offset=np.zeros(2, np.int64),
+                   contact_xy=np.zeros((0, 2)), contact_state=np.zeros(0, np.int8),
+                   steps=np.zeros(0, dtype=STEP_DTYPE))
+
+
+def write_result_gif(path: str, scene, report, params=None, settings=None) -> None:
+    """Draw the analysis: the critical group highlighted (progressive: every removed group by
+    its round); for a DDA analysis, the simulated motion of the critical group's sub-model."""
+    try:
+        from ddatai.render import write_gif
+    except ImportError:
+        raise RuntimeError("--gif needs ddatai.render (write_gif), which this ddatai does not have") from None
+    from .settings import Settings
+
+    settings = settings or Settings()
+    crit = report.critical
+    if report.method == "dda" and crit is not None:
+        from .blocks import build_block_system
+        from .dda import judge
+
+        prm = settings.dda.params or params
+        dt = (prm.dt if prm is not None and prm.dt is not None else 0.005)
+        system = build_block_system(scene)
+        j = crit.dda.judgement
+        every = max(1, int(j.duration / dt / 80))
+        _, res, ids = judge(scene, system, crit.blocks, settings=settings.dda, params=params,
+                            record_every=every)
+        labels = np.array([0 if b in crit.blocks else -1 for b in ids])
+        title = f"KGM + DDA: group {sorted(crit.blocks)}, {crit.verdict} (FS {crit.fs:.2f})"
+        write_gif(res, path, labels=labels, label_names=["critical key group"], title=title)
+        return
+    res = scene_frame(scene)
+    labels = np.full(scene.n_blocks, -1)
+    if report.removed:
+        for i, g in enumerate(report.removed):
+            labels[sorted(g)] = i
+        names = [f"removed in round {i + 1}" for i in range(len(report.removed))]
+        title = f"progressive {report.method}: {len(report.removed)} groups removed"
+    else:
+        if crit is not None:
+            labels[sorted(crit.blocks)] = 0
+        names = ["critical key group"]
+        title = (f"{report.method}: group {sorted(crit.blocks)}, FS {crit.fs:.2f} ({crit.verdict})"
+                 if crit is not None else f"{report.method}: no key group")
+    write_gif(res, path, labels=labels, label_names=names, fps=1, title=title)
+
+
+def _print_report(rep, out) -> None:
+    types = ", ".join(f"{b}:{t}" for b, t in sorted(rep.block_types.items()))
+    print(f"method: {rep.method}   block types: {types}", file=out)
+    print("", file=out)
+    print(rep.table() if rep.groups else "no key group", file=out)
+    crit = rep.critical
+    if crit is not None:
+        print("", file=out)
+        print(f"critical key group {sorted(crit.blocks)}: FS {crit.fs:.3f}, critical friction "
+              f"{crit.critical_friction:.2f}°, mode {crit.mode.kind.value}, {crit.verdict}", file=out)
+        for line in crit.surface:
+            pts = " -> ".join(f"({x:.2f}, {y:.2f})" for x, y in line)
+            print(f"  failure surface: {pts}", file=out)
+        if crit.dda is not None:
+            d = crit.dda
+            j = d.judgement
+            print(f"  DDA: {len(d.runs)} runs, {d.wall_time:.1f} s; at the scene's strength the group "
+                  f"moved {j.displacement:.4f} m in {j.simulated:.2f} s (criterion {j.threshold:.4f} m); "
+                  f"sub-model {j.model_blocks} of {j.scene_blocks} blocks ({j.moving_blocks} free)", file=out)
+            if d.timing is not None:
+                t = d.timing
+                print(f"  time per step: sub-model {t.sub_step_time * 1e3:.2f} ms, whole slope "
+                      f"{t.whole_step_time * 1e3:.2f} ms ({100 * t.saving:.0f} % saved)", file=out)
+    if rep.removed:
+        print("", file=out)
+        for i, (g, h) in enumerate(zip(rep.removed, rep.history)):
+            print(f"round {i + 1}: removed {sorted(g)} (FS {h.fs:.3f})", file=out)
+        last = rep.history[-1] if len(rep.history) > len(rep.removed) else None
+        print("then stable" + (f": least safe group {sorted(last.blocks)} FS {last.fs:.3f}" if last else
+                               ": no key group left"), file=out)
+    print(f"\nanalysis time {rep.wall_time:.2f} s", file=out)
+
+
+def main(argv: Optional[Sequence[str]] = None, out=None) -> int:
+    out = out or sys.stdout
+    parser = argparse.ArgumentParser(prog="kgm", description="Key Group Method analysis of a ddatai scene")
+    sub = parser.add_subparsers(dest="command", required=True)
+    an = sub.add_parser("analyze", help="find and judge the key groups of a scene")
+    an.add_argument("scene", help="scene script with build() -> Scene or (Scene, Params)")
+    an.add_argument("--method", choices=("rigid", "sarma", "dda"), default="sarma")
+    an.add_argument("--progressive", action="store_true", help="remove unstable groups and repeat")
+    an.add_argument("--compare", action="store_true",
+                    help="also judge the critical group with all three evaluators (paper table)")
+    an.add_argument("--compare-whole", action="store_true",
+                    help="dda: time the sub-model against the whole slope")
+    an.add_argument("--gif", metavar="PATH", help="write a GIF of the result")
+    args = parser.parse_args(argv)
+
+    from .report import format_paper_table
+    from .search import analyze, evaluate
+    from .settings import DdaSettings, Settings
+
+    try:
+        scene, params = load_scene(args.scene)
+        settings = Settings(dda=DdaSettings(compare_whole=args.compare_whole))
+        rep = analyze(scene, method=args.method, progressive=args.progressive, settings=settings, params=params)
+        _print_report(rep, out)
+        if args.compare and rep.critical is not None:
+            t0 = time.perf_counter()
+            rows = [evaluate(scene, rep.critical.blocks, m, settings=settings, params=params)
+                    if m != rep.method else rep.critical for m in ("rigid", "sarma", "dda")]
+            print("", file=out)
+            print(format_paper_table(rows, title=f"group {sorted(rep.critical.blocks)}"), file=out)
+            print(f"(comparison {time.perf_counter() - t0:.1f} s)", file=out)
+        if args.gif:
+            write_result_gif(args.gif, scene, rep, params, settings)
+            print(f"wrote {args.gif}", file=out)
+    except (ValueError, RuntimeError) as exc:
+        print(f"kgm: error: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,372 @@
+"""DDA evaluator: judge a group by simulating it with ddatai on its real joint geometry (the
+seed paper's developed method; kgm-method.md §6).
+
+A judgement simulates only what it needs: the group and the blocks it touches, which are held
+fixed (KGM's "non-members stay in place"); blocks farther away are left out
+(`DdaSettings.free_neighbours` lets the touching blocks move and fixes the next ring). The
+verdict follows the displacement and velocity criteria documented on `kgm.DdaSettings`. The
+factor of safety is found by strength reduction (tanφ/F and c/F on every joint, bisection on F)
+and the critical friction angle by bisection on the friction angle of every joint with
+cohesion held (§6.4).
+
+This module imports Taichi (through `ddatai.simulate`) only inside the functions that run a
+simulation, so `import kgm` stays light.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, replace
+from typing import Optional
+
+import numpy as np
+
+from ddatai.params import Joint, Params
+from ddatai.scene import PointSpec, Scene
+
+from .blocks import BlockSystem
+from .settings import DdaSettings
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class DdaJudgement:
+    """One DDA run of a group and its verdict."""
+
+    stable: bool
+    """Verdict: False if the group is still moving with d(T) ≥ δ (see `kgm.DdaSettings`)."""
+    displacement: float
+    """Largest member displacement at the end of the run [m]."""
+    speed: float
+    """Mean speed of that displacement over the last quarter of the run [m/s]."""
+    threshold: float
+    """δ: the displacement criterion [m]."""
+    duration: float
+    """Planned simulated time T [s]."""
+    simulated: float
+    """Simulated time actually run (less than T when stopped early) [s]."""
+    steps: int
+    """Time steps taken [-]."""
+    wall_time: float
+    """Wall-clock time of the run [s]."""
+    friction: Optional[float]
+    """Friction angle given to every joint [degrees], or None (the scene's joints)."""
+    reduction: float
+    """Strength-reduction factor F: tanφ/F and c/F on every joint [-]."""
+    model_blocks: int
+    """Blocks in the simulated sub-model [-]."""
+    moving_blocks: int
+    """Free blocks in the sub-model [-]."""
+    scene_blocks: int
+    """Blocks in the whole scene [-]."""
+    note: str = ""
+    """'stopped early' or the cause of a divergence after the group had failed."""
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class DdaTiming:
+    """Per-step wall time of the judgement's sub-model against the whole slope."""
+
+    steps: int
+    """Steps timed in each run [-]."""
+    sub_step_time: float
+    """Mean wall time of a step of the sub-model [s]."""
+    whole_step_time: float
+    """Mean wall time of a step of the whole slope [s]."""
+    sub_blocks: int
+    """Blocks in the sub-model [-]."""
+    whole_blocks: int
+    """Blocks in the whole scene [-]."""
+
+    @property
+    def saving(self) -> float:
+        """Fraction of the whole-slope time saved [-]."""
+        return 1.0 - self.sub_step_time / self.whole_step_time
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class DdaEvaluation:
+    """DDA verdict, strength-reduction FS and critical friction angle of a group."""
+
+    fs: float
+    """Strength-reduction factor of safety [-] (midpoint of the final bisection bracket)."""
+    critical_friction: float
+    """Friction angle of all joints (cohesion held) at the stability limit [degrees]."""
+    judgement: DdaJudgement
+    """The run at the scene's own strength (F = 1): the verdict."""
+    runs: tuple
+    """Every `DdaJudgement` made, in order [-]."""
+    wall_time: float
+    """Wall-clock time of all runs [s]."""
+    timing: Optional[DdaTiming] = None
+    """Sub-model vs whole slope per-step timing (if `DdaSettings.compare_whole`)."""
+
+
+class _StopRun(Exception):
+    """Raised from the progress callback to end a run that has clearly failed."""
+
+
+# ---------------------------------------------------------------------- sub-model
+def sub_scene(scene: Scene, system: BlockSystem, blocks: frozenset, *, removed: frozenset = frozenset(),
+              free_neighbours: bool = False, friction: Optional[float] = None,
+              reduction: float = 1.0, gravity_ramp: float = 0.0) -> tuple[Scene, list[int]]:
+    """The part of the scene a judgement needs: the group (free), the blocks touching it
+    (fixed, or free with ``free_neighbours`` and then the next ring fixed); removed blocks
+    and everything farther away left out. Every joint gets the friction angle ``friction``
+    [degrees] if given, and tanφ and c divided by ``reduction``. With ``gravity_ramp`` [s] > 0
+    gravity grows from 0 to its full value over that time (see `_ramped_gravity`).
+
+    Returns the sub-scene and the original id of each of its blocks.
+    """
+    ring1 = system.neighbours(blocks, removed)
+    moving = set(blocks)
+    held = set(ring1)
+    if free_neighbours:
+        moving |= {b for b in ring1 if not system.block_fixed[b]}
+        held = system.neighbours(moving, removed) | {b for b in ring1 if system.block_fixed[b]}
+    ids = sorted(moving | held)
+    new_id = {b: i for i, b in enumerate(ids)}
+    sub = Scene(gravity=scene.gravity)
+    sub.joints = [_reduced(j, friction, reduction) for j in scene.joints]
+    for b in ids:
+        spec = scene.blocks[b]
+        sub.blocks.append(replace(spec, fixed=bool(spec.fixed or b not in moving)))
+    sub.pair_joints = {(new_id[i], new_id[j]): k for (i, j), k in scene.pair_joints.items()
+                       if i in new_id and j in new_id}
+    sub.fixed_points = [replace(p, block=new_id[p.block]) for p in scene.fixed_points if p.block in new_id]
+    sub.point_loads = [PointSpec(block=new_id[p.block], xy=p.xy, force=p.force)
+                       for p in scene.point_loads if p.block in new_id]
+    sub.ground_acceleration = scene.ground_acceleration
+    if gravity_ramp > 0:
+        sub.ground_acceleration = _ramped_gravity(scene.gravity, gravity_ramp, scene.ground_acceleration)
+    return sub, ids
+
+
+def _ramped_gravity(gravity: float, ramp: float, shaking):
+    """Ground acceleration that makes the body force grow smoothly from 0 to full gravity.
+
+    Gravity switched on at once excites the contacts' elastic modes: the first steps overshoot
+    the static contact forces (up to twice) and a group close to its limit slips a little
+    before it settles or runs away, so verdicts near the limit follow that transient instead of
+    the strength. In the ground's frame a block feels g − a_g (`ddatai.Scene.set_ground_acceleration`);
+    a_g = (0, −g·(1 − s(t))) with s = ½(1 − cos(πt/ramp)) gives the body force −g·s(t), loading
+    the group quasi-statically. The scene's own shaking, if any, is added.
+    """
+    def fn(t: float) -> tuple[float, float]:
+        s = 1.0 if t >= ramp else 0.5 * (1.0 - math.cos(math.pi * t / ramp))
+        ax, ay = shaking(t) if shaking is not None else (0.0, 0.0)
+        return (float(ax), float(ay) - gravity * (1.0 - s))
+
+    return fn
+
+
+def _reduced(joint: Joint, friction: Optional[float], reduction: float) -> Joint:
+    phi = joint.friction if friction is None else float(friction)
+    tan_phi = math.tan(math.radians(phi)) / reduction
+    return Joint(friction=math.degrees(math.atan(tan_phi)), cohesion=joint.cohesion / reduction,
+                 tensile=joint.tensile)
+
+
+def run_params(params: Optional[Params], settings: DdaSettings) -> Params:
+    """The DDA parameters of a judgement: the given ones with the cohesion rule of the settings."""
+    params = settings.params or params or Params()
+    return replace(params, bond_breaks_on_slip=not settings.cohesion_held)
+
+
+def group_size(system: BlockSystem, blocks: frozenset) -> float:
+    """√(area of the group) [m], the length the displacement criterion scales with."""
+    return math.sqrt(float(system.block_area[sorted(blocks)].sum()))
+
+
+# ---------------------------------------------------------------------- one judgement
+def judge(scene: Scene, system: BlockSystem, blocks: frozenset, *, settings: DdaSettings,
+          params: Optional[Params] = None, removed: frozenset = frozenset(),
+          friction: Optional[float] = None, reduction: float = 1.0,
+          record_every: Optional[int] = None):
+    """Simulate the group's sub-model once and decide stable / unstable.
+
+    With ``record_every`` the run is not stopped early and its `ddatai.Results` (of the
+    sub-model) are returned too: ``(judgement, results, ids)``; otherwise the judgement alone.
+    """
+    from ddatai.model import build_model
+    from ddatai.results import SimulationError
+    from ddatai.step import simulate  # starts Taichi
+
+    sub, ids = sub_scene(scene, system, blocks, removed=removed, free_neighbours=settings.free_neighbours,
+                         friction=friction, reduction=reduction, gravity_ramp=settings.gravity_ramp)
+    prm = run_params(params, settings)
+    delta = settings.displacement_ratio * group_size(system, blocks)
+    duration = settings.gravity_ramp + (settings.duration or math.sqrt(2.0 * delta / settings.acceleration_resolution))
+    origin = build_model(sub, prm).origin
+    pos = [ids.index(b) for b in sorted(blocks)]
+    counts = np.array([len(s.vertices) for s in sub.blocks])
+    offset = np.concatenate([[0], np.cumsum(counts)])
+    vidx = np.concatenate([np.arange(offset[p], offset[p + 1]) for p in pos])
+    starts = np.concatenate([[0], np.cumsum(counts[pos])[:-1]])
+    x0 = np.concatenate([sub.blocks[p].vertices for p in pos]) - origin
+    stop_at = settings.stop_ratio * delta if record_every is None else math.inf
+    times, disp = [0.0], [0.0]
+
+    def progress(state, record):
+        # displacement of each member = mean displacement of its vertices (its centroid's for a
+        # rigid translation); the group's = the largest
+        u = np.add.reduceat(state.vertex_xy[vidx] - x0, starts, axis=0) / counts[pos][:, None]
+        times.append(state.time)
+        disp.append(float(np.max(np.hypot(u[:, 0], u[:, 1]))))
+        if disp[-1] > stop_at:
+            raise _StopRun
+
+    t0 = time.perf_counter()
+    note = ""
+    results = None
+    try:
+        results = simulate(sub, prm, duration=duration, progress=progress,
+                           record_every=record_every or 10 ** 9)
+    except _StopRun:
+        note = "stopped early"
+    except SimulationError as err:
+        if max(disp) < delta:
+            raise
+        note = f"diverged after failing: {err}"
+        results = err.results
+    wall = time.perf_counter() - t0
+    t, d = np.array(times), np.array(disp)
+    tq = 0.75 * t[-1]
+    speed = float((d[-1] - np.interp(tq, t, d)) / max(t[-1] - tq, 1e-300))
+    unstable = bool(note) or (d[-1] >= delta and speed >= delta / duration)
+    j = DdaJudgement(stable=not unstable, displacement=float(d[-1]), speed=speed, threshold=delta,
+                     duration=duration, simulated=float(t[-1]), steps=len(t) - 1, wall_time=wall,
+                     friction=friction, reduction=reduction, model_blocks=len(ids),
+                     moving_blocks=sum(not s.fixed for s in sub.blocks), scene_blocks=scene.n_blocks,
+                     note=note)
+    if record_every is not None:
+        return j, results, ids
+    return j
+
+
+# ---------------------------------------------------------------------- bisections
+def evaluate_dda(scene: Scene, system: BlockSystem, blocks: frozenset, *, settings: DdaSettings,
+                 params: Optional[Params] = None, removed: frozenset = frozenset(),
+                 fs_guess: float = 1.0, friction_guess: Optional[float] = None,
+                 with_fs: bool = True, with_friction: bool = True) -> DdaEvaluation:
+    """Verdict at the scene's strength, FS by strength reduction and the critical friction
+    angle, each by bisection on DDA verdicts (kgm-method.md §6.4). The guesses (the
+    limit-equilibrium values) only place the first bracket."""
+    runs: list[DdaJudgement] = []
+    cache: dict[tuple, DdaJudgement] = {}
+
+    def run(friction=None, reduction=1.0) -> bool:
+        key = (None if friction is None else round(friction, 9), round(reduction, 12))
+        if key not in cache:
+            cache[key] = judge(scene, system, blocks, settings=settings, params=params, removed=removed,
+                               friction=friction, reduction=reduction)
+            runs.append(cache[key])
+        return cache[key].stable
+
+    t0 = time.perf_counter()
+    run()
+    fs = math.nan
+    if with_fs:
+        fs = _bisect_reduction(run, fs_guess, settings.fs_tolerance)
+    phi = math.nan
+    if with_friction:
+        guess = friction_guess if friction_guess is not None else float(np.mean(system.contact_friction))
+        phi = _bisect_friction(run, guess, settings.friction_tolerance)
+    timing = None
+    if settings.compare_whole:
+        timing = time_sub_and_whole(scene, system, blocks, settings=settings, params=params, removed=removed)
+    return DdaEvaluation(fs=fs, critical_friction=phi, judgement=cache[(None, 1.0)], runs=tuple(runs),
+                         wall_time=time.perf_counter() - t0, timing=timing)
+
+
+def _bisect_reduction(stable_at, guess: float, tol: float) -> float:
+    """F between the largest stable and the smallest unstable reduction (geometric bisection)."""
+    step = 1.25
+    f = min(max(guess, 0.1), 10.0) if math.isfinite(guess) and guess > 0 else 1.0
+    if stable_at(reduction=f):
+        lo, hi = f, f * step
+        while stable_at(reduction=hi):
+            lo, hi = hi, hi * step
+            if hi > 50.0:
+                return math.inf
+    else:
+        lo, hi = f / step, f
+        while not stable_at(reduction=lo):
+            lo, hi = lo / step, lo
+            if lo < 0.02:
+                return 0.0
+    while hi / lo - 1.0 > tol:
+        mid = math.sqrt(lo * hi)
+        if stable_at(reduction=mid):
+            lo = mid
+        else:
+            hi = mid
+    return math.sqrt(lo * hi)
+
+
+def _bisect_friction(stable_at, guess: float, tol: float) -> float:
+    """φ between the largest unstable and the smallest stable friction angle of all joints."""
+    step = 2.0
+    phi = min(max(guess, 0.0), 85.0)
+    if stable_at(friction=phi):
+        lo, hi = phi - step, phi
+        while lo > 0.0 and stable_at(friction=lo):
+            lo, hi = lo - step, lo
+        if lo <= 0.0:
+            if stable_at(friction=0.0):
+                return 0.0
+            lo = 0.0
+    else:
+        lo, hi = phi, phi + step
+        while not stable_at(friction=hi):
+            lo, hi = hi, hi + step
+            if hi > 89.0:
+                return 90.0
+    while hi - lo > tol:
+        mid = 0.5 * (lo + hi)
+        if stable_at(friction=mid):
+            hi = mid
+        else:
+            lo = mid
+    return 0.5 * (lo + hi)
+
+
+def time_sub_and_whole(scene: Scene, system: BlockSystem, blocks: frozenset, *, settings: DdaSettings,
+                       params: Optional[Params] = None, removed: frozenset = frozenset()) -> DdaTiming:
+    """Mean wall time per step of the judgement's sub-model and of the whole slope (all
+    remaining blocks free as in the scene), over ``settings.whole_steps`` steps each."""
+    from ddatai.results import SimulationError
+    from ddatai.step import simulate
+
+    prm = run_params(params, settings)
+    sub, ids = sub_scene(scene, system, blocks, removed=removed, free_neighbours=settings.free_neighbours)
+    whole = scene
+    if removed:
+        keep = [b for b in range(scene.n_blocks) if b not in removed]
+        whole, _ = _subset(scene, keep)
+
+    def per_step(sc) -> float:
+        t0 = time.perf_counter()
+        try:
+            res = simulate(sc, prm, steps=settings.whole_steps, record_every=10 ** 9)
+            n = len(res.steps)
+        except SimulationError as err:
+            n = len(err.results.steps) if err.results is not None else 1
+        return (time.perf_counter() - t0) / max(n, 1)
+
+    per_step(sub)  # warm-up: kernel compilation is not part of either cost
+    return DdaTiming(steps=settings.whole_steps, sub_step_time=per_step(sub), whole_step_time=per_step(whole),
+                     sub_blocks=len(ids), whole_blocks=whole.n_blocks)
+
+
+def _subset(scene: Scene, keep: list[int]) -> tuple[Scene, list[int]]:
+    new_id = {b: i for i, b in enumerate(keep)}
+    sub = Scene(gravity=scene.gravity)
+    sub.joints = list(scene.joints)
+    sub.blocks = [scene.blocks[b] for b in keep]
+    sub.pair_joints = {(new_id[i], new_id[j]): k for (i, j), k in scene.pair_joints.items()
+                       if i in new_id and j in new_id}
+    sub.fixed_points = [replace(p, block=new_id[p.block]) for p in scene.fixed_points if p.block in new_id]
+    sub.point_loads = [replace(p, block=new_id[p.block]) for p in scene.point_loads if p.block in new_id]
+    sub.ground_acceleration = scene.ground_acceleration
+    return sub, keep

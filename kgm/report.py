@@ -1,0 +1,159 @@
+"""Results of a KGM analysis: `GroupResult` (one evaluated group), `Report` (a whole analysis),
+the failure-surface polylines and the text tables (kgm-method.md §3.5)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Optional, Sequence
+
+import numpy as np
+
+from .blocks import DISTANCE_TOL, BlockSystem, Mode
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class GroupResult:
+    """A group of blocks as one evaluator judged it."""
+
+    blocks: frozenset
+    """Block ids of the group (the scene's ids)."""
+    fs: float
+    """Factor of safety [-] (strength reduction; inf: no failure mode)."""
+    critical_friction: float
+    """Friction angle of all joints (cohesion held) at which the group reaches limit
+    equilibrium [degrees]; 90: no friction angle holds it (lifting, toppling)."""
+    stable: bool
+    """Verdict: FS ≥ the target (rigid, sarma) or the DDA run at the scene's strength."""
+    mode: Mode
+    """Governing failure mode from limit equilibrium (for dda: from the screening evaluator)."""
+    surface: tuple = ()
+    """Critical failure surface: polylines (k, 2) [m] of the contacts on which the group slides."""
+    evaluator: str = "rigid"
+    """Evaluator that gave ``fs`` and ``critical_friction``: 'rigid', 'sarma' or 'dda'."""
+    seed: Optional[int] = None
+    """Key block the greedy search grew the group from."""
+    iteration: int = 0
+    """Removal round of a progressive analysis (0: the first)."""
+    dda: Optional[object] = None
+    """`kgm.dda.DdaEvaluation` of a DDA-judged group (runs, times, verdict), else None."""
+
+    @property
+    def verdict(self) -> str:
+        return "stable" if self.stable else "unstable"
+
+    @property
+    def critical_acceleration(self) -> Optional[float]:
+        """Sarma's K_c of the governing mode [g], if the evaluator computed it."""
+        return self.mode.critical_acceleration
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class Report:
+    """Outcome of `kgm.analyze`."""
+
+    method: str
+    """'rigid', 'sarma' or 'dda'."""
+    critical: Optional[GroupResult]
+    """Least safe key group of the first round (None: the slope has no key group)."""
+    groups: tuple
+    """Candidate key groups of the first round, least safe first (`GroupResult`)."""
+    block_types: dict
+    """Block id -> Goodman–Shi type 'I'..'V' (kgm-method.md §2.3), first round."""
+    history: tuple
+    """Least safe group of every round, in order; in progressive mode the unstable ones were
+    removed one after the other and the last is the first stable one (if any)."""
+    removed: tuple = ()
+    """Groups removed in progressive mode, in removal order (frozensets of block ids)."""
+    failure_surface: tuple = ()
+    """Progressive mode: the envelope of the removed blocks against the remaining rock,
+    polylines (k, 2) [m]; otherwise the critical group's surface."""
+    fs_target: float = 1.0
+    """FS below which a group is unstable [-]."""
+    wall_time: float = 0.0
+    """Wall-clock time of the analysis [s]."""
+
+    def table(self) -> str:
+        """Candidate groups as a text table (least safe first)."""
+        return format_groups(self.groups)
+
+
+# ---------------------------------------------------------------------- surfaces
+def contact_polylines(system: BlockSystem, contacts: Sequence[int]) -> tuple:
+    """Chain contact segments that share end points into polylines (k, 2) [m], each ordered
+    from left to right."""
+    tol = 10 * DISTANCE_TOL * system.scale
+    segs = [[system.contact_start[k].copy(), system.contact_end[k].copy()] for k in np.unique(contacts)]
+    lines: list[list[np.ndarray]] = []
+    while segs:
+        line = segs.pop(0)
+        grown = True
+        while grown:
+            grown = False
+            for i, (p, q) in enumerate(segs):
+                if np.hypot(*(p - line[-1])) <= tol:
+                    line.append(q)
+                elif np.hypot(*(q - line[-1])) <= tol:
+                    line.append(p)
+                elif np.hypot(*(q - line[0])) <= tol:
+                    line.insert(0, p)
+                elif np.hypot(*(p - line[0])) <= tol:
+                    line.insert(0, q)
+                else:
+                    continue
+                segs.pop(i)
+                grown = True
+                break
+        arr = np.array(line)
+        if arr[0, 0] > arr[-1, 0]:
+            arr = arr[::-1]
+        lines.append(_drop_collinear(arr))
+    return tuple(sorted(lines, key=lambda a: float(a[:, 0].min())))
+
+
+def _drop_collinear(p: np.ndarray) -> np.ndarray:
+    if len(p) < 3:
+        return p
+    keep = [0]
+    for i in range(1, len(p) - 1):
+        a, b = p[i] - p[keep[-1]], p[i + 1] - p[i]
+        if abs(a[0] * b[1] - a[1] * b[0]) > 1e-9 * np.hypot(*a) * np.hypot(*b):
+            keep.append(i)
+    keep.append(len(p) - 1)
+    return p[keep]
+
+
+# ---------------------------------------------------------------------- tables
+def _fmt(x: Optional[float], digits: int = 3) -> str:
+    if x is None or (isinstance(x, float) and math.isnan(x)):
+        return "-"
+    if math.isinf(x):
+        return "inf"
+    return f"{x:.{digits}f}"
+
+
+def format_groups(groups: Sequence[GroupResult]) -> str:
+    """Text table of candidate groups: rank, blocks, evaluator, FS, φc, K_c, mode, verdict."""
+    head = f"{'#':>3}  {'blocks':<18} {'eval':<6} {'FS':>7} {'phi_c':>7} {'K_c':>8}  {'mode':<9} verdict"
+    rows = [head, "-" * len(head)]
+    for i, g in enumerate(groups):
+        ids = "{" + ", ".join(str(b) for b in sorted(g.blocks)) + "}"
+        rows.append(f"{i + 1:>3}  {ids:<18} {g.evaluator:<6} {_fmt(g.fs):>7} {_fmt(g.critical_friction, 2):>7} "
+                    f"{_fmt(g.critical_acceleration):>8}  {g.mode.kind.value:<9} {g.verdict}")
+    return "\n".join(rows)
+
+
+def format_paper_table(results: Sequence[GroupResult], *, title: str = "") -> str:
+    """The layout of the paper's comparison: method, factor of safety, critical friction
+    angle, verdict (one row per evaluator of the same group), as a Markdown table."""
+    names = {"rigid": "KGM (rigid group)", "sarma": "SKGM (Sarma)", "dda": "KGM + DDA (developed)"}
+    out = []
+    if title:
+        out.append(title)
+        out.append("")
+    out.append("| method | factor of safety | critical friction angle | verdict |")
+    out.append("|---|---|---|---|")
+    for g in results:
+        out.append(f"| {names.get(g.evaluator, g.evaluator)} | {_fmt(g.fs, 3)} | "
+                   f"{_fmt(g.critical_friction, 2)}° | {g.verdict} |")
+    return "\n".join(out)

@@ -1,0 +1,129 @@
+"""Settings of a KGM analysis: frozen keyword-only dataclasses, validated on construction.
+
+Units are SI (m, s, m/s²); friction angles in degrees.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Literal, Optional
+
+from ddatai.params import Params
+
+
+def _require(cond: bool, message: str) -> None:
+    if not cond:
+        raise ValueError(message)
+
+
+def _positive(obj, name: str, allow_none: bool = False) -> None:
+    v = getattr(obj, name)
+    if v is None and allow_none:
+        return
+    _require(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0,
+             f"{type(obj).__name__}.{name} must be a finite number > 0, got {v!r}")
+
+
+@dataclass(frozen=True, kw_only=True)
+class DdaSettings:
+    """How the DDA evaluator judges a group (kgm-method.md §6.3–6.4).
+
+    A run simulates the group and the blocks it touches (held fixed, as KGM assumes
+    non-members stay in place; ``free_neighbours`` lets them move and fixes the next ring),
+    from rest: gravity grows smoothly to its full value over ``gravity_ramp`` (quasi-static
+    loading: switched on at once, it overshoots the static contact forces and a group near its
+    limit slips in the first steps — its verdict then follows that transient, not the
+    strength), then runs for a time T. The group is **unstable** if its largest member displacement
+    d(T) ≥ δ and it is still moving at the end: its mean speed over the last quarter of the
+    run is ≥ δ/T (a group sliding with constant acceleration a has d = aT²/2 and that speed
+    7aT/8, so it passes as soon as d ≥ δ). Otherwise it is **stable**: it stayed within δ, or
+    it moved and came to rest (arrested). A run whose displacement passes ``stop_ratio``·δ
+    is stopped early as unstable.
+
+    δ = ``displacement_ratio`` × √(group area): 0.5 % of the group's size, far above the
+    contact settlement N/p and the elastic overshoot of the first steps (≈ 1e-4 of the size
+    in the examples), and below any displacement that changes the geometry. T follows from
+    the acceleration the judgement must resolve, ``acceleration_resolution`` a_r:
+    T = √(2δ/a_r); a group accelerating at a_r just reaches δ. On planar sliding a_r sets the
+    friction resolution Δtanφ ≈ a_r/(g cos α) (§6.3): 0.05 m/s² is ≈ 0.3° at α = 20°.
+    """
+
+    params: Optional[Params] = None
+    """DDA parameters of the runs; None: the scene's (given to `analyze`) or `Params()`."""
+    duration: Optional[float] = None
+    """Simulated time T of a run [s]; None: √(2δ/a_r)."""
+    displacement_ratio: float = 0.005
+    """δ as a fraction of the group's size √(area) [-]."""
+    acceleration_resolution: float = 0.05
+    """a_r: smallest acceleration a run must detect [m/s²] (sets T when ``duration`` is None)."""
+    gravity_ramp: float = 0.5
+    """Time over which gravity grows from 0 to its full value before T starts [s] (0: at once);
+    long against the contacts' elastic periods (milliseconds for rock blocks)."""
+    stop_ratio: float = 4.0
+    """Stop a run as unstable once the displacement exceeds this many δ [-]."""
+    cohesion_held: bool = True
+    """Joints keep their cohesion while they slide (lose it only when they open), as limit
+    equilibrium assumes (kgm-method.md §6.1, §6.6); False: Shi's DDA, where a joint loses it as
+    soon as it slips (`ddatai.Params.bond_breaks_on_slip`)."""
+    free_neighbours: bool = False
+    """Let the blocks touching the group move too (and fix the ones touching them)."""
+    friction_tolerance: float = 0.25
+    """Width of the final bracket of the critical-friction bisection [degrees]."""
+    fs_tolerance: float = 0.02
+    """Relative width of the final bracket of the strength-reduction bisection [-]."""
+    candidates: int = 1
+    """How many of the least safe limit-equilibrium candidates DDA judges [-]."""
+    compare_whole: bool = False
+    """Also time the whole slope over ``whole_steps`` steps to report the time saved."""
+    whole_steps: int = 100
+    """Steps of the timing runs of the sub-model and the whole slope [-]."""
+
+    def __post_init__(self) -> None:
+        _require(self.params is None or isinstance(self.params, Params),
+                 f"DdaSettings.params must be a ddatai.Params or None, got {type(self.params).__name__}")
+        _positive(self, "duration", allow_none=True)
+        _require(isinstance(self.gravity_ramp, (int, float)) and math.isfinite(self.gravity_ramp)
+                 and self.gravity_ramp >= 0, f"DdaSettings.gravity_ramp must be >= 0 s, got {self.gravity_ramp!r}")
+        for name in ("displacement_ratio", "acceleration_resolution", "friction_tolerance", "fs_tolerance"):
+            _positive(self, name)
+        _require(isinstance(self.stop_ratio, (int, float)) and self.stop_ratio >= 1.0,
+                 f"DdaSettings.stop_ratio must be >= 1, got {self.stop_ratio!r}")
+        for name in ("candidates", "whole_steps"):
+            v = getattr(self, name)
+            _require(isinstance(v, int) and not isinstance(v, bool) and v >= 1,
+                     f"DdaSettings.{name} must be an integer >= 1, got {v!r}")
+        for name in ("cohesion_held", "free_neighbours", "compare_whole"):
+            _require(isinstance(getattr(self, name), bool),
+                     f"DdaSettings.{name} must be True or False, got {getattr(self, name)!r}")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Settings:
+    """The key-group search (kgm-method.md §3.3–3.4)."""
+
+    fs_target: float = 1.0
+    """A group with FS below this is unstable (removed in progressive mode) [-]."""
+    growth_tolerance: float = 1e-4
+    """A neighbour joins a group only if it lowers FS by more than this [-]."""
+    max_group_size: int = 8
+    """Largest number of blocks in a group [-]."""
+    max_iterations: int = 100
+    """Largest number of removal rounds in progressive mode [-]."""
+    screening: Literal["rigid", "sarma"] = "sarma"
+    """Limit-equilibrium evaluator that proposes the candidate groups DDA judges."""
+    dda: DdaSettings = field(default_factory=DdaSettings)
+    """How the DDA evaluator runs."""
+
+    def __post_init__(self) -> None:
+        _positive(self, "fs_target")
+        _require(isinstance(self.growth_tolerance, (int, float)) and self.growth_tolerance >= 0,
+                 f"Settings.growth_tolerance must be >= 0, got {self.growth_tolerance!r}")
+        for name in ("max_group_size", "max_iterations"):
+            v = getattr(self, name)
+            _require(isinstance(v, int) and not isinstance(v, bool) and v >= 1,
+                     f"Settings.{name} must be an integer >= 1, got {v!r}")
+        _require(self.screening in ("rigid", "sarma"),
+                 f"Settings.screening must be 'rigid' or 'sarma', got {self.screening!r}")
+        _require(isinstance(self.dda, DdaSettings),
+                 f"Settings.dda must be a kgm.DdaSettings, got {type(self.dda).__name__}")

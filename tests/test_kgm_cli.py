@@ -1,0 +1,41 @@
+"""The ``kgm analyze`` console command."""
+
+import io
+from pathlib import Path
+
+import pytest
+
+from kgm.cli import load_scene, main, scene_frame
+
+ROOT = Path(__file__).resolve().parents[1]
+EX1 = str(ROOT / "scenes" / "example_1.py")
+
+
+def test_analyze_prints_the_candidate_table():
+    out = io.StringIO()
+    assert main(["analyze", EX1, "--method", "rigid", "--progressive"], out=out) == 0
+    text = out.getvalue()
+    assert "block types: 0:II, 1:III, 2:III, 3:V" in text
+    assert "critical key group [0, 1]: FS 0.999, critical friction 11.02°" in text
+    assert "round 1: removed [0, 1]" in text
+
+
+def test_bad_scene_file_is_reported(capsys):
+    assert main(["analyze", str(ROOT / "scenes" / "nope.py")]) == 2
+    assert "scene file not found" in capsys.readouterr().err
+
+
+def test_scene_frame_is_a_one_frame_result():
+    scene, _ = load_scene(EX1)
+    res = scene_frame(scene)
+    assert res.n_frames == 1 and res.n_blocks == 4
+    for b, poly in enumerate(res.polygons(0)):
+        assert (poly == scene.blocks[b].vertices).all()
+
+
+def test_gif_of_a_rigid_analysis(tmp_path):
+    """Needs ddatai.render (the renderer of the main branch)."""
+    pytest.importorskip("ddatai.render")
+    path = tmp_path / "ex1.gif"
+    assert main(["analyze", EX1, "--method", "rigid", "--gif", str(path)], out=io.StringIO()) == 0
+    assert path.read_bytes()[:4] == b"GIF8"
