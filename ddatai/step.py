@@ -82,6 +82,9 @@ class Stepper:
         self.dof = model.block_dof
         self.free = ~model.block_fixed
         self.free_idx = np.flatnonzero(self.free)
+        from .solver import SparseSolver
+
+        self.solver = SparseSolver(model.params.solver)
         self._fp_stiff = np.full(len(model.fixed_point_block), model.fixed_point_penalty)
         self._load_stiff = np.zeros(len(model.load_block))
 
@@ -347,22 +350,11 @@ class Stepper:
         return contacts.normal_force * contacts.tan_phi + contacts.cohesion * contacts.length * contacts.bond
 
     def solve(self, pattern: BlockPattern, data: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-        """Solve K D = F; returns D as (B, 6) with zeros for fixed blocks."""
-        from scipy.sparse import csc_matrix
-        from scipy.sparse.linalg import splu
-
+        """Solve K D = F (`ddatai.solver`); returns D as (B, 6) with zeros for fixed blocks."""
         d = np.zeros((self.model.n_blocks, 6))
         if pattern.n_rows == 0:
             return d
-        n = 6 * pattern.n_rows
-        # K is symmetric, so its CSR arrays are also its CSC arrays
-        k = csc_matrix((data, pattern.indices, pattern.indptr), shape=(n, n))
-        try:
-            lu = splu(k, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                      options=dict(SymmetricMode=True))
-            x = lu.solve(rhs)
-        except RuntimeError:  # singular factor: reported as a non-finite solution
-            x = np.full(n, np.nan)
+        x = self.solver.solve(data, pattern.indices, pattern.indptr, rhs)
         d[self.free_idx] = x.reshape(-1, 6)
         return d
 
