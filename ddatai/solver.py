@@ -41,16 +41,24 @@ def resolve(name: str) -> str:
 
 
 class SparseSolver:
-    """Solves K x = b for symmetric positive definite K given by its CSR arrays (full storage)."""
+    """Solves K x = b for symmetric positive definite K given by its CSR arrays (full storage).
+
+    ``pattern`` identifies the sparsity pattern: while it stays the same object (a step's
+    `BlockPattern`), PARDISO keeps its symbolic analysis (fill-reducing ordering) and only
+    refactorises; SuperLU cannot reuse one and orders every time.
+    """
 
     def __init__(self, backend: str):
         self.backend = resolve(backend)
         self._pardiso = None
+        self._pattern = None     # the pattern PARDISO's analysis belongs to
+        self._upper = None       # (mask of upper-triangle entries, indptr, indices) of it
 
-    def solve(self, data: np.ndarray, indices: np.ndarray, indptr: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    def solve(self, data: np.ndarray, indices: np.ndarray, indptr: np.ndarray, rhs: np.ndarray,
+              pattern: object = None) -> np.ndarray:
         n = len(indptr) - 1
         if self.backend == "pardiso":
-            return self._solve_pardiso(data, indices, indptr, rhs, n)
+            return self._solve_pardiso(data, indices, indptr, rhs, n, pattern)
         from scipy.sparse import csc_matrix
         from scipy.sparse.linalg import splu
 
@@ -63,20 +71,31 @@ class SparseSolver:
         except RuntimeError:  # singular factor: reported as a non-finite solution
             return np.full(n, np.nan)
 
-    def _solve_pardiso(self, data, indices, indptr, rhs, n) -> np.ndarray:
+    def _solve_pardiso(self, data, indices, indptr, rhs, n, pattern) -> np.ndarray:
         import pypardiso
-        from scipy.sparse import csr_matrix, triu
+        from scipy.sparse import csr_matrix
 
         if self._pardiso is None:
             # one solver object for the whole run: constructing one costs ~0.1 s
             self._pardiso = pypardiso.PyPardisoSolver(mtype=2)  # real symmetric positive definite
             self._pardiso.set_iparm(8, 0)  # no iterative refinement: the direct solve is exact
-        upper = triu(csr_matrix((data, indices, indptr), shape=(n, n)), format="csr")
-        upper.sort_indices()
         solver = self._pardiso
+        fresh = pattern is None or pattern is not self._pattern
+        if fresh:
+            # PARDISO reads the upper triangle: which CSR entries those are, once per pattern
+            rows = np.repeat(np.arange(n), np.diff(indptr))
+            mask = indices >= rows
+            counts = np.bincount(rows[mask], minlength=n)
+            upper_indptr = np.concatenate([[0], np.cumsum(counts)])
+            self._upper = (mask, upper_indptr, indices[mask])
+            self._pattern = pattern
+        mask, upper_indptr, upper_indices = self._upper
+        upper = csr_matrix((data[mask], upper_indices, upper_indptr), shape=(n, n))
         try:
-            solver.set_phase(13)  # analysis, numerical factorisation, solve
+            # 13: analysis + factorisation + solve; 23: factorisation + solve with the analysis
+            solver.set_phase(13 if fresh else 23)
             x = solver._call_pardiso(upper, np.ascontiguousarray(rhs, dtype=np.float64))
         except Exception:  # noqa: BLE001 - a failed factorisation is a non-finite solution
+            self._pattern = None
             return np.full(n, np.nan)
         return np.asarray(x).reshape(n)

@@ -354,7 +354,7 @@ class Stepper:
         d = np.zeros((self.model.n_blocks, 6))
         if pattern.n_rows == 0:
             return d
-        x = self.solver.solve(data, pattern.indices, pattern.indptr, rhs)
+        x = self.solver.solve(data, pattern.indices, pattern.indptr, rhs, pattern=pattern)
         d[self.free_idx] = x.reshape(-1, 6)
         return d
 

@@ -1,0 +1,242 @@
+"""Block-count scaling of one DDA step: median ms per step, by phase, against block count.
+
+    python benchmarks/scaling.py [--sizes 100,400,1600,6400,25600] [--family grid,slope]
+                                 [--steps 8] [--warmup 3] [--arch cpu|gpu] [--solver auto|scipy|pardiso]
+
+Two families:
+
+- ``grid``: a fitted n × n grid of 1 m blocks on a fixed base (``scenes/stacked_grid.py``, gap
+  0, dynamic, Δt = 1 ms): the scene of ntdda's scaling runs (``ntdda-baseline.md`` §6);
+- ``slope``: a 60° rock slope cut by two persistent joint sets (35° bedding, 105° cross set)
+  whose spacing is chosen for the wanted block count; blocks below the toe and far behind the
+  face are fixed; dynamic, Δt = 1 ms.
+
+Every (family, size) runs in a fresh process (kernels come from Taichi's offline cache), so
+its peak memory (max RSS) is its own. Per size: median ms per step over the timed steps after
+the warm-up steps, split into contact detection, assembly, solve and update; open-close
+iterations per step; contacts; peak memory; and, up to ``--reference-max`` blocks, the NumPy
+reference path (brute-force detection and dense assembly, ``ddatai/reference.py``) on the same
+state. The growth exponent is fitted between 1,600 and the largest size. Writes
+``benchmarks/results/scaling.md`` and ``scaling.png``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import platform
+import resource
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "benchmarks" / "results"
+# ntdda (Berkeley DDA), same grid scene, same machine type: seconds per step (ntdda-baseline.md §6)
+NTDDA_GRID = {16: 9.8e-5, 64: 7.0e-4, 256: 1.00e-2, 1024: 0.112, 4096: 1.085, 16384: 17.20}
+
+
+def slope_scene(n_blocks: int):
+    """A slope cut by two persistent joint sets, spacing chosen for about ``n_blocks`` blocks."""
+    import ddatai as dd
+
+    rock = dd.Material(density=2600.0, young=10e9, poisson=0.25)
+    scene = dd.Scene(gravity=9.81)
+    height = 30.0
+    toe = (10.0, 0.0)
+    crest = (10.0 + height / math.tan(math.radians(60.0)), height)
+    outline = [(0.0, -6.0), (60.0, -6.0), (60.0, height), crest, toe, (0.0, 0.0)]
+    area = 60.0 * 36.0 - 0.5 * height * (crest[0] - toe[0]) - 10.0 * height
+    # 0.63: measured ratio of blocks to area·sinα/s² (blocks cut by the outline are smaller)
+    spacing = math.sqrt(0.63 * area * math.sin(math.radians(70.0)) / n_blocks)
+    sets = [dd.JointSet(dip=35.0, spacing=spacing, joint=dd.Joint(friction=28.0)),
+            dd.JointSet(dip=105.0, spacing=spacing, joint=dd.Joint(friction=35.0))]
+    ids = scene.cut(outline, dd.joint_sets(outline, sets, seed=1), material=rock)
+    centroid = np.array([scene.polygon(b).mean(axis=0) for b in ids])
+    for b, c in zip(ids, centroid):
+        if c[1] < 0.0 or c[0] > 50.0:
+            scene.set_fixed(b)
+    return scene, dd.Params(dt=1e-3)
+
+
+def grid_scene(n_blocks: int):
+    sys.path.insert(0, str(ROOT))
+    from scenes.stacked_grid import build
+
+    n = int(round(math.sqrt(n_blocks)))
+    return build(n, gap=0.0, static=False, dt=1e-3)
+
+
+def run_one(family: str, size: int, steps: int, warmup: int, arch: str, solver: str,
+            reference_max: int) -> dict:
+    """Measure one (family, size) in this process; returns a JSON-able record."""
+    import dataclasses
+
+    import ddatai as dd
+    from ddatai.step import Stepper
+
+    t0 = time.perf_counter()
+    scene, params = (grid_scene if family == "grid" else slope_scene)(size)
+    params = dataclasses.replace(params, arch=arch, solver=solver)
+    build_s = time.perf_counter() - t0
+    model = dd.build_model(scene, params)
+    stepper = Stepper(model)
+    state = model.initial_state()
+    records = []
+    for k in range(warmup + steps):
+        state, record = stepper.step(state)
+        if k >= warmup:
+            records.append(record)
+    s = np.array(records, dtype=dd.STEP_DTYPE)
+    phases = {name: float(np.median(s[f"t_{name}"])) * 1e3 for name in ("contacts", "assembly", "solve", "update")}
+    total = s["t_contacts"] + s["t_assembly"] + s["t_solve"] + s["t_update"]
+    out = dict(family=family, blocks=int(model.n_free), all_blocks=int(model.n_blocks), arch=arch,
+               solver=stepper.solver.backend, build_s=build_s, ms_per_step=float(np.median(total)) * 1e3,
+               ms_per_oc=float(np.median(total / np.maximum(s["oc_iterations"], 1))) * 1e3,
+               oc_per_step=float(np.mean(s["oc_iterations"])), dt_cuts=int(s["dt_cuts"].sum()),
+               contacts=int(np.median(s["contacts"])), **{f"ms_{k}": v for k, v in phases.items()})
+    if model.n_blocks <= reference_max:
+        out.update(reference_timings(model, stepper, state))
+    out["peak_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    return out
+
+
+def reference_timings(model, stepper, state) -> dict:
+    """NumPy reference path on the current state: detection, and one dense assembly, against
+    the Taichi kernels' detection and one sparse assembly."""
+    from ddatai import reference
+    from ddatai.contacts import BlockPattern, Contacts, detect_contacts
+
+    geom = model.block_geometry(state.vertex_xy)
+    t = time.perf_counter()
+    cint, length = reference.detect_contacts(model, state.vertex_xy)
+    ref_detect = time.perf_counter() - t
+    t = time.perf_counter()
+    cint_k, length_k = detect_contacts(model, state.vertex_xy, stepper.buffers)
+    ti_detect = time.perf_counter() - t
+    contacts = Contacts.start(model, state.vertex_xy, cint_k, length_k, state.memory, False)
+    vec, sca = stepper.contact_vectors(state.vertex_xy, geom, contacts)
+    pattern = BlockPattern.build(model, contacts)
+    t = time.perf_counter()
+    data, rhs = stepper.assemble_blocks(state, geom, pattern, 1e-3)
+    stepper.assemble_contacts(contacts, pattern, vec, sca, data, rhs)
+    ti_assemble = time.perf_counter() - t
+    t = time.perf_counter()
+    reference.assemble_dense(model, state.vertex_xy, state.block_velocity, state.block_stress,
+                             state.fixed_point_xy, state.load_xy, np.zeros((len(model.load_block), 2)),
+                             1e-3, model.gravity, contacts, vec, sca, stepper.friction_force(contacts),
+                             accel=state.block_accel, beta=stepper.newmark_beta(state))
+    ref_assemble = time.perf_counter() - t
+    return dict(ref_detect_ms=ref_detect * 1e3, ti_detect_ms=ti_detect * 1e3,
+                ref_assemble_ms=ref_assemble * 1e3, ti_assemble_ms=ti_assemble * 1e3,
+                same_contacts=bool(len(cint) == len(cint_k) and np.array_equal(cint, cint_k)))
+
+
+def growth_exponent(rows: list[dict], lo: int = 1600) -> float:
+    pts = [(r["blocks"], r["ms_per_step"]) for r in rows if r["blocks"] >= lo * 0.9]
+    if len(pts) < 2:
+        return float("nan")
+    x, y = np.log([p[0] for p in pts]), np.log([p[1] for p in pts])
+    return float(np.polyfit(x, y, 1)[0])
+
+
+def machine() -> str:
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in open("/proc/cpuinfo"):
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    import os
+
+    return f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}, {platform.system()}"
+
+
+def table(rows: list[dict]) -> str:
+    lines = ["| family | blocks | contacts | ms/step | ms per OC iteration | OC it./step | contacts ms | assembly ms | solve ms | update ms | peak MB | solver |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['family']} | {r['blocks']:,} | {r['contacts']:,} | {r['ms_per_step']:.1f} | "
+                     f"{r['ms_per_oc']:.1f} | {r['oc_per_step']:.1f} | {r['ms_contacts']:.1f} | {r['ms_assembly']:.1f} | "
+                     f"{r['ms_solve']:.1f} | {r['ms_update']:.1f} | {r['peak_mb']:.0f} | {r['solver']} |")
+    ref = [r for r in rows if "ref_detect_ms" in r]
+    if ref:
+        lines += ["", "NumPy reference path on the same state (brute-force detection, dense assembly) against the Taichi kernels:", "",
+                  "| family | blocks | detection: reference / Taichi ms | one assembly: dense NumPy / Taichi ms | same contacts |",
+                  "|---|---|---|---|---|"]
+        for r in ref:
+            lines.append(f"| {r['family']} | {r['blocks']:,} | {r['ref_detect_ms']:.1f} / {r['ti_detect_ms']:.2f} | "
+                         f"{r['ref_assemble_ms']:.1f} / {r['ti_assemble_ms']:.2f} | {r['same_contacts']} |")
+    return "\n".join(lines)
+
+
+def chart(rows: list[dict], path: Path) -> None:
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    from loglog_chart import Series, draw_loglog_chart
+
+    series = []
+    for family in sorted({r["family"] for r in rows}):
+        pts = sorted((r["blocks"], r["ms_per_step"] / 1e3) for r in rows if r["family"] == family)
+        series.append(Series(label=f"ddatai {family}: s/step", points=pts, line=pts))
+        solve = sorted((r["blocks"], r["ms_solve"] / 1e3) for r in rows if r["family"] == family)
+        series.append(Series(label=f"ddatai {family}: solve s/step", points=solve, line=solve))
+    nt = sorted(NTDDA_GRID.items())
+    series.append(Series(label="ntdda grid (same machine type)", points=nt, line=nt))
+    draw_loglog_chart(path, series, title="Time per DDA step against block count",
+                      x_label="blocks", y_label="seconds per step")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--sizes", default="100,400,1600,6400,25600")
+    ap.add_argument("--family", default="grid,slope")
+    ap.add_argument("--steps", type=int, default=8)
+    ap.add_argument("--warmup", type=int, default=3)
+    ap.add_argument("--arch", default="cpu", choices=("cpu", "gpu", "cuda"))
+    ap.add_argument("--solver", default="auto", choices=("auto", "scipy", "pardiso"))
+    ap.add_argument("--reference-max", type=int, default=450)
+    ap.add_argument("--one", nargs=2, metavar=("FAMILY", "SIZE"), help=argparse.SUPPRESS)
+    ap.add_argument("--out", type=Path, default=RESULTS)
+    a = ap.parse_args()
+    if a.one:
+        print(json.dumps(run_one(a.one[0], int(a.one[1]), a.steps, a.warmup, a.arch, a.solver, a.reference_max)))
+        return
+    rows = []
+    for family in a.family.split(","):
+        for size in (int(s) for s in a.sizes.split(",")):
+            steps = a.steps if size <= 6400 else max(3, a.steps // 2)
+            cmd = [sys.executable, __file__, "--one", family, str(size), "--steps", str(steps),
+                   "--warmup", str(a.warmup), "--arch", a.arch, "--solver", a.solver,
+                   "--reference-max", str(a.reference_max)]
+            t = time.perf_counter()
+            proc = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
+            if proc.returncode != 0:
+                print(f"{family} {size}: failed\n{proc.stderr[-2000:]}", file=sys.stderr)
+                continue
+            row = json.loads(proc.stdout.strip().splitlines()[-1])
+            rows.append(row)
+            print(f"{family:5s} {row['blocks']:7,d} blocks: {row['ms_per_step']:9.1f} ms/step "
+                  f"({row['oc_per_step']:.1f} OC it.), peak {row['peak_mb']:.0f} MB, run {time.perf_counter() - t:.0f} s",
+                  flush=True)
+    exps = {f: growth_exponent([r for r in rows if r["family"] == f]) for f in {r["family"] for r in rows}}
+    text = [f"# Block-count scaling ({time.strftime('%Y-%m-%d')})", "", f"Machine: {machine()}; "
+            f"Taichi arch {a.arch}; median of the timed steps after {a.warmup} warm-up steps.", "",
+            table(rows), ""]
+    text += [f"Growth exponent from 1,600 blocks ({f}): {e:.2f}" for f, e in sorted(exps.items())]
+    print("\n".join(text))
+    a.out.mkdir(parents=True, exist_ok=True)
+    suffix = "" if a.arch == "cpu" else f"_{a.arch}"
+    (a.out / f"scaling{suffix}.md").write_text("\n".join(text) + "\n")
+    (a.out / f"scaling{suffix}.json").write_text(json.dumps(rows, indent=1))
+    if rows:
+        chart(rows, a.out / f"scaling{suffix}.png")
+
+
+if __name__ == "__main__":
+    main()
