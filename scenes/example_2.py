@@ -68,15 +68,7 @@ def build(friction: float = 22.0, cohesion: float = 0.02e6, young: float = 5e9,
     return scene, dd.Params(dt=0.0013, penalty_ratio=1.0)
 
 
-def main(duration: float = DURATION) -> dd.Results:
-    scene, params = build()
-    res = dd.simulate(scene, params=params, duration=duration, record_every=20)
-    moved = np.linalg.norm(res.displacement(-1), axis=1)
-    s = res.summary()
-    print(f"{s['blocks']} blocks, {s['steps']} steps, {s['wall_time']:.2f} s in the solver")
-    print(f"displacement after {duration:.1f} s: P {moved[P]:.3f} m, A {moved[A]:.3f} m")
-    return res
-
-
 if __name__ == "__main__":
-    main()
+    from ddatai.cli import scene_main
+
+    raise SystemExit(scene_main(build, DURATION, "example_2"))

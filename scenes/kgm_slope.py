@@ -38,16 +38,7 @@ def build(friction: float = 30.0, cohesion: float = 20e3, spacing1: float = 7.0,
     return scene, dd.Params(dt=0.002, penalty_ratio=10.0)
 
 
-def main(duration: float = DURATION) -> dd.Results:
-    scene, params = build()
-    res = dd.simulate(scene, params=params, duration=duration, record_every=50)
-    s = res.summary()
-    moved = np.linalg.norm(res.displacement(-1), axis=1)
-    print(f"{s['blocks']} blocks ({int((~res.block_fixed).sum())} free), {s['steps']} steps, "
-          f"{s['wall_time']:.2f} s in the solver; largest displacement {moved.max():.3f} m "
-          f"(block {int(moved.argmax())})")
-    return res
-
-
 if __name__ == "__main__":
-    main()
+    from ddatai.cli import scene_main
+
+    raise SystemExit(scene_main(build, DURATION, "kgm_slope"))
