@@ -275,29 +275,40 @@ def toppling_case() -> Case:
                 "(regime right/wrong in notes)", T, build)
 
 
-NEWMARK = {"theta": 20.0, "phi": 30.0, "amplitude": 0.4 * G, "frequency": 1.0, "duration": 3.0}
+@dataclass(frozen=True)
+class ShakingSetup:
+    """The Newmark case: plane angle and friction [°], horizontal a_g = A sin(2πft)."""
+
+    theta: float = 20.0
+    phi: float = 30.0
+    amplitude: float = 0.4 * G
+    frequency: float = 1.0
+    duration: float = 3.0
+
+
+NEWMARK = ShakingSetup()
 
 
 def newmark_ground_acceleration(t: float) -> tuple[float, float]:
-    return (NEWMARK["amplitude"] * math.sin(2 * math.pi * NEWMARK["frequency"] * t), 0.0)
+    return (NEWMARK.amplitude * math.sin(2 * math.pi * NEWMARK.frequency * t), 0.0)
 
 
 def newmark_reference() -> float:
     """s(T) of the stick–slip equation (event-driven solve_ivp, tight tolerances)."""
     c = NEWMARK
-    return stick_slip(c["theta"], c["phi"], newmark_ground_acceleration, c["duration"],
+    return stick_slip(c.theta, c.phi, newmark_ground_acceleration, c.duration,
                       gravity=G, rtol=1e-12, atol=1e-14, max_step=0.005).final_displacement
 
 
 def newmark_case() -> Case:
     c = NEWMARK
-    theta = c["theta"]
+    theta = c.theta
 
     def build():
         scene = dd.Scene(gravity=G)
         add_incline_base(scene, theta)
         block = add_block_on_incline(scene, theta, at=6.0, width=1.0, height=1.0)
-        scene.set_joint(dd.Joint(friction=c["phi"]))
+        scene.set_joint(dd.Joint(friction=c.phi))
         scene.set_ground_acceleration(newmark_ground_acceleration)
         exact = newmark_reference()
 
@@ -306,7 +317,7 @@ def newmark_case() -> Case:
         return scene, measure
 
     return Case("newmark", "Newmark block (0.4 g, 1 Hz)", "relative error of the displacement "
-                "relative to the ground after 3 s", c["duration"], build)
+                "relative to the ground after 3 s", c.duration, build)
 
 
 def all_cases() -> list[Case]:
@@ -418,6 +429,20 @@ def pareto_front(runs: list[Run]) -> list[Run]:
     return front
 
 
+def best_error_staircase(runs: list[Run]) -> list[tuple[float, float]]:
+    """The lowest error reached within a given wall time, as (wall, error) corners of a step
+    function from the fastest run to the slowest: the case's best curve on the chart."""
+    front = pareto_front(runs)
+    if not front:
+        return []
+    slowest = max(r.wall for r in runs)
+    corners = [(front[0].wall, front[0].error)]
+    for r in front[1:]:
+        corners += [(r.wall, corners[-1][1]), (r.wall, r.error)]
+    corners.append((max(slowest, corners[-1][0]), corners[-1][1]))
+    return corners
+
+
 @dataclass
 class CaseSummary:
     case: Case
@@ -463,9 +488,10 @@ def git_revision() -> str:
     try:
         out = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"],
                              capture_output=True, text=True, timeout=10)
-        dirty = subprocess.run(["git", "-C", str(ROOT), "status", "--porcelain", "--", "ddatai"],
+        dirty = subprocess.run(["git", "-C", str(ROOT), "status", "--porcelain", "--", "ddatai",
+                                "benchmarks/accuracy.py", "benchmarks/stick_slip.py"],
                                capture_output=True, text=True, timeout=10).stdout.strip()
-        return out.stdout.strip() + (" + uncommitted changes in ddatai/" if dirty else "")
+        return out.stdout.strip() + (" + uncommitted changes" if dirty else "")
     except (OSError, subprocess.SubprocessError):
         return "unknown"
 
@@ -533,10 +559,10 @@ def newmark_convergence() -> str:
     """The stick–slip reference at several solver tolerances and against the per-phase closed
     form (benchmarks/stick_slip.py): shows that the reference is converged."""
     c = NEWMARK
-    closed = sinusoid_stick_slip(c["theta"], c["phi"], c["amplitude"], c["frequency"], c["duration"], gravity=G)
+    closed = sinusoid_stick_slip(c.theta, c.phi, c.amplitude, c.frequency, c.duration, gravity=G)
     rows = ["| solver | s(3 s) [m] | difference from closed form [m] |", "|---|---|---|"]
     for rtol, max_step in ((1e-6, 0.05), (1e-9, 0.01), (1e-12, 0.005)):
-        s = stick_slip(c["theta"], c["phi"], newmark_ground_acceleration, c["duration"], gravity=G,
+        s = stick_slip(c.theta, c.phi, newmark_ground_acceleration, c.duration, gravity=G,
                        rtol=rtol, atol=rtol * 1e-2, max_step=max_step).final_displacement
         rows.append(f"| DOP853 + events, rtol {rtol:g}, max step {max_step:g} s | {s:.15f} | {s - closed:.1e} |")
     rows.append(f"| closed form per phase + brentq | {closed:.15f} | 0 |")
@@ -551,7 +577,7 @@ def draw_chart(path: Path, cases: list[Case], runs: dict, summaries: list[CaseSu
         series.append(Series(
             label=case.label,
             points=[(r.wall, r.error) for r in case_runs if math.isfinite(r.error)],
-            line=[(r.wall, r.error) for r in pareto_front(case_runs)],
+            line=best_error_staircase(case_runs),
             highlight=(d.wall, d.error) if math.isfinite(d.error) else None,
             highlight_text=case.key,
             color=PALETTE[i % len(PALETTE)]))
@@ -559,8 +585,8 @@ def draw_chart(path: Path, cases: list[Case], runs: dict, summaries: list[CaseSu
                       y_label="error against the exact answer", highlight_legend="default parameters",
                       notes=["dots: one parameter changed at a", "time (dt, dt_max, p/E, close and",
                              "open tolerance; see accuracy.md)", "lines: the lowest error reached",
-                             "in that time or less; errors",
-                             f">= {WRONG_ANSWER_ERROR:g} (wrong answers) left off",
+                             "in that wall time or less (errors",
+                             f">= {WRONG_ANSWER_ERROR:g}, wrong answers, left off)",
                              f"errors < {ERROR_FLOOR:g}: hollow, on the floor"],
                       y_floor=ERROR_FLOOR)
 
@@ -601,7 +627,9 @@ def main(argv: Optional[list[str]] = None) -> int:
                  for c in cases]
 
     table = results_table(cases, configs, runs)
+    machine = machine_description()
     print(table)
+    print(f"\nmachine: {machine}")
     a.out.mkdir(parents=True, exist_ok=True)
     md = [
         "# Error against run time (`benchmarks/accuracy.py`)",
@@ -610,7 +638,7 @@ def main(argv: Optional[list[str]] = None) -> int:
         f"`python benchmarks/accuracy.py{' --quick' if a.quick else ''}"
         f"{' --cases ' + a.cases if a.cases else ''}{f' --repeat {a.repeat}' if a.repeat > 1 else ''}`; "
         f"total {total:.0f} s.",
-        f"- Machine: {machine_description()}.",
+        f"- Machine: {machine}.",
         "- Wall time: `dd.simulate` only (scene building excluded), after a warm-up that compiles "
         "the kernels; " + ("one run per setting." if a.repeat == 1 else
                            f"the shortest of {a.repeat} runs per setting (the machine is shared; "

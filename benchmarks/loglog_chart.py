@@ -12,8 +12,8 @@ from dataclasses import dataclass
 from typing import Optional, Sequence
 
 # colour-blind-safe palette (Okabe–Ito), then greys
-PALETTE = [(0, 114, 178), (213, 94, 0), (0, 158, 115), (204, 121, 167), (230, 159, 0),
-           (86, 180, 233), (120, 80, 40), (0, 0, 0), (150, 150, 150)]
+PALETTE = ((0, 114, 178), (213, 94, 0), (0, 158, 115), (204, 121, 167), (230, 159, 0),
+           (86, 180, 233), (120, 80, 40), (0, 0, 0), (150, 150, 150))
 
 
 @dataclass
@@ -24,7 +24,7 @@ class Series:
     points: Sequence[tuple[float, float]] = ()
     """Every (x, y) measured, drawn as small dots."""
     line: Sequence[tuple[float, float]] = ()
-    """The curve, drawn as a polyline in x order (e.g. the Pareto front of ``points``)."""
+    """The curve, drawn as a polyline through the points in the order given."""
     highlight: Optional[tuple[float, float]] = None
     """A point to mark with a large diamond and a text label (e.g. the default parameters)."""
     highlight_text: str = ""
@@ -135,7 +135,7 @@ def draw_loglog_chart(path, series: Sequence[Series], *, title: str, x_label: st
 
     for i, s in enumerate(series):
         color = s.color or PALETTE[i % len(PALETTE)]
-        pts = sorted((p for p in s.line if finite(p)), key=lambda p: p[0])
+        pts = [p for p in s.line if finite(p)]
         if len(pts) > 1:
             d.line([to_px(*p) for p in pts], fill=color, width=3, joint="curve")
         for p in s.points:

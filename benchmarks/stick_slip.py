@@ -178,10 +178,9 @@ def stick_slip(theta_deg: float, phi_deg: float, ground_acceleration: GroundAcce
             if phase == STICK:
                 forced = DOWN if len(sol.t_events[0]) else UP
             else:
+                # stopped: phase_at then decides from the forcing whether it sticks or, beyond
+                # friction the other way, slides back at once (two-way sliding)
                 v = 0.0
-                # a block that stops sticks unless the forcing is already beyond friction the
-                # other way; evaluate just after the stop, where the forcing is decided
-                forced = None
         check_contact(t_stop)
         t = t_stop
     return StickSlipSolution(times=t_eval, displacement=out_s, velocity=out_v, phases=phases)
