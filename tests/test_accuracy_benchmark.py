@@ -98,7 +98,8 @@ def test_pivoting_block_starts_with_the_rigid_angular_acceleration():
 
 def test_quick_benchmark_writes_its_table_and_chart(tmp_path):
     """`benchmarks/accuracy.py --quick` runs in under a minute, prints the Markdown table with
-    every case, and writes accuracy.md and accuracy.png; the defaults keep the verified accuracy."""
+    every case, and writes accuracy.md, accuracy.csv and accuracy.png; the defaults keep the
+    verified accuracy."""
     start = time.perf_counter()
     proc = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "accuracy.py"), "--quick",
                            "--out", str(tmp_path)], capture_output=True, text=True, timeout=60, cwd=ROOT)
@@ -116,5 +117,7 @@ def test_quick_benchmark_writes_its_table_and_chart(tmp_path):
     assert max(errors.values()) < 0.05
     md = (tmp_path / "accuracy.md").read_text()
     assert "| **defaults** |" in md and "Machine:" in md
+    rows = (tmp_path / "accuracy.csv").read_text().splitlines()
+    assert rows[0].startswith("case,group,parameters,error,wall_s") and len(rows) == 1 + 7 * 2
     png = (tmp_path / "accuracy.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
