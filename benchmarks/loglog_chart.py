@@ -147,13 +147,22 @@ def draw_loglog_chart(path, series: Sequence[Series], *, title: str, x_label: st
                 d.ellipse([px - r, py - r, px + r, py + r], outline=color, width=2)
             else:
                 d.ellipse([px - r, py - r, px + r, py + r], fill=color)
+    # highlighted points and their labels last, on top of every curve
+    for i, s in enumerate(series):
+        color = s.color or PALETTE[i % len(PALETTE)]
         if s.highlight and finite(s.highlight):
             px, py = to_px(*s.highlight)
             r = 10
             d.polygon([(px, py - r), (px + r, py), (px, py + r), (px - r, py)], fill=color, outline=ink)
             d.polygon([(px, py - r - 1), (px + r + 1, py), (px, py + r + 1), (px - r - 1, py)], outline=ink)
-            if s.highlight_text:
-                d.text(free_spot(px, py, s.highlight_text, r), s.highlight_text, fill=color, font=f_small)
+    for i, s in enumerate(series):
+        color = s.color or PALETTE[i % len(PALETTE)]
+        if s.highlight and finite(s.highlight) and s.highlight_text:
+            px, py = to_px(*s.highlight)
+            x, y = free_spot(px, py, s.highlight_text, 10)
+            w = d.textlength(s.highlight_text, font=f_small)
+            d.rectangle([x - 1, y + 1, x + w + 1, y + 15], fill="white")
+            d.text((x, y), s.highlight_text, fill=color, font=f_small)
 
     # legend
     lx, ly = left + pw + 24, top + 4
