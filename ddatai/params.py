@@ -199,6 +199,11 @@ class Params:
                  f"Params.oc_max_iterations must be an integer >= 2, got {self.oc_max_iterations!r}")
         _require(self.angle_tolerance < 30.0,
                  f"Params.angle_tolerance must be < 30 degrees, got {self.angle_tolerance!r}")
+        # a closed contact carries tensions up to p·open_tolerance·w0: above ~1e-10 that rivals
+        # block weights and blocks stop toppling (benchmarks/results/accuracy.md)
+        _require(self.open_tolerance <= 1e-10,
+                 f"Params.open_tolerance must be <= 1e-10 (a tension allowance of p·f0·w0), "
+                 f"got {self.open_tolerance!r}")
         _require(self.dt_min_ratio < 1.0, f"Params.dt_min_ratio must be < 1, got {self.dt_min_ratio!r}")
         _require(self.solver in ("auto", "scipy", "pardiso"),
                  f"Params.solver must be 'auto', 'scipy' or 'pardiso', got {self.solver!r}")

@@ -413,8 +413,9 @@ class Stepper:
             np.einsum("ij,ij->i", vec[:, S_GS], db)
         normal = m.penalty * np.maximum(-dn, 0.0)
         strength = normal * contacts.tan_phi + contacts.cohesion * contacts.length * contacts.bond
-        # open_tol absorbs round-off in ds as it does in dn
-        holds = m.shear_penalty * (np.abs(ds) - m.open_tol) <= strength
+        # a round-off allowance on ds (not open_tol: any larger allowance would act as a
+        # cohesion ks·allowance per contact)
+        holds = m.shear_penalty * (np.abs(ds) - m.roundoff) <= strength
         sliding_before = prev == SLIDE
         # a sliding contact locks when its motion in this step runs against its sliding
         # direction (ds is measured from an anchor that carries the friction force, so the
