@@ -98,7 +98,8 @@ class Model:
     """(B, 3) initial stress (σx, σy, τxy) [Pa]."""
 
     w0: float
-    """Model scale: half the larger side of the model's bounding box [m]."""
+    """Length scale of the tolerances [m]: half the larger side of the model's bounding box
+    (ntdda's w0), at most 10 × the median size √area of the free blocks."""
     max_step: float
     """g2·w0: largest vertex displacement wanted in one step [m]."""
     search_distance: float
@@ -260,7 +261,16 @@ def build_model(scene: Scene, params: Optional[Params] = None) -> Model:
     lo, hi = xy_user.min(axis=0), xy_user.max(axis=0)
     origin = 0.5 * (lo + hi)
     xy0 = xy_user - origin
+    # Length scale of the tolerances (search distance, allowed step displacement, open/close):
+    # ntdda's w0, half the model's larger side, capped at 10 × the median size √area of the
+    # free blocks. Tied to the whole model, the search distance 2.5·g2·w0 of a 160 m grid of
+    # 1 m blocks is a whole block and every vertex collects contacts with far edges
+    # (dda-method.md §8.8: 9× the contacts at 25,600 blocks).
     w0 = 0.5 * float(np.max(hi - lo))
+    fixed_flags = np.array([s.fixed for s in specs], dtype=bool)
+    areas = polygon_integrals(xy0, offset)["area"]
+    sizes = np.sqrt(areas[~fixed_flags] if (~fixed_flags).any() else areas)
+    w0 = min(w0, 10.0 * float(np.median(sizes)))
 
     vblock = np.repeat(np.arange(nb, dtype=np.int32), counts)
     idx = np.arange(len(xy0), dtype=np.int32)

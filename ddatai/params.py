@@ -98,7 +98,8 @@ class Params:
     """Factor applied to the time step when the open-close iteration fails [-] (Shi: 0.3)."""
     max_displacement_ratio: float = 0.005
     """g2: largest vertex displacement allowed in one step, as a fraction of the model scale
-    w0 = half the larger side of the model's bounding box [-]. Sets the automatic time step
+    w0 = half the larger side of the model's bounding box, at most 10 × the median size of the
+    free blocks [-]. Sets the automatic time step
     and the contact search distance d0 = 2.5·g2·w0."""
     displacement_reject: float = 3.0
     """A step whose largest vertex displacement exceeds this many times g2·w0 is redone with
