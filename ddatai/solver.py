@@ -44,14 +44,17 @@ class SparseSolver:
     """Solves K x = b for symmetric positive definite K given by its CSR arrays (full storage).
 
     ``pattern`` identifies the sparsity pattern: while it stays the same object (a step's
-    `BlockPattern`), PARDISO keeps its symbolic analysis (fill-reducing ordering) and only
-    refactorises; SuperLU cannot reuse one and orders every time.
+    `BlockPattern`), or a new one with the same ``indptr``/``indices`` (the next step, when no
+    block pair gained or lost a contact), PARDISO keeps its symbolic analysis (fill-reducing
+    ordering, ~55 % of a factorisation at 1,600 blocks) and only refactorises; SuperLU cannot
+    reuse one and orders every time.
     """
 
     def __init__(self, backend: str):
         self.backend = resolve(backend)
         self._pardiso = None
         self._pattern = None     # the pattern PARDISO's analysis belongs to
+        self._structure = None   # its (indptr, indices), to recognise it in a later step
         self._upper = None       # (mask of upper-triangle entries, indptr, indices) of it
 
     def solve(self, data: np.ndarray, indices: np.ndarray, indptr: np.ndarray, rhs: np.ndarray,
@@ -81,6 +84,11 @@ class SparseSolver:
             self._pardiso.set_iparm(8, 0)  # no iterative refinement: the direct solve is exact
         solver = self._pardiso
         fresh = pattern is None or pattern is not self._pattern
+        if fresh and pattern is not None and self._structure is not None:
+            old_indptr, old_indices = self._structure
+            if (len(old_indptr) == len(indptr) and len(old_indices) == len(indices)
+                    and np.array_equal(old_indptr, indptr) and np.array_equal(old_indices, indices)):
+                self._pattern, fresh = pattern, False
         if fresh:
             # PARDISO reads the upper triangle: which CSR entries those are, once per pattern
             rows = np.repeat(np.arange(n), np.diff(indptr))
@@ -89,6 +97,7 @@ class SparseSolver:
             upper_indptr = np.concatenate([[0], np.cumsum(counts)])
             self._upper = (mask, upper_indptr, indices[mask])
             self._pattern = pattern
+            self._structure = (indptr.copy(), indices.copy()) if pattern is not None else None
         mask, upper_indptr, upper_indices = self._upper
         upper = csr_matrix((data[mask], upper_indices, upper_indptr), shape=(n, n))
         try:
@@ -96,6 +105,6 @@ class SparseSolver:
             solver.set_phase(13 if fresh else 23)
             x = solver._call_pardiso(upper, np.ascontiguousarray(rhs, dtype=np.float64))
         except Exception:  # noqa: BLE001 - a failed factorisation is a non-finite solution
-            self._pattern = None
+            self._pattern = self._structure = None
             return np.full(n, np.nan)
         return np.asarray(x).reshape(n)

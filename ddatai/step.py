@@ -311,13 +311,15 @@ class Stepper:
             return (np.cos(r) - 1.0)[:, None] * X + (np.sin(r) - r)[:, None] * jx
 
         ci = contacts.cint
+        # q of every vertex once (a vertex appears in several contacts)
+        q_vertex = q(xy, vb)
         for line in (0, 1):
             rows = np.arange(contacts.n) if line == 0 else np.flatnonzero(ci[:, 0] == VV)
             if not len(rows):
                 continue
             p1, k = ci[rows, 1 + 2 * line], ci[rows, 2 + 2 * line]
             P1, P2, P3 = xy[p1], xy[nxt[k]], xy[k]
-            q1, q2, q3 = q(P1, vb[p1]), q(P2, vb[k]), q(P3, vb[k])
+            q1, q2, q3 = q_vertex[p1], q_vertex[nxt[k]], q_vertex[k]
             x1, y1, x2, y2, x3, y3 = P1[:, 0], P1[:, 1], P2[:, 0], P2[:, 1], P3[:, 0], P3[:, 1]
             length = np.hypot(x3 - x2, y3 - y2)
             # ∂Δ/∂P1, ∂Δ/∂P2, ∂Δ/∂P3 (§2.8.1)

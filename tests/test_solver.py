@@ -58,3 +58,25 @@ def test_solver_selection():
     assert resolve("auto") == ("pardiso" if HAS_PARDISO else "scipy")
     with pytest.raises(ValueError, match="solver"):
         dd.Params(solver="cholesky")
+
+
+@pytest.mark.skipif(not HAS_PARDISO, reason="pypardiso is not installed (optional accelerator)")
+def test_pardiso_reuses_analysis_only_for_the_same_structure():
+    """A later step's pattern with the same structure reuses the ordering (and still solves the
+    new values exactly); a different structure is analysed afresh."""
+    import copy
+
+    pattern, data, rhs = _system(0)
+    other, data2, rhs2 = _system(1)
+    n = len(rhs)
+    solver = SparseSolver("pardiso")
+    solver.solve(data, pattern.indices, pattern.indptr, rhs, pattern=pattern)
+    same = copy.deepcopy(pattern)  # a new object, the same structure
+    scaled = data * 1.7 + 0.0
+    x = solver.solve(scaled, same.indices, same.indptr, rhs, pattern=same)
+    assert solver._pattern is same
+    K = csr_matrix((scaled, pattern.indices, pattern.indptr), shape=(n, n))
+    assert np.abs(K @ x - rhs).max() < 1e-10 * np.abs(rhs).max()
+    y = solver.solve(data2, other.indices, other.indptr, rhs2, pattern=other)
+    K2 = csr_matrix((data2, other.indices, other.indptr), shape=(len(rhs2), len(rhs2)))
+    assert np.abs(K2 @ y - rhs2).max() < 1e-10 * np.abs(rhs2).max()
