@@ -138,8 +138,9 @@ def reference_timings(model, stepper, state) -> dict:
                 same_contacts=bool(len(cint) == len(cint_k) and np.array_equal(cint, cint_k)))
 
 
-def growth_exponent(rows: list[dict], lo: int = 1600, key: str = "ms_per_step") -> float:
-    pts = [(r["blocks"], r[key]) for r in rows if r["blocks"] >= lo * 0.9]
+def growth_exponent(rows: list[dict], lo: int = 1600, hi: int = 25600, key: str = "ms_per_step") -> float:
+    """Least-squares slope of log(time) against log(blocks) over lo..hi blocks (the issue's range)."""
+    pts = [(r["blocks"], r[key]) for r in rows if lo * 0.9 <= r["blocks"] <= hi * 1.1]
     if len(pts) < 2:
         return float("nan")
     x, y = np.log([p[0] for p in pts]), np.log([p[1] for p in pts])
@@ -199,8 +200,12 @@ def chart(rows: list[dict], path: Path) -> None:
         series.append(Series(label=f"ddatai {family}: s/step", points=pts, line=pts))
         solve = sorted((r["blocks"], r["ms_solve"] / 1e3) for r in rows if r["family"] == family)
         series.append(Series(label=f"ddatai {family}: solve s/step", points=solve, line=solve))
+    oc = sorted((r["blocks"], r["ms_per_oc"] / 1e3) for r in rows if r["family"] == "grid")
+    series.append(Series(label="ddatai grid: s per OC iteration", points=oc, line=oc))
     nt = sorted(NTDDA_GRID.items())
-    series.append(Series(label="ntdda grid (same machine type)", points=nt, line=nt))
+    series.append(Series(label="ntdda grid: s/step (same machine type)", points=nt, line=nt))
+    nt_oc = sorted((n, v[0]) for n, v in NTDDA_GRID_OC.items())
+    series.append(Series(label="ntdda grid: s per OC iteration", points=nt_oc, line=nt_oc))
     draw_loglog_chart(path, series, title="Time per DDA step against block count",
                       x_label="blocks", y_label="seconds per step")
 
@@ -216,13 +221,19 @@ def main() -> None:
     ap.add_argument("--reference-max", type=int, default=450)
     ap.add_argument("--one", nargs=2, metavar=("FAMILY", "SIZE"), help=argparse.SUPPRESS)
     ap.add_argument("--out", type=Path, default=RESULTS)
+    ap.add_argument("--append", action="store_true",
+                    help="merge these sizes into the rows already in OUT/scaling.json (e.g. a 100,000-block "
+                         "run with fewer steps) and rewrite the table and chart")
     a = ap.parse_args()
     if a.one:
         print(json.dumps(run_one(a.one[0], int(a.one[1]), a.steps, a.warmup, a.arch, a.solver, a.reference_max)))
         return
     rows = []
+    suffix = "" if a.arch == "cpu" else f"_{a.arch}"
+    if a.append and (a.out / f"scaling{suffix}.json").exists():
+        rows = json.loads((a.out / f"scaling{suffix}.json").read_text())
     for family in a.family.split(","):
-        for size in (int(s) for s in a.sizes.split(",")):
+        for size in (int(s) for s in a.sizes.split(",") if s):
             steps = a.steps if size <= 6400 else max(4, a.steps // 2)
             cmd = [sys.executable, __file__, "--one", family, str(size), "--steps", str(steps),
                    "--warmup", str(a.warmup), "--arch", a.arch, "--solver", a.solver,
@@ -233,21 +244,32 @@ def main() -> None:
                 print(f"{family} {size}: failed\n{proc.stderr[-2000:]}", file=sys.stderr)
                 continue
             row = json.loads(proc.stdout.strip().splitlines()[-1])
-            rows.append(row)
+            row.update(steps=steps, warmup=a.warmup)
+            rows = [r for r in rows if (r["family"], r["blocks"]) != (family, row["blocks"])] + [row]
             print(f"{family:5s} {row['blocks']:7,d} blocks: {row['ms_per_step']:9.1f} ms/step "
                   f"({row['oc_per_step']:.1f} OC it.), peak {row['peak_mb']:.0f} MB, run {time.perf_counter() - t:.0f} s",
                   flush=True)
+    rows.sort(key=lambda r: (r["family"] != "grid", r["blocks"]))
     exps = {f: growth_exponent([r for r in rows if r["family"] == f]) for f in {r["family"] for r in rows}}
     text = [f"# Block-count scaling ({time.strftime('%Y-%m-%d')})", "", f"Machine: {machine()}; "
-            f"Taichi arch {a.arch}; median of the timed steps after {a.warmup} warm-up steps.", "",
+            f"Taichi arch {a.arch}; median of the timed steps after the warm-up steps (from a start at rest "
+            f"under sudden gravity: the grid rings, and the open-close iteration count varies from step to "
+            f"step; steps per size in scaling.json).", "",
             table(rows), ""]
     exps_oc = {f: growth_exponent([r for r in rows if r["family"] == f], key="ms_per_oc")
                for f in {r["family"] for r in rows}}
-    text += [f"Growth exponent from 1,600 blocks ({f}): {e:.2f} per step, {exps_oc[f]:.2f} per open-close "
-             f"iteration" for f, e in sorted(exps.items())]
+    text += [f"Growth exponent from 1,600 to 25,600 blocks ({f}): {e:.2f} per step, {exps_oc[f]:.2f} per "
+             f"open-close iteration" for f, e in sorted(exps.items())]
+    big = [r for r in rows if r["blocks"] > 30000]
+    for r in big:
+        base = [q for q in rows if q["family"] == r["family"] and 20000 < q["blocks"] <= 30000]
+        if base:
+            q = base[0]
+            e = math.log(r["ms_per_oc"] / q["ms_per_oc"]) / math.log(r["blocks"] / q["blocks"])
+            text.append(f"From {q['blocks']:,} to {r['blocks']:,} blocks ({r['family']}): exponent {e:.2f} per "
+                        f"open-close iteration")
     print("\n".join(text))
     a.out.mkdir(parents=True, exist_ok=True)
-    suffix = "" if a.arch == "cpu" else f"_{a.arch}"
     (a.out / f"scaling{suffix}.md").write_text("\n".join(text) + "\n")
     (a.out / f"scaling{suffix}.json").write_text(json.dumps(rows, indent=1))
     if rows:
