@@ -273,14 +273,7 @@ def factor_of_safety(scene, blocks, method: str = "sarma", *, settings: Optional
     method = _check_method(method)
     if method != "dda":
         return evaluate(scene, blocks, method, settings=settings).fs
-    settings = settings or Settings()
-    system = build_block_system(_check_scene(scene))
-    group = check_group(system, blocks)
-    le = evaluate(scene, group, settings.screening, settings=settings)
-    from .dda import evaluate_dda
-
-    return evaluate_dda(scene, system, group, settings=settings.dda, params=params, fs_guess=le.fs,
-                        with_friction=False).fs
+    return _judge_with_dda(scene, blocks, settings, params, fs=True).fs
 
 
 def critical_friction(scene, blocks, method: str = "sarma", *, settings: Optional[Settings] = None,
@@ -290,11 +283,20 @@ def critical_friction(scene, blocks, method: str = "sarma", *, settings: Optiona
     method = _check_method(method)
     if method != "dda":
         return evaluate(scene, blocks, method, settings=settings).critical_friction
+    return _judge_with_dda(scene, blocks, settings, params, fs=False).critical_friction
+
+
+def _judge_with_dda(scene, blocks, settings: Optional[Settings], params, fs: bool):
+    """DDA evaluation of one group for either the factor of safety (``fs``) or the critical
+    friction, bracketed from the screening method's answer."""
     settings = settings or Settings()
     system = build_block_system(_check_scene(scene))
     group = check_group(system, blocks)
     le = evaluate(scene, group, settings.screening, settings=settings)
     from .dda import evaluate_dda
 
+    if fs:
+        return evaluate_dda(scene, system, group, settings=settings.dda, params=params, fs_guess=le.fs,
+                            with_friction=False)
     return evaluate_dda(scene, system, group, settings=settings.dda, params=params,
-                        friction_guess=le.critical_friction, with_fs=False).critical_friction
+                        friction_guess=le.critical_friction, with_fs=False)

@@ -146,3 +146,19 @@ def test_example_2_dda_bisection():
     scene, params = example_2.build()
     g = kgm.evaluate(scene, [0, 1], "dda", params=params)
     assert g.critical_friction > 22.0 and g.fs < 1.0 and not g.stable
+
+
+def test_dda_factor_of_safety_and_critical_friction_of_a_block_on_an_incline():
+    """One block on a 30° plane, φ = 40°: FS = tanφ/tanθ and φc = θ (closed form), within the
+    bisection tolerance plus the friction resolution of the DDA judgement,
+    Δtanφ ≈ a_r/(g cosθ) (kgm-method.md §6.3)."""
+    theta, phi = 30.0, 40.0
+    scene, _, b = block_on_incline(theta=theta, width=2.0, height=1.0, friction=phi, cohesion=0.0)
+    s = kgm.DdaSettings()
+    dtan = s.acceleration_resolution / (G * math.cos(math.radians(theta)))
+    tan_t = math.tan(math.radians(theta))
+    fs = kgm.factor_of_safety(scene, [b], method="dda")
+    assert fs == pytest.approx(math.tan(math.radians(phi)) / tan_t, abs=s.fs_tolerance + dtan / tan_t)
+    phic = kgm.critical_friction(scene, [b], method="dda")
+    dphi = math.degrees(math.atan(tan_t + dtan)) - theta
+    assert phic == pytest.approx(theta, abs=s.friction_tolerance + dphi)
