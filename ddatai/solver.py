@@ -95,11 +95,12 @@ class SparseSolver:
             mask = indices >= rows
             counts = np.bincount(rows[mask], minlength=n)
             upper_indptr = np.concatenate([[0], np.cumsum(counts)])
-            self._upper = (mask, upper_indptr, indices[mask])
+            # positions, not a boolean mask: a take is ~10x faster than boolean indexing
+            self._upper = (np.flatnonzero(mask), upper_indptr, indices[mask])
             self._pattern = pattern
             self._structure = (indptr.copy(), indices.copy()) if pattern is not None else None
-        mask, upper_indptr, upper_indices = self._upper
-        upper = csr_matrix((data[mask], upper_indices, upper_indptr), shape=(n, n))
+        upper_pos, upper_indptr, upper_indices = self._upper
+        upper = csr_matrix((data.take(upper_pos), upper_indices, upper_indptr), shape=(n, n))
         try:
             # 13: analysis + factorisation + solve; 23: factorisation + solve with the analysis
             solver.set_phase(13 if fresh else 23)
