@@ -383,6 +383,31 @@ def contact_vectors(xy: F64_2, vblock: I32_1, vnext: I32_1, centroid: F64_2, cin
                 _store(vec, c, TJ, (1.0 - w) * _trow(t[0], t[1], X2) + w * _trow(t[0], t[1], X3))
 
 
+@ti.kernel
+def second_order_shift(xy: F64_2, vnext: I32_1, q: F64_2, cint: I32_2, omega: F64_1, shift: F64_2):
+    """Second-order rotation terms of the contact distances (dda-method.md §5.3): with q the
+    exact-minus-linear displacement of every vertex, shift = ∂Δ/∂P·q for each normal line and
+    ∂s/∂P·q for the shear of a vertex-edge contact (§2.8.1, §2.8.3)."""
+    for c in range(cint.shape[0]):
+        nl = 1 + cint[c, 0]
+        for line in range(nl):
+            p1 = cint[c, 1 + 2 * line]
+            k = cint[c, 2 + 2 * line]
+            p2 = vnext[k]
+            P1, P2, P3 = _pt(xy, p1), _pt(xy, p2), _pt(xy, k)
+            q1, q2, q3 = _pt(q, p1), _pt(q, p2), _pt(q, k)
+            length = (P3 - P2).norm()
+            shift[c, line] = ((P2[1] - P3[1]) * q1[0] + (P3[0] - P2[0]) * q1[1] +
+                              (P3[1] - P1[1]) * q2[0] + (P1[0] - P3[0]) * q2[1] +
+                              (P1[1] - P2[1]) * q3[0] + (P2[0] - P1[0]) * q3[1]) / length
+            if line == 0 and cint[c, 0] == KIND_VE:
+                w = omega[c]
+                b1 = P3 - P2
+                b2 = -P1 + 2.0 * (1.0 - w) * P2 - (1.0 - 2.0 * w) * P3
+                b3 = P1 - (1.0 - 2.0 * w) * P2 - 2.0 * w * P3
+                shift[c, 2] = (b1.dot(q1) + b2.dot(q2) + b3.dot(q3)) / length
+
+
 # --------------------------------------------------------------------------- assembly
 @ti.kernel
 def assemble_blocks(dof: I32_1, density: F64_1, elastic: F64_3, area: F64_1, mass: F64_3,

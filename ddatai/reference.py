@@ -195,6 +195,35 @@ def contact_vectors(model: Model, vertex_xy: np.ndarray, centroid: np.ndarray, c
 
 
 # --------------------------------------------------------------------------- assembly
+def second_order_shift(model: Model, vertex_xy: np.ndarray, q: np.ndarray, cint: np.ndarray,
+                       omega: np.ndarray) -> np.ndarray:
+    """Twin of `kernels.second_order_shift`: (m, 3) shifts of dn (line 0, line 1) and ds."""
+    nxt = model.vertex_next
+    shift = np.zeros((len(cint), 3))
+    for line in (0, 1):
+        rows = np.arange(len(cint)) if line == 0 else np.flatnonzero(cint[:, 0] == VV)
+        if not len(rows):
+            continue
+        p1, k = cint[rows, 1 + 2 * line], cint[rows, 2 + 2 * line]
+        P1, P2, P3 = vertex_xy[p1], vertex_xy[nxt[k]], vertex_xy[k]
+        q1, q2, q3 = q[p1], q[nxt[k]], q[k]
+        x1, y1, x2, y2, x3, y3 = P1[:, 0], P1[:, 1], P2[:, 0], P2[:, 1], P3[:, 0], P3[:, 1]
+        length = np.hypot(x3 - x2, y3 - y2)
+        # ∂Δ/∂P1, ∂Δ/∂P2, ∂Δ/∂P3 (§2.8.1)
+        shift[rows, line] = ((y2 - y3) * q1[:, 0] + (x3 - x2) * q1[:, 1] +
+                             (y3 - y1) * q2[:, 0] + (x1 - x3) * q2[:, 1] +
+                             (y1 - y2) * q3[:, 0] + (x2 - x1) * q3[:, 1]) / length
+        if line == 0:
+            # ∂s/∂P1, ∂s/∂P2, ∂s/∂P3 of s = (P1 − P0)·(P3 − P2) (§2.8.3)
+            w = omega[rows][:, None]
+            b1 = P3 - P2
+            b2 = -P1 + 2 * (1 - w) * P2 - (1 - 2 * w) * P3
+            b3 = P1 - (1 - 2 * w) * P2 - 2 * w * P3
+            ve = cint[rows, 0] == VE
+            shift[rows, 2] = np.where(ve, ((b1 * q1).sum(1) + (b2 * q2).sum(1) + (b3 * q3).sum(1)) / length, 0.0)
+    return shift
+
+
 def assemble_dense(model: Model, vertex_xy: np.ndarray, velocity: np.ndarray, stress: np.ndarray,
                    fixed_point_xy: np.ndarray, load_xy: np.ndarray, load_force: np.ndarray,
                    dt: float, body_acc: np.ndarray, contacts, vec: np.ndarray, sca: np.ndarray,

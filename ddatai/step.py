@@ -310,30 +310,12 @@ class Stepper:
             jx = np.stack([-X[:, 1], X[:, 0]], axis=1)
             return (np.cos(r) - 1.0)[:, None] * X + (np.sin(r) - r)[:, None] * jx
 
-        ci = contacts.cint
-        # q of every vertex once (a vertex appears in several contacts)
-        q_vertex = q(xy, vb)
-        for line in (0, 1):
-            rows = np.arange(contacts.n) if line == 0 else np.flatnonzero(ci[:, 0] == VV)
-            if not len(rows):
-                continue
-            p1, k = ci[rows, 1 + 2 * line], ci[rows, 2 + 2 * line]
-            P1, P2, P3 = xy[p1], xy[nxt[k]], xy[k]
-            q1, q2, q3 = q_vertex[p1], q_vertex[nxt[k]], q_vertex[k]
-            x1, y1, x2, y2, x3, y3 = P1[:, 0], P1[:, 1], P2[:, 0], P2[:, 1], P3[:, 0], P3[:, 1]
-            length = np.hypot(x3 - x2, y3 - y2)
-            # ∂Δ/∂P1, ∂Δ/∂P2, ∂Δ/∂P3 (§2.8.1)
-            shift[rows, line] = ((y2 - y3) * q1[:, 0] + (x3 - x2) * q1[:, 1] +
-                                 (y3 - y1) * q2[:, 0] + (x1 - x3) * q2[:, 1] +
-                                 (y1 - y2) * q3[:, 0] + (x2 - x1) * q3[:, 1]) / length
-            if line == 0:
-                # ∂s/∂P1, ∂s/∂P2, ∂s/∂P3 of s = (P1 − P0)·(P3 − P2) (§2.8.3)
-                w = contacts.omega[rows][:, None]
-                b1 = P3 - P2
-                b2 = -P1 + 2 * (1 - w) * P2 - (1 - 2 * w) * P3
-                b3 = P1 - (1 - 2 * w) * P2 - 2 * w * P3
-                ve = ci[rows, 0] == VE
-                shift[rows, 2] = np.where(ve, ((b1 * q1).sum(1) + (b2 * q2).sum(1) + (b3 * q3).sum(1)) / length, 0.0)
+        if contacts.n:
+            from . import kernels as K
+
+            # q of every vertex once (a vertex appears in several contacts), then ∂Δ/∂P·q and
+            # ∂s/∂P·q per contact line
+            K.second_order_shift(xy, nxt, q(xy, vb), contacts.cint, contacts.omega, shift)
         if len(m.fixed_point_block):
             from .geometry import displacement_matrix
 

@@ -183,3 +183,47 @@ def test_contact_memory_transfer():
     assert again.omega[1] != 0.7 and again.shear_dir[1] == -1
     fresh = Contacts.start(m, m.vertex_xy0, cint, length, ContactMemory.empty(), False)
     assert np.all(fresh.state == ContactState.OPEN)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_second_order_shift_kernel_equals_reference_and_derivative(seed):
+    """The second-order rotation shift (§5.3) is ∂Δ/∂P·q and ∂s/∂P·q: the Taichi kernel equals
+    the NumPy twin, and both equal the change of the exact dn, ds when every vertex moves by a
+    small q (first order in q)."""
+    from ddatai import kernels
+
+    model = build_model(random_jointed_scene(seed))
+    xy = perturbed_vertices(model, seed, shift=0.1 * model.search_distance)
+    cint, length = detect_contacts(model, xy)
+    rng = np.random.default_rng(seed)
+    c = Contacts.start(model, xy, cint, length, ContactMemory.empty(), False)
+    c.omega[:] = rng.uniform(0, 1, c.n)
+    eps = 1e-7
+    q = eps * rng.standard_normal(xy.shape)
+    shift = np.zeros((c.n, 3))
+    kernels.second_order_shift(xy, model.vertex_next, q, c.cint, c.omega, shift)
+    shift_r = reference.second_order_shift(model, xy, q, c.cint, c.omega)
+    assert np.allclose(shift, shift_r, rtol=1e-12, atol=1e-12 * eps)
+    nxt = model.vertex_next
+    for k in range(c.n):
+        kind, v0, e0 = cint[k, :3]
+        pts = [xy[v0], xy[nxt[e0]], xy[e0]]
+        moved = [pts[0] + q[v0], pts[1] + q[nxt[e0]], pts[2] + q[e0]]
+        l0 = np.linalg.norm(pts[2] - pts[1])
+        dn0, ds0 = _exact_dn_ds(*pts, c.omega[k], l0)
+        dn1, ds1 = _exact_dn_ds(*moved, c.omega[k], l0)
+        # what the linear shift leaves out is second order in q (~|q|²/l0), plus round-off of
+        # the subtraction of O(size) distances
+        tol = 10 * np.abs(q).max() ** 2 / l0 + 1e-14 * (1 + np.abs(xy).max())
+        assert abs(shift[k, 0] - (dn1 - dn0)) < tol
+        if kind == dd.ContactKind.VE:
+            assert abs(shift[k, 2] - (ds1 - ds0)) < tol
+        else:
+            assert shift[k, 2] == 0.0
+            v1, e1 = cint[k, 3:5]  # the second entrance line of a vertex-vertex contact
+            pts = [xy[v1], xy[nxt[e1]], xy[e1]]
+            moved = [pts[0] + q[v1], pts[1] + q[nxt[e1]], pts[2] + q[e1]]
+            l1 = np.linalg.norm(pts[2] - pts[1])
+            d0 = _exact_dn_ds(*pts, 0.0, l1)[0]
+            d1 = _exact_dn_ds(*moved, 0.0, l1)[0]
+            assert abs(shift[k, 1] - (d1 - d0)) < 10 * np.abs(q).max() ** 2 / l1 + 1e-14 * (1 + np.abs(xy).max())
