@@ -55,7 +55,7 @@ class SparseSolver:
         self._pardiso = None
         self._pattern = None     # the pattern PARDISO's analysis belongs to
         self._structure = None   # its (indptr, indices), to recognise it in a later step
-        self._upper = None       # (mask of upper-triangle entries, indptr, indices) of it
+        self._upper = None       # (positions of the upper-triangle entries, indptr, indices) of it
 
     def solve(self, data: np.ndarray, indices: np.ndarray, indptr: np.ndarray, rhs: np.ndarray,
               pattern: object = None) -> np.ndarray:
