@@ -111,16 +111,23 @@ def _exact_dn_ds(P1, P2, P3, omega, l0):
     return dn, np.dot(P1 - P0, P3 - P2) / l0
 
 
-@pytest.mark.parametrize("seed", range(4))
-def test_contact_vectors_are_derivatives(seed):
-    """e, g, e_s, g_s equal finite differences of dn, ds with respect to D (§7j), and the
-    Taichi kernel equals the reference."""
+def _random_contacts(seed):
+    """A random jointed scene with perturbed vertices, its detected contacts and random lock
+    positions ω; returns (model, vertex_xy, cint, contacts, rng)."""
     model = build_model(random_jointed_scene(seed))
     xy = perturbed_vertices(model, seed, shift=0.1 * model.search_distance)
     cint, length = detect_contacts(model, xy)
     rng = np.random.default_rng(seed)
     c = Contacts.start(model, xy, cint, length, ContactMemory.empty(), False)
     c.omega[:] = rng.uniform(0, 1, c.n)
+    return model, xy, cint, c, rng
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_contact_vectors_are_derivatives(seed):
+    """e, g, e_s, g_s equal finite differences of dn, ds with respect to D (§7j), and the
+    Taichi kernel equals the reference."""
+    model, xy, cint, c, rng = _random_contacts(seed)
     geom = model.block_geometry(xy)
     vec, sca = Stepper(model).contact_vectors(xy, geom, c)
     vec_r, sca_r = reference.contact_vectors(model, xy, geom["centroid"], cint, c.omega)
@@ -192,12 +199,7 @@ def test_second_order_shift_kernel_equals_reference_and_derivative(seed):
     small q (first order in q)."""
     from ddatai import kernels
 
-    model = build_model(random_jointed_scene(seed))
-    xy = perturbed_vertices(model, seed, shift=0.1 * model.search_distance)
-    cint, length = detect_contacts(model, xy)
-    rng = np.random.default_rng(seed)
-    c = Contacts.start(model, xy, cint, length, ContactMemory.empty(), False)
-    c.omega[:] = rng.uniform(0, 1, c.n)
+    model, xy, cint, c, rng = _random_contacts(seed)
     eps = 1e-7
     q = eps * rng.standard_normal(xy.shape)
     shift = np.zeros((c.n, 3))
