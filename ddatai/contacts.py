@@ -9,7 +9,9 @@ global matrix for one step: one dense 6×6 block per free block and per contacti
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 
@@ -308,8 +310,20 @@ class BlockPattern:
     def nnz(self) -> int:
         return len(self.indices)
 
+    pair_key: np.ndarray
+    """(pairs,) sorted keys lo·n_rows + hi of the coupled block pairs (lo < hi)."""
+    block_key: np.ndarray
+    """(6×6 blocks,) sorted keys row·n_rows + col of every stored 6×6 block."""
+    block_slot: np.ndarray
+    """(6×6 blocks,) slot of each stored block, in the order of ``block_key``."""
+
     @staticmethod
-    def build(model: Model, contacts: Contacts) -> "BlockPattern":
+    def build(model: Model, contacts: Contacts, previous: Optional["BlockPattern"] = None
+              ) -> "BlockPattern":
+        """The pattern for ``contacts``. When the coupled block pairs are those of ``previous``
+        (a settled model keeps them for many steps), its layout is reused and only the
+        contacts' slots are looked up (saves ~5 ms per step at 1,600 blocks; the solver then
+        also keeps its ordering)."""
         nr = model.n_free
         dof = model.block_dof
         ra = dof[contacts.block_a].astype(np.int64)
@@ -318,6 +332,10 @@ class BlockPattern:
         lo = np.minimum(ra[coupled], rb[coupled])
         hi = np.maximum(ra[coupled], rb[coupled])
         pair = np.unique(lo * nr + hi)
+        if (previous is not None and previous.n_rows == nr and len(previous.pair_key) == len(pair)
+                and np.array_equal(previous.pair_key, pair)):
+            return dataclasses.replace(previous, slot_ab=previous._lookup(ra, rb),
+                                       slot_ba=previous._lookup(rb, ra))
         lo, hi = pair // nr, pair % nr
         diag = np.arange(nr, dtype=np.int64)
         rows = np.concatenate([diag, lo, hi])
@@ -340,16 +358,18 @@ class BlockPattern:
         indices = np.empty(36 * len(rows), np.int32)
         indices[idx.ravel()] = np.broadcast_to(6 * cols[:, None, None] + a[None, None, :],
                                                idx.shape).ravel()
-
-        def lookup(r, c):
-            out = np.full(len(r), -1, np.int64)
-            ok = (r >= 0) & (c >= 0) & (r != c)
-            k = r[ok] * nr + c[ok]
-            out[ok] = slot[np.searchsorted(bkey, k)]
-            return out
-
-        return BlockPattern(
+        pattern = BlockPattern(
             n_rows=nr, indptr=indptr.astype(np.int32), indices=indices,
             diag_slot=slot[np.searchsorted(bkey, diag * nr + diag)].astype(np.int32),
-            stride=stride.astype(np.int32),
-            slot_ab=lookup(ra, rb).astype(np.int32), slot_ba=lookup(rb, ra).astype(np.int32))
+            stride=stride.astype(np.int32), slot_ab=np.empty(0, np.int32),
+            slot_ba=np.empty(0, np.int32), pair_key=pair, block_key=bkey, block_slot=slot)
+        pattern.slot_ab = pattern._lookup(ra, rb)
+        pattern.slot_ba = pattern._lookup(rb, ra)
+        return pattern
+
+    def _lookup(self, r: np.ndarray, c: np.ndarray) -> np.ndarray:
+        """Slot of block (r, c) for each entry, -1 where r or c is fixed or r == c."""
+        out = np.full(len(r), -1, np.int64)
+        ok = (r >= 0) & (c >= 0) & (r != c)
+        out[ok] = self.block_slot[np.searchsorted(self.block_key, r[ok] * self.n_rows + c[ok])]
+        return out.astype(np.int32)

@@ -500,13 +500,16 @@ def _spring(vec: ti.template(), c, su, sw, k, d0, ri, rj, sij, sji,
 def assemble_contacts(cint: I32_2, state: I8_1, line: I8_1, vblock: I32_1, dof: I32_1,
                       vec: F64_3, sca: F64_2, friction_force: F64_1, shear_dir: I8_1,
                       slot_ab: I32_1, slot_ba: I32_1, diag_slot: I32_1, stride: I32_1,
-                      penalty: ti.f64, shear_penalty: ti.f64, data: F64_1, rhs: F64_1):
+                      penalty: ti.f64, shear_penalty: ti.f64, data: F64_1, rhs: F64_1,
+                      serial: ti.template()):
     """Contact springs for the assumed states, and friction loads of sliding contacts (§2.8).
 
     `friction_force` is the Coulomb + cohesion limit of each sliding contact from the previous
     iterate (explicit, as in Shi's method); `slot_ab`/`slot_ba` locate the off-diagonal blocks
-    of the pair (block of vertex0, block of edge0) in the CSR data array.
+    of the pair (block of vertex0, block of edge0) in the CSR data array. ``serial``: run the
+    loop on one thread (`ddatai.backend.serial_scatter`).
     """
+    ti.loop_config(serialize=serial)
     for c in range(cint.shape[0]):
         st = state[c]
         if st != STATE_OPEN:

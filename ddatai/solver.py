@@ -86,7 +86,9 @@ class SparseSolver:
         fresh = pattern is None or pattern is not self._pattern
         if fresh and pattern is not None and self._structure is not None:
             old_indptr, old_indices = self._structure
-            if (len(old_indptr) == len(indptr) and len(old_indices) == len(indices)
+            # the same arrays (a `BlockPattern` reused across steps) or equal ones
+            if (old_indptr is indptr and old_indices is indices) or (
+                    len(old_indptr) == len(indptr) and len(old_indices) == len(indices)
                     and np.array_equal(old_indptr, indptr) and np.array_equal(old_indices, indices)):
                 self._pattern, fresh = pattern, False
         if fresh:
@@ -98,7 +100,8 @@ class SparseSolver:
             # positions, not a boolean mask: a take is ~10x faster than boolean indexing
             self._upper = (np.flatnonzero(mask), upper_indptr, indices[mask])
             self._pattern = pattern
-            self._structure = (indptr.copy(), indices.copy()) if pattern is not None else None
+            # kept by reference: pattern arrays are never written after `BlockPattern.build`
+            self._structure = (indptr, indices) if pattern is not None else None
         upper_pos, upper_indptr, upper_indices = self._upper
         upper = csr_matrix((data.take(upper_pos), upper_indices, upper_indptr), shape=(n, n))
         try:

@@ -74,6 +74,8 @@ class Stepper:
         from . import backend
 
         backend.ensure(model.params.arch)
+        self._serial_scatter = backend.serial_scatter()
+        self._pattern: Optional[BlockPattern] = None  # last step's, reused while the pairs stay
         from . import kernels  # noqa: F401  (imports Taichi; compiled on first use)
 
         self.model = model
@@ -109,7 +111,7 @@ class Stepper:
         t0 = timer.add("update", t0)
         cint, length = detect_contacts(model, state.vertex_xy, self.buffers)
         contacts0 = Contacts.start(model, state.vertex_xy, cint, length, state.memory, state.step == 0)
-        pattern = BlockPattern.build(model, contacts0)
+        pattern = self._pattern = BlockPattern.build(model, contacts0, self._pattern)
         vec, sca = self.contact_vectors(state.vertex_xy, geom, contacts0)
         t0 = timer.add("contacts", t0)
 
@@ -283,7 +285,7 @@ class Stepper:
         K.assemble_contacts(contacts.cint, contacts.state, contacts.line, m.vertex_block, self.dof,
                             vec, sca, self.friction_force(contacts), contacts.shear_dir,
                             pattern.slot_ab, pattern.slot_ba, pattern.diag_slot, pattern.stride,
-                            m.penalty, m.shear_penalty, data, rhs)
+                            m.penalty, m.shear_penalty, data, rhs, self._serial_scatter)
 
     def second_order(self, contacts: Contacts, state: State, geom: dict, rotation: np.ndarray,
                      pattern: BlockPattern, rhs: np.ndarray) -> np.ndarray:

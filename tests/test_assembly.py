@@ -45,9 +45,13 @@ def _random_case(seed, static=False, plane="strain"):
 
 @pytest.mark.parametrize("seed, static, plane", [(0, False, "strain"), (1, True, "stress"),
                                                  (2, False, "stress"), (3, False, "strain")])
-def test_taichi_assembly_equals_dense_reference(seed, static, plane):
+@pytest.mark.parametrize("serial", [True, False], ids=["serial-loop", "parallel-loop"])
+def test_taichi_assembly_equals_dense_reference(seed, static, plane, serial):
+    """Both loop modes of the contact kernel (serial on small CPUs, parallel with atomic adds
+    elsewhere: `ddatai.backend.serial_scatter`)."""
     model, state, c = _random_case(seed, static, plane)
     stepper = Stepper(model)
+    stepper._serial_scatter = serial
     geom = model.block_geometry(state.vertex_xy)
     pattern = BlockPattern.build(model, c)
     vec, sca = stepper.contact_vectors(state.vertex_xy, geom, c)
@@ -85,3 +89,34 @@ def test_pattern_holds_every_contacting_pair():
         s = pattern.slot_ab[k]
         assert pattern.indices[s] == 6 * col
         assert pattern.indptr[6 * r] <= s < pattern.indptr[6 * r + 1]
+
+
+def _subset(c, idx):
+    return Contacts(**{k: v[idx] for k, v in vars(c).items()})
+
+
+def test_pattern_reused_while_the_block_pairs_stay():
+    """A pattern built with ``previous`` keeps its layout when the coupled pairs are the same
+    (contacts reordered, dropped within a pair) and gives the slots of a fresh build; a new
+    pair makes a fresh layout."""
+    model, state, c = _random_case(5)
+    first = BlockPattern.build(model, c)
+    # the same pairs from a shuffled subset that still has every pair
+    rng = np.random.default_rng(5)
+    order = rng.permutation(c.n)
+    key = np.minimum(c.block_a, c.block_b) * model.n_blocks + np.maximum(c.block_a, c.block_b)
+    _, keep = np.unique(key[order], return_index=True)
+    sub = _subset(c, np.sort(order[np.union1d(keep, np.arange(0, c.n, 2))]))
+    fresh = BlockPattern.build(model, sub)
+    reused = BlockPattern.build(model, sub, first)
+    assert reused.indptr is first.indptr and reused.indices is first.indices
+    assert np.array_equal(fresh.indices, reused.indices) and np.array_equal(fresh.indptr, reused.indptr)
+    assert np.array_equal(fresh.slot_ab, reused.slot_ab) and np.array_equal(fresh.slot_ba, reused.slot_ba)
+    # drop every contact of one coupled pair: a fresh layout with one pair less
+    rows, cols = model.block_dof[c.block_a], model.block_dof[c.block_b]
+    k = int(np.flatnonzero((rows >= 0) & (cols >= 0) & (rows != cols))[0])
+    fewer = _subset(c, np.flatnonzero(key != key[k]))
+    smaller = BlockPattern.build(model, fewer, first)
+    assert smaller.indices is not first.indices
+    assert smaller.nnz == first.nnz - 72
+    assert np.array_equal(smaller.indices, BlockPattern.build(model, fewer).indices)
