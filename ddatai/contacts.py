@@ -305,17 +305,16 @@ class BlockPattern:
     """(m,) slot of block (row of block_a, column of block_b) for each contact, -1 if none."""
     slot_ba: np.ndarray
     """(m,) slot of block (row of block_b, column of block_a), -1 if none."""
-
-    @property
-    def nnz(self) -> int:
-        return len(self.indices)
-
     pair_key: np.ndarray
     """(pairs,) sorted keys lo·n_rows + hi of the coupled block pairs (lo < hi)."""
     block_key: np.ndarray
     """(6×6 blocks,) sorted keys row·n_rows + col of every stored 6×6 block."""
     block_slot: np.ndarray
     """(6×6 blocks,) slot of each stored block, in the order of ``block_key``."""
+
+    @property
+    def nnz(self) -> int:
+        return len(self.indices)
 
     @staticmethod
     def build(model: Model, contacts: Contacts, previous: Optional["BlockPattern"] = None
@@ -334,8 +333,9 @@ class BlockPattern:
         pair = np.unique(lo * nr + hi)
         if (previous is not None and previous.n_rows == nr and len(previous.pair_key) == len(pair)
                 and np.array_equal(previous.pair_key, pair)):
-            return dataclasses.replace(previous, slot_ab=previous._lookup(ra, rb),
-                                       slot_ba=previous._lookup(rb, ra))
+            key, at = previous.block_key, previous.block_slot
+            return dataclasses.replace(previous, slot_ab=_block_slots(key, at, nr, ra, rb),
+                                       slot_ba=_block_slots(key, at, nr, rb, ra))
         lo, hi = pair // nr, pair % nr
         diag = np.arange(nr, dtype=np.int64)
         rows = np.concatenate([diag, lo, hi])
@@ -358,18 +358,17 @@ class BlockPattern:
         indices = np.empty(36 * len(rows), np.int32)
         indices[idx.ravel()] = np.broadcast_to(6 * cols[:, None, None] + a[None, None, :],
                                                idx.shape).ravel()
-        pattern = BlockPattern(
+        return BlockPattern(
             n_rows=nr, indptr=indptr.astype(np.int32), indices=indices,
             diag_slot=slot[np.searchsorted(bkey, diag * nr + diag)].astype(np.int32),
-            stride=stride.astype(np.int32), slot_ab=np.empty(0, np.int32),
-            slot_ba=np.empty(0, np.int32), pair_key=pair, block_key=bkey, block_slot=slot)
-        pattern.slot_ab = pattern._lookup(ra, rb)
-        pattern.slot_ba = pattern._lookup(rb, ra)
-        return pattern
+            stride=stride.astype(np.int32), slot_ab=_block_slots(bkey, slot, nr, ra, rb),
+            slot_ba=_block_slots(bkey, slot, nr, rb, ra), pair_key=pair, block_key=bkey, block_slot=slot)
 
-    def _lookup(self, r: np.ndarray, c: np.ndarray) -> np.ndarray:
-        """Slot of block (r, c) for each entry, -1 where r or c is fixed or r == c."""
-        out = np.full(len(r), -1, np.int64)
-        ok = (r >= 0) & (c >= 0) & (r != c)
-        out[ok] = self.block_slot[np.searchsorted(self.block_key, r[ok] * self.n_rows + c[ok])]
-        return out.astype(np.int32)
+
+def _block_slots(block_key: np.ndarray, block_slot: np.ndarray, n_rows: int, r: np.ndarray,
+                 c: np.ndarray) -> np.ndarray:
+    """Slot of the 6×6 block (r, c) for each entry, -1 where r or c is fixed or r == c."""
+    out = np.full(len(r), -1, np.int32)
+    ok = (r >= 0) & (c >= 0) & (r != c)
+    out[ok] = block_slot[np.searchsorted(block_key, r[ok] * n_rows + c[ok])]
+    return out
