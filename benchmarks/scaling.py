@@ -295,19 +295,17 @@ def main() -> None:
                   f"({row['oc_per_step']:.1f} OC it.), peak {row['peak_mb']:.0f} MB, run {time.perf_counter() - t:.0f} s",
                   flush=True)
     rows.sort(key=lambda r: (list(SCENES).index(r["family"]), r["blocks"]))
-    exps = {f: growth_exponent([r for r in rows if r["family"] == f]) for f in {r["family"] for r in rows}}
     text = [f"# Block-count scaling ({time.strftime('%Y-%m-%d')})", "", f"Machine: {machine()}; "
             f"Taichi arch {a.arch}; median of the timed steps after the warm-up steps, from a start at rest "
             f"under sudden gravity (ntdda's protocol: the blocks settle, the grids ring, and the open-close "
             f"iteration count varies from step to step; steps per size in scaling.json).", "",
             table(rows), ""]
-    exps_oc = {f: growth_exponent([r for r in rows if r["family"] == f], key="ms_per_oc")
-               for f in {r["family"] for r in rows}}
-    exps_one = {f: growth_exponent([r for r in rows if r["family"] == f and r.get("ms_one_oc")], key="ms_one_oc")
-                for f in {r["family"] for r in rows}}
-    text += [f"Growth exponent from 1,600 to 25,600 blocks ({f}): {e:.2f} per step, {exps_oc[f]:.2f} per "
-             f"open-close iteration" + ("" if math.isnan(exps_one[f]) else f", {exps_one[f]:.2f} per 1-OC step")
-             for f, e in sorted(exps.items())]
+    for family in sorted({r["family"] for r in rows}):
+        own = [r for r in rows if r["family"] == family]
+        step, oc = growth_exponent(own), growth_exponent(own, key="ms_per_oc")
+        one = growth_exponent([r for r in own if r.get("ms_one_oc")], key="ms_one_oc")
+        text.append(f"Growth exponent from 1,600 to 25,600 blocks ({family}): {step:.2f} per step, {oc:.2f} per "
+                    f"open-close iteration" + ("" if math.isnan(one) else f", {one:.2f} per 1-OC step"))
     text += ["", "With ntdda's protocol the large sizes time only steps 2-5, before the ringing of the sudden "
              "start builds up, so they take fewer open-close iterations per step than the small sizes; the "
              "cost of a step at a fixed iteration count (per 1-OC step, per iteration) is the measure of "
