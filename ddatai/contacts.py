@@ -19,7 +19,7 @@ from .model import ContactKind, ContactMemory, ContactState, Model
 
 #: columns of the integer contact table ``cint``
 KIND, V0, E0, V1, E1 = range(5)
-N_SLOTS = 7  # contact vector slots, see ddatai.kernels
+N_SLOTS = 6  # contact vector slots, see ddatai.kernels
 
 
 def box_bounds(model: Model, vertex_xy: np.ndarray, margin: float) -> tuple[np.ndarray, np.ndarray]:
@@ -169,8 +169,12 @@ class Contacts:
     """(m,) shear displacement from the last solve [m]."""
     normal_force: np.ndarray
     """(m,) compressive normal force p·(−dn) of the contact from the last solve in which it was
-    closed (the end of the last step, or the start penetration) [N/m]. Sets the friction load.
-    An open contact's penetration is unresisted overshoot, and p times it is no contact force."""
+    closed (the end of the last step, or the start penetration) [N/m]. Sets the friction of a
+    sliding contact that is not `coupled`. An open contact's penetration is unresisted
+    overshoot, and p times it is no contact force."""
+    coupled: np.ndarray
+    """(m,) bool: the friction of this sliding contact follows the normal force of the same
+    solve (implicit friction, a non-symmetric term in K) instead of ``normal_force``."""
 
     @property
     def n(self) -> int:
@@ -242,21 +246,24 @@ class Contacts:
                                           vertex_xy[model.vertex_next[cint[sliding, E0]]], axis=1)
                 omega[sliding] -= shear_dir[sliding] * strength / (model.shear_penalty * edge_len)
         if first_step and m:
+            # contacts the equilibrium stage left in memory keep their state; the others start
+            # closed where they touch
+            new = np.ones(m, bool) if not len(memory.key) else ~found
             dn1 = np.full(m, -np.inf)
             vv = ~ve
             if vv.any():
                 dn1[vv] = signed_distance(vertex_xy, model.vertex_next, cint[vv, V1], cint[vv, E1])
-            touching = np.maximum(dn0, dn1) <= model.open_tol
+            touching = (np.maximum(dn0, dn1) <= model.open_tol) & new
             state[touching & ve] = ContactState.LOCK
             state[touching & vv] = ContactState.SLIDE
-            line[vv] = (dn1[vv] > dn0[vv]).astype(np.int8)
+            line[vv & new] = (dn1[vv & new] > dn0[vv & new]).astype(np.int8)
             bond[touching & ve & (length > 0)] = True
         return Contacts(
             cint=cint, length=length, key=key, block_a=a, block_b=b,
             tan_phi=model.joint_tan_phi[joint], friction_deg=model.joint_friction[joint],
             cohesion=model.joint_cohesion[joint], tensile=model.joint_tensile[joint],
             state=state, line=line, omega=omega, bond=bond, shear_dir=shear_dir,
-            dn=dn0, ds=np.zeros(m), normal_force=normal_force)
+            dn=dn0, ds=np.zeros(m), normal_force=normal_force, coupled=np.zeros(m, bool))
 
     def memory(self, bond_breaks_on_slip: bool = True) -> ContactMemory:
         """What this step hands to the next. The bond survives on locked contacts, and also on

@@ -52,13 +52,14 @@ def contact_energy(model, contacts) -> float:
 
 
 def friction_work(contacts, vec: np.ndarray, friction: np.ndarray, disp: np.ndarray) -> float:
-    """Work dissipated by the friction loads of sliding vertex-edge contacts in a step [J/m]:
-    Ff·dir·(e_sᵀ Di − t_jᵀ Dj), the load times the slip of the vertex against the edge (§2.8.4)."""
+    """Work dissipated by the friction of sliding vertex-edge contacts in a step [J/m]:
+    S·dir·(e_sᵀ Di + g_sᵀ Dj), the friction force times the slip of the vertex along the edge
+    (§2.8.4); ``friction`` is each contact's S in the accepted solve."""
     sliding = (contacts.state == 1) & (contacts.cint[:, 0] == 0)
     if not sliding.any():
         return 0.0
     a, b = contacts.block_a[sliding], contacts.block_b[sliding]
-    slip = np.einsum("ij,ij->i", vec[sliding, 4], disp[a]) - np.einsum("ij,ij->i", vec[sliding, 6], disp[b])
+    slip = np.einsum("ij,ij->i", vec[sliding, 4], disp[a]) + np.einsum("ij,ij->i", vec[sliding, 5], disp[b])
     return float(np.sum(friction[sliding] * contacts.shear_dir[sliding] * slip))
 
 

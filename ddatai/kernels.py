@@ -11,9 +11,10 @@ edge k uses the reference line P2 = vnext[k] -> P3 = k, which runs clockwise aro
 block, so that the signed normal distance is positive outside (dda-method.md §2.8.1, §3.5).
 
 Contact vectors are stored per contact c in ``vec[c, s, 0:6]`` with slots
-``E0, G0`` (normal, line 0), ``E1, G1`` (normal, line 1 of a vertex-vertex contact),
-``ES, GS`` (shear, line 0) and ``TJ`` (friction load on the edge's block), and the constant
-parts in ``sca[c, 0:3]`` = (dn0 line 0, dn0 line 1, ds0); see dda-method.md §2.8.
+``E0, G0`` (normal, line 0), ``E1, G1`` (normal, line 1 of a vertex-vertex contact) and
+``ES, GS`` (shear, line 0: the gradient of ds, along which both the shear spring and the
+friction force act), and the constant parts in ``sca[c, 0:3]`` = (dn0 line 0, dn0 line 1, ds0);
+see dda-method.md §2.8.
 """
 
 import math
@@ -33,8 +34,8 @@ STATE_OPEN = 0
 STATE_SLIDE = 1
 STATE_LOCK = 2
 # slots of the contact vector array
-E0, G0, E1, G1, ES, GS, TJ = 0, 1, 2, 3, 4, 5, 6
-N_SLOTS = 7
+E0, G0, E1, G1, ES, GS = 0, 1, 2, 3, 4, 5
+N_SLOTS = 6
 TWO_PI = 2.0 * math.pi
 #: When the corners of two parallel edges (nearly) coincide, either corner can be the contact
 #: vertex; block A's is kept unless B's lies clearly (TIE × edge length) further inside the
@@ -380,7 +381,6 @@ def contact_vectors(xy: F64_2, vblock: I32_1, vnext: I32_1, centroid: F64_2, cin
                 c3 = (-(1.0 - 2.0 * w) * x2 - 2.0 * w * x3) / l
                 _store(vec, c, ES, _trow(t[0], t[1], X1))
                 _store(vec, c, GS, _trow(c2[0], c2[1], X2) + _trow(c3[0], c3[1], X3))
-                _store(vec, c, TJ, (1.0 - w) * _trow(t[0], t[1], X2) + w * _trow(t[0], t[1], X3))
 
 
 @ti.kernel
@@ -496,18 +496,48 @@ def _spring(vec: ti.template(), c, su, sw, k, d0, ri, rj, sij, sji,
                     ti.atomic_add(data[sji + a * st + b], k * wa * vec[c, su, b])
 
 
+@ti.func
+def _outer(vec: ti.template(), c, su, sw, tu, tw, k, ri, rj, sij, sji,
+           diag_slot: ti.template(), stride: ti.template(), data: ti.template()):
+    """Add k·[u; w][u'; w']ᵀ (u = vec[c, su], w = vec[c, sw] on the rows of blocks i, j;
+    u' = vec[c, tu], w' = vec[c, tw] on their columns): a non-symmetric rank-one term."""
+    if ri >= 0:
+        base = diag_slot[ri]
+        st = stride[ri]
+        for a in range(6):
+            ua = k * vec[c, su, a]
+            for b in range(6):
+                ti.atomic_add(data[base + a * st + b], ua * vec[c, tu, b])
+            if rj >= 0:
+                for b in range(6):
+                    ti.atomic_add(data[sij + a * st + b], ua * vec[c, tw, b])
+    if rj >= 0:
+        base = diag_slot[rj]
+        st = stride[rj]
+        for a in range(6):
+            wa = k * vec[c, sw, a]
+            for b in range(6):
+                ti.atomic_add(data[base + a * st + b], wa * vec[c, tw, b])
+            if ri >= 0:
+                for b in range(6):
+                    ti.atomic_add(data[sji + a * st + b], wa * vec[c, tu, b])
+
+
 @ti.kernel
 def assemble_contacts(cint: I32_2, state: I8_1, line: I8_1, vblock: I32_1, dof: I32_1,
-                      vec: F64_3, sca: F64_2, friction_force: F64_1, shear_dir: I8_1,
-                      slot_ab: I32_1, slot_ba: I32_1, diag_slot: I32_1, stride: I32_1,
-                      penalty: ti.f64, shear_penalty: ti.f64, data: F64_1, rhs: F64_1,
+                      vec: F64_3, sca: F64_2, friction_const: F64_1, friction_slope: F64_1,
+                      shear_dir: I8_1, slot_ab: I32_1, slot_ba: I32_1, diag_slot: I32_1,
+                      stride: I32_1, penalty: ti.f64, shear_penalty: ti.f64, data: F64_1, rhs: F64_1,
                       serial: ti.template()):
-    """Contact springs for the assumed states, and friction loads of sliding contacts (§2.8).
+    """Contact springs for the assumed states, and friction of sliding contacts (§2.8).
 
-    `friction_force` is the Coulomb + cohesion limit of each sliding contact from the previous
-    iterate (explicit, as in Shi's method); `slot_ab`/`slot_ba` locate the off-diagonal blocks
-    of the pair (block of vertex0, block of edge0) in the CSR data array. ``serial``: run the
-    loop on one thread (`ddatai.backend.serial_scatter`).
+    A sliding contact's friction force has magnitude S = a − b·dn (a = ``friction_const``,
+    b = ``friction_slope``) and acts against ``shear_dir`` along the gradient of ds. With b = 0
+    it is a load (S from an earlier solve, Shi's explicit friction); with b = μ·p it follows
+    the normal penetration dn of this very solve (implicit friction) and adds the
+    non-symmetric term −dir·b·∇ds ∇dnᵀ to K. `slot_ab`/`slot_ba` locate the off-diagonal
+    blocks of the pair (block of vertex0, block of edge0) in the CSR data array. ``serial``:
+    run the loop on one thread (`ddatai.backend.serial_scatter`).
     """
     ti.loop_config(serialize=serial)
     for c in range(cint.shape[0]):
@@ -530,9 +560,14 @@ def assemble_contacts(cint: I32_2, state: I8_1, line: I8_1, vblock: I32_1, dof: 
                     _spring(vec, c, ES, GS, shear_penalty, sca[c, 2], ri, rj, sij, sji,
                             diag_slot, stride, data, rhs)
                 else:
-                    f = friction_force[c] * ti.cast(shear_dir[c], ti.f64)
+                    sgn = ti.cast(shear_dir[c], ti.f64)
+                    # internal force sgn·S(D)·∇ds with S = a − b·(dn0 + ∇dnᵀD)
+                    f = sgn * (friction_const[c] - friction_slope[c] * sca[c, 0])
                     for a in range(6):
                         if ri >= 0:
                             ti.atomic_add(rhs[6 * ri + a], -f * vec[c, ES, a])
                         if rj >= 0:
-                            ti.atomic_add(rhs[6 * rj + a], f * vec[c, TJ, a])
+                            ti.atomic_add(rhs[6 * rj + a], -f * vec[c, GS, a])
+                    if friction_slope[c] != 0.0:
+                        _outer(vec, c, ES, GS, E0, G0, -sgn * friction_slope[c], ri, rj, sij, sji,
+                               diag_slot, stride, data)

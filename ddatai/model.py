@@ -107,13 +107,10 @@ class Model:
     max_penetration: float
     """d9: deepest penetration still detected as a contact [m]."""
     open_tol: float
-    """Normal distance above which a closed contact opens [m]."""
-    close_tol: float
-    """Penetration beyond which an open contact closes [m]."""
-    reversal_tol: float
-    """Reversal of the sliding direction beyond which a sliding contact locks [m]."""
-    roundoff: float
-    """Round-off allowance on the shear displacement of the lock test, 1e-12·w0 [m]."""
+    """Round-off length of the open-close judgement, open_tolerance·w0 [m]; contacts touching
+    within it start closed on the first step."""
+    force_roundoff: float
+    """Round-off force of the open-close judgement, p·open_tol [N/m]."""
     penetration_limit: float
     """Largest penetration accepted at the end of a step [m]."""
     penalty: float
@@ -333,8 +330,7 @@ def build_model(scene: Scene, params: Optional[Params] = None) -> Model:
         ground_acceleration=scene.ground_acceleration,
         initial_velocity=vel, initial_stress=stress,
         w0=w0, max_step=max_step, search_distance=d0, max_penetration=d9,
-        open_tol=params.open_tolerance * w0, close_tol=params.close_tolerance * w0,
-        reversal_tol=params.reversal_tolerance * w0, roundoff=1e-12 * w0,
+        open_tol=params.open_tolerance * w0, force_roundoff=params.open_tolerance * w0 * float(penalty),
         penetration_limit=2.5 * params.penetration_ratio * w0,
         penalty=float(penalty), shear_penalty=float(penalty) / params.shear_ratio,
         fixed_point_penalty=params.fixed_point_ratio * float(penalty),

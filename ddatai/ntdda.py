@@ -201,7 +201,8 @@ class NtddaAnalysis:
     rotation: str
     """"linear", "secondorder" or "exact" (ddatai always updates rotations exactly)."""
     gravity_turn_on: bool
-    """ntdda's gravity turn-on phase (``<Gravity flag="yes">``; not supported)."""
+    """ntdda's gravity turn-on phase (``<Gravity flag="yes">``): ddatai's equilibrium stage
+    (`Params.initial_equilibrium`); without it gravity acts suddenly from t = 0, as in ntdda."""
     gravity_acceleration: Optional[float]
     """``Gravaccel`` [length/time²]; None when the file gives none."""
     oc_limit: int
@@ -832,9 +833,6 @@ def _read_ddaml_analysis(path: Path, text: str, log: list) -> NtddaAnalysis:
     if s["auto_penalty"]:
         _warn(log, NtddaUnsupportedWarning, f"{path}, {autopenalty_el.where()}: ntdda's automatic penalty "
               f"re-estimation is not supported; the penalty stays at pfactor × the largest Young's modulus")
-    if s["gravity_turn_on"]:
-        _warn(log, NtddaUnsupportedWarning, f"{path}: the gravity turn-on phase (<Gravity flag=\"yes\">) is "
-              "not supported; gravity acts fully from t = 0 (as it does in ntdda's run after the phase)")
     if s["plane_strain"]:
         _warn(log, NtddaQuirkWarning, f"{path}: plane strain: ntdda's plane-strain stiffness is too stiff by "
               "(1+ν)/(1−ν) (README, method choices); ddatai uses the correct one")
@@ -1250,6 +1248,9 @@ def build_ntdda_case(geometry: NtddaGeometry, analysis: NtddaAnalysis) -> NtddaC
         static=not a.dynamic,
         plane="strain" if a.plane_strain else "stress",
         oc_max_iterations=a.oc_limit,
+        # ntdda's gravity turn-on phase settles the model before its run: ddatai's equilibrium
+        # stage; without it ntdda switches gravity on at t = 0, and so does ddatai
+        initial_equilibrium=a.gravity_turn_on,
     )
     return NtddaCase(scene=scene, params=params, duration=duration,
                      steps=a.n_steps if a.auto_time_step else None, record_every=a.save_interval,

@@ -115,6 +115,13 @@ class Params:
     fixed_point_ratio: float = 100.0
     """Fixed-point spring as a multiple of the contact penalty [-] (ntdda: 100)."""
 
+    initial_equilibrium: bool = True
+    """Start from equilibrium: before t = 0 the model is brought to its static equilibrium under
+    gravity, the point loads at t = 0 and the initial stresses, with the contacts touching at
+    t = 0 held (locked, bonds intact); then the first step applies the real contact strengths,
+    so contacts loaded beyond them slide or open at once (`ddatai.start`; the usual first stage
+    of UDEC/3DEC and FLAC models, and ntdda's gravity turn-on phase). False: gravity is switched
+    on suddenly at t = 0 (Shi, ntdda without its gravity phase)."""
     static: bool = False
     """Static (quasi-static) analysis: block velocities are reset to zero after every step."""
     dynamic_ratio: float = 1.0
@@ -142,18 +149,18 @@ class Params:
     steps need 1–3; impacts in a pile can need 10–20, and an iteration is cheaper than a cut
     (a 225-block pile dropped onto its base: 37 s with 20, 52 s with 10)."""
     open_tolerance: float = 1e-12
-    """A closed contact opens when its normal distance exceeds this fraction of w0 plus the
-    tensile allowance T·L/p of a bonded contact [-]. It only absorbs round-off: the spring of
-    a closed contact with normal distance dn pulls with p·dn, so a tolerance like ntdda's
-    f0 = 2e-7 would let contacts carry tensions of p·f0·w0 (thousands of kN at rock
+    """Round-off allowance of the open-close judgement, as a fraction of w0 [-]: a contact's
+    force may differ from the contact law by the force of a spring stretched this far,
+    p·open_tolerance·w0 (so a closed contact opens once it pulls harder than that, beyond the
+    tensile strength T·L of a bonded joint). It only absorbs round-off: a tolerance like
+    ntdda's f0 = 2e-7 would let contacts carry tensions of p·f0·w0 (thousands of kN at rock
     penalties) and blocks could never topple."""
-    close_tolerance: float = 1e-7
-    """An open contact closes when its penetration exceeds this fraction of w0 [-]."""
-    reversal_tolerance: float = 1e-7
-    """A sliding contact locks again when its sliding direction reverses by more than this
-    fraction of w0 [-] (Shi, ntdda: 1e-7). Without it, contacts that carry almost no normal
-    force (side joints of a resting pile) flip between locked and sliding on round-off-sized
-    reversals and the open-close iteration never settles."""
+    oc_force_tolerance: float = 1e-6
+    """Open-close convergence [-]: a step is accepted when, at every contact, the force of the
+    state the solve assumed (open, locked, sliding) matches the contact law (no tension,
+    Coulomb friction) at the solution within this fraction of the force (plus the round-off
+    force above). So every accepted step obeys Coulomb's law at every contact to this
+    tolerance; a larger value accepts states a little beyond it for fewer solves."""
     penetration_ratio: float = 4e-4
     """g3: penetration allowed, as a fraction of w0 [-]; a step whose largest penetration
     exceeds 2.5·g3·w0 is redone with a shorter time step, and a run that cannot keep under it
@@ -180,8 +187,7 @@ class Params:
         pos("dt_max")
         pos("penalty", allow_none=True)
         for name in ("penalty_ratio", "shear_ratio", "fixed_point_ratio", "max_displacement_ratio",
-                     "open_tolerance", "close_tolerance", "penetration_ratio", "angle_tolerance",
-                     "reversal_tolerance",
+                     "open_tolerance", "oc_force_tolerance", "penetration_ratio", "angle_tolerance",
                      "dt_min_ratio"):
             pos(name)
         _require(_finite(self.dt_growth) and self.dt_growth >= 1.0,
@@ -205,11 +211,16 @@ class Params:
         _require(self.open_tolerance <= 1e-10,
                  f"Params.open_tolerance must be <= 1e-10 (a tension allowance of p·f0·w0), "
                  f"got {self.open_tolerance!r}")
+        _require(self.oc_force_tolerance < 0.1,
+                 f"Params.oc_force_tolerance must be < 0.1 (a fraction of each contact force), "
+                 f"got {self.oc_force_tolerance!r}")
         _require(self.dt_min_ratio < 1.0, f"Params.dt_min_ratio must be < 1, got {self.dt_min_ratio!r}")
         _require(self.solver in ("auto", "scipy", "pardiso"),
                  f"Params.solver must be 'auto', 'scipy' or 'pardiso', got {self.solver!r}")
         _require(isinstance(self.arch, str) and self.arch in ("cpu", "gpu", "cuda", "vulkan", "metal"),
                  f"Params.arch must be one of 'cpu', 'gpu', 'cuda', 'vulkan', 'metal', got {self.arch!r}")
+        _require(isinstance(self.initial_equilibrium, bool),
+                 f"Params.initial_equilibrium must be True or False, got {self.initial_equilibrium!r}")
         _require(isinstance(self.bond_breaks_on_slip, bool),
                  f"Params.bond_breaks_on_slip must be True or False, got {self.bond_breaks_on_slip!r}")
 

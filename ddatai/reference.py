@@ -162,9 +162,9 @@ def detect_contacts(model: Model, vertex_xy: np.ndarray) -> tuple[np.ndarray, np
 # --------------------------------------------------------------------------- contact vectors
 def contact_vectors(model: Model, vertex_xy: np.ndarray, centroid: np.ndarray, cint: np.ndarray,
                     omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(vec (m, 7, 6), sca (m, 3)) as `kernels.contact_vectors`, from the T matrix (§1.1, §2.8)."""
+    """(vec (m, 6, 6), sca (m, 3)) as `kernels.contact_vectors`, from the T matrix (§1.1, §2.8)."""
     m = len(cint)
-    vec = np.zeros((m, 7, 6))
+    vec = np.zeros((m, 6, 6))
     sca = np.zeros((m, 3))
     nxt, vb = model.vertex_next, model.vertex_block
     for c in range(m):
@@ -190,7 +190,6 @@ def contact_vectors(model: Model, vertex_xy: np.ndarray, centroid: np.ndarray, c
                 vec[c, 4] = T1.T @ t
                 vec[c, 5] = (T2.T @ (-P1 + 2 * (1 - w) * P2 - (1 - 2 * w) * P3) +
                              T3.T @ (P1 - (1 - 2 * w) * P2 - 2 * w * P3)) / l
-                vec[c, 6] = ((1 - w) * T2 + w * T3).T @ t
     return vec, sca
 
 
@@ -228,8 +227,12 @@ def assemble_dense(model: Model, vertex_xy: np.ndarray, velocity: np.ndarray, st
                    fixed_point_xy: np.ndarray, load_xy: np.ndarray, load_force: np.ndarray,
                    dt: float, body_acc: np.ndarray, contacts, vec: np.ndarray, sca: np.ndarray,
                    friction_force: np.ndarray, accel: np.ndarray | None = None,
-                   beta: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
-    """Dense K (6n × 6n) and F over the free blocks, term by term (§2.1–2.8)."""
+                   beta: float = 0.5, friction_slope: np.ndarray | None = None
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """Dense K (6n × 6n) and F over the free blocks, term by term (§2.1–2.8).
+
+    A sliding contact's friction magnitude is S = friction_force − friction_slope·dn, acting
+    against its sliding direction along ∇ds (implicit friction where the slope is μ·p)."""
     geom = model.block_geometry(vertex_xy)
     free = np.flatnonzero(~model.block_fixed)
     row = {int(b): r for r, b in enumerate(free)}
@@ -275,6 +278,7 @@ def assemble_dense(model: Model, vertex_xy: np.ndarray, velocity: np.ndarray, st
             K[sl(i), sl(j)] += k * np.outer(u, w)
             K[sl(j), sl(i)] += k * np.outer(w, u)
 
+    slope = np.zeros(contacts.n) if friction_slope is None else friction_slope
     for c in range(contacts.n):
         st = contacts.state[c]
         if st == ContactState.OPEN:
@@ -287,9 +291,15 @@ def assemble_dense(model: Model, vertex_xy: np.ndarray, velocity: np.ndarray, st
             if st == ContactState.LOCK:
                 spring(model.shear_penalty, vec[c, 4], vec[c, 5], sca[c, 2], i, j)
             else:
-                f = friction_force[c] * contacts.shear_dir[c]
-                if i in row:
-                    F[sl(i)] -= f * vec[c, 4]
-                if j in row:
-                    F[sl(j)] += f * vec[c, 6]
+                # internal force dir·S(D)·∇ds, S = a − b·(dn0 + ∇dnᵀD): the D part goes to K
+                sgn = contacts.shear_dir[c]
+                f = sgn * (friction_force[c] - slope[c] * sca[c, 0])
+                rows = {i: vec[c, 4], j: vec[c, 5]}
+                cols = {i: vec[c, 0], j: vec[c, 1]}
+                for r, u in rows.items():
+                    if r in row:
+                        F[sl(r)] -= f * u
+                        for col, v in cols.items():
+                            if col in row:
+                                K[sl(r), sl(col)] -= sgn * slope[c] * np.outer(u, v)
     return K, F

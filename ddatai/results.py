@@ -6,7 +6,7 @@ solver. Frame 0 is the initial state.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Optional
 
@@ -35,6 +35,18 @@ STEP_DTYPE = np.dtype([
     ("external_work", "f8"),    # work of point loads and of the ground motion in the step
     ("friction_work", "f8"),    # work dissipated by sliding friction in the step
     ("integrator_work", "f8"),  # the rest of the balance: dissipated by the integrator (>= 0)
+    ("coulomb", "f8"),          # largest (|shear force| − strength)/strength of a closed contact
+                                # in the accepted solve (<= Params.oc_force_tolerance)
+])
+
+#: the equilibrium stage before t = 0 (`ddatai.start.StartRecord`), one record per run
+START_DTYPE = np.dtype([
+    ("solves", "i4"),           # static solves of the stage (0: nothing to settle or stage off)
+    ("held", "i4"),             # free blocks held in equilibrium
+    ("released", "i4"),         # free blocks released as mechanisms (sudden gravity)
+    ("settlement", "f8"),       # largest vertex displacement of a held block [m]
+    ("at_strength", "i4"),      # contacts of held blocks at their strength at t = 0
+    ("wall_time", "f8"),        # wall time of the stage [s]
 ])
 
 
@@ -95,6 +107,9 @@ class Results:
     """(C,) int8 `ContactState` (0 open, 1 sliding, 2 locked)."""
     steps: np.ndarray
     """(S,) structured array, one record per accepted step (`STEP_DTYPE`)."""
+    start: np.ndarray = field(default_factory=lambda: np.zeros(0, START_DTYPE))
+    """(1,) structured record of the equilibrium stage before t = 0 (`START_DTYPE`), (0,) when
+    the run had none (``Params(initial_equilibrium=False)``)."""
 
     @property
     def n_frames(self) -> int:
@@ -141,7 +156,8 @@ class Results:
 def load_results(path) -> Results:
     """Read results written by `Results.save`."""
     with np.load(Path(path), allow_pickle=False) as data:
-        kwargs = {f.name: data[f.name] for f in fields(Results)}
+        # files written before the equilibrium stage existed have no ``start``
+        kwargs = {f.name: data[f.name] for f in fields(Results) if f.name in data.files}
     return Results(**kwargs)
 
 
@@ -158,6 +174,7 @@ class Recorder:
         self.contact_state: list[np.ndarray] = []
         self.contact_count: list[int] = []
         self.steps: list[tuple] = []
+        self.start: list[tuple] = []
 
     def frame(self, state, centroid: np.ndarray, contact_xy=None, contact_state=None) -> None:
         origin = self.model.origin
@@ -203,4 +220,5 @@ class Recorder:
             contact_xy=np.concatenate(self.contact_xy) if self.contact_xy else np.zeros((0, 2)),
             contact_state=np.concatenate(self.contact_state) if self.contact_state else np.zeros(0, np.int8),
             steps=np.array(self.steps, dtype=STEP_DTYPE),
+            start=np.array(self.start, dtype=START_DTYPE),
         )

@@ -1,19 +1,29 @@
-"""Sparse symmetric positive definite solves of K D = F (one per open-close iteration).
+"""Sparse direct solves of K D = F (one per open-close iteration).
 
-Two backends behind one function:
+K is symmetric positive definite while every closed contact is locked or carries a friction
+load that does not depend on the solution. A sliding contact whose friction is taken
+implicitly (the friction force μ·p·(−dn) follows the normal penetration of the same solve,
+``ddatai.step``) adds a non-symmetric term, and the solve then uses an LU factorisation.
 
-- ``"scipy"``: SuperLU (`scipy.sparse.linalg.splu`) in symmetric mode with the MMD(AᵀA)
-  ordering and no pivoting — always available (measured: 1.7–3.4× faster than the default
-  `spsolve` on DDA matrices, ``../shared/reference/performance.md`` §1.2);
-- ``"pardiso"``: Intel MKL PARDISO through the optional ``pypardiso`` package, SPD mode on the
-  upper triangle, phases called directly (about 5× faster than SuperLU at 1,600 blocks on the
-  development machine). Install with ``pip install pypardiso`` (x86-64 only, ~700 MB of MKL).
+Two backends behind one class:
+
+- ``"scipy"``: SuperLU (`scipy.sparse.linalg.splu`) with the MMD(AᵀA) ordering and diagonal
+  pivots — always available (1.7–3.4× faster than the default `spsolve` on DDA matrices,
+  docs/performance.md);
+- ``"pardiso"``: Intel MKL PARDISO through the optional ``pypardiso`` package (about 5× faster
+  than SuperLU at 1,600 blocks). Install with ``pip install pypardiso`` (x86-64 only, ~700 MB
+  of MKL). ddatai calls MKL itself with its own parameters (``iparm[0] = 1``, so that MKL
+  honours them): no iterative refinement, zero-based indices (no copies), the ordering kept
+  while the pattern stays, and a residual check that refines only where a pivot was
+  perturbed.
 
 ``Params(solver="auto")`` uses PARDISO when it can be imported and SuperLU otherwise. Both are
 direct solvers and give the same solution to round-off (the tests compare them).
 """
 
 from __future__ import annotations
+
+import ctypes
 
 import numpy as np
 
@@ -40,33 +50,118 @@ def resolve(name: str) -> str:
     return name
 
 
-class SparseSolver:
-    """Solves K x = b for symmetric positive definite K given by its CSR arrays (full storage).
+#: relative residual |K x − b| / |b| above which a solve with perturbed pivots is refined
+REFINE_ABOVE = 1e-10
 
-    ``pattern`` identifies the sparsity pattern: while it stays the same object (a step's
-    `BlockPattern`), or a new one with the same ``indptr``/``indices`` (the next step, when no
-    block pair gained or lost a contact), PARDISO keeps its symbolic analysis (fill-reducing
-    ordering, ~55 % of a factorisation at 1,600 blocks) and only refactorises; SuperLU cannot
-    reuse one and orders every time.
+
+class PardisoError(RuntimeError):
+    """MKL PARDISO reported an error (its error code is in the message)."""
+
+
+class _Pardiso:
+    """One MKL PARDISO handle for one matrix type, called directly through ctypes.
+
+    ``mtype`` 2 (real SPD, upper triangle) or 11 (real non-symmetric, full storage). Every
+    parameter is set explicitly with ``iparm[0] = 1``: with ``iparm[0] = 0`` MKL replaces them
+    all by its defaults, two steps of iterative refinement on every solve among them (3× the
+    cost of the solve at 1,600 blocks, and not bit-reproducible between runs).
+    """
+
+    def __init__(self, mtype: int):
+        import pypardiso
+
+        # pypardiso finds and loads MKL's runtime; its call wrapper copies the index arrays
+        # to one-based ones on every call, so ddatai calls the library itself
+        self._lib = pypardiso.PyPardisoSolver(mtype=mtype)._mkl_pardiso
+        self.mtype = mtype
+        self.pt = np.zeros(64, dtype=np.int64)
+        self.iparm = np.zeros(64, dtype=np.int32)
+        ip = self.iparm  # zero-based here; MKL's documentation numbers them from 1
+        ip[0] = 1        # use the values below, not MKL's defaults
+        ip[1] = 2        # fill-reducing ordering: METIS nested dissection
+        ip[7] = 0        # no iterative refinement (a residual check below asks for it)
+        ip[9] = 13 if mtype == 11 else 8  # pivot perturbation 1e-13 / 1e-8
+        ip[10] = 1 if mtype == 11 else 0  # scaling (non-symmetric only)
+        ip[12] = 1 if mtype == 11 else 0  # weighted matching (non-symmetric only)
+        ip[34] = 1       # zero-based ia/ja
+        self.perm = np.zeros(0, dtype=np.int32)
+        self.key = None  # (indptr, indices) the current analysis belongs to
+        self.n = 0
+
+    def call(self, phase: int, data: np.ndarray, indptr: np.ndarray, indices: np.ndarray,
+             rhs: np.ndarray) -> np.ndarray:
+        n = len(indptr) - 1
+        x = np.zeros_like(rhs)
+        err = ctypes.c_int32(0)
+        i32 = ctypes.POINTER(ctypes.c_int32)
+        f64 = ctypes.POINTER(ctypes.c_double)
+        self._lib(self.pt.ctypes.data_as(ctypes.POINTER(ctypes.c_int64)), ctypes.byref(ctypes.c_int32(1)),
+                  ctypes.byref(ctypes.c_int32(1)), ctypes.byref(ctypes.c_int32(self.mtype)),
+                  ctypes.byref(ctypes.c_int32(phase)), ctypes.byref(ctypes.c_int32(n)),
+                  data.ctypes.data_as(f64), indptr.ctypes.data_as(i32), indices.ctypes.data_as(i32),
+                  self.perm.ctypes.data_as(i32), ctypes.byref(ctypes.c_int32(1)),
+                  self.iparm.ctypes.data_as(i32), ctypes.byref(ctypes.c_int32(0)),
+                  rhs.ctypes.data_as(f64), x.ctypes.data_as(f64), ctypes.byref(err))
+        if err.value != 0:
+            raise PardisoError(f"MKL PARDISO error {err.value} in phase {phase}")
+        return x
+
+    def release(self) -> None:
+        if self.key is not None:
+            dummy = np.zeros(1)
+            try:
+                self.call(-1, dummy, np.zeros(self.n + 1, np.int32), np.zeros(1, np.int32), np.zeros(self.n))
+            except PardisoError:
+                pass
+            self.key = None
+
+    @property
+    def perturbed_pivots(self) -> int:
+        """Pivots perturbed in the last factorisation (MKL's iparm(14))."""
+        return int(self.iparm[13])
+
+    @property
+    def refinement_steps(self) -> int:
+        """Iterative refinement steps MKL performed in the last solve (MKL's iparm(7))."""
+        return int(self.iparm[6])
+
+
+class SparseSolver:
+    """Solves K x = b for K given by its CSR arrays (full storage).
+
+    ``symmetric=True`` (the default) promises a symmetric positive definite K; otherwise K is
+    factorised by LU. ``pattern`` identifies the sparsity pattern: while it stays the same
+    object (a step's `BlockPattern`), or a new one with the same ``indptr``/``indices`` (the
+    next step, when no block pair gained or lost a contact), PARDISO keeps its symbolic
+    analysis (fill-reducing ordering, ~55 % of a factorisation at 1,600 blocks) and only
+    refactorises; SuperLU cannot reuse one and orders every time.
     """
 
     def __init__(self, backend: str):
         self.backend = resolve(backend)
-        self._pardiso = None
-        self._pattern = None     # the pattern PARDISO's analysis belongs to
-        self._structure = None   # its (indptr, indices), to recognise it in a later step
-        self._upper = None       # (positions of the upper-triangle entries, indptr, indices) of it
+        self._handles: dict[int, _Pardiso] = {}
+        self._upper = None       # (structure key, positions of the upper triangle, indptr, indices)
+        self.last_residual = 0.0  # relative residual of the last PARDISO solve, when it was checked
+
+    def __del__(self):
+        for h in getattr(self, "_handles", {}).values():
+            try:
+                h.release()
+            except Exception:  # noqa: BLE001 - interpreter shutdown
+                pass
 
     def solve(self, data: np.ndarray, indices: np.ndarray, indptr: np.ndarray, rhs: np.ndarray,
-              pattern: object = None) -> np.ndarray:
+              pattern: object = None, symmetric: bool = True) -> np.ndarray:
         n = len(indptr) - 1
         if self.backend == "pardiso":
-            return self._solve_pardiso(data, indices, indptr, rhs, n, pattern)
-        from scipy.sparse import csc_matrix
+            return self._solve_pardiso(data, indices, indptr, rhs, n, symmetric)
+        from scipy.sparse import csc_matrix, csr_matrix
         from scipy.sparse.linalg import splu
 
-        # K is symmetric, so its CSR arrays are also its CSC arrays
-        k = csc_matrix((data, indices, indptr), shape=(n, n))
+        if symmetric:
+            k = csc_matrix((data, indices, indptr), shape=(n, n))  # CSR of a symmetric K = its CSC
+        else:
+            k = csr_matrix((data, indices, indptr), shape=(n, n)).tocsc()
         try:
             lu = splu(k, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
                       options=dict(SymmetricMode=True))
@@ -74,41 +169,68 @@ class SparseSolver:
         except RuntimeError:  # singular factor: reported as a non-finite solution
             return np.full(n, np.nan)
 
-    def _solve_pardiso(self, data, indices, indptr, rhs, n, pattern) -> np.ndarray:
-        import pypardiso
+    def _handle(self, mtype: int) -> _Pardiso:
+        h = self._handles.get(mtype)
+        if h is None:
+            # one handle per matrix type for the whole run: the analysis is kept in it
+            h = self._handles[mtype] = _Pardiso(mtype)
+        return h
+
+    @staticmethod
+    def _same(key, indptr, indices) -> bool:
+        if key is None:
+            return False
+        old_indptr, old_indices = key
+        return (old_indptr is indptr and old_indices is indices) or (
+            len(old_indptr) == len(indptr) and len(old_indices) == len(indices)
+            and np.array_equal(old_indptr, indptr) and np.array_equal(old_indices, indices))
+
+    def _solve_pardiso(self, data, indices, indptr, rhs, n, symmetric) -> np.ndarray:
+        h = self._handle(2 if symmetric else 11)
+        fresh = not self._same(h.key, indptr, indices)
+        if symmetric:
+            # PARDISO reads the upper triangle: which CSR entries those are, once per structure
+            if self._upper is None or not self._same(self._upper[0], indptr, indices):
+                rows = np.repeat(np.arange(n), np.diff(indptr))
+                mask = indices >= rows
+                counts = np.bincount(rows[mask], minlength=n)
+                upper_indptr = np.concatenate([[0], np.cumsum(counts)]).astype(np.int32)
+                # positions, not a boolean mask: a take is ~10x faster than boolean indexing
+                self._upper = ((indptr, indices), np.flatnonzero(mask), upper_indptr,
+                               np.ascontiguousarray(indices[mask], dtype=np.int32))
+            _, pos, a_ptr, a_idx = self._upper
+            a_data = data.take(pos)
+        else:
+            a_ptr = np.ascontiguousarray(indptr, dtype=np.int32)
+            a_idx = np.ascontiguousarray(indices, dtype=np.int32)
+            a_data = np.ascontiguousarray(data, dtype=np.float64)
+        b = np.ascontiguousarray(rhs, dtype=np.float64)
+        try:
+            if fresh:
+                h.release()
+            # 13: analysis + factorisation + solve; 23: factorisation + solve with the analysis
+            x = h.call(13 if fresh else 23, a_data, a_ptr, a_idx, b)
+            if fresh:
+                # kept by reference: pattern arrays are never written after `BlockPattern.build`
+                h.key, h.n = (indptr, indices), n
+            if h.perturbed_pivots:
+                x = self._refine(h, data, indices, indptr, a_data, a_ptr, a_idx, b, x, n)
+        except PardisoError:  # a failed factorisation is a non-finite solution
+            h.key = None
+            return np.full(n, np.nan)
+        return x
+
+    def _refine(self, h, data, indices, indptr, a_data, a_ptr, a_idx, b, x, n) -> np.ndarray:
+        """Iterative refinement where MKL perturbed a pivot: a few solves with the same factor,
+        while the relative residual is above `REFINE_ABOVE`."""
         from scipy.sparse import csr_matrix
 
-        if self._pardiso is None:
-            # one solver object for the whole run: constructing one costs ~0.1 s
-            self._pardiso = pypardiso.PyPardisoSolver(mtype=2)  # real symmetric positive definite
-            self._pardiso.set_iparm(8, 0)  # no iterative refinement: the direct solve is exact
-        solver = self._pardiso
-        fresh = pattern is None or pattern is not self._pattern
-        if fresh and pattern is not None and self._structure is not None:
-            old_indptr, old_indices = self._structure
-            # the same arrays (a `BlockPattern` reused across steps) or equal ones
-            if (old_indptr is indptr and old_indices is indices) or (
-                    len(old_indptr) == len(indptr) and len(old_indices) == len(indices)
-                    and np.array_equal(old_indptr, indptr) and np.array_equal(old_indices, indices)):
-                self._pattern, fresh = pattern, False
-        if fresh:
-            # PARDISO reads the upper triangle: which CSR entries those are, once per pattern
-            rows = np.repeat(np.arange(n), np.diff(indptr))
-            mask = indices >= rows
-            counts = np.bincount(rows[mask], minlength=n)
-            upper_indptr = np.concatenate([[0], np.cumsum(counts)])
-            # positions, not a boolean mask: a take is ~10x faster than boolean indexing
-            self._upper = (np.flatnonzero(mask), upper_indptr, indices[mask])
-            self._pattern = pattern
-            # kept by reference: pattern arrays are never written after `BlockPattern.build`
-            self._structure = (indptr, indices) if pattern is not None else None
-        upper_pos, upper_indptr, upper_indices = self._upper
-        upper = csr_matrix((data.take(upper_pos), upper_indices, upper_indptr), shape=(n, n))
-        try:
-            # 13: analysis + factorisation + solve; 23: factorisation + solve with the analysis
-            solver.set_phase(13 if fresh else 23)
-            x = solver._call_pardiso(upper, np.ascontiguousarray(rhs, dtype=np.float64))
-        except Exception:  # noqa: BLE001 - a failed factorisation is a non-finite solution
-            self._pattern = self._structure = None
-            return np.full(n, np.nan)
-        return np.asarray(x).reshape(n)
+        k = csr_matrix((data, indices, indptr), shape=(n, n))
+        scale = max(float(np.abs(b).max()), 1e-300)
+        for _ in range(3):
+            r = b - k @ x
+            self.last_residual = float(np.abs(r).max()) / scale
+            if self.last_residual <= REFINE_ABOVE:
+                break
+            x = x + h.call(33, a_data, a_ptr, a_idx, np.ascontiguousarray(r))
+        return x

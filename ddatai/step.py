@@ -19,6 +19,7 @@ Each phase is timed into the step record (`ddatai.results.STEP_DTYPE`).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time as _time
 from dataclasses import dataclass
@@ -35,10 +36,8 @@ from .scene import Scene
 
 OPEN, SLIDE, LOCK = int(ContactState.OPEN), int(ContactState.SLIDE), int(ContactState.LOCK)
 VE, VV = int(ContactKind.VE), int(ContactKind.VV)
-#: open-close iteration from which contacts cycling between locked and sliding are held locked
-ANTI_CYCLING_FROM = 4
 # contact-vector slots (see ddatai.kernels)
-S_E0, S_G0, S_E1, S_G1, S_ES, S_GS, S_TJ = range(7)
+S_E0, S_G0, S_E1, S_G1, S_ES, S_GS = range(6)
 
 
 @dataclass
@@ -53,8 +52,28 @@ class _Attempt:
     max_displacement: float = 0.0
     max_penetration: float = 0.0
     ratio: float = 0.0
-    friction: Optional[np.ndarray] = None  # friction loads of the accepted solve
+    friction: Optional[np.ndarray] = None  # friction magnitude S of each contact in the accepted solve
     vec: Optional[np.ndarray] = None       # contact vectors of the accepted solve
+    coulomb: float = 0.0                   # largest (|shear force| − S)/S of a closed contact
+
+
+@dataclass
+class ContactLaw:
+    """The contact law evaluated at one solution D (`Stepper.contact_law`); (m,) arrays."""
+
+    dn: np.ndarray         # normal distance of the less penetrated line [m]
+    ds: np.ndarray         # shear displacement from the lock point [m]
+    line: np.ndarray       # that line (VV contacts)
+    closed: np.ndarray     # closed by the law
+    state: np.ndarray      # the law's state (open, sliding, locked)
+    direction: np.ndarray  # sliding direction sign(ds)
+    fn: np.ndarray         # the law's normal force, compression positive [N/m]
+    ft: np.ndarray         # the law's shear force along ∇ds [N/m]
+    strength: np.ndarray   # Coulomb strength N·tanφ + c·L [N/m]
+    dn_now: np.ndarray     # normal distance of the line the current state uses [m]
+    fn_now: np.ndarray     # normal force of the current state at D [N/m]
+    ft_now: np.ndarray     # shear force of the current state at D [N/m]
+    friction_now: np.ndarray  # friction magnitude of the current (sliding) state at D [N/m]
 
 
 class _Timer:
@@ -146,7 +165,7 @@ class Stepper:
         record = (new_state.time, dt, attempt.iterations, oc_total, cuts, contacts0.n,
                   int(np.count_nonzero(closed)), attempt.max_penetration, attempt.max_displacement,
                   timer.t["contacts"], timer.t["assembly"], timer.t["solve"], timer.t["update"],
-                  *energy, work[0], work[1], dissipated)
+                  *energy, work[0], work[1], dissipated, attempt.coulomb)
         self.last_contacts = attempt.contacts
         return new_state, record
 
@@ -238,10 +257,13 @@ class Stepper:
                               np.ascontiguousarray(geom["centroid"]), contacts.cint, contacts.omega, vec, sca)
         return vec, sca
 
-    def assemble_blocks(self, state: State, geom: dict, pattern: BlockPattern, dt: float
-                        ) -> tuple[np.ndarray, np.ndarray]:
+    def assemble_blocks(self, state: State, geom: dict, pattern: BlockPattern, dt: float,
+                        static_start: bool = False) -> tuple[np.ndarray, np.ndarray]:
         """The part of K and F that does not depend on contact states: inertia, elasticity,
-        initial stress, body force, fixed points and point loads (§2.1–2.6)."""
+        initial stress, body force, fixed points and point loads (§2.1–2.6), the loads and
+        ground acceleration taken at mid-step. ``static_start``: the equilibrium stage's system
+        (`ddatai.start`): loads at t = 0, no ground acceleration, the state's velocities and
+        accelerations ignored."""
         from . import kernels as K
 
         model = self.model
@@ -249,14 +271,17 @@ class Stepper:
         rhs = np.zeros(6 * pattern.n_rows)
         if pattern.n_rows == 0:
             return data, rhs
-        t_mid = state.time + 0.5 * dt
+        t_mid = state.time if static_start else state.time + 0.5 * dt
         body = model.gravity.copy()
-        if model.ground_acceleration is not None:
+        if model.ground_acceleration is not None and not static_start:
             # the ground's frame: every block feels -a_g(t) (§2.4, seismic body force)
             body -= np.asarray(model.ground_acceleration(t_mid), dtype=float)
         mass = mass_matrix(geom["area"], geom["s1"], geom["s2"], geom["s3"])
+        velocity, accel = state.block_velocity, state.block_accel
+        if static_start:
+            velocity, accel = np.zeros_like(velocity), np.zeros_like(accel)
         K.assemble_blocks(self.dof, model.block_density, model.block_elastic, geom["area"], mass,
-                          state.block_velocity, state.block_accel, state.block_stress, float(body[0]),
+                          velocity, accel, state.block_stress, float(body[0]),
                           float(body[1]), dt, self.params.velocity_carry, self.newmark_beta(state),
                           pattern.diag_slot, pattern.stride, data, rhs)
         centroid = np.ascontiguousarray(geom["centroid"])
@@ -282,8 +307,9 @@ class Stepper:
         if contacts.n == 0:
             return
         m = self.model
+        const, slope = self.friction_terms(contacts)
         K.assemble_contacts(contacts.cint, contacts.state, contacts.line, m.vertex_block, self.dof,
-                            vec, sca, self.friction_force(contacts), contacts.shear_dir,
+                            vec, sca, const, slope, contacts.shear_dir,
                             pattern.slot_ab, pattern.slot_ba, pattern.diag_slot, pattern.stride,
                             m.penalty, m.shear_penalty, data, rhs, self._serial_scatter)
 
@@ -335,132 +361,224 @@ class Stepper:
         the contact was closed (§2.8.4)."""
         return contacts.normal_force * contacts.tan_phi + contacts.cohesion * contacts.length * contacts.bond
 
-    def solve(self, pattern: BlockPattern, data: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-        """Solve K D = F (`ddatai.solver`); returns D as (B, 6) with zeros for fixed blocks."""
+    def friction_terms(self, contacts: Contacts) -> tuple[np.ndarray, np.ndarray]:
+        """(a, b) of each sliding contact's friction magnitude S = a − b·dn in the next solve:
+        a coupled contact takes N = −p·dn of that solve (a = c·L, b = p·tanφ), the others the
+        N of an earlier one (a = `friction_force`, b = 0)."""
+        cohesion = contacts.cohesion * contacts.length * contacts.bond
+        a = np.where(contacts.coupled, cohesion, self.friction_force(contacts))
+        b = np.where(contacts.coupled, self.model.penalty * contacts.tan_phi, 0.0)
+        return a, b
+
+    def solve(self, pattern: BlockPattern, data: np.ndarray, rhs: np.ndarray, symmetric: bool = True
+              ) -> np.ndarray:
+        """Solve K D = F (`ddatai.solver`); returns D as (B, 6) with zeros for fixed blocks.
+        ``symmetric=False`` when coupled friction made K non-symmetric."""
         d = np.zeros((self.model.n_blocks, 6))
         if pattern.n_rows == 0:
             return d
-        x = self.solver.solve(data, pattern.indices, pattern.indptr, rhs, pattern=pattern)
+        x = self.solver.solve(data, pattern.indices, pattern.indptr, rhs, pattern=pattern,
+                              symmetric=symmetric)
         d[self.free_idx] = x.reshape(-1, 6)
         return d
 
-    def judge(self, contacts: Contacts, vec: np.ndarray, sca: np.ndarray, disp: np.ndarray,
-              vertex_xy: np.ndarray, geom: dict, shift: Optional[np.ndarray] = None,
-              flips: Optional[np.ndarray] = None, hold: bool = False) -> bool:
-        """Open-close judgement (§4.2–4.3) in place; returns True if any state changed.
+    def contact_law(self, contacts: Contacts, vec: np.ndarray, sca: np.ndarray, disp: np.ndarray,
+                    shift: Optional[np.ndarray] = None) -> "ContactLaw":
+        """The contact law at the displacements ``disp`` (§2.8, §4.3), without changing
+        ``contacts``.
 
-        Normal: an open contact closes when it penetrates deeper than close_tol; a closed one
-        opens when its normal distance exceeds open_tol (+ T·L/p while bonded). Shear (vertex-
-        edge contacts, force form): locked while k_s|ds| <= N tanφ + cL; a sliding contact
-        locks again when the sliding direction reverses by more than reversal_tol (φ > 0.9°).
+        A contact is closed while its normal distance dn ≤ T·L/p (bonded) or 0, with normal
+        force −p·dn; a closed vertex-edge contact sticks while its shear spring force k_s·ds ≤
+        S = N·tanφ + c·L (bonded), else it slides with friction S against the sign of ds (the
+        return mapping of a penalty-regularised Coulomb law: ds is measured from the lock point
+        of the step start, so a sliding contact's trial force starts at its friction). Also
+        the forces that the state each contact has now gives at ``disp``.
         """
         m = self.model
-        ci = contacts.cint
         a, b = contacts.block_a, contacts.block_b
         da, db = disp[a], disp[b]
         shift = np.zeros_like(sca) if shift is None else shift
         dn0 = sca[:, 0] + shift[:, 0] + np.einsum("ij,ij->i", vec[:, S_E0], da) + \
             np.einsum("ij,ij->i", vec[:, S_G0], db)
-        kind = ci[:, KIND]
-        vv = kind == VV
+        vv = contacts.cint[:, KIND] == VV
         ve = ~vv
-        dn = dn0.copy()
-        line = contacts.line.copy()
-        prev = contacts.state
-        was_open = prev == OPEN
+        dn_now = dn0.copy()   # normal distance of the line the contact's state uses
+        dn = dn0.copy()       # of the line the law uses: the less penetrated one
+        line = np.zeros(contacts.n, np.int8)
         if vv.any():
-            # line 1: vertex1 (of block b) against an edge of block a. The less penetrated line
-            # acts; a closed contact switches only when the other line is clearly less
-            # penetrated (beyond open_tol), so exact ties (touching corners) do not flip.
+            # line 1: vertex1 (of block b) against an edge of block a
             dn1 = sca[vv, 1] + shift[vv, 1] + np.einsum("ij,ij->i", vec[vv, S_E1], db[vv]) + \
                 np.einsum("ij,ij->i", vec[vv, S_G1], da[vv])
             dnl = np.stack([dn0[vv], dn1], axis=1)
-            cur = line[vv].astype(np.int64)
-            other = 1 - cur
-            rows = np.arange(len(cur))
-            switch = dnl[rows, other] > dnl[rows, cur] + np.where(was_open[vv], 0.0, m.open_tol)
-            line[vv] = np.where(switch, other, cur).astype(np.int8)
+            rows = np.arange(len(dn1))
+            dn_now[vv] = dnl[rows, contacts.line[vv]]
+            line[vv] = (dn1 > dn0[vv]).astype(np.int8)
             dn[vv] = dnl[rows, line[vv]]
-        # an open contact closes when it penetrates; a closed one opens as soon as it pulls
-        # harder than the tensile strength of a bonded joint (force p·dn > T·L)
+        ds = np.where(ve, sca[:, 2] + shift[:, 2] + np.einsum("ij,ij->i", vec[:, S_ES], da) +
+                      np.einsum("ij,ij->i", vec[:, S_GS], db), 0.0)
+        # normal: closed while not pulled beyond the tensile strength of a bonded joint
         allowance = np.where(contacts.bond, contacts.tensile * contacts.length / m.penalty, 0.0)
-        closed = np.where(was_open, dn < -m.close_tol, dn <= allowance + m.open_tol)
+        closed = dn <= allowance
+        strength = m.penalty * np.maximum(-dn, 0.0) * contacts.tan_phi + \
+            contacts.cohesion * contacts.length * contacts.bond
+        trial = m.shear_penalty * ds
+        stick = np.abs(trial) <= strength
+        ft = np.where(closed & ve, np.where(stick, trial, np.sign(ds) * strength), 0.0)
+        state = np.where(closed, np.where(ve & stick, LOCK, SLIDE), OPEN).astype(np.int8)
+        # the forces of the current states at this D
+        now = contacts.state
+        fn_now = np.where(now == OPEN, 0.0, -m.penalty * dn_now)
+        friction_now = self._friction_used(contacts, dn_now)
+        ft_now = np.where(now == LOCK, trial, np.where(now == SLIDE, contacts.shear_dir * friction_now, 0.0))
+        ft_now[vv] = 0.0
+        return ContactLaw(dn=dn, ds=ds, line=line, closed=closed, state=state,
+                          direction=np.where(ds >= 0, 1, -1).astype(np.int8), fn=np.where(closed, -m.penalty * dn, 0.0),
+                          ft=ft, strength=strength, dn_now=dn_now, fn_now=fn_now, ft_now=ft_now,
+                          friction_now=friction_now)
 
-        new_state = np.where(closed, SLIDE, OPEN).astype(np.int8)
-        omega_changed = False
-        just_closed = closed & was_open & ve
-        if just_closed.any():
-            # lock position: where the vertex crossed the reference line during the step (§2.8.3)
-            self._omega_at_crossing(contacts, just_closed, dn0, sca, disp, vertex_xy, geom)
-            omega_changed = True
-        if omega_changed:
-            vec[:], sca[:] = self.contact_vectors(vertex_xy, geom, contacts)
-        ds = sca[:, 2] + shift[:, 2] + np.einsum("ij,ij->i", vec[:, S_ES], da) + \
-            np.einsum("ij,ij->i", vec[:, S_GS], db)
-        normal = m.penalty * np.maximum(-dn, 0.0)
-        strength = normal * contacts.tan_phi + contacts.cohesion * contacts.length * contacts.bond
-        # a round-off allowance on ds (not open_tol: any larger allowance would act as a
-        # cohesion ks·allowance per contact)
-        holds = m.shear_penalty * (np.abs(ds) - m.roundoff) <= strength
-        sliding_before = prev == SLIDE
-        # a sliding contact locks when its motion in this step runs against its sliding
-        # direction (ds is measured from an anchor that carries the friction force, so the
-        # motion is ds - ds at the step start)
-        motion = ds - sca[:, 2]
-        turned = sliding_before & (motion * contacts.shear_dir < -m.reversal_tol)
-        frictional = contacts.friction_deg > 0.9
-        lock = closed & ve & np.where(sliding_before, turned & frictional, holds)
-        new_state[lock] = LOCK
-        # a new sliding direction: contacts that start sliding, and frictionless ones that turn
-        # round (smaller reversals keep the direction: they are round-off, not stick)
-        start_slide = closed & ve & ~lock & ((prev != SLIDE) | (turned & ~frictional))
-        # direction of the new sliding: the motion in this step when it is significant (in an
-        # impact the vertex may move against the spring's stretch, and friction must oppose the
-        # motion), else the spring's stretch (Shi's rule, right for quasi-static loading); for a
-        # contact that just closed, ds is the motion since the crossing
-        significant = ~was_open & (np.abs(motion) > m.reversal_tol)
-        new_dir = np.where(np.where(significant, motion, ds) >= 0, 1, -1).astype(np.int8)
-        contacts.shear_dir[start_slide] = new_dir[start_slide]
+    def judge(self, contacts: Contacts, law: "ContactLaw") -> bool:
+        """Open-close judgement (§4.2–4.3) in place; returns True if a contact must change.
 
-        # the entrance line of a vertex-vertex contact matters only while it is closed
-        switched = vv & (line != contacts.line) & (new_state != OPEN) & (prev != OPEN)
-        change = (new_state != prev) | switched
-        if flips is not None:
-            if hold:
-                # anti-cycling: a closed contact switching between locked and sliding for the
-                # third time in this attempt is cycling with others at the friction limit;
-                # hold it locked (its force stays within the cycle's amplitude of the limit) so
-                # that the rest can settle. Open/closed decisions are never held: forcing a
-                # separating contact shut, or a penetrating one open, injects energy.
-                cycling = change & (flips >= 2) & ve & (prev != OPEN) & (new_state != OPEN)
-                new_state[cycling] = LOCK
-                change = (new_state != prev) | switched
-            flips += change
-        changed = bool(np.any(change))
-        contacts.normal_force[~was_open] = normal[~was_open]
-        contacts.state[:] = new_state
-        contacts.line[:] = line
-        contacts.dn[:] = dn
-        contacts.ds[:] = ds
+        The solve assumed a state for each contact; ``law`` (`contact_law` at the solution)
+        compares the force that state gives with the law's force. Where they differ by more
+        than ``oc_force_tolerance`` × the force plus the round-off force p·open_tolerance·w0,
+        the contact takes the law's state — a sliding one with its friction from the solve it
+        is in (it becomes `coupled`: implicit friction) — and the step iterates again. When
+        none differ, every contact obeys Coulomb's law at the solution, and the states are
+        kept.
+        """
+        m, p = self.model, self.params
+        vv = contacts.cint[:, KIND] == VV
+        scale = np.maximum(np.maximum(np.abs(law.fn), np.abs(law.fn_now)),
+                           np.maximum(np.abs(law.ft), np.abs(law.ft_now)))
+        tol = p.oc_force_tolerance * scale + m.force_roundoff
+        bad = (np.abs(law.fn_now - law.fn) > tol) | (np.abs(law.ft_now - law.ft) > tol)
+        # a VV contact whose other line is clearly less penetrated switches even when both
+        # lines give (nearly) the same force
+        bad |= vv & (contacts.state != OPEN) & (law.line != contacts.line) & \
+            (m.penalty * np.abs(law.dn - law.dn_now) > tol)
+        self.last_bad = bad
+        changed = bool(np.any(bad))
+        if changed:
+            slide = bad & (law.state == SLIDE) & ~vv
+            # friction from the same solve from now on: the normal force of the last solve is
+            # stale for a contact that was locked or open in it, or whose force moved
+            contacts.coupled |= slide
+            contacts.shear_dir[slide] = law.direction[slide]
+            contacts.state[bad] = law.state[bad]
+            contacts.line[bad] = law.line[bad]
+        closed = law.closed
+        contacts.normal_force[closed] = np.maximum(law.fn[closed], 0.0)
+        contacts.dn[:] = np.where(bad, law.dn, law.dn_now)
+        contacts.ds[:] = law.ds
+        if not changed:
+            closed_ve = (contacts.state != OPEN) & ~vv
+            excess = (np.abs(law.ft_now) - law.strength) / (law.strength + m.force_roundoff)
+            self._coulomb = float(np.max(excess[closed_ve], initial=0.0))
+            self._friction = law.friction_now
         return changed
 
-    def _omega_at_crossing(self, contacts: Contacts, sel: np.ndarray, dn0: np.ndarray, sca: np.ndarray,
-                           disp: np.ndarray, vertex_xy: np.ndarray, geom: dict) -> None:
-        from .geometry import displacement_matrix
+    def _friction_used(self, contacts: Contacts, dn: np.ndarray) -> np.ndarray:
+        """Friction magnitude S each contact's state applies in a solve with normal distance
+        ``dn`` (`friction_terms`)."""
+        const, slope = self.friction_terms(contacts)
+        return const - slope * dn
 
-        m = self.model
-        ci = contacts.cint[sel]
-        start = sca[sel, 0]
-        end = dn0[sel]
-        frac = np.where(start > 0, start / np.maximum(start - end, 1e-300), 0.0)
-        frac = np.clip(frac, 0.0, 1.0)
-        idx = np.stack([ci[:, V0], m.vertex_next[ci[:, E0]], ci[:, E0]], axis=1)  # P1, P2, P3
-        blocks = m.vertex_block[idx]
-        pts = vertex_xy[idx]
-        u = np.einsum("nkij,nkj->nki", displacement_matrix(pts, geom["centroid"][blocks]), disp[blocks])
-        pts = pts + frac[:, None, None] * u
-        d = pts[:, 2] - pts[:, 1]
-        contacts.omega[sel] = ((pts[:, 0] - pts[:, 1]) * d).sum(axis=1) / (d * d).sum(axis=1)
+    def internal_force(self, contacts: Contacts, vec: np.ndarray, law: "ContactLaw") -> np.ndarray:
+        """Generalised forces (6 per free block) of the contact forces of ``law``: the gradient
+        of the spring energies, p·dn·∇dn of a closed contact and f_t·∇ds of its shear force."""
+        rows = self.model.n_free
+        out = np.zeros(6 * rows)
+        if contacts.n == 0:
+            return out
+        pull = np.where(law.closed, -law.fn, 0.0)  # p·dn
+        line1 = (law.line == 1)[:, None]
+        grad_a = np.where(line1, vec[:, S_G1], vec[:, S_E0])
+        grad_b = np.where(line1, vec[:, S_E1], vec[:, S_G0])
+        fa = pull[:, None] * grad_a + law.ft[:, None] * vec[:, S_ES]
+        fb = pull[:, None] * grad_b + law.ft[:, None] * vec[:, S_GS]
+        k = np.arange(6)
+        for blocks, f in ((contacts.block_a, fa), (contacts.block_b, fb)):
+            r = self.dof[blocks]
+            use = r >= 0
+            out += np.bincount((6 * r[use])[:, None].repeat(6, 1).ravel() + np.tile(k, int(use.sum())),
+                               weights=f[use].ravel(), minlength=6 * rows)
+        return out
+
+    def open_close(self, state: State, geom: dict, contacts: Contacts, pattern: BlockPattern,
+                   vec: np.ndarray, sca: np.ndarray, data0: np.ndarray, rhs0: np.ndarray,
+                   rotation: np.ndarray, timer: "_Timer", max_iterations: int
+                   ) -> tuple[Optional[np.ndarray], int, bool]:
+        """The open-close iteration (§4) in place on ``contacts``: (D, iterations, converged);
+        D is None when a solve is not finite.
+
+        Semismooth Newton on the contact law: each solve takes the contact states (and the
+        Jacobian of their forces) at the last iterate, so when no state has to change the
+        solution satisfies the law at every contact. A step of Newton's method can overshoot
+        into a state that sends the next one back (a contact that carries almost no normal
+        force, flipping between sticking and sliding); from the second solve on it is
+        shortened by a backtracking line search on the residual norm ½·Rᵀ·diag(K)⁻¹·R, which
+        makes every iterate reduce it, so the iteration cannot cycle.
+        """
+        from scipy.sparse import csr_matrix
+
+        n = 6 * pattern.n_rows
+        previous = None  # last iterate D
+        disp = None
+        for it in range(1, max_iterations + 1):
+            t0 = _time.perf_counter()
+            data, rhs = data0.copy(), rhs0.copy()
+            shift = self.second_order(contacts, state, geom, rotation, pattern, rhs)
+            block_rhs = rhs.copy()
+            self.assemble_contacts(contacts, pattern, vec, sca + shift, data, rhs)
+            t0 = timer.add("assembly", t0)
+            symmetric = not bool(np.any(contacts.coupled & (contacts.state == SLIDE) & (contacts.tan_phi > 0)))
+            solution = self.solve(pattern, data, rhs, symmetric=symmetric)
+            t0 = timer.add("solve", t0)
+            if not np.all(np.isfinite(solution)):
+                return None, it, False
+            law = self.contact_law(contacts, vec, sca, solution, shift)
+            disp = solution
+            if previous is not None and self._needs_change(contacts, law):
+                disp, law = self._line_search(contacts, vec, sca, shift, previous, solution, law,
+                                              csr_matrix((data0, pattern.indices, pattern.indptr), shape=(n, n)),
+                                              block_rhs, data, pattern)
+            rotation = disp[:, 2].copy()
+            changed = self.judge(contacts, law)
+            timer.add("update", t0)
+            if not changed and disp is solution:
+                return disp, it, True
+            previous = disp
+        return disp, max_iterations, False
+
+    def _needs_change(self, contacts: Contacts, law: "ContactLaw") -> bool:
+        m, p = self.model, self.params
+        scale = np.maximum(np.maximum(np.abs(law.fn), np.abs(law.fn_now)),
+                           np.maximum(np.abs(law.ft), np.abs(law.ft_now)))
+        tol = p.oc_force_tolerance * scale + m.force_roundoff
+        return bool(np.any((np.abs(law.fn_now - law.fn) > tol) | (np.abs(law.ft_now - law.ft) > tol)))
+
+    def _line_search(self, contacts, vec, sca, shift, previous, solution, law, block_k, block_rhs,
+                     data, pattern):
+        """Backtracking (Armijo) from the last iterate towards the new solution on the merit
+        ½·Rᵀ·diag(K)⁻¹·R, R = K_blocks·D − F_blocks + contact forces of the law at D."""
+        rows = self.free_idx
+        diag = data[(pattern.diag_slot[:, None] + np.arange(6)[None, :] * (pattern.stride[:, None] + 1)).ravel()]
+        weight = 1.0 / np.abs(diag)
+
+        def merit(d, lw):
+            r = block_k @ d[rows].ravel() - block_rhs + self.internal_force(contacts, vec, lw)
+            return 0.5 * float(np.dot(r * weight, r))
+
+        base = merit(previous, self.contact_law(contacts, vec, sca, previous, shift))
+        alpha, d, lw = 1.0, solution, law
+        while alpha > 1.0 / 64:
+            if merit(d, lw) <= (1.0 - 1e-4 * alpha) * base:
+                break
+            alpha *= 0.5
+            d = previous + alpha * (solution - previous)
+            lw = self.contact_law(contacts, vec, sca, d, shift)
+        return d, lw
 
     def _attempt(self, state: State, geom: dict, contacts0: Contacts, pattern: BlockPattern,
                  vec0: np.ndarray, sca0: np.ndarray, dt: float, timer: _Timer) -> _Attempt:
@@ -470,41 +588,25 @@ class Stepper:
         contacts = contacts0.copy()
         vec, sca = vec0.copy(), sca0.copy()
         data0, rhs0 = self.assemble_blocks(state, geom, pattern, dt)
-        t0 = timer.add("assembly", t0)
-        converged = False
-        disp = None
-        it = 0
-        flips = np.zeros(contacts.n, np.int64)
+        timer.add("assembly", t0)
         # rotation of each block in this step: predicted from the carried motion, then the
         # latest iterate's (for the second-order terms of the constraints)
         rotation = dt * p.velocity_carry * state.block_velocity[:, 2] + 0.5 * dt * dt * state.block_accel[:, 2]
         rotation[m.block_fixed] = 0.0
-        for it in range(1, p.oc_max_iterations + 1):
-            data, rhs = data0.copy(), rhs0.copy()
-            shift = self.second_order(contacts, state, geom, rotation, pattern, rhs)
-            self.assemble_contacts(contacts, pattern, vec, sca + shift, data, rhs)
-            t0 = timer.add("assembly", t0)
-            disp = self.solve(pattern, data, rhs)
-            t0 = timer.add("solve", t0)
-            if not np.all(np.isfinite(disp)):
-                return _Attempt(ok=False, cause="nan", iterations=it)
-            rotation = disp[:, 2].copy()
-            friction = self.friction_force(contacts)  # the loads of this solve, for the energy balance
-            changed = self.judge(contacts, vec, sca, disp, state.vertex_xy, geom, shift=shift, flips=flips,
-                                 hold=it >= ANTI_CYCLING_FROM)
-            t0 = timer.add("update", t0)
-            if not changed:
-                converged = True
-                break
+        disp, it, converged = self.open_close(state, geom, contacts, pattern, vec, sca, data0, rhs0,
+                                              rotation, timer, p.oc_max_iterations)
+        if disp is None:
+            return _Attempt(ok=False, cause="nan", iterations=it)
         if not converged:
             return _Attempt(ok=False, cause="open-close", iterations=it)
+        t0 = _time.perf_counter()
         umax = self._max_vertex_displacement(state.vertex_xy, geom, disp)
         closed = contacts.state != OPEN
         pen = float(np.max(-contacts.dn[closed], initial=0.0))
         ratio = umax / m.max_step
         result = _Attempt(ok=True, displacement=disp, contacts=contacts, iterations=it,
                           max_displacement=umax, max_penetration=max(pen, 0.0), ratio=ratio,
-                          friction=friction, vec=vec)
+                          friction=self._friction, vec=vec, coulomb=self._coulomb)
         if ratio > p.displacement_reject:
             result.ok, result.cause = False, "displacement"
         elif pen > m.penetration_limit:
@@ -615,6 +717,11 @@ def simulate(scene: Scene, params: Optional[Params] = None, duration: Optional[f
     stepper = Stepper(model)
     state = model.initial_state()
     recorder = Recorder(model, record_contacts)
+    if model.params.initial_equilibrium:
+        from .start import settle
+
+        state, start = settle(stepper, state)
+        recorder.start.append(dataclasses.astuple(start))
     recorder.frame(state, model.block_geometry(state.vertex_xy)["centroid"])
     n = 0
     while True:

@@ -109,12 +109,11 @@ class _StopRun(Exception):
 # ---------------------------------------------------------------------- sub-model
 def sub_scene(scene: Scene, system: BlockSystem, blocks: frozenset, *, removed: frozenset = frozenset(),
               free_neighbours: bool = False, friction: Optional[float] = None,
-              reduction: float = 1.0, gravity_ramp: float = 0.0) -> tuple[Scene, list[int]]:
+              reduction: float = 1.0) -> tuple[Scene, list[int]]:
     """The part of the scene a judgement needs: the group (free), the blocks touching it
     (fixed, or free with ``free_neighbours`` and then the next ring fixed); removed blocks
     and everything farther away left out. Every joint gets the friction angle ``friction``
-    [degrees] if given, and tanφ and c divided by ``reduction``. With ``gravity_ramp`` [s] > 0
-    gravity grows from 0 to its full value over that time (see `_ramped_gravity`).
+    [degrees] if given, and tanφ and c divided by ``reduction``.
 
     Returns the sub-scene and the original id of each of its blocks.
     """
@@ -137,27 +136,7 @@ def sub_scene(scene: Scene, system: BlockSystem, blocks: frozenset, *, removed: 
     sub.point_loads = [PointSpec(block=new_id[p.block], xy=p.xy, force=p.force)
                        for p in scene.point_loads if p.block in new_id]
     sub.ground_acceleration = scene.ground_acceleration
-    if gravity_ramp > 0:
-        sub.ground_acceleration = _ramped_gravity(scene.gravity, gravity_ramp, scene.ground_acceleration)
     return sub, ids
-
-
-def _ramped_gravity(gravity: float, ramp: float, shaking):
-    """Ground acceleration that makes the body force grow smoothly from 0 to full gravity.
-
-    Gravity switched on at once excites the contacts' elastic modes: the first steps overshoot
-    the static contact forces (up to twice) and a group close to its limit slips a little
-    before it settles or runs away, so verdicts near the limit follow that transient instead of
-    the strength. In the ground's frame a block feels g − a_g (`ddatai.Scene.set_ground_acceleration`);
-    a_g = (0, −g·(1 − s(t))) with s = ½(1 − cos(πt/ramp)) gives the body force −g·s(t), loading
-    the group quasi-statically. The scene's own shaking, if any, is added.
-    """
-    def fn(t: float) -> tuple[float, float]:
-        s = 1.0 if t >= ramp else 0.5 * (1.0 - math.cos(math.pi * t / ramp))
-        ax, ay = shaking(t) if shaking is not None else (0.0, 0.0)
-        return (float(ax), float(ay) - gravity * (1.0 - s))
-
-    return fn
 
 
 def _reduced(joint: Joint, friction: Optional[float], reduction: float) -> Joint:
@@ -168,9 +147,12 @@ def _reduced(joint: Joint, friction: Optional[float], reduction: float) -> Joint
 
 
 def run_params(params: Optional[Params], settings: DdaSettings) -> Params:
-    """The DDA parameters of a judgement: the given ones with the cohesion rule of the settings."""
+    """The DDA parameters of a judgement: the given ones with the cohesion rule of the settings,
+    started from gravitational equilibrium (`ddatai.Params.initial_equilibrium`): switched on at
+    once, gravity overshoots the static contact forces and a group near its limit slips in the
+    first steps, so the verdict would follow that transient instead of the strength."""
     params = settings.params or params or Params()
-    return replace(params, bond_breaks_on_slip=not settings.cohesion_held)
+    return replace(params, bond_breaks_on_slip=not settings.cohesion_held, initial_equilibrium=True)
 
 
 def group_size(system: BlockSystem, blocks: frozenset) -> float:
@@ -193,10 +175,10 @@ def judge(scene: Scene, system: BlockSystem, blocks: frozenset, *, settings: Dda
     from ddatai.step import simulate  # starts Taichi
 
     sub, ids = sub_scene(scene, system, blocks, removed=removed, free_neighbours=settings.free_neighbours,
-                         friction=friction, reduction=reduction, gravity_ramp=settings.gravity_ramp)
+                         friction=friction, reduction=reduction)
     prm = run_params(params, settings)
     delta = settings.displacement_ratio * group_size(system, blocks)
-    duration = settings.gravity_ramp + (settings.duration or math.sqrt(2.0 * delta / settings.acceleration_resolution))
+    duration = settings.duration or math.sqrt(2.0 * delta / settings.acceleration_resolution)
     origin = build_model(sub, prm).origin
     pos = [ids.index(b) for b in sorted(blocks)]
     counts = np.array([len(s.vertices) for s in sub.blocks])

@@ -31,10 +31,9 @@ class DdaSettings:
 
     A run simulates the group and the blocks it touches (held fixed, as KGM assumes
     non-members stay in place; ``free_neighbours`` lets them move and fixes the next ring),
-    from rest: gravity grows smoothly to its full value over ``gravity_ramp`` (quasi-static
-    loading: switched on at once, it overshoots the static contact forces and a group near its
-    limit slips in the first steps — its verdict then follows that transient, not the
-    strength), then runs for a time T. The group is **unstable** if its largest member displacement
+    from its gravitational equilibrium (`ddatai.Params.initial_equilibrium`: gravity switched
+    on at once overshoots the static contact forces and a group near its limit slips in the
+    first steps — its verdict would follow that transient, not the strength), for a time T. The group is **unstable** if its largest member displacement
     d(T) ≥ δ and it is still moving at the end: its mean speed over the last quarter of the
     run is ≥ δ/T (a group sliding with constant acceleration a has d = aT²/2 and that speed
     7aT/8, so it passes as soon as d ≥ δ). Otherwise it is **stable**: it stayed within δ, or
@@ -57,9 +56,6 @@ class DdaSettings:
     """δ as a fraction of the group's size √(area) [-]."""
     acceleration_resolution: float = 0.05
     """a_r: smallest acceleration a run must detect [m/s²] (sets T when ``duration`` is None)."""
-    gravity_ramp: float = 0.5
-    """Time over which gravity grows from 0 to its full value before T starts [s] (0: at once);
-    long against the contacts' elastic periods (milliseconds for rock blocks)."""
     stop_ratio: float = 4.0
     """Stop a run as unstable once the displacement exceeds this many δ [-]."""
     cohesion_held: bool = True
@@ -83,8 +79,6 @@ class DdaSettings:
         _require(self.params is None or isinstance(self.params, Params),
                  f"DdaSettings.params must be a ddatai.Params or None, got {type(self.params).__name__}")
         _positive(self, "duration", allow_none=True)
-        _require(isinstance(self.gravity_ramp, (int, float)) and math.isfinite(self.gravity_ramp)
-                 and self.gravity_ramp >= 0, f"DdaSettings.gravity_ramp must be >= 0 s, got {self.gravity_ramp!r}")
         for name in ("displacement_ratio", "acceleration_resolution", "friction_tolerance", "fs_tolerance"):
             _positive(self, name)
         _require(isinstance(self.stop_ratio, (int, float)) and self.stop_ratio >= 1.0,

@@ -73,10 +73,52 @@ def test_pardiso_reuses_analysis_only_for_the_same_structure():
     solver.solve(data, pattern.indices, pattern.indptr, rhs, pattern=pattern)
     same = copy.deepcopy(pattern)  # a new object, the same structure
     scaled = data * 1.7 + 0.0
+    handle = solver._handles[2]
+    analysis = handle.key
     x = solver.solve(scaled, same.indices, same.indptr, rhs, pattern=same)
-    assert solver._pattern is same
+    assert handle.key is analysis  # the analysis of the first structure is kept
     K = csr_matrix((scaled, pattern.indices, pattern.indptr), shape=(n, n))
     assert np.abs(K @ x - rhs).max() < 1e-10 * np.abs(rhs).max()
     y = solver.solve(data2, other.indices, other.indptr, rhs2, pattern=other)
+    assert handle.key is not analysis
     K2 = csr_matrix((data2, other.indices, other.indptr), shape=(len(rhs2), len(rhs2)))
     assert np.abs(K2 @ y - rhs2).max() < 1e-10 * np.abs(rhs2).max()
+
+
+def _non_symmetric(seed):
+    """The system with implicit friction on every closed contact: K is not symmetric."""
+    pattern, data, rhs = _system(seed)
+    rng = np.random.default_rng(seed)
+    n = len(rhs)
+    K = csr_matrix((data, pattern.indices, pattern.indptr), shape=(n, n))
+    rows = np.repeat(np.arange(n), np.diff(pattern.indptr))
+    off = rows != pattern.indices
+    data = data + off * rng.normal(0, 0.05, len(data)) * np.abs(data)
+    assert abs(csr_matrix((data, pattern.indices, pattern.indptr), shape=(n, n)) - K.T).max() > 0
+    return pattern, data, rhs
+
+
+@pytest.mark.parametrize("backend", ["scipy", pytest.param("pardiso", marks=pytest.mark.skipif(
+    not HAS_PARDISO, reason="pypardiso is not installed (optional accelerator)"))])
+def test_non_symmetric_solve(backend):
+    pattern, data, rhs = _non_symmetric(3)
+    n = len(rhs)
+    x = SparseSolver(backend).solve(data, pattern.indices, pattern.indptr, rhs, symmetric=False)
+    K = csr_matrix((data, pattern.indices, pattern.indptr), shape=(n, n))
+    assert np.abs(K @ x - rhs).max() < 1e-10 * np.abs(rhs).max()
+
+
+@pytest.mark.skipif(not HAS_PARDISO, reason="pypardiso is not installed (optional accelerator)")
+def test_pardiso_takes_its_parameters():
+    """MKL ignores every iparm unless iparm[0] = 1, and then refines each solve twice; ddatai's
+    settings must stick: no refinement performed, METIS ordering, zero-based indices."""
+    pattern, data, rhs = _system(0)
+    solver = SparseSolver("pardiso")
+    solver.solve(data, pattern.indices, pattern.indptr, rhs)
+    ip = solver._handles[2].iparm
+    assert ip[0] == 1 and ip[1] == 2 and ip[7] == 0 and ip[34] == 1
+    assert solver._handles[2].refinement_steps == 0
+    pattern, data, rhs = _non_symmetric(1)
+    solver.solve(data, pattern.indices, pattern.indptr, rhs, symmetric=False)
+    h = solver._handles[11]
+    assert h.iparm[0] == 1 and h.iparm[7] == 0 and h.refinement_steps == 0

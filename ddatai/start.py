@@ -1,0 +1,235 @@
+"""Start from equilibrium: the model's gravitational (and initial-load) equilibrium before t = 0.
+
+Gravity switched on at t = 0 is an impulsive load: contact springs that start unloaded
+overshoot the static forces, bonded joints slip in the first steps and lose their cohesion,
+and a slope that limit equilibrium calls stable can fail in its own start-up transient
+(dda-method.md §8.12). UDEC/3DEC and FLAC models start with an equilibrium stage, ntdda with its
+gravity turn-on phase. ddatai's stage (`Params.initial_equilibrium`, on by default) is a static
+solve of the model under its weight, the point loads at t = 0 and its initial stresses:
+
+1. The contacts that touch at t = 0 start locked; the open-close iteration then applies the
+   contact law of a step (no tension beyond a bond's strength, Coulomb friction with
+   cohesion) with one difference: joints are Mohr–Coulomb, perfectly plastic — a contact
+   loaded to its strength slides and keeps its cohesion while its load moves to the rest of
+   the joint and to other joints. The ground acceleration is the dynamic input and is left out.
+2. K is the static stiffness (elastic blocks, contact and fixed-point springs) plus the
+   inertia of a very long pseudo time step, over which free fall would cover 1e4 block sizes:
+   it keeps K regular for a block that nothing holds and does not change a held block's
+   displacement measurably.
+3. A block that moves more than 1 % of its size is a mechanism that the contacts cannot hold:
+   a free block, one balanced on a corner, a column that topples, a group that limit
+   equilibrium calls unstable. It is *released*: its contacts leave the stage and it starts at
+   t = 0 from its initial position under sudden gravity (as without the stage), and the others
+   are solved again.
+4. The held blocks move by the solution (their elastic settlement), their stresses and contact
+   springs carry the equilibrium forces, and their velocities are the scene's initial ones. A
+   contact that reached its strength in the stage starts locked at its strength with its bond
+   intact.
+
+So a model that limit equilibrium calls stable moves no more than its elastic settlement, and
+one that it calls unstable starts failing at once: its released blocks start under sudden
+gravity, and their bonded joints lose their bonds as soon as they slide or open (Shi's rule,
+`Params.bond_breaks_on_slip`), as does a bonded joint that the stage finds pulled beyond its
+tensile strength. `StartRecord` counts the contacts that reached their strength.
+"""
+
+from __future__ import annotations
+
+import time as _time
+from dataclasses import dataclass
+
+import numpy as np
+
+from .contacts import BlockPattern, Contacts, detect_contacts
+from .model import ContactMemory, ContactState, State
+
+OPEN, SLIDE, LOCK = int(ContactState.OPEN), int(ContactState.SLIDE), int(ContactState.LOCK)
+
+#: the pseudo time step: free fall over it covers this many median block sizes
+FALL_IN_SIZES = 1e4
+#: a block that moves more than this fraction of its size √area in the stage is a mechanism
+MECHANISM_SIZE = 1e-2
+#: at most this many solves in a pseudo-step (each adds contacts that open, close or slide, or
+#: releases mechanisms)
+MAX_SOLVES = 40
+#: at most this many pseudo-steps (each re-solves the increment at the settled geometry; the
+#: second is ~strain × the first, the third round-off)
+MAX_PSEUDO_STEPS = 8
+
+
+@dataclass(frozen=True, kw_only=True)
+class StartRecord:
+    """What the equilibrium stage did (`Results.start`)."""
+
+    solves: int
+    """Static solves of the stage (0: nothing to settle) [-]."""
+    held: int
+    """Free blocks held in equilibrium by their contacts [-]."""
+    released: int
+    """Free blocks released as mechanisms (start under sudden gravity) [-]."""
+    settlement: float
+    """Largest vertex displacement of a held block in the stage [m]."""
+    at_strength: int
+    """Contacts of held blocks that reached their strength in the stage (they start locked at
+    it, bonds intact) [-]."""
+    wall_time: float
+    """Wall time of the stage [s]."""
+
+
+def needs_settling(model) -> bool:
+    """Whether anything loads the model at t = 0: gravity, point loads or initial stresses."""
+    if model.n_free == 0:
+        return False
+    loaded = bool(np.any(model.gravity != 0.0)) or len(model.load_block) > 0
+    return loaded or bool(np.any(model.initial_stress[~model.block_fixed] != 0.0))
+
+
+def settle(stepper, state: State) -> tuple[State, StartRecord]:
+    """The model's equilibrium at t = 0 (module docstring). Returns the settled state, whose
+    contact memory carries the held contacts into the first step, and the stage's record."""
+    t0 = _time.perf_counter()
+    model = stepper.model
+    free = ~model.block_fixed
+    nothing = StartRecord(solves=0, held=0, released=0, settlement=0.0, at_strength=0, wall_time=0.0)
+    if not needs_settling(model):
+        return state, nothing
+    geom = model.block_geometry(state.vertex_xy)
+    size = np.sqrt(geom["area"])
+    dt = _pseudo_time_step(stepper, geom, size)
+    initial = state
+    released = np.zeros(model.n_blocks, bool)
+    at_strength: set = set()
+    memory = ContactMemory.empty()
+    solves = 0
+    for _ in range(MAX_PSEUDO_STEPS):
+        geom = state.geometry if state.geometry is not None else model.block_geometry(state.vertex_xy)
+        cint, length = detect_contacts(model, state.vertex_xy, stepper.buffers)
+        contacts = Contacts.start(model, state.vertex_xy, cint, length, memory, True)
+        contacts = _subset(contacts, ~(released[contacts.block_a] | released[contacts.block_b]))
+        if not np.any(contacts.state != OPEN):
+            break  # nothing (left) touches: nothing to hold
+        disp, n, found, contacts = _static_solve(stepper, state, geom, contacts, dt, released, size,
+                                                 at_strength)
+        solves += n
+        if disp is None:  # no equilibrium: start under sudden gravity, as without the stage
+            return initial, StartRecord(solves=solves, held=0, released=int(np.count_nonzero(free)),
+                                        settlement=0.0, at_strength=0, wall_time=_time.perf_counter() - t0)
+        released |= found
+        held = free & ~released
+        disp[~held] = 0.0
+        step = float(_block_displacement(stepper, state.vertex_xy, geom, disp).max(initial=0.0))
+        state = _apply(stepper, state, geom, disp)
+        memory = contacts.memory(stepper.params.bond_breaks_on_slip)
+        if step <= model.open_tol:
+            break  # the increment is round-off: an equilibrium of the settled geometry
+    if solves == 0:
+        return initial, nothing
+    held = free & ~released
+    moved = np.hypot(*(state.vertex_xy - initial.vertex_xy).T)
+    settlement = float(np.max(moved[held[model.vertex_block]], initial=0.0))
+    record = StartRecord(solves=solves, held=int(np.count_nonzero(held)),
+                         released=int(np.count_nonzero(free & released)), settlement=settlement,
+                         at_strength=len(at_strength & set(memory.key.tolist())),
+                         wall_time=_time.perf_counter() - t0)
+    return state.replace(memory=memory), record
+
+
+def _pseudo_time_step(stepper, geom, size) -> float:
+    """Δt over which free fall covers FALL_IN_SIZES median block sizes (module docstring, 2.)."""
+    model = stepper.model
+    accel = float(np.hypot(*model.gravity))
+    if len(model.load_block):
+        loads = stepper._load_forces(0.0)
+        mass = model.block_density * geom["area"]
+        accel = max(accel, float(np.max(np.hypot(loads[:, 0], loads[:, 1]) / mass[model.load_block])))
+    if accel == 0.0:  # initial stresses only: any acceleration scale will do
+        accel = 1.0
+    return float(np.sqrt(2.0 * FALL_IN_SIZES * np.median(size[~model.block_fixed]) / accel))
+
+
+def _static_solve(stepper, state: State, geom: dict, contacts: Contacts, dt: float,
+                  released: np.ndarray, size: np.ndarray, at_strength: set):
+    """One pseudo-step: the open-close iteration of the static system at this geometry, with
+    Mohr–Coulomb joints; blocks that turn out to be mechanisms are released and the rest solved
+    again. Returns (D or None when it does not converge, solves, newly released blocks, the
+    contacts left); sliding contacts end locked at their strength."""
+    from .step import _Timer
+
+    model = stepper.model
+    free = ~model.block_fixed
+    out = released.copy()
+    solves = 0
+    while True:
+        contacts = _subset(contacts, ~(out[contacts.block_a] | out[contacts.block_b]))
+        vec, sca = stepper.contact_vectors(state.vertex_xy, geom, contacts)
+        pattern = BlockPattern.build(model, contacts)
+        data0, rhs0 = stepper.assemble_blocks(state, geom, pattern, dt, static_start=True)
+        disp, n, converged = stepper.open_close(state, geom, contacts, pattern, vec, sca, data0, rhs0,
+                                                np.zeros(model.n_blocks), _Timer(), MAX_SOLVES)
+        solves += n
+        if disp is None or not converged:
+            return None, solves, out & ~released, contacts
+        moved = _block_displacement(stepper, state.vertex_xy, geom, disp)
+        mechanism = free & ~out & (moved > MECHANISM_SIZE * size)
+        if not mechanism.any():
+            break
+        out |= mechanism  # release them and solve the rest again without their contacts
+    # contacts sliding at their strength carry it into the next pseudo-step locked (it
+    # re-solves them as springs, so the stage ends in an equilibrium of springs)
+    sliding = _lock_at_strength(stepper, contacts, state.vertex_xy)
+    at_strength |= _keys(contacts, sliding)
+    return disp, solves, out & ~released, contacts
+
+
+def _block_displacement(stepper, vertex_xy, geom, disp) -> np.ndarray:
+    """Largest vertex displacement of each block [m]."""
+    from .step import _move_points
+
+    model = stepper.model
+    moved = _move_points(vertex_xy, model.vertex_block, geom["centroid"], disp) - vertex_xy
+    return np.maximum.reduceat(np.hypot(moved[:, 0], moved[:, 1]), model.vertex_offset[:-1])
+
+
+def _keys(contacts: Contacts, sel: np.ndarray) -> set:
+    return set(contacts.key[sel].tolist())
+
+
+def _lock_at_strength(stepper, contacts: Contacts, vertex_xy: np.ndarray) -> np.ndarray:
+    """Lock the sliding vertex-edge contacts, their lock point moved so that the shear spring
+    carries their friction (force-continuous, as between steps): they keep their bonds.
+    Returns which contacts were sliding."""
+    m = stepper.model
+    sliding = (contacts.state == SLIDE) & (contacts.cint[:, 0] == 0)
+    if sliding.any():
+        strength = stepper.friction_force(contacts)[sliding]
+        edge = contacts.cint[sliding, 2]
+        length = np.hypot(*(vertex_xy[edge] - vertex_xy[m.vertex_next[edge]]).T)
+        # ds = (P1 − P0)·t falls by l·Δω when the lock point P0 moves by Δω along the edge
+        target = contacts.shear_dir[sliding] * strength / m.shear_penalty
+        contacts.omega[sliding] += (contacts.ds[sliding] - target) / length
+        contacts.ds[sliding] = target
+        contacts.state[sliding] = LOCK
+        contacts.coupled[sliding] = False
+    return sliding
+
+
+def _subset(contacts: Contacts, keep: np.ndarray) -> Contacts:
+    return Contacts(**{k: v[keep] for k, v in vars(contacts).items()})
+
+
+def _apply(stepper, state: State, geom: dict, disp: np.ndarray) -> State:
+    """Move the held blocks by their settlement and add its stress (velocities untouched)."""
+    from .step import _move_points, _rotate_stress
+
+    m = stepper.model
+    centroid = geom["centroid"]
+    xy = _move_points(state.vertex_xy, m.vertex_block, centroid, disp)
+    stress = state.block_stress + np.einsum("bij,bj->bi", m.block_elastic, disp[:, 3:6])
+    stress = _rotate_stress(stress, disp[:, 2])
+    stress[m.block_fixed] = state.block_stress[m.block_fixed]
+    return state.replace(
+        vertex_xy=xy, block_stress=stress, block_rotation=state.block_rotation + disp[:, 2],
+        fixed_point_xy=_move_points(state.fixed_point_xy, m.fixed_point_block, centroid, disp),
+        load_xy=_move_points(state.load_xy, m.load_block, centroid, disp),
+        measured_xy=_move_points(state.measured_xy, m.measured_block, centroid, disp),
+        geometry=m.block_geometry(xy))
