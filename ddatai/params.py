@@ -156,11 +156,17 @@ class Params:
     ntdda's f0 = 2e-7 would let contacts carry tensions of p·f0·w0 (thousands of kN at rock
     penalties) and blocks could never topple."""
     oc_force_tolerance: float = 1e-6
-    """Open-close convergence [-]: a step is accepted when, at every contact, the force of the
-    state the solve assumed (open, locked, sliding) matches the contact law (no tension,
-    Coulomb friction) at the solution within this fraction of the force (plus the round-off
-    force above). So every accepted step obeys Coulomb's law at every contact to this
-    tolerance; a larger value accepts states a little beyond it for fewer solves."""
+    """Open-close convergence, the contact law [-]: in an accepted step every locked contact's
+    shear force is at most its Coulomb strength S = N·tanφ + c·L, every sliding contact's
+    friction is S of that step, and no contact pulls harder than its tensile strength — each
+    within this fraction of the contact's own strength (plus the round-off force above)."""
+    oc_state_tolerance: float = 1e-3
+    """Open-close convergence, state and motion [-]: a contact's state may differ from what its
+    motion calls for (open but overlapping, sliding where it would stick) while the force that
+    makes is below this fraction of the load its blocks carry (their weight or their largest
+    contact force) — 1e-3 of a block's weight is an overlap of ~1e-10 m for rock. Without it,
+    contacts that carry almost nothing (the head joints of a loaded grid) flip between open and
+    closed, or between sticking and sliding, for many solves at forces that move nothing."""
     penetration_ratio: float = 4e-4
     """g3: penetration allowed, as a fraction of w0 [-]; a step whose largest penetration
     exceeds 2.5·g3·w0 is redone with a shorter time step, and a run that cannot keep under it
@@ -187,7 +193,7 @@ class Params:
         pos("dt_max")
         pos("penalty", allow_none=True)
         for name in ("penalty_ratio", "shear_ratio", "fixed_point_ratio", "max_displacement_ratio",
-                     "open_tolerance", "oc_force_tolerance", "penetration_ratio", "angle_tolerance",
+                     "open_tolerance", "oc_force_tolerance", "oc_state_tolerance", "penetration_ratio", "angle_tolerance",
                      "dt_min_ratio"):
             pos(name)
         _require(_finite(self.dt_growth) and self.dt_growth >= 1.0,
@@ -211,6 +217,9 @@ class Params:
         _require(self.open_tolerance <= 1e-10,
                  f"Params.open_tolerance must be <= 1e-10 (a tension allowance of p·f0·w0), "
                  f"got {self.open_tolerance!r}")
+        _require(self.oc_state_tolerance < 0.1,
+                 f"Params.oc_state_tolerance must be < 0.1 (a fraction of a block's load), "
+                 f"got {self.oc_state_tolerance!r}")
         _require(self.oc_force_tolerance < 0.1,
                  f"Params.oc_force_tolerance must be < 0.1 (a fraction of each contact force), "
                  f"got {self.oc_force_tolerance!r}")

@@ -114,7 +114,11 @@ def settle(stepper, state: State) -> tuple[State, StartRecord]:
         if disp is None:  # no equilibrium: start under sudden gravity, as without the stage
             return initial, StartRecord(solves=solves, held=0, released=int(np.count_nonzero(free)),
                                         settlement=0.0, at_strength=0, wall_time=_time.perf_counter() - t0)
-        released |= found
+        if found.any():
+            # a released block starts from where it was at t = 0
+            released |= found
+            state = _restore(model, state, initial, found)
+            geom = state.geometry
         held = free & ~released
         disp[~held] = 0.0
         step = float(_block_displacement(stepper, state.vertex_xy, geom, disp).max(initial=0.0))
@@ -132,6 +136,24 @@ def settle(stepper, state: State) -> tuple[State, StartRecord]:
                          at_strength=len(at_strength & set(memory.key.tolist())),
                          wall_time=_time.perf_counter() - t0)
     return state.replace(memory=memory), record
+
+
+def _restore(model, state: State, initial: State, blocks: np.ndarray) -> State:
+    """``state`` with the given blocks (and their points) back where ``initial`` has them."""
+    v = blocks[model.vertex_block]
+    xy = np.where(v[:, None], initial.vertex_xy, state.vertex_xy)
+    b = blocks[:, None]
+
+    def points(now, then, owner):
+        return np.where(blocks[owner][:, None], then, now) if len(owner) else now
+
+    return state.replace(
+        vertex_xy=xy, block_stress=np.where(b, initial.block_stress, state.block_stress),
+        block_rotation=np.where(blocks, initial.block_rotation, state.block_rotation),
+        fixed_point_xy=points(state.fixed_point_xy, initial.fixed_point_xy, model.fixed_point_block),
+        load_xy=points(state.load_xy, initial.load_xy, model.load_block),
+        measured_xy=points(state.measured_xy, initial.measured_xy, model.measured_block),
+        geometry=model.block_geometry(xy))
 
 
 def _pseudo_time_step(stepper, geom, size) -> float:
@@ -165,7 +187,8 @@ def _static_solve(stepper, state: State, geom: dict, contacts: Contacts, dt: flo
         pattern = BlockPattern.build(model, contacts)
         data0, rhs0 = stepper.assemble_blocks(state, geom, pattern, dt, static_start=True)
         disp, n, converged = stepper.open_close(state, geom, contacts, pattern, vec, sca, data0, rhs0,
-                                                np.zeros(model.n_blocks), _Timer(), MAX_SOLVES)
+                                                np.zeros(model.n_blocks), _Timer(), MAX_SOLVES,
+                                                break_bonds=False)
         solves += n
         if disp is None or not converged:
             return None, solves, out & ~released, contacts

@@ -74,6 +74,7 @@ class ContactLaw:
     fn_now: np.ndarray     # normal force of the current state at D [N/m]
     ft_now: np.ndarray     # shear force of the current state at D [N/m]
     friction_now: np.ndarray  # friction magnitude of the current (sliding) state at D [N/m]
+    energy: float          # spring energy of the contacts with the friction of the next solve [J/m]
 
 
 class _Timer:
@@ -107,6 +108,9 @@ class Stepper:
 
         self.solver = SparseSolver(model.params.solver)
         self._fp_stiff = np.full(len(model.fixed_point_block), model.fixed_point_penalty)
+        # a block's weight, the smallest load the open-close judgement measures it by [N/m]
+        self._block_load = model.block_density * model.block_geometry(model.vertex_xy0)["area"] * \
+            float(np.hypot(*model.gravity))
         self._load_stiff = np.zeros(len(model.load_block))
 
     # ------------------------------------------------------------------ public
@@ -421,10 +425,18 @@ class Stepper:
         closed = dn <= allowance
         strength = m.penalty * np.maximum(-dn, 0.0) * contacts.tan_phi + \
             contacts.cohesion * contacts.length * contacts.bond
+        # the friction the next solve can apply: N of the last one (or of this one, coupled)
+        used = np.where(contacts.coupled, strength, self.friction_force(contacts))
         trial = m.shear_penalty * ds
-        stick = np.abs(trial) <= strength
-        ft = np.where(closed & ve, np.where(stick, trial, np.sign(ds) * strength), 0.0)
+        stick = np.abs(trial) <= used
+        ft = np.where(closed & ve, np.where(stick, trial, np.sign(ds) * used), 0.0)
         state = np.where(closed, np.where(ve & stick, LOCK, SLIDE), OPEN).astype(np.int8)
+        # energy of the contact springs with that friction: ½p·dn² (up to the tensile
+        # strength) and the Huber function of ds (½k_s·ds², then linear at the friction)
+        normal_energy = 0.5 * m.penalty * np.where(dn <= allowance, dn * dn, allowance * allowance)
+        limit = used / m.shear_penalty
+        huber = np.where(np.abs(ds) <= limit, 0.5 * m.shear_penalty * ds * ds, used * (np.abs(ds) - 0.5 * limit))
+        energy = float(np.sum(normal_energy) + np.sum(huber[closed & ve]))
         # the forces of the current states at this D
         now = contacts.state
         fn_now = np.where(now == OPEN, 0.0, -m.penalty * dn_now)
@@ -434,32 +446,42 @@ class Stepper:
         return ContactLaw(dn=dn, ds=ds, line=line, closed=closed, state=state,
                           direction=np.where(ds >= 0, 1, -1).astype(np.int8), fn=np.where(closed, -m.penalty * dn, 0.0),
                           ft=ft, strength=strength, dn_now=dn_now, fn_now=fn_now, ft_now=ft_now,
-                          friction_now=friction_now)
+                          friction_now=friction_now, energy=energy)
 
-    def judge(self, contacts: Contacts, law: "ContactLaw") -> bool:
+    def judge(self, contacts: Contacts, law: "ContactLaw", break_bonds: bool = True) -> bool:
         """Open-close judgement (§4.2–4.3) in place; returns True if a contact must change.
 
         The solve assumed a state for each contact; ``law`` (`contact_law` at the solution)
-        compares the force that state gives with the law's force. Where they differ by more
-        than ``oc_force_tolerance`` × the force plus the round-off force p·open_tolerance·w0,
-        the contact takes the law's state — a sliding one with its friction from the solve it
-        is in (it becomes `coupled`: implicit friction) — and the step iterates again. When
-        none differ, every contact obeys Coulomb's law at the solution, and the states are
-        kept.
+        says which state the contact's motion calls for. A contact must change (`violations`)
+        if its assumed state breaks the contact law — a locked contact holding more than its
+        Coulomb strength, a sliding one whose friction is not N·tanφ + c·L of this solve, a
+        closed one pulling harder than its tensile strength — or if its state does not match
+        its motion by more than a small force (an open contact that overlaps, a sliding one
+        that would stick). Such a contact takes the law's state, a sliding one with its friction
+        from the solve it is in (it becomes `coupled`: implicit friction), and the step
+        iterates again. When none must change, every contact obeys no-tension and Coulomb's
+        law at the solution.
         """
         m, p = self.model, self.params
         vv = contacts.cint[:, KIND] == VV
-        scale = np.maximum(np.maximum(np.abs(law.fn), np.abs(law.fn_now)),
-                           np.maximum(np.abs(law.ft), np.abs(law.ft_now)))
-        tol = p.oc_force_tolerance * scale + m.force_roundoff
-        bad = (np.abs(law.fn_now - law.fn) > tol) | (np.abs(law.ft_now - law.ft) > tol)
-        # a VV contact whose other line is clearly less penetrated switches even when both
-        # lines give (nearly) the same force
-        bad |= vv & (contacts.state != OPEN) & (law.line != contacts.line) & \
-            (m.penalty * np.abs(law.dn - law.dn_now) > tol)
+        bad = self.violations(contacts, law)
+        # a bonded joint that the law opens (tension beyond T·L) or, with Shi's rule, makes
+        # slide has failed in this step: it loses its cohesion and tensile strength now, and
+        # the step is solved again without them (its strength is not carried through the step
+        # in which it breaks)
+        breaks = break_bonds & contacts.bond & (law.state != LOCK) & bad & \
+            ((law.state == OPEN) | (p.bond_breaks_on_slip & (law.state == SLIDE)))
+        if breaks.any():
+            contacts.bond[breaks] = False
         self.last_bad = bad
         changed = bool(np.any(bad))
         if changed:
+            # a sliding contact whose slip turns round passes through sticking: it locks
+            # (Shi's rule) and slides the other way only if its spring then exceeds S. Newton's
+            # step in the sliding state has no shear stiffness, so the reversed friction would
+            # overshoot the sticking range again, and the contact would flip for ever
+            turns = bad & (contacts.state == SLIDE) & (law.state == SLIDE) & (law.direction != contacts.shear_dir)
+            law.state[turns] = LOCK
             slide = bad & (law.state == SLIDE) & ~vv
             # friction from the same solve from now on: the normal force of the last solve is
             # stale for a contact that was locked or open in it, or whose force moved
@@ -473,10 +495,42 @@ class Stepper:
         contacts.ds[:] = law.ds
         if not changed:
             closed_ve = (contacts.state != OPEN) & ~vv
-            excess = (np.abs(law.ft_now) - law.strength) / (law.strength + m.force_roundoff)
-            self._coulomb = float(np.max(excess[closed_ve], initial=0.0))
+            self._coulomb = float(np.max((np.abs(law.ft_now) - law.strength)[closed_ve], initial=0.0))
             self._friction = law.friction_now
         return changed
+
+    def violations(self, contacts: Contacts, law: "ContactLaw") -> np.ndarray:
+        """Contacts whose assumed state must change, given the law at the solution.
+
+        Strict, within ``oc_force_tolerance`` of the contact's own strength (plus the round-off
+        force p·open_tolerance·w0): Coulomb's law (a locked contact's shear force ≤ S, a
+        sliding one's friction = S of this solve) and the tensile strength (a closed contact
+        pulls at most T·L while bonded, else not at all). Within ``oc_state_tolerance`` × the
+        load its blocks carry (their weight or their largest contact force): the match of state
+        and motion — an open contact that overlaps, a sliding one that would stick or slide
+        the other way. A contact that carries almost nothing (a head joint of a loaded grid)
+        then does not keep the iteration flipping it between open and closed, or between
+        sticking and sliding, at forces far below anything that moves its blocks."""
+        m, p = self.model, self.params
+        vv = contacts.cint[:, KIND] == VV
+        now = contacts.state
+        atol = m.force_roundoff
+        strict = p.oc_force_tolerance * law.strength + atol
+        locked = (now == LOCK) & ~vv
+        sliding = (now == SLIDE) & ~vv & law.closed
+        coulomb = locked & (np.abs(law.ft_now) > law.strength + strict)
+        friction = sliding & (np.abs(law.friction_now - law.strength) > strict)
+        tensile = np.where(contacts.bond, contacts.tensile * contacts.length, 0.0)
+        tension = (now != OPEN) & (-law.fn_now > tensile + p.oc_force_tolerance * tensile + atol)
+        # the load each block carries: its weight, or its largest contact force
+        level = self._block_load.copy()
+        np.maximum.at(level, contacts.block_a, np.abs(law.fn))
+        np.maximum.at(level, contacts.block_b, np.abs(law.fn))
+        loose = p.oc_state_tolerance * np.maximum(level[contacts.block_a], level[contacts.block_b]) + atol
+        state = (np.abs(law.fn_now - law.fn) > loose) | (np.abs(law.ft_now - law.ft) > loose)
+        # a VV contact whose other line is clearly less penetrated switches
+        state |= vv & (now != OPEN) & (law.line != contacts.line) & (m.penalty * np.abs(law.dn - law.dn_now) > loose)
+        return coulomb | friction | tension | state
 
     def _friction_used(self, contacts: Contacts, dn: np.ndarray) -> np.ndarray:
         """Friction magnitude S each contact's state applies in a solve with normal distance
@@ -507,7 +561,7 @@ class Stepper:
 
     def open_close(self, state: State, geom: dict, contacts: Contacts, pattern: BlockPattern,
                    vec: np.ndarray, sca: np.ndarray, data0: np.ndarray, rhs0: np.ndarray,
-                   rotation: np.ndarray, timer: "_Timer", max_iterations: int
+                   rotation: np.ndarray, timer: "_Timer", max_iterations: int, break_bonds: bool = True
                    ) -> tuple[Optional[np.ndarray], int, bool]:
         """The open-close iteration (§4) in place on ``contacts``: (D, iterations, converged);
         D is None when a solve is not finite.
@@ -540,11 +594,16 @@ class Stepper:
             law = self.contact_law(contacts, vec, sca, solution, shift)
             disp = solution
             if previous is not None and self._needs_change(contacts, law):
-                disp, law = self._line_search(contacts, vec, sca, shift, previous, solution, law,
-                                              csr_matrix((data0, pattern.indices, pattern.indptr), shape=(n, n)),
-                                              block_rhs, data, pattern)
+                damped, damped_law = self._line_search(contacts, vec, sca, shift, previous, solution, law,
+                                                       csr_matrix((data0, pattern.indices, pattern.indptr), shape=(n, n)),
+                                                       block_rhs, data, pattern)
+                # the shortened step stops before the contacts that change state on the way to
+                # the solution; if none has changed there yet, the states change as the
+                # solution asks (the step then continues in the next piece)
+                if damped is not solution and self._needs_change(contacts, damped_law):
+                    disp, law = damped, damped_law
             rotation = disp[:, 2].copy()
-            changed = self.judge(contacts, law)
+            changed = self.judge(contacts, law, break_bonds)
             timer.add("update", t0)
             if not changed and disp is solution:
                 return disp, it, True
@@ -552,28 +611,30 @@ class Stepper:
         return disp, max_iterations, False
 
     def _needs_change(self, contacts: Contacts, law: "ContactLaw") -> bool:
-        m, p = self.model, self.params
-        scale = np.maximum(np.maximum(np.abs(law.fn), np.abs(law.fn_now)),
-                           np.maximum(np.abs(law.ft), np.abs(law.ft_now)))
-        tol = p.oc_force_tolerance * scale + m.force_roundoff
-        return bool(np.any((np.abs(law.fn_now - law.fn) > tol) | (np.abs(law.ft_now - law.ft) > tol)))
+        return bool(np.any(self.violations(contacts, law)))
 
     def _line_search(self, contacts, vec, sca, shift, previous, solution, law, block_k, block_rhs,
                      data, pattern):
-        """Backtracking (Armijo) from the last iterate towards the new solution on the merit
-        ½·Rᵀ·diag(K)⁻¹·R, R = K_blocks·D − F_blocks + contact forces of the law at D."""
+        """Backtracking (Armijo) from the last iterate towards the new solution on the energy
+        Π(D) = ½·Dᵀ·K_blocks·D − F_blocksᵀ·D + the contact springs' energy (penalty springs, and
+        the Huber potential of each shear spring at its friction): with the friction held, Π is
+        convex and the solution of the solve minimises its quadratic piece at the last iterate,
+        so the step is a descent direction and Π falls at every iterate."""
         rows = self.free_idx
-        diag = data[(pattern.diag_slot[:, None] + np.arange(6)[None, :] * (pattern.stride[:, None] + 1)).ravel()]
-        weight = 1.0 / np.abs(diag)
 
-        def merit(d, lw):
-            r = block_k @ d[rows].ravel() - block_rhs + self.internal_force(contacts, vec, lw)
-            return 0.5 * float(np.dot(r * weight, r))
+        def energy(d, lw):
+            x = d[rows].ravel()
+            return 0.5 * float(x @ (block_k @ x)) - float(block_rhs @ x) + lw.energy
 
-        base = merit(previous, self.contact_law(contacts, vec, sca, previous, shift))
+        law_prev = self.contact_law(contacts, vec, sca, previous, shift)
+        base = energy(previous, law_prev)
+        grad = block_k @ previous[rows].ravel() - block_rhs + self.internal_force(contacts, vec, law_prev)
+        slope = float(grad @ (solution - previous)[rows].ravel())
+        if slope >= 0:  # not a descent direction (coupled friction): take the step
+            return solution, law
         alpha, d, lw = 1.0, solution, law
-        while alpha > 1.0 / 64:
-            if merit(d, lw) <= (1.0 - 1e-4 * alpha) * base:
+        while alpha > 1.0 / 256:
+            if energy(d, lw) <= base + 1e-4 * alpha * slope:
                 break
             alpha *= 0.5
             d = previous + alpha * (solution - previous)

@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 
 import ddatai as dd
-from cases import (G, ROCK, block_on_incline, downslope_displacement, incline_base, incline_frame,
-                   sliding_scene)
+from cases import (G, ROCK, biplanar_critical_friction, biplanar_scene, block_on_incline,
+                   downslope_displacement, incline_base, incline_frame, launched_block, sliding_scene)
 from ddatai.geometry import polygon_integrals
 
 
@@ -318,3 +318,154 @@ def test_block_slides_under_constant_ground_acceleration(as_record):
     dx = res.centroid[-1, block, 0] - res.centroid[0, block, 0]
     assert abs(dx - exact) < 1e-3 * abs(exact)
     assert np.all(res.centroid[:, base] == res.centroid[0, base])
+
+
+# ----------------------------------------------------------------------------- moving blocks
+# A rigid block that slides with friction decelerates at a constant rate, so the integrator is
+# exact for it (§5.1): whatever error remains comes from the contact law, and a correct one
+# meets the rigid closed form within the blocks' elastic compliance. Tolerance 1 %.
+
+def _along(res, block, theta):
+    t, n = incline_frame(theta)
+    d = res.centroid[:, block] - res.centroid[0, block]
+    v = res.velocity[:, block]
+    return -d @ t, d @ n, -v @ t   # down-slope displacement, lift, down-slope speed
+
+
+@pytest.mark.parametrize("theta, phi, speed", [
+    (0.0, 30.0, 1.0),    # the README's block, on a flat base
+    (0.0, 30.0, 3.0),
+    (20.0, 30.0, 2.0),   # launched down a 20° plane
+    (20.0, 30.0, -2.0),  # launched up it: decelerates at g(sinθ + cosθ tanφ), then stays
+])
+def test_launched_block_stops_at_the_closed_form_distance(theta, phi, speed):
+    """Stopping distance v²/2a and time |v|/a with a = g(cosθ tanφ ∓ sinθ); half-way in time
+    the speed is v/2; no lift-off (the block keeps its base contacts)."""
+    th, mu = np.radians(theta), np.tan(np.radians(phi))
+    a = G * (np.cos(th) * mu - np.sign(speed) * np.sin(th))
+    stop_time = abs(speed) / a
+    scene, block = launched_block(theta, phi, speed)
+    res = dd.simulate(scene, duration=1.25 * stop_time + 0.05)
+    d, lift, v = _along(res, block, theta)
+    assert d[-1] == pytest.approx(speed * abs(speed) / (2 * a), rel=0.01)
+    half = np.interp(0.5 * stop_time, res.time, v)
+    assert half == pytest.approx(0.5 * speed, rel=0.01)
+    assert np.abs(v[-1]) < 1e-3 * abs(speed)
+    moving = res.time < 0.98 * stop_time
+    assert np.all(np.abs(v[moving]) > 0.0) and np.all(v[moving] * speed > 0)  # never backwards
+    assert np.abs(lift).max() < 1e-5
+
+
+def test_block_thrown_onto_a_plane_slides_with_coulomb_deceleration():
+    """A block dropped 5 mm with 2 m/s across a flat base (φ = 30°). The impact takes the
+    Coulomb impulse μ·(normal impulse) off its speed (it may bounce a little: DDA's impacts
+    are partly elastic); once it stays on the base it slides with deceleration μg until it
+    stops, and it never moves backwards."""
+    mu = np.tan(np.radians(30.0))
+    scene = dd.Scene(gravity=G)
+    scene.add_block([(-1, -1), (14, -1), (14, 0), (-1, 0)], material=ROCK, fixed=True)
+    block = scene.add_block([(0, 0.005), (1.5, 0.005), (1.5, 0.805), (0, 0.805)], material=ROCK,
+                            velocity=(2.0, 0.0))
+    scene.set_joint(dd.Joint(friction=30.0))
+    res = dd.simulate(scene, duration=0.5)
+    t = res.time
+    x = res.centroid[:, block, 0]
+    vx = res.velocity[:, block, 0]
+    y = res.centroid[:, block, 1] - res.centroid[0, block, 1]
+    on_base = np.abs(y + 0.005) < 1e-5
+    # the sliding phase: from the last landing, while the speed is clearly positive
+    last_flight = np.flatnonzero(~on_base)[-1]
+    sliding = (np.arange(len(t)) > last_flight + 1) & (vx > 0.05)
+    assert np.count_nonzero(sliding) > 10
+    slope = np.polyfit(t[sliding], vx[sliding], 1)[0]
+    assert slope == pytest.approx(-G * mu, rel=0.01)
+    assert np.all(np.diff(x) >= -1e-5)  # the stop may ring within the elastic range of the contact
+    assert abs(vx[-1]) < 1e-3
+
+
+@pytest.mark.parametrize("fs, breaks", [(1.3, True), (0.8, True), (0.8, False)])
+def test_cohesive_block_under_sudden_gravity(fs, breaks):
+    """A 1 m block on a 30° plane (φ = 20°) whose cohesion gives FS = (c·L + W cosθ tanφ)/(W sinθ).
+    FS 1.3: it holds (moves less than 1e-5 m). FS 0.8: it slides at once, with
+    a = g(sinθ − cosθ tanφ) once the bond breaks (Shi's rule, the default) or
+    a = g(sinθ − cosθ tanφ) − c·L/m if joints keep their cohesion while sliding."""
+    theta, phi, T = 30.0, 20.0, 0.5
+    th, mu = np.radians(theta), np.tan(np.radians(phi))
+    weight = ROCK.density * G
+    cohesion = weight * (fs * np.sin(th) - np.cos(th) * mu)
+    scene, block = sliding_scene(theta, phi)
+    scene.set_joint(dd.Joint(friction=phi, cohesion=cohesion))
+    res = dd.simulate(scene, params=dd.Params(bond_breaks_on_slip=breaks), duration=T)
+    d = downslope_displacement(res, block, theta)
+    if fs > 1:
+        assert abs(d) < 1e-5
+        return
+    a = G * (np.sin(th) - np.cos(th) * mu) - (0.0 if breaks else cohesion / ROCK.density)
+    assert d == pytest.approx(0.5 * a * T * T, rel=0.01)
+
+
+def test_bonded_column_starts_in_equilibrium():
+    """Ten bonded 1 m blocks on a fixed base under gravity, dynamic run with the defaults: the
+    equilibrium start gives every block σy = −ρ g (k − ½) h (k from the top) at once, no joint
+    breaks, and nothing rings (σy stays within 1 %, speeds stay elastic)."""
+    n = 10
+    scene = dd.Scene(gravity=G)
+    scene.add_block([(-1, -1), (2, -1), (2, 0), (-1, 0)], material=ROCK, fixed=True)
+    ids = [scene.add_block([(0, k), (1, k), (1, k + 1), (0, k + 1)], material=ROCK) for k in range(n)]
+    scene.set_joint(dd.Joint(friction=30.0, cohesion=1e5, tensile=1e5))
+    res = dd.simulate(scene, duration=0.5, record_contacts=True)
+    exact = np.array([-ROCK.density * G * (n - k - 0.5) for k in range(n)])
+    sy = res.stress[:, ids, 1]
+    assert np.abs(sy / exact - 1).max() < 0.01
+    _, states = res.contacts(-1)
+    assert np.all(states == dd.ContactState.LOCK)
+    assert res.start["held"][0] == n and res.start["released"][0] == 0
+    assert np.abs(res.velocity[:, ids]).max() < 1e-4
+
+
+@pytest.mark.parametrize("offset, moves", [(-0.2, True), (0.2, False)])
+def test_biplanar_pair_critical_friction(offset, moves):
+    """Upper block on a 50° plane pushing a lower block along a flat base through a vertical
+    interface (friction φ everywhere): limit equilibrium's critical φ (closed form,
+    `cases.biplanar_critical_friction`) within 0.2°: the pair slides at φc − 0.2° and holds
+    at φc + 0.2°, default start."""
+    phi = biplanar_critical_friction() + offset
+    scene, (a, b) = biplanar_scene(phi)
+    res = dd.simulate(scene, duration=1.0)
+    moved = np.linalg.norm(res.centroid[-1, [a, b]] - res.centroid[0, [a, b]], axis=1).max()
+    if moves:
+        assert moved > 2e-3
+    else:
+        assert moved < 1e-4
+
+
+@pytest.mark.parametrize("case", ["launched", "biplanar"])
+def test_coulomb_holds_at_every_contact_of_every_step(case):
+    """After every accepted step: a locked contact's shear force k_s|ds| is at most its Coulomb
+    strength S = N tanφ + c·L, and a sliding contact's friction equals S of that step (relative
+    1e-3 plus the round-off force p·1e-12·w0)."""
+    from ddatai.model import build_model
+    from ddatai.start import settle
+    from ddatai.step import Stepper
+
+    if case == "launched":
+        scene, _ = launched_block(20.0, 30.0, 2.0)
+    else:
+        scene, _ = biplanar_scene(biplanar_critical_friction() - 0.3)
+    model = build_model(scene)
+    stepper = Stepper(model)
+    state, _ = settle(stepper, model.initial_state())
+    checked = 0
+    while state.time < 0.5:
+        state, _ = stepper.step(state)
+        c = stepper.last_contacts
+        strength = c.normal_force * c.tan_phi + c.cohesion * c.length * c.bond
+        slack = 1e-3 * strength + model.force_roundoff
+        ve = c.cint[:, 0] == dd.ContactKind.VE
+        locked = ve & (c.state == dd.ContactState.LOCK)
+        sliding = ve & (c.state == dd.ContactState.SLIDE)
+        assert np.all(model.shear_penalty * np.abs(c.ds[locked]) <= strength[locked] + slack[locked])
+        used = stepper._friction[sliding]
+        assert np.all(np.abs(used - strength[sliding]) <= slack[sliding])
+        checked += int(np.count_nonzero(locked | sliding))
+    assert checked > 0
