@@ -35,8 +35,9 @@ STEP_DTYPE = np.dtype([
     ("external_work", "f8"),    # work of point loads and of the ground motion in the step
     ("friction_work", "f8"),    # work dissipated by sliding friction in the step
     ("integrator_work", "f8"),  # the rest of the balance: dissipated by the integrator (>= 0)
-    ("coulomb", "f8"),          # largest (|shear force| − strength)/strength of a closed contact
-                                # in the accepted solve (<= Params.oc_force_tolerance)
+    ("coulomb", "f8"),          # largest |shear force| − Coulomb strength N·tanφ + c·L of a closed
+                                # contact in the accepted solve [N/m]; at most oc_force_tolerance ×
+                                # its strength + p·open_tolerance·w0 (Coulomb's law holds)
 ])
 
 #: the equilibrium stage before t = 0 (`ddatai.start.StartRecord`), one record per run

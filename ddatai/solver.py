@@ -8,8 +8,7 @@ implicitly (the friction force μ·p·(−dn) follows the normal penetration of 
 Two backends behind one class:
 
 - ``"scipy"``: SuperLU (`scipy.sparse.linalg.splu`) with the MMD(AᵀA) ordering and diagonal
-  pivots — always available (1.7–3.4× faster than the default `spsolve` on DDA matrices,
-  docs/performance.md);
+  pivots — always available (1.7–3.4× faster than the default `spsolve` on DDA matrices);
 - ``"pardiso"``: Intel MKL PARDISO through the optional ``pypardiso`` package (about 5× faster
   than SuperLU at 1,600 blocks). Install with ``pip install pypardiso`` (x86-64 only, ~700 MB
   of MKL). ddatai calls MKL itself with its own parameters (``iparm[0] = 1``, so that MKL

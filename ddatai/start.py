@@ -51,7 +51,7 @@ FALL_IN_SIZES = 1e4
 MECHANISM_SIZE = 1e-2
 #: at most this many solves in a pseudo-step (each adds contacts that open, close or slide, or
 #: releases mechanisms)
-MAX_SOLVES = 40
+MAX_SOLVES = 30
 #: at most this many pseudo-steps (each re-solves the increment at the settled geometry; the
 #: second is ~strain × the first, the third round-off)
 MAX_PSEUDO_STEPS = 8

@@ -6,15 +6,18 @@
     contacts = detect + transfer     (§3)
     repeat                           (step-restart loop)
         K, F = block terms           (§2.1–2.6)
-        repeat                       (open-close iteration, §4)
-            add contact springs and friction loads for the assumed states
-            solve K D = F            (SciPy sparse LU in symmetric mode)
-            judge contacts: new states from dn, ds
-        until no state changes       else: dt *= 0.3, restart
+        repeat                       (open-close iteration, §4: semismooth Newton)
+            add contact springs and friction for the assumed states
+            solve K D = F            (sparse Cholesky; LU where friction is implicit)
+            evaluate the contact law at D; shorten the step by a line search if it overshoots
+            judge: contacts whose state breaks the law (or mismatches the motion) change
+        until no contact has to change   else: dt *= 0.3, restart
         reject if displacement > 3·g2·w0, penetration too deep, or not finite: shorter dt, restart
     update vertices (exact rotation), stresses, velocities, points     (§5)
 
-Each phase is timed into the step record (`ddatai.results.STEP_DTYPE`).
+`simulate` first brings the model to equilibrium (`ddatai.start`) unless
+``Params.initial_equilibrium`` is off. Each phase is timed into the step record
+(`ddatai.results.STEP_DTYPE`).
 """
 
 from __future__ import annotations

@@ -401,6 +401,16 @@ def test_oclimit_is_honoured_and_reported_when_not_8(tmp_path):
     assert case.params.oc_max_iterations == 12
 
 
+def test_gravity_turn_on_phase_is_the_equilibrium_start(tmp_path):
+    """ntdda's gravity turn-on phase maps onto `Params.initial_equilibrium`; without it gravity
+    acts from t = 0, as in ntdda, and no warning is given either way."""
+    assert not dd.read_ntdda(data("pushblock.geo"), data("pushblock.ana")).params.initial_equilibrium
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", NtddaWarning)
+        case = pushblock_with(tmp_path, lambda s: s.replace('<Gravity flag="no">', '<Gravity flag="yes">', 1))
+    assert case.analysis.gravity_turn_on and case.params.initial_equilibrium
+
+
 def test_load_history_shorter_than_the_run_holds_its_last_force(tmp_path):
     with pytest.warns(NtddaQuirkWarning, match="holds the last force"):
         case = pushblock_with(tmp_path, lambda s: s.replace("5 5000 500;", "2 3000 100;", 1))
