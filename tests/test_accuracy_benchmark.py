@@ -110,14 +110,18 @@ def test_quick_benchmark_writes_its_table_and_chart(tmp_path):
     cells = [c.strip() for c in rows[0].strip("|").split("|")[1:]]
     header = next(line for line in proc.stdout.splitlines() if line.startswith("| parameters"))
     names = [c.strip() for c in header.strip("|").split("|")[1:]]
-    assert len(cells) == len(names) == 7
+    assert len(cells) == len(names) == 10
     errors = dict(zip(names, (float(c.split("·")[0]) for c in cells)))
     assert errors["sliding (30° plane, friction 20°)"] < 1e-3
     assert errors["free flight"] < 1e-10
     assert max(errors.values()) < 0.05
+    # the moving and bonded cases, at the 1 % of a rigid-block closed form
+    for name in names:
+        if name.startswith(("launched", "cohesive", "bonded")):
+            assert errors[name] < 0.01, name
     md = (tmp_path / "accuracy.md").read_text()
     assert "| **defaults** |" in md and "Machine:" in md
     rows = (tmp_path / "accuracy.csv").read_text().splitlines()
-    assert rows[0].startswith("case,group,parameters,error,wall_s") and len(rows) == 1 + 7 * 2
+    assert rows[0].startswith("case,group,parameters,error,wall_s") and len(rows) == 1 + 10 * 2
     png = (tmp_path / "accuracy.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
