@@ -469,58 +469,43 @@ def assemble_points(point_block: I32_1, point_xy: F64_2, point_force: F64_2, sti
 
 
 @ti.func
-def _spring(vec: ti.template(), c, su, sw, k, d0, ri, rj, sij, sji,
-            diag_slot: ti.template(), stride: ti.template(), data: ti.template(), rhs: ti.template()):
-    """Add the spring energy ½ k (d0 + uᵀDi + wᵀDj)² of contact c (u = vec[c, su], w = vec[c, sw])."""
-    if ri >= 0:
-        base = diag_slot[ri]
-        st = stride[ri]
+def _outer_rows(vec: ti.template(), c, s, t_own, t_other, k, r, r_other, off_slot,
+                diag_slot: ti.template(), stride: ti.template(), data: ti.template()):
+    """Add k·v vᵀ-type terms on the rows of one block r: k·vec[c, s]·vec[c, t_own]ᵀ to its
+    diagonal block and k·vec[c, s]·vec[c, t_other]ᵀ to the block at ``off_slot`` (its row,
+    the other block's column), if that block is free."""
+    if r >= 0:
+        base = diag_slot[r]
+        st = stride[r]
         for a in range(6):
-            ua = vec[c, su, a]
-            ti.atomic_add(rhs[6 * ri + a], -k * d0 * ua)
+            va = k * vec[c, s, a]
             for b in range(6):
-                ti.atomic_add(data[base + a * st + b], k * ua * vec[c, su, b])
-            if rj >= 0:
+                ti.atomic_add(data[base + a * st + b], va * vec[c, t_own, b])
+            if r_other >= 0:
                 for b in range(6):
-                    ti.atomic_add(data[sij + a * st + b], k * ua * vec[c, sw, b])
-    if rj >= 0:
-        base = diag_slot[rj]
-        st = stride[rj]
-        for a in range(6):
-            wa = vec[c, sw, a]
-            ti.atomic_add(rhs[6 * rj + a], -k * d0 * wa)
-            for b in range(6):
-                ti.atomic_add(data[base + a * st + b], k * wa * vec[c, sw, b])
-            if ri >= 0:
-                for b in range(6):
-                    ti.atomic_add(data[sji + a * st + b], k * wa * vec[c, su, b])
+                    ti.atomic_add(data[off_slot + a * st + b], va * vec[c, t_other, b])
 
 
 @ti.func
 def _outer(vec: ti.template(), c, su, sw, tu, tw, k, ri, rj, sij, sji,
            diag_slot: ti.template(), stride: ti.template(), data: ti.template()):
     """Add k·[u; w][u'; w']ᵀ (u = vec[c, su], w = vec[c, sw] on the rows of blocks i, j;
-    u' = vec[c, tu], w' = vec[c, tw] on their columns): a non-symmetric rank-one term."""
-    if ri >= 0:
-        base = diag_slot[ri]
-        st = stride[ri]
-        for a in range(6):
-            ua = k * vec[c, su, a]
-            for b in range(6):
-                ti.atomic_add(data[base + a * st + b], ua * vec[c, tu, b])
-            if rj >= 0:
-                for b in range(6):
-                    ti.atomic_add(data[sij + a * st + b], ua * vec[c, tw, b])
-    if rj >= 0:
-        base = diag_slot[rj]
-        st = stride[rj]
-        for a in range(6):
-            wa = k * vec[c, sw, a]
-            for b in range(6):
-                ti.atomic_add(data[base + a * st + b], wa * vec[c, tw, b])
-            if ri >= 0:
-                for b in range(6):
-                    ti.atomic_add(data[sji + a * st + b], wa * vec[c, tu, b])
+    u' = vec[c, tu], w' = vec[c, tw] on their columns): a rank-one term, non-symmetric unless
+    (tu, tw) = (su, sw)."""
+    _outer_rows(vec, c, su, tu, tw, k, ri, rj, sij, diag_slot, stride, data)
+    _outer_rows(vec, c, sw, tw, tu, k, rj, ri, sji, diag_slot, stride, data)
+
+
+@ti.func
+def _spring(vec: ti.template(), c, su, sw, k, d0, ri, rj, sij, sji,
+            diag_slot: ti.template(), stride: ti.template(), data: ti.template(), rhs: ti.template()):
+    """Add the spring energy ½ k (d0 + uᵀDi + wᵀDj)² of contact c (u = vec[c, su], w = vec[c, sw])."""
+    _outer(vec, c, su, sw, su, sw, k, ri, rj, sij, sji, diag_slot, stride, data)
+    for a in range(6):
+        if ri >= 0:
+            ti.atomic_add(rhs[6 * ri + a], -k * d0 * vec[c, su, a])
+        if rj >= 0:
+            ti.atomic_add(rhs[6 * rj + a], -k * d0 * vec[c, sw, a])
 
 
 @ti.kernel

@@ -451,7 +451,8 @@ class Stepper:
                           ft=ft, strength=strength, dn_now=dn_now, fn_now=fn_now, ft_now=ft_now,
                           friction_now=friction_now, energy=energy)
 
-    def judge(self, contacts: Contacts, law: "ContactLaw", break_bonds: bool = True) -> bool:
+    def judge(self, contacts: Contacts, law: "ContactLaw", break_bonds: bool = True,
+              bad: Optional[np.ndarray] = None) -> bool:
         """Open-close judgement (§4.2–4.3) in place; returns True if a contact must change.
 
         The solve assumed a state for each contact; ``law`` (`contact_law` at the solution)
@@ -467,7 +468,8 @@ class Stepper:
         """
         m, p = self.model, self.params
         vv = contacts.cint[:, KIND] == VV
-        bad = self.violations(contacts, law)
+        if bad is None:  # `violations` of this law, unless the caller has them
+            bad = self.violations(contacts, law)
         # a bonded joint that the law opens (tension beyond T·L) or, with Shi's rule, makes
         # slide has failed in this step: it loses its cohesion and tensile strength now, and
         # the step is solved again without them (its strength is not carried through the step
@@ -574,12 +576,12 @@ class Stepper:
         solution satisfies the law at every contact. A step of Newton's method can overshoot
         into a state that sends the next one back (a contact that carries almost no normal
         force, flipping between sticking and sliding); from the second solve on it is
-        shortened by a backtracking line search on the residual norm ½·Rᵀ·diag(K)⁻¹·R, which
-        makes every iterate reduce it, so the iteration cannot cycle.
+        shortened by a backtracking line search on the energy (`_line_search`).
         """
         from scipy.sparse import csr_matrix
 
         n = 6 * pattern.n_rows
+        block_k = None   # K of the block terms, for the line search (built when first needed)
         previous = None  # last iterate D
         disp = None
         for it in range(1, max_iterations + 1):
@@ -595,29 +597,29 @@ class Stepper:
             if not np.all(np.isfinite(solution)):
                 return None, it, False
             law = self.contact_law(contacts, vec, sca, solution, shift)
+            bad = self.violations(contacts, law)
             disp = solution
-            if previous is not None and self._needs_change(contacts, law):
+            if previous is not None and bad.any():
+                if block_k is None:
+                    block_k = csr_matrix((data0, pattern.indices, pattern.indptr), shape=(n, n))
                 damped, damped_law = self._line_search(contacts, vec, sca, shift, previous, solution, law,
-                                                       csr_matrix((data0, pattern.indices, pattern.indptr), shape=(n, n)),
-                                                       block_rhs, data, pattern)
+                                                       block_k, block_rhs)
                 # the shortened step stops before the contacts that change state on the way to
                 # the solution; if none has changed there yet, the states change as the
                 # solution asks (the step then continues in the next piece)
-                if damped is not solution and self._needs_change(contacts, damped_law):
-                    disp, law = damped, damped_law
+                if damped is not solution:
+                    damped_bad = self.violations(contacts, damped_law)
+                    if damped_bad.any():
+                        disp, law, bad = damped, damped_law, damped_bad
             rotation = disp[:, 2].copy()
-            changed = self.judge(contacts, law, break_bonds)
+            changed = self.judge(contacts, law, break_bonds, bad=bad)
             timer.add("update", t0)
             if not changed and disp is solution:
                 return disp, it, True
             previous = disp
         return disp, max_iterations, False
 
-    def _needs_change(self, contacts: Contacts, law: "ContactLaw") -> bool:
-        return bool(np.any(self.violations(contacts, law)))
-
-    def _line_search(self, contacts, vec, sca, shift, previous, solution, law, block_k, block_rhs,
-                     data, pattern):
+    def _line_search(self, contacts, vec, sca, shift, previous, solution, law, block_k, block_rhs):
         """Backtracking (Armijo) from the last iterate towards the new solution on the energy
         Π(D) = ½·Dᵀ·K_blocks·D − F_blocksᵀ·D + the contact springs' energy (penalty springs, and
         the Huber potential of each shear spring at its friction): with the friction held, Π is
