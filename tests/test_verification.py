@@ -379,7 +379,9 @@ def test_block_thrown_onto_a_plane_slides_with_coulomb_deceleration():
     assert np.count_nonzero(sliding) > 10
     slope = np.polyfit(t[sliding], vx[sliding], 1)[0]
     assert slope == pytest.approx(-G * mu, rel=0.01)
-    assert np.all(np.diff(x) >= -1e-5)  # the stop may ring within the elastic range of the contact
+    # not a bound from the method: at the stop the integrator reverses the velocity inside the
+    # contact springs (measured 1.5e-6 m back; README, limits)
+    assert np.all(np.diff(x) >= -1e-5)
     assert abs(vx[-1]) < 1e-3
 
 
@@ -420,6 +422,7 @@ def test_bonded_column_starts_in_equilibrium():
     _, states = res.contacts(-1)
     assert np.all(states == dd.ContactState.LOCK)
     assert res.start["held"][0] == n and res.start["released"][0] == 0
+    # not a bound from the method: "does not ring" (sudden gravity rings tall stacks at ~0.1 m/s)
     assert np.abs(res.velocity[:, ids]).max() < 1e-4
 
 
