@@ -46,6 +46,7 @@ NTDDA_GRID = {16: 9.8e-5, 64: 7.0e-4, 256: 1.00e-2, 1024: 0.112, 4096: 1.085, 16
 # ntdda: seconds per open-close iteration and mean OC iterations per step (same table)
 NTDDA_GRID_OC = {1024: (0.063, 1.76), 4096: (1.05, 1.11), 16384: (17.16, 1.00)}
 GRID_STEP = 0.03  # ntdda's grid runs: largest step displacement g2·w0 [m]
+FROM_REST_STEPS = 10  # settled protocol: start-up cost measured over the stage and this many steps
 
 
 def slope_scene(n_blocks: int):
@@ -101,11 +102,17 @@ SCENES = {"grid": grid_scene, "stiffgrid": stiffgrid_scene, "slope": slope_scene
 
 
 def run_one(family: str, size: int, steps: int, warmup: int, arch: str, solver: str,
-            reference_max: int) -> dict:
-    """Measure one (family, size) in this process; returns a JSON-able record."""
+            reference_max: int, protocol: str = "ntdda") -> dict:
+    """Measure one (family, size) in this process; returns a JSON-able record.
+
+    ``protocol``: ``ntdda`` starts at rest under sudden gravity (ntdda's scaling runs);
+    ``settled`` first runs the equilibrium stage (`ddatai.start.settle`, the default start of a
+    run) and times the steps after it, and also reports the start-up cost: the stage's wall time
+    and solves, and the wall time per step of the stage plus the first ``FROM_REST_STEPS`` steps."""
     import dataclasses
 
     import ddatai as dd
+    from ddatai.start import settle
     from ddatai.step import Stepper
 
     t0 = time.perf_counter()
@@ -117,18 +124,29 @@ def run_one(family: str, size: int, steps: int, warmup: int, arch: str, solver: 
         raise RuntimeError(f"grid: step displacement {model.max_step} m, not ntdda's {GRID_STEP} m")
     stepper = Stepper(model)
     state = model.initial_state()
+    start = {}
+    t_run = time.perf_counter()
+    if protocol == "settled":
+        state, rec = settle(stepper, state)
+        start = dict(start_s=rec.wall_time, start_solves=rec.solves, start_held=rec.held,
+                     start_released=rec.released)
     records = []
     for k in range(warmup + steps):
         state, record = stepper.step(state)
-        if k >= warmup:
-            records.append(record)
-    s = np.array(records, dtype=dd.STEP_DTYPE)
+        records.append(record)
+        if k + 1 == FROM_REST_STEPS and protocol == "settled":
+            start["from_rest_ms_per_step"] = (time.perf_counter() - t_run) / FROM_REST_STEPS * 1e3
+    all_steps = np.array(records, dtype=dd.STEP_DTYPE)
+    s = all_steps[warmup:]
     phases = {name: float(np.median(s[f"t_{name}"])) * 1e3 for name in ("contacts", "assembly", "solve", "update")}
     total = s["t_contacts"] + s["t_assembly"] + s["t_solve"] + s["t_update"]
     out = dict(family=family, blocks=int(model.n_free), all_blocks=int(model.n_blocks), arch=arch,
                solver=stepper.solver.backend, build_s=build_s, ms_per_step=float(np.median(total)) * 1e3,
                ms_per_oc=float(np.median(total / np.maximum(s["oc_iterations"], 1))) * 1e3,
                oc_per_step=float(np.mean(s["oc_iterations"])), dt_cuts=int(s["dt_cuts"].sum()),
+               protocol=protocol, solves_per_step=float(np.mean(s["oc_total"])),
+               median_solves=float(np.median(s["oc_total"])), max_solves=int(s["oc_total"].max()),
+               capped_steps=int(np.count_nonzero(s["oc_total"] > s["oc_iterations"])), **start,
                contacts=int(np.median(s["contacts"])), **{f"ms_{k}": v for k, v in phases.items()})
     # ntdda's "s per 1-OC step": the cost of a step whose first solve already has the right states
     one = s["oc_total"] == 1
@@ -232,6 +250,21 @@ def table(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def solves_table(rows: list[dict]) -> str:
+    """Open-close solves (factorisations) per step and, for the settled protocol, the start-up."""
+    lines = ["| family | blocks | solves/step: median (mean, max) | steps with a cut attempt | stage: s (solves, held/released) | stage + first 10 steps: ms/step |",
+             "|---|---|---|---|---|---|"]
+    for r in rows:
+        if "median_solves" not in r:
+            continue
+        stage = (f"{r['start_s']:.2f} ({r['start_solves']}, {r['start_held']:,}/{r['start_released']:,})"
+                 if "start_s" in r else "–")
+        rest = f"{r['from_rest_ms_per_step']:.0f}" if "from_rest_ms_per_step" in r else "–"
+        lines.append(f"| {r['family']} | {r['blocks']:,} | {r['median_solves']:.0f} ({r['solves_per_step']:.1f}, "
+                     f"{r['max_solves']}) | {r['capped_steps']} | {stage} | {rest} |")
+    return "\n".join(lines)
+
+
 def chart(rows: list[dict], path: Path) -> None:
     sys.path.insert(0, str(ROOT / "benchmarks"))
     from loglog_chart import Series, draw_loglog_chart
@@ -264,6 +297,10 @@ def main() -> None:
     ap.add_argument("--arch", default="cpu", choices=("cpu", "gpu", "cuda"))
     ap.add_argument("--solver", default="auto", choices=("auto", "scipy", "pardiso"))
     ap.add_argument("--reference-max", type=int, default=450)
+    ap.add_argument("--protocol", default="ntdda", choices=("ntdda", "settled"),
+                    help="ntdda: from rest under sudden gravity (ntdda's scaling runs, the comparison "
+                         "table); settled: the equilibrium stage first (a run's default start), steps "
+                         "timed after it, start-up cost reported")
     ap.add_argument("--one", nargs=2, metavar=("FAMILY", "SIZE"), help=argparse.SUPPRESS)
     ap.add_argument("--out", type=Path, default=RESULTS)
     ap.add_argument("--append", action="store_true",
@@ -271,10 +308,11 @@ def main() -> None:
                          "run with fewer steps) and rewrite the table and chart")
     a = ap.parse_args()
     if a.one:
-        print(json.dumps(run_one(a.one[0], int(a.one[1]), a.steps, a.warmup, a.arch, a.solver, a.reference_max)))
+        print(json.dumps(run_one(a.one[0], int(a.one[1]), a.steps, a.warmup, a.arch, a.solver, a.reference_max,
+                                 a.protocol)))
         return
     rows = []
-    suffix = "" if a.arch == "cpu" else f"_{a.arch}"
+    suffix = ("" if a.arch == "cpu" else f"_{a.arch}") + ("" if a.protocol == "ntdda" else f"_{a.protocol}")
     if a.append and (a.out / f"scaling{suffix}.json").exists():
         rows = json.loads((a.out / f"scaling{suffix}.json").read_text())
     for family in a.family.split(","):
@@ -282,7 +320,7 @@ def main() -> None:
             steps = a.steps if a.steps is not None else protocol_steps(size)
             cmd = [sys.executable, __file__, "--one", family, str(size), "--steps", str(steps),
                    "--warmup", str(a.warmup), "--arch", a.arch, "--solver", a.solver,
-                   "--reference-max", str(a.reference_max)]
+                   "--reference-max", str(a.reference_max), "--protocol", a.protocol]
             t = time.perf_counter()
             proc = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
             if proc.returncode != 0:
@@ -295,11 +333,14 @@ def main() -> None:
                   f"({row['oc_per_step']:.1f} OC it.), peak {row['peak_mb']:.0f} MB, run {time.perf_counter() - t:.0f} s",
                   flush=True)
     rows.sort(key=lambda r: (list(SCENES).index(r["family"]), r["blocks"]))
-    text = [f"# Block-count scaling ({time.strftime('%Y-%m-%d')})", "", f"Machine: {machine()}; "
-            f"Taichi arch {a.arch}; median of the timed steps after the warm-up steps, from a start at rest "
-            f"under sudden gravity (ntdda's protocol: the blocks settle, the grids ring, and the open-close "
-            f"iteration count varies from step to step; steps per size in scaling.json).", "",
-            table(rows), ""]
+    start = ("from a start at rest under sudden gravity (ntdda's protocol: the blocks settle, the grids "
+             "ring, and the open-close iteration count varies from step to step)" if a.protocol == "ntdda" else
+             "after the equilibrium stage (the settled protocol: a run's default start; a stage that does "
+             "not converge leaves the model to sudden gravity, as the held/released column shows)")
+    text = [f"# Block-count scaling, {a.protocol} protocol ({time.strftime('%Y-%m-%d')})", "", f"Machine: {machine()}; "
+            f"Taichi arch {a.arch}; median of the timed steps after the warm-up steps, {start}; steps per size "
+            f"in scaling{suffix}.json.", "", table(rows), "", "Solves (factorisations) per step, cut attempts "
+            "included:", "", solves_table(rows), ""]
     for family in sorted({r["family"] for r in rows}):
         own = [r for r in rows if r["family"] == family]
         step, oc = growth_exponent(own), growth_exponent(own, key="ms_per_oc")

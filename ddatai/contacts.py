@@ -263,7 +263,8 @@ class Contacts:
             tan_phi=model.joint_tan_phi[joint], friction_deg=model.joint_friction[joint],
             cohesion=model.joint_cohesion[joint], tensile=model.joint_tensile[joint],
             state=state, line=line, omega=omega, bond=bond, shear_dir=shear_dir,
-            dn=dn0, ds=np.zeros(m), normal_force=normal_force, coupled=np.zeros(m, bool))
+            dn=dn0, ds=np.zeros(m), normal_force=normal_force,
+            coupled=(state == ContactState.SLIDE) & ve & (model.joint_tan_phi[joint] > 0))
 
     def memory(self, bond_breaks_on_slip: bool = True) -> ContactMemory:
         """What this step hands to the next. The bond survives on locked contacts, and also on
