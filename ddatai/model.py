@@ -12,6 +12,7 @@ the origin (dda-method.md §8.9). Results are returned in the user's coordinates
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field, replace
 from enum import IntEnum
 from typing import Callable, Optional
@@ -268,6 +269,16 @@ def build_model(scene: Scene, params: Optional[Params] = None) -> Model:
     areas = polygon_integrals(xy0, offset)["area"]
     sizes = np.sqrt(areas[~fixed_flags] if (~fixed_flags).any() else areas)
     w0 = min(w0, 10.0 * float(np.median(sizes)))
+    extent = float(np.max(hi - lo))
+    if extent >= PRECISION_EXTENT * float(np.median(sizes)):
+        # the block farthest from the bulk of the model (the median of the block centres)
+        centres = np.array([np.mean(s.vertices, axis=0) for s in specs])
+        far = int(np.argmax(np.hypot(*(centres - np.median(centres, axis=0)).T)))
+        warnings.warn(f"the model spans {extent:.3g} m, {extent / float(np.median(sizes)):.3g} × its median "
+                      f"block size {float(np.median(sizes)):.3g} m (block {far} lies farthest from the "
+                      f"others): double precision resolves ~{extent * 2.2e-16:.1g} m there, close to the "
+                      f"contacts' opening tolerance (docs/method/limits.md); move distant blocks closer "
+                      f"or model them separately", stacklevel=2)
 
     vblock = np.repeat(np.arange(nb, dtype=np.int32), counts)
     idx = np.arange(len(xy0), dtype=np.int32)
@@ -312,8 +323,13 @@ def build_model(scene: Scene, params: Optional[Params] = None) -> Model:
     d0 = 2.5 * max_step
     d9 = max(0.3 * d0, 3.0 * params.penetration_ratio * w0)
     d0 = max(d0, d9)
+    free_young = np.array([s.material.young for s in specs], dtype=float)
+    loads = _loads_at_start(scene)
+    column = _column_load(xy0, offset, vblock, fixed, density, areas, scene.gravity, loads)
+    _check_strain(specs, fixed, column, vel, density, free_young)
     penalty = params.penalty if params.penalty is not None else \
-        params.penalty_ratio * max(s.material.young for s in specs)
+        _automatic_penalty(params, free_young, fixed, column, vel, density, areas, xy0, offset,
+                           2.5 * params.penetration_ratio * w0)
 
     return Model(
         origin=origin, vertex_offset=offset, vertex_block=vblock, vertex_next=vnext, vertex_prev=vprev,
@@ -336,6 +352,104 @@ def build_model(scene: Scene, params: Optional[Params] = None) -> Model:
         fixed_point_penalty=params.fixed_point_ratio * float(penalty),
         params=params,
     )
+
+
+#: the elastic strain of a block from its weight and what rests on it (ρ·g·H/E), or from an
+#: impact at its initial speed (v·√(ρ/E), the uniform strain that stores its kinetic energy):
+#: beyond STRAIN_WARNING a warning (a first-order DDA block updates one uniform strain as a
+#: small strain, whose error grows as ε/2 of it: 2.5 % at 5 %); beyond STRAIN_LIMIT the model
+#: is refused (its blocks would lose half their height, and their contacts and penalty springs
+#: leave the method) (docs/method/limits.md)
+STRAIN_WARNING = 0.05
+#: a model whose extent is this many times its median block size is warned about (precision)
+PRECISION_EXTENT = 1e6
+STRAIN_LIMIT = 0.5
+#: the automatic penalty keeps the static contact penetration under the weight of a model's
+#: columns and point loads within this share of the penetration limit 2.5·g3·w0 ...
+STATIC_PENETRATION_SHARE = 0.05
+#: ... and the penetration of an impact at a block's initial speed within this share
+IMPACT_PENETRATION_SHARE = 0.25
+
+
+def _loads_at_start(scene: Scene) -> np.ndarray:
+    """(n_loads, 3): block, |force| at t = 0 [N/m] of every point load."""
+    out = np.zeros((len(scene.point_loads), 2))
+    for k, p in enumerate(scene.point_loads):
+        f = p.force(0.0) if callable(p.force) else p.force
+        out[k] = (p.block, float(np.hypot(*np.asarray(f, float)[:2])))
+    return out
+
+
+def _column_load(xy0, offset, vblock, fixed, density, areas, gravity, loads) -> np.ndarray:
+    """(B,) the vertical stress at the base of each free block from its own weight and that of
+    the free blocks above it (those overlapping it in x), plus the point loads on them,
+    spread over the block's width [Pa]: the load its contacts carry at rest."""
+    nb = len(offset) - 1
+    x_lo = np.minimum.reduceat(xy0[:, 0], offset[:-1])
+    x_hi = np.maximum.reduceat(xy0[:, 0], offset[:-1])
+    y_lo = np.minimum.reduceat(xy0[:, 1], offset[:-1])
+    weight = density * areas * abs(gravity)
+    if len(loads):
+        np.add.at(weight, loads[:, 0].astype(int), loads[:, 1])
+    weight[fixed] = 0.0
+    width = np.maximum(x_hi - x_lo, 1e-300)
+    out = np.zeros(nb)
+    free = np.flatnonzero(~fixed)
+    # blocks above b and overlapping it in x press on it; their weight spreads over the wider
+    # of the two (chunks keep the pairwise test in bounded memory)
+    for start in range(0, len(free), 2048):
+        b = free[start:start + 2048]
+        over = (x_lo[None, free] < x_hi[b, None]) & (x_hi[None, free] > x_lo[b, None]) & \
+            (y_lo[None, free] >= y_lo[b, None])
+        share = weight[None, free] / np.maximum(width[None, free], width[b, None])
+        out[b] = np.sum(np.where(over, share, 0.0), axis=1)
+    return out
+
+
+def _check_strain(specs, fixed, column, vel, density, young) -> None:
+    """Refuse a block whose weight-and-load strain or impact strain exceeds MAX_BLOCK_STRAIN."""
+    free = ~fixed
+    static = np.where(free, column / young, 0.0)
+    speed = np.hypot(vel[:, 0], vel[:, 1])
+    impact = np.where(free, speed * np.sqrt(density / young), 0.0)
+    for name, strain, why, change in (
+            ("weight", static, "the weight of the blocks above it and its loads, ρ·g·H/E",
+             "a larger Young's modulus, a lower density or gravity, or smaller loads"),
+            ("impact", impact, "an impact at its initial speed v·√(ρ/E)",
+             "a lower initial speed or a larger Young's modulus")):
+        if not np.any(strain > STRAIN_WARNING):
+            continue
+        b = int(np.argmax(strain))
+        m = specs[b].material
+        what = (f"block {b}: elastic strain {strain[b]:.3g} from {why} (E = {m.young:.3g} Pa, "
+                f"ρ = {m.density:.4g} kg/m³"
+                + (f", v = {speed[b]:.3g} m/s" if name == "impact" else f", stress {column[b]:.3g} Pa") + ")")
+        if strain[b] > STRAIN_LIMIT:
+            raise ValueError(f"{what} exceeds {STRAIN_LIMIT:g}, beyond what a first-order DDA block can "
+                             f"represent (docs/method/limits.md); give it {change}")
+        warnings.warn(f"{what} exceeds {STRAIN_WARNING:g}: a first-order DDA block's small-strain "
+                      f"update loses accuracy (error ~ε/2 of the strain, docs/method/limits.md); "
+                      f"consider {change}", stacklevel=3)
+
+
+def _automatic_penalty(params, young, fixed, column, vel, density, areas, xy0, offset, limit) -> float:
+    """The automatic contact penalty (docs/method/limits.md): ``penalty_ratio`` × the largest
+    Young's modulus, raised where the model's loads would push the contacts too deep for it —
+    the static penetration σ·size/p of the most loaded block within STATIC_PENETRATION_SHARE of
+    the penetration limit, and the penetration v·√(m/p) of an impact at a block's initial speed
+    within IMPACT_PENETRATION_SHARE of it."""
+    free = ~fixed
+    p = params.penalty_ratio * float(np.max(young))
+    if not free.any():
+        return p
+    size = np.sqrt(areas)
+    static = float(np.max((column * size)[free])) / (STATIC_PENETRATION_SHARE * limit)
+    centroid = np.add.reduceat(xy0, offset[:-1]) / np.diff(offset)[:, None]
+    radius = np.maximum.reduceat(np.hypot(*(xy0 - np.repeat(centroid, np.diff(offset), axis=0)).T),
+                                 offset[:-1])
+    speed = np.hypot(vel[:, 0], vel[:, 1]) + np.abs(vel[:, 2]) * radius
+    impact = float(np.max((density * areas * speed ** 2)[free])) / (IMPACT_PENETRATION_SHARE * limit) ** 2
+    return max(p, static, impact)
 
 
 def _check_overlaps(scene: Scene) -> None:

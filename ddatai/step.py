@@ -240,10 +240,11 @@ class Stepper:
             # accelerations (contacts, impacts) may exceed it
             acc = max(acc, state.accel)
             u = model.max_step
-            if acc > 0:
-                dt = (-speed + math.sqrt(speed * speed + 2.0 * acc * u)) / acc
-            elif speed > 0:
-                dt = u / speed
+            if acc > 0 or speed > 0:
+                # the positive root of ½·a·Δt² + v·Δt = u in the form that does not cancel:
+                # (−v + √(v² + 2au))/a loses every digit when a is round-off small beside v²/u
+                # (a fast block without gravity: Δt came out 0)
+                dt = 2.0 * u / (speed + math.sqrt(speed * speed + 2.0 * acc * u))
             else:
                 dt = limit
             limit = min(limit, dt)

@@ -1,0 +1,251 @@
+"""Random valid scenes for the property-based suite (tests/test_extreme.py) and the random
+campaign (benchmarks/extreme.py): stacks of convex and non-convex blocks with random velocities
+and spins, and domains cut by random joints, with and without gravity, point loads and ground
+shaking, across rock-like and extreme parameters.
+
+A case is a plain `CaseSpec` (every number that defines it), so that a failing case prints as
+a literal that a regression test can hold. `build(spec)` turns it into a Scene.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+#: parameter ranges per regime: (low, high); "log" ranges are sampled log-uniformly
+REGIMES = {
+    # the rock masses of slope and tunnel models
+    "rock": dict(size=(0.01, 100.0), density=(1800.0, 3200.0), young=(0.3e9, 100e9),
+                 poisson=(0.1, 0.35), friction=(10.0, 50.0), strength=(0.0, 1e6), speed=20.0,
+                 spin=2.0),
+    # soft, heavy, frictionless, very stiff: everything a valid scene may hold
+    "extreme": dict(size=(0.01, 100.0), density=(800.0, 20000.0), young=(1e6, 300e9),
+                    poisson=(0.0, 0.45), friction=(0.0, 60.0), strength=(0.0, 1e7), speed=20.0,
+                    spin=5.0),
+}
+SHAPES = ("rect", "polygon", "ell")
+
+
+@dataclass(frozen=True, kw_only=True)
+class CaseSpec:
+    """One random scene. Lengths in block sizes unless stated."""
+
+    kind: str                    # "stack" or "cut"
+    size: float                  # block size L [m]
+    density: float               # [kg/m³]
+    young: float                 # [Pa]
+    poisson: float               # [-]
+    friction: float              # [degrees]
+    cohesion: float              # [Pa]
+    tensile: float               # [Pa]
+    gravity: float               # [m/s²]
+    shapes: tuple = ()           # stack: one of SHAPES per block
+    aspects: tuple = ()          # stack: width / height per block
+    gaps: tuple = ()             # stack: gap below each block [L]
+    shifts: tuple = ()           # stack: horizontal offset of each block [L]
+    velocities: tuple = ()       # stack: (vx, vy) per block [m/s]
+    spins: tuple = ()            # stack: angular velocity per block [rad/s]
+    joints: tuple = ()           # cut: (x0, y0, dip [degrees]) per joint, position in domain sizes
+    load: float = 0.0            # point load on the first free block, in its weight at 9.81 m/s² [-]
+    shaking: float = 0.0         # ground acceleration amplitude [m/s²] (horizontal, 2 Hz)
+    steps: int = 30
+
+
+def _polygon(shape: str, width: float, height: float) -> list:
+    if shape == "rect":
+        return [(0, 0), (width, 0), (width, height), (0, height)]
+    if shape == "polygon":  # a convex hexagon-like block sitting on a flat edge
+        return [(0, 0), (width, 0), (width * 1.15, 0.5 * height), (width, height), (0, height),
+                (-0.15 * width, 0.5 * height)]
+    # "ell": non-convex L-shaped block
+    return [(0, 0), (width, 0), (width, 0.4 * height), (0.45 * width, 0.4 * height),
+            (0.45 * width, height), (0, height)]
+
+
+def build(spec: CaseSpec):
+    """(Scene, steps) of a case."""
+    import ddatai as dd
+
+    L = spec.size
+    rock = dd.Material(density=spec.density, young=spec.young, poisson=spec.poisson)
+    joint = dd.Joint(friction=spec.friction, cohesion=spec.cohesion, tensile=spec.tensile)
+    scene = dd.Scene(gravity=spec.gravity)
+    free: list[int] = []
+    if spec.kind == "stack":
+        scene.add_block([(-3 * L, -L), (4 * L, -L), (4 * L, 0), (-3 * L, 0)], material=rock, fixed=True)
+        y = 0.0
+        for shape, aspect, gap, shift, v, w in zip(spec.shapes, spec.aspects, spec.gaps, spec.shifts,
+                                                   spec.velocities, spec.spins):
+            width = L * math.sqrt(aspect)
+            height = L / math.sqrt(aspect)
+            y += gap * L
+            poly = [(shift * L + px, y + py) for px, py in _polygon(shape, width, height)]
+            free.append(scene.add_block(poly, material=rock, velocity=tuple(v), angular_velocity=w))
+            y += height
+    else:
+        width, height = 4.0 * L, 3.0 * L
+        scene.add_block([(-L, -L), (width + L, -L), (width + L, 0), (-L, 0)], material=rock, fixed=True)
+        lines = []
+        for x0, y0, dip in spec.joints:
+            c, s = math.cos(math.radians(dip)), math.sin(math.radians(dip))
+            p = np.array([x0 * width, y0 * height])
+            d = np.array([c, s]) * 3.0 * (width + height)
+            lines.append((np.array([p - d, p + d]), joint))
+        free = scene.cut([(0, 0), (width, 0), (width, height), (0, height)], lines, material=rock)
+    scene.set_joint(joint)
+    if spec.load and free:
+        b = free[0]
+        import shapely
+
+        c = shapely.Polygon(scene.polygon(b)).representative_point().coords[0]
+        weight = spec.density * 9.81 * _area(scene.polygon(b))
+        scene.add_point_load(b, tuple(c), (0.6 * spec.load * weight, -0.8 * spec.load * weight))
+    if spec.shaking:
+        amp = spec.shaking
+        scene.set_ground_acceleration(lambda t: (amp * math.sin(2 * math.pi * 2.0 * t), 0.0))
+    return scene, spec.steps
+
+
+def _area(xy: np.ndarray) -> float:
+    x, y = xy[:, 0], xy[:, 1]
+    return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+
+
+def random_spec(rng: np.random.Generator, regime: str, steps: int = 30) -> CaseSpec:
+    """A case drawn with NumPy (the campaign); tests/test_extreme.py draws the same ranges with
+    hypothesis."""
+    r = REGIMES[regime]
+
+    def log(lo_hi):
+        lo, hi = lo_hi
+        return float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
+
+    strength = r["strength"][1]
+    base = dict(size=log(r["size"]), density=float(rng.uniform(*r["density"])), young=log(r["young"]),
+                poisson=float(rng.uniform(*r["poisson"])), friction=float(rng.uniform(*r["friction"])),
+                cohesion=float(rng.choice([0.0, rng.uniform(0, strength)])),
+                tensile=float(rng.choice([0.0, rng.uniform(0, strength)])),
+                gravity=float(rng.choice([0.0, 9.81])),
+                load=float(rng.choice([0.0, 0.0, rng.uniform(0, 10)])),
+                shaking=float(rng.choice([0.0, 0.0, rng.uniform(0, 5)])), steps=steps)
+    if rng.random() < 0.6:
+        n = int(rng.integers(1, 5))
+        return CaseSpec(kind="stack", shapes=tuple(str(rng.choice(SHAPES)) for _ in range(n)),
+                        aspects=tuple(float(math.exp(rng.uniform(-1.2, 1.2))) for _ in range(n)),
+                        gaps=tuple(float(rng.choice([0.0, rng.uniform(0, 0.5)])) for _ in range(n)),
+                        shifts=tuple(float(rng.uniform(-0.5, 0.5)) for _ in range(n)),
+                        velocities=tuple((float(rng.normal(0, r["speed"])), float(rng.normal(0, r["speed"])))
+                                         for _ in range(n)),
+                        spins=tuple(float(rng.normal(0, r["spin"])) for _ in range(n)), **base)
+    n = int(rng.integers(1, 4))
+    return CaseSpec(kind="cut", joints=tuple((float(rng.uniform(0.2, 0.8)), float(rng.uniform(0.2, 0.8)),
+                                              float(rng.uniform(0, 180))) for _ in range(n)), **base)
+
+
+def replace(spec: CaseSpec, **changes) -> CaseSpec:
+    return dataclasses.replace(spec, **changes)
+
+
+@dataclass
+class Outcome:
+    """What a case did: ``status`` is "ok", "refused" (ValueError before any work), "diverged"
+    (SimulationError), "crash" (any other exception); ``problems`` lists the properties a
+    finished run broke."""
+
+    status: str
+    message: str = ""
+    problems: tuple = ()
+    steps: int = 0
+
+
+def run_case(spec: CaseSpec) -> Outcome:
+    """Run a case with the default parameters and check the properties of the run:
+    every recorded value finite; no accepted step with a penetration above the limit; no
+    energy created (the balance's rest, friction + integrator work, is ≥ 0 within the energy
+    that penalty springs can hold at the recorded penetrations); Coulomb's law at every closed
+    contact within the open-close tolerances."""
+    import ddatai as dd
+
+    try:
+        scene, steps = build(spec)
+        model = dd.build_model(scene)
+    except ValueError as err:
+        return Outcome("refused", str(err))
+    try:
+        res = dd.simulate(scene, steps=steps)
+    except dd.SimulationError as err:
+        return Outcome("diverged", str(err), steps=0 if err.results is None else len(err.results.steps))
+    except ValueError as err:  # refused before any step
+        return Outcome("refused", str(err))
+    except Exception as err:  # noqa: BLE001 - the campaign tallies crashes
+        return Outcome("crash", f"{type(err).__name__}: {err}")
+    return Outcome("ok", problems=tuple(check(res, model)), steps=len(res.steps))
+
+
+def check(res, model) -> list[str]:
+    """The properties of a finished run (`run_case`); returns what it broke."""
+    out = []
+    s = res.steps
+    arrays = {"vertices": res.vertices, "centroid": res.centroid, "velocity": res.velocity,
+              "angular_velocity": res.angular_velocity, "stress": res.stress}
+    for name, a in arrays.items():
+        if not np.all(np.isfinite(a)):
+            out.append(f"{name} not finite")
+    for name in s.dtype.names:
+        if not np.all(np.isfinite(s[name])):
+            out.append(f"step record {name} not finite")
+    over = s["max_penetration"] > model.penetration_limit
+    if over.any():
+        out.append(f"penetration {s['max_penetration'].max():.3g} m above the limit "
+                   f"{model.penetration_limit:.3g} m at step {int(np.argmax(over)) + 1}")
+    # energy: at the end of every step, kinetic + potential + strain + contact energy ≤ the
+    # start + the external work. The balance's rest (friction + integrator work) summed from the
+    # start is what the run did not turn into energy; below zero the run created energy.
+    # Allowance: the energy of every closed contact's penalty spring at the step's deepest
+    # penetration (an open-close change within a step can release at most that), summed, plus
+    # round-off: a spring's energy at the opening tolerance per contact, and 1e-9 of the energies
+    p = model.penalty
+    rest = np.cumsum(s["friction_work"] + s["integrator_work"])
+    scale = np.abs(s["kinetic"]) + np.abs(s["gravitational"]) + np.abs(s["strain"]) + np.abs(s["contact"])
+    allowance = np.cumsum(s["closed"] * 0.5 * p * s["max_penetration"] ** 2 + (s["closed"] + 1) * p * model.open_tol ** 2) \
+        + 1e-9 * np.maximum.accumulate(scale)
+    # DDA keeps density, not mass: a block whose area changes with its volumetric strain
+    # gains or loses ρ·ΔS of mass, whose weight and motion the energies count (a block
+    # released from its settled, compressed state rises by ρ·ΔS·g·y, y its height above
+    # the model's centre). That term is the method's, allowed for block by block
+    allowance = allowance + _mass_change_energy(res, model)[1:]
+    created = -rest - allowance
+    if np.any(created > 0):
+        k = int(np.argmax(created))
+        out.append(f"energy created by step {k + 1}: {-rest[k]:.3g} J/m, allowance {allowance[k]:.3g} J/m")
+    # Coulomb: |shear| − S ≤ oc_force_tolerance·S + round-off, S ≤ p·pen·tanφ + c·L
+    params = model.params
+    strength = p * s["max_penetration"] * float(np.max(model.joint_tan_phi, initial=0.0)) + \
+        float(np.max(model.joint_cohesion, initial=0.0)) * 2.0 * model.w0
+    bound = params.oc_force_tolerance * strength + 10.0 * model.force_roundoff
+    if np.any(s["coulomb"] > bound):
+        k = int(np.argmax(s["coulomb"] - bound))
+        out.append(f"Coulomb exceeded by {s['coulomb'][k]:.3g} N/m at step {k + 1}")
+    return out
+
+
+def _mass_change_energy(res, model) -> np.ndarray:
+    """(frames,) energy of the mass that DDA's constant-density blocks gained or lost since
+    frame 0: Σ ρ·|S − S0|·(|g·(y − y_model centre)| + ½v²) over the free blocks [J/m]."""
+    o = res.vertex_offset
+    xy = res.vertices
+    x, y = xy[..., 0], xy[..., 1]
+    cross = x * np.roll(y, -1, axis=1) - y * np.roll(x, -1, axis=1)
+    # the roll wraps across blocks: fix each block's last vertex to close on its own first
+    last = o[1:] - 1
+    cross[:, last] = x[:, last] * y[:, o[:-1]] - y[:, last] * x[:, o[:-1]]
+    area = 0.5 * np.add.reduceat(cross, o[:-1], axis=1)
+    free = ~res.block_fixed
+    g = float(np.hypot(*model.gravity))
+    height = np.abs(res.centroid[..., 1] - model.origin[1])
+    speed2 = res.velocity[..., 0] ** 2 + res.velocity[..., 1] ** 2
+    per_block = model.block_density * np.abs(area - area[0]) * (g * height + 0.5 * speed2)
+    return np.sum(per_block[:, free], axis=1)
