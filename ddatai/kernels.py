@@ -37,6 +37,10 @@ STATE_LOCK = 2
 E0, G0, E1, G1, ES, GS = 0, 1, 2, 3, 4, 5
 N_SLOTS = 6
 TWO_PI = 2.0 * math.pi
+#: guards of the narrow phase: an edge this short (or its square) is collapsed — it gets no
+#: contact and divides by this instead of 0 (input checks make every edge ≥ 1e-12 of the block)
+EDGE_FLOOR = 1e-150
+EDGE_FLOOR2 = EDGE_FLOOR * EDGE_FLOOR
 #: When the corners of two parallel edges (nearly) coincide, either corner can be the contact
 #: vertex; block A's is kept unless B's lies clearly (TIE × edge length) further inside the
 #: other edge. Without this the choice follows round-off and the contact's identity, and with
@@ -66,7 +70,8 @@ def _edge_param(xy: ti.template(), vnext: ti.template(), e, p):
     """Projection parameter of vertex p on edge e (0 at its start, 1 at its end)."""
     q0 = _pt(xy, e)
     d = _pt(xy, vnext[e]) - q0
-    return (_pt(xy, p) - q0).dot(d) / d.dot(d)
+    # a collapsed edge (zero length) projects everything to its start instead of dividing by 0
+    return (_pt(xy, p) - q0).dot(d) / ti.max(d.dot(d), EDGE_FLOOR2)
 
 
 @ti.func
@@ -74,7 +79,7 @@ def _half_overlap(xy: ti.template(), vnext: ti.template(), e, a, b):
     """Half the length of the overlap of segment (a, b) projected on edge e (§3.6)."""
     q0 = _pt(xy, e)
     d = _pt(xy, vnext[e]) - q0
-    l2 = d.dot(d)
+    l2 = ti.max(d.dot(d), EDGE_FLOOR2)
     ta = (_pt(xy, a) - q0).dot(d) / l2
     tb = (_pt(xy, b) - q0).dot(d) / l2
     lo = ti.max(0.0, ti.min(ta, tb))
@@ -97,12 +102,14 @@ def _ve_test(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), p, e
     """
     q0 = _pt(xy, e)
     d = _pt(xy, vnext[e]) - q0
-    l = d.norm()
+    l = ti.max(d.norm(), EDGE_FLOOR)
     P = _pt(xy, p)
     t = (P - q0).dot(d) / (l * l)
     n = ti.Vector([d[1], -d[0]]) / l  # outward normal of a CCW edge
     dn = (P - q0).dot(n)
     ok = 1
+    if l <= EDGE_FLOOR:  # a collapsed edge has no normal: no contact (reference.narrow_phase)
+        ok = 0
     if check_projection != 0:
         if t < 0.0 or t > 1.0:
             ok = 0

@@ -15,6 +15,10 @@ import numpy as np
 from .geometry import displacement_matrix, mass_matrix
 from .model import ContactKind, ContactState, Model
 
+#: as `kernels.EDGE_FLOOR` (kept here so the reference does not import Taichi)
+EDGE_FLOOR = 1e-150
+EDGE_FLOOR2 = EDGE_FLOOR * EDGE_FLOOR
+
 VE, VV = int(ContactKind.VE), int(ContactKind.VV)
 TIE = 1e-3  # same as ddatai.kernels.TIE
 
@@ -63,7 +67,7 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray) -> tupl
     def param(e, p):
         q0, q1 = xy[e], xy[nxt[e]]
         d = q1 - q0
-        return float(np.dot(xy[p] - q0, d) / np.dot(d, d))
+        return float(np.dot(xy[p] - q0, d) / max(float(np.dot(d, d)), EDGE_FLOOR2))
 
     def half_overlap(e, a, b):
         ta, tb = param(e, a), param(e, b)
@@ -77,10 +81,12 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray) -> tupl
     def ve_test(p, e, check_projection):
         q0, q1, P = xy[e], xy[nxt[e]], xy[p]
         d = q1 - q0
-        l = float(np.linalg.norm(d))
+        l = max(float(np.linalg.norm(d)), EDGE_FLOOR)
         t = float(np.dot(P - q0, d)) / l ** 2
         n = np.array([d[1], -d[0]]) / l
         dn = float(np.dot(P - q0, n))
+        if l <= EDGE_FLOOR:  # a collapsed edge has no normal: no contact
+            return False, 0.0
         if check_projection and not 0.0 <= t <= 1.0:
             return False, 0.0
         if dn > d0 or dn < -d9 or not convex(p):

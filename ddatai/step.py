@@ -58,6 +58,7 @@ class _Attempt:
     friction: Optional[np.ndarray] = None  # friction magnitude S of each contact in the accepted solve
     vec: Optional[np.ndarray] = None       # contact vectors of the accepted solve
     coulomb: float = 0.0                   # largest (|shear force| − S)/S of a closed contact
+    where: tuple = ()                      # blocks of the contact (or block) behind a failure
 
 
 @dataclass
@@ -198,19 +199,32 @@ class Stepper:
         return external, friction
 
     def _failure_message(self, attempt: _Attempt, state: State, dt: float) -> str:
+        """Why a step failed, with the numbers, the blocks or contacts, and what to change."""
         step = state.step + 1
-        what = {
-            "open-close": f"the open-close iteration did not converge in {self.params.oc_max_iterations} "
-                          "iterations",
-            "nan": "the solution is not finite (NaN or infinite displacements)",
-            "penetration": f"runaway penetration: {attempt.max_penetration:.3g} m exceeds the limit "
-                           f"{self.model.penetration_limit:.3g} m",
-            "displacement": f"the step displacement {attempt.max_displacement:.3g} m exceeds "
-                            f"{self.params.displacement_reject:g} × g2·w0 = "
-                            f"{self.params.displacement_reject * self.model.max_step:.3g} m",
-        }[attempt.cause]
+        m, p = self.model, self.params
+        if attempt.cause == "open-close":
+            n_bad, *pairs = attempt.where or (0,)
+            named = ", ".join(f"blocks {a}-{b}" for a, b in pairs)
+            what = (f"the open-close iteration did not converge in {p.oc_max_iterations} iterations "
+                    f"({n_bad} contacts still changing state, e.g. between {named})")
+            advice = "raise Params.oc_max_iterations, or loosen Params.oc_state_tolerance"
+        elif attempt.cause == "nan":
+            what = "the solution is not finite (NaN or infinite displacements)"
+            advice = ("the system is singular or overflowed: check the blocks' Young's moduli and "
+                      f"densities and the penalty p = {m.penalty:.3g} Pa")
+        elif attempt.cause == "penetration":
+            a, b, force = attempt.where
+            what = (f"runaway penetration: {attempt.max_penetration:.4g} m between blocks {a} and {b} "
+                    f"exceeds the limit 2.5·g3·w0 = {m.penetration_limit:.4g} m (contact force "
+                    f"{force:.3g} N/m against the penalty p = {m.penalty:.3g} Pa)")
+            advice = ("raise Params.penalty (or penalty_ratio) so that force/p stays well below the limit, "
+                      "or raise Params.penetration_ratio (docs/method/limits.md)")
+        else:
+            what = (f"the step displacement {attempt.max_displacement:.4g} m exceeds "
+                    f"{p.displacement_reject:g} × g2·w0 = {p.displacement_reject * m.max_step:.4g} m")
+            advice = "lower Params.max_displacement_ratio or the time step"
         return (f"simulation diverged at step {step} (t = {state.time:.6g} s): {what}, even with the "
-                f"time step cut to {dt:.3g} s")
+                f"time step cut to {dt:.3g} s; {advice}")
 
     # ------------------------------------------------------------------ phases
     def choose_time_step(self, state: State, geom: dict) -> float:
@@ -665,11 +679,16 @@ class Stepper:
         if disp is None:
             return _Attempt(ok=False, cause="nan", iterations=it)
         if not converged:
-            return _Attempt(ok=False, cause="open-close", iterations=it)
+            bad = np.flatnonzero(self.last_bad) if getattr(self, "last_bad", None) is not None else []
+            where = (len(bad),) + tuple(sorted({(int(contacts.block_a[i]), int(contacts.block_b[i]))
+                                                 for i in bad[:200]})[:3])
+            return _Attempt(ok=False, cause="open-close", iterations=it, where=where)
         t0 = _time.perf_counter()
         umax = self._max_vertex_displacement(state.vertex_xy, geom, disp)
         closed = contacts.state != OPEN
-        pen = float(np.max(-contacts.dn[closed], initial=0.0))
+        depth = np.where(closed, -contacts.dn, 0.0)
+        deepest = int(np.argmax(depth)) if contacts.n else -1
+        pen = float(depth[deepest]) if contacts.n else 0.0
         ratio = umax / m.max_step
         result = _Attempt(ok=True, displacement=disp, contacts=contacts, iterations=it,
                           max_displacement=umax, max_penetration=max(pen, 0.0), ratio=ratio,
@@ -678,6 +697,8 @@ class Stepper:
             result.ok, result.cause = False, "displacement"
         elif pen > m.penetration_limit:
             result.ok, result.cause = False, "penetration"
+            result.where = (int(contacts.block_a[deepest]), int(contacts.block_b[deepest]),
+                            float(contacts.normal_force[deepest]))
         timer.add("update", t0)
         return result
 

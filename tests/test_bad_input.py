@@ -2,6 +2,8 @@
 simulation work; a diverging run stops with an error naming the step and the cause and keeps
 the frames recorded so far."""
 
+import re
+
 import numpy as np
 import pytest
 
@@ -147,4 +149,10 @@ def test_runaway_penetration_is_reported():
     with pytest.raises(dd.SimulationError) as info:
         dd.simulate(scene, params=dd.Params(penalty=1e3, dt=0.01, dt_min_ratio=0.01), duration=1.0)
     assert info.value.cause == "penetration"
-    assert "runaway penetration" in str(info.value)
+    msg = str(info.value)
+    assert "runaway penetration" in msg
+    assert "between blocks 0 and 1" in msg or "between blocks 1 and 0" in msg
+    assert "Params.penalty" in msg  # what to change
+    # the two numbers differ where they are printed
+    pen, limit = re.search(r"penetration: ([0-9.e+-]+) m .* limit 2.5·g3·w0 = ([0-9.e+-]+) m", msg).groups()
+    assert float(pen) > float(limit)

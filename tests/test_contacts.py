@@ -229,3 +229,26 @@ def test_second_order_shift_kernel_equals_reference_and_derivative(seed):
             d0 = _exact_dn_ds(*pts, 0.0, l1)[0]
             d1 = _exact_dn_ds(*moved, 0.0, l1)[0]
             assert abs(shift[k, 1] - (d1 - d0)) < 10 * np.abs(q).max() ** 2 / l1 + 1e-14 * (1 + np.abs(xy).max())
+
+
+def test_collapsed_edge_gets_no_contact_in_kernel_and_reference():
+    """Guards of the narrow phase: an edge squeezed to zero length in a run (a block whose
+    vertex coincides with its neighbour) has no normal; both paths skip it instead of dividing
+    by zero, and agree on every other contact."""
+    scene = dd.Scene()
+    scene.add_block([(-2, -1), (3, -1), (3, 0), (-2, 0)], material=ROCK, fixed=True)
+    scene.add_block([(0, 0), (1, 0), (1, 1), (0.5, 1.0 + 1e-3), (0, 1)], material=ROCK)
+    scene.add_block([(0, 1.0 + 1e-3), (1, 1.0 + 1e-3), (1, 2), (0, 2)], material=ROCK)
+    model = dd.build_model(scene)
+    xy = model.vertex_xy0.copy()
+    # collapse block 1's edge from (1, 1) to (0.5, 1.001): vertex 6 onto vertex 7
+    first = model.vertex_offset[1]
+    xy[first + 2] = xy[first + 3]
+    stepper = Stepper(model)
+    cint_k, length_k = detect_contacts(model, xy, stepper.buffers)
+    cint_r, length_r = reference.detect_contacts(model, xy)
+    assert np.array_equal(cint_k, cint_r)
+    assert np.allclose(length_k, length_r, rtol=1e-12, atol=1e-15)
+    assert np.all(np.isfinite(length_k))
+    collapsed = first + 2
+    assert not np.any(cint_k[:, 2] == collapsed)  # no contact against the collapsed edge
