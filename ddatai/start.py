@@ -26,6 +26,13 @@ solve of the model under its weight, the point loads at t = 0 and its initial st
    contact that reached its strength in the stage starts locked at its strength with its bond
    intact.
 
+5. If the static open-close iteration does not converge (contacts near zero force in a fitted
+   mass of blocks flip between states), the stage starts again as a ladder of pseudo-steps with
+   inertia: Δt from the run's step, doubling up to the static pseudo time step, each starting
+   from the contact states of the last; a pseudo-step that does not converge is retried with a
+   shorter Δt (MAX_LADDER_RETRIES in all). Each solve then stays close to the last, as in a
+   dynamic step. If the ladder fails too, the model starts under sudden gravity.
+
 So a model that limit equilibrium calls stable moves no more than its elastic settlement, and
 one that it calls unstable starts failing at once: its released blocks start under sudden
 gravity, and their bonded joints lose their bonds as soon as they slide or open (Shi's rule,
@@ -56,6 +63,12 @@ MECHANISM_SIZE = 0.25
 #: at most this many solves in a pseudo-step (each adds contacts that open, close or slide, or
 #: releases mechanisms)
 MAX_SOLVES = 30
+#: a pseudo-step of the ladder (below) whose increment is this fraction of the median block
+#: size has settled as far as inertia lets it: the ladder jumps to the static step
+LADDER_DONE = 1e-8
+#: a pseudo-step of the ladder that does not converge is tried again with a smaller Δt at most
+#: this many times in all
+MAX_LADDER_RETRIES = 3
 #: at most this many pseudo-steps (each re-solves the increment at the settled geometry; the
 #: second is ~strain × the first, the third round-off)
 MAX_PSEUDO_STEPS = 8
@@ -93,19 +106,44 @@ def settle(stepper, state: State) -> tuple[State, StartRecord]:
     contact memory carries the held contacts into the first step, and the stage's record."""
     t0 = _time.perf_counter()
     model = stepper.model
-    free = ~model.block_fixed
     nothing = StartRecord(solves=0, held=0, released=0, settlement=0.0, at_strength=0, wall_time=0.0)
     if not needs_settling(model):
         return state, nothing
     geom = model.block_geometry(state.vertex_xy)
     size = np.sqrt(geom["area"])
-    dt = _pseudo_time_step(stepper, geom, size)
+    dt_static = _pseudo_time_step(stepper, geom, size)
+    settled, record = _stage(stepper, state, size, dt_static, None, t0)
+    if record.held == 0 and record.released == np.count_nonzero(~model.block_fixed) and record.solves:
+        # the static solve did not converge (contacts near zero force in a fitted mass of
+        # blocks flip between states): approach it through pseudo-steps whose inertia keeps
+        # each solve close to the last — Δt doubling from the run's step, each starting from
+        # the contact states of the last, until the increments are round-off
+        p = stepper.params
+        dt = min(p.dt if p.dt is not None else p.dt_max, dt_static)
+        settled, again = _stage(stepper, state, size, dt_static, dt, t0)
+        record = StartRecord(**{**vars(again), "solves": record.solves + again.solves})
+    return settled, record
+
+
+def _stage(stepper, state: State, size: np.ndarray, dt_static: float, dt_ladder, t0: float
+           ) -> tuple[State, StartRecord]:
+    """Pseudo-steps: with Δt = ``dt_static`` until the increment is round-off, or (the ladder)
+    from ``dt_ladder`` doubling up to ``dt_static`` — a pseudo-step that does not converge is
+    tried again with a smaller Δt (a quarter at the start, then half-way in log to the last
+    that converged), and once an increment is round-off the ladder goes to ``dt_static``."""
+    model = stepper.model
+    free = ~model.block_fixed
     initial = state
     released = np.zeros(model.n_blocks, bool)
     at_strength: set = set()
     memory = ContactMemory.empty()
     solves = 0
-    for _ in range(MAX_PSEUDO_STEPS):
+    nothing = StartRecord(solves=0, held=0, released=0, settlement=0.0, at_strength=0, wall_time=0.0)
+    dt = dt_static if dt_ladder is None else dt_ladder
+    converged_dt = None  # the last Δt of the ladder that converged
+    retries = 0
+    budget = MAX_PSEUDO_STEPS + (0 if dt_ladder is None else 4 * int(np.log2(dt_static / dt_ladder)) + 16)
+    for _ in range(budget):
         geom = state.geometry if state.geometry is not None else model.block_geometry(state.vertex_xy)
         cint, length = detect_contacts(model, state.vertex_xy, stepper.buffers)
         contacts = Contacts.start(model, state.vertex_xy, cint, length, memory, True)
@@ -115,6 +153,10 @@ def settle(stepper, state: State) -> tuple[State, StartRecord]:
         disp, n, found, contacts = _static_solve(stepper, state, geom, contacts, dt, released, size,
                                                  at_strength)
         solves += n
+        if disp is None and dt_ladder is not None and retries < MAX_LADDER_RETRIES and dt < dt_static:
+            retries += 1
+            dt = 0.25 * dt if converged_dt is None else float(np.sqrt(converged_dt * dt))
+            continue
         if disp is None:  # no equilibrium: start under sudden gravity, as without the stage
             return initial, StartRecord(solves=solves, held=0, released=int(np.count_nonzero(free)),
                                         settlement=0.0, at_strength=0, wall_time=_time.perf_counter() - t0)
@@ -128,8 +170,13 @@ def settle(stepper, state: State) -> tuple[State, StartRecord]:
         step = float(_block_displacement(stepper, state.vertex_xy, geom, disp).max(initial=0.0))
         state = _apply(stepper, state, geom, disp)
         memory = contacts.memory(stepper.params.bond_breaks_on_slip)
-        if step <= model.open_tol:
+        if step <= model.open_tol and dt >= dt_static:
             break  # the increment is round-off: an equilibrium of the settled geometry
+        if dt < dt_static:
+            converged_dt = dt
+            # along the ladder, an increment of round-off size means the inertia no longer
+            # holds anything back: go to the static step
+            dt = dt_static if step <= LADDER_DONE * float(np.median(size)) else min(2.0 * dt, dt_static)
     if solves == 0:
         return initial, nothing
     held = free & ~released

@@ -90,14 +90,14 @@ def test_extreme_scenes_run_through_or_are_refused(spec):
 
 @pytest.mark.slow
 @LONG
-@given(cases("rock", steps=200))
+@given(cases("rock", steps=100))
 def test_rock_like_scenes_long(spec):
     _holds(spec, refuse_ok=True)
 
 
 @pytest.mark.slow
 @LONG
-@given(cases("extreme", steps=200))
+@given(cases("extreme", steps=100))
 def test_extreme_scenes_long(spec):
     _holds(spec, refuse_ok=True)
 
