@@ -16,7 +16,8 @@ solve of the model under its weight, the point loads at t = 0 and its initial st
    inertia of a very long pseudo time step, over which free fall would cover 1e4 block sizes:
    it keeps K regular for a block that nothing holds and does not change a held block's
    displacement measurably.
-3. A block that moves more than a quarter of its size is a mechanism that the contacts cannot hold:
+3. A block that moves more than a quarter of its size, or whose contacts sink deeper than the
+   penetration limit, is a mechanism that the contacts cannot hold:
    a free block, one balanced on a corner, a column that topples, a group that limit
    equilibrium calls unstable. It is *released*: its contacts leave the stage and it starts at
    t = 0 from its initial position under sudden gravity (as without the stage), and the others
@@ -30,7 +31,7 @@ solve of the model under its weight, the point loads at t = 0 and its initial st
    mass of blocks flip between states), the stage starts again as a ladder of pseudo-steps with
    inertia: Δt from the run's step, doubling up to the static pseudo time step, each starting
    from the contact states of the last; a pseudo-step that does not converge is retried with a
-   shorter Δt (MAX_LADDER_RETRIES in all). Each solve then stays close to the last, as in a
+   shorter Δt while the ladder climbs past the Δt of its last failure. Each solve then stays close to the last, as in a
    dynamic step. If the ladder fails too, the model starts under sudden gravity.
 
 So a model that limit equilibrium calls stable moves no more than its elastic settlement, and
@@ -67,8 +68,8 @@ MAX_SOLVES = 30
 #: size has settled as far as inertia lets it: the ladder jumps to the static step
 LADDER_DONE = 1e-8
 #: a pseudo-step of the ladder that does not converge is tried again with a smaller Δt at most
-#: this many times in all
-MAX_LADDER_RETRIES = 3
+#: this many times in all, and only while the ladder climbs past its last failure
+MAX_LADDER_RETRIES = 8
 #: at most this many pseudo-steps (each re-solves the increment at the settled geometry; the
 #: second is ~strain × the first, the third round-off)
 MAX_PSEUDO_STEPS = 8
@@ -141,6 +142,7 @@ def _stage(stepper, state: State, size: np.ndarray, dt_static: float, dt_ladder,
     nothing = StartRecord(solves=0, held=0, released=0, settlement=0.0, at_strength=0, wall_time=0.0)
     dt = dt_static if dt_ladder is None else dt_ladder
     converged_dt = None  # the last Δt of the ladder that converged
+    failed_dt = None     # and the last that did not
     retries = 0
     budget = MAX_PSEUDO_STEPS + (0 if dt_ladder is None else 4 * int(np.log2(dt_static / dt_ladder)) + 16)
     for _ in range(budget):
@@ -153,8 +155,13 @@ def _stage(stepper, state: State, size: np.ndarray, dt_static: float, dt_ladder,
         disp, n, found, contacts = _static_solve(stepper, state, geom, contacts, dt, released, size,
                                                  at_strength)
         solves += n
-        if disp is None and dt_ladder is not None and retries < MAX_LADDER_RETRIES and dt < dt_static:
+        # a pseudo-step of the ladder that fails is retried shorter, as long as the ladder has
+        # climbed past the Δt of its last failure (else it is cycling there: give up)
+        progress = failed_dt is None or dt > failed_dt * (1.0 + 1e-9)
+        if disp is None and dt_ladder is not None and progress and retries < MAX_LADDER_RETRIES \
+                and dt < dt_static:
             retries += 1
+            failed_dt = dt
             dt = 0.25 * dt if converged_dt is None else float(np.sqrt(converged_dt * dt))
             continue
         if disp is None:  # no equilibrium: start under sudden gravity, as without the stage
@@ -245,6 +252,14 @@ def _static_solve(stepper, state: State, geom: dict, contacts: Contacts, dt: flo
             return None, solves, out & ~released, contacts
         moved = _block_displacement(stepper, state.vertex_xy, geom, disp)
         mechanism = free & ~out & (moved > MECHANISM_SIZE * size)
+        # a block held only by contacts deeper than the penetration limit is not held (the
+        # penalty is too soft for its load): it starts as a mechanism, and the run reports it
+        deep = (contacts.state != OPEN) & (-contacts.dn > model.penetration_limit)
+        if deep.any():
+            sunk = np.zeros(model.n_blocks, bool)
+            sunk[contacts.block_a[deep]] = True
+            sunk[contacts.block_b[deep]] = True
+            mechanism |= sunk & free & ~out
         if not mechanism.any():
             break
         out |= mechanism  # release them and solve the rest again without their contacts
