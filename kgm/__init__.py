@@ -8,6 +8,9 @@ Method) and judges them with three evaluators (kgm-method.md):
 * ``"dda"`` – the group simulated with ddatai on its real joint geometry (the method of
   Shahami, Yarahmadi Bafghi & Fatehi Marji), FS by strength reduction.
 
+``"rigid"`` and ``"sarma"`` also check block toppling of a row of blocks (Goodman & Bray 1976,
+`kgm.toppling`) and take the least safe admissible mechanism.
+
 >>> import kgm
 >>> rep = kgm.analyze(scene, method="sarma")                      # doctest: +SKIP
 >>> rep.critical.blocks, rep.critical.fs, rep.critical.critical_friction   # doctest: +SKIP
@@ -27,13 +30,15 @@ _EXPORTS = {
     "critical_friction": "search", "exhaustive": "search", "key_blocks": "search",
     "Settings": "settings", "DdaSettings": "settings",
     "Report": "report", "GroupResult": "report", "format_paper_table": "report",
-    "format_groups": "report",
+    "format_groups": "report", "format_toppling": "report",
     "BlockSystem": "blocks", "build_block_system": "blocks", "classify_blocks": "blocks",
     "removable_arc": "blocks", "is_removable": "blocks", "rigid_modes": "blocks",
     "Mode": "blocks", "ModeKind": "blocks",
     "evaluate_rigid": "evaluators", "evaluate_sarma": "evaluators", "sarma_modes": "evaluators",
     "DdaJudgement": "dda", "DdaEvaluation": "dda", "DdaTiming": "dda", "judge": "dda",
     "sub_scene": "dda",
+    "toppling_mode": "toppling", "toppling_row": "toppling", "BlockState": "toppling",
+    "BlockStep": "toppling",
 }
 
 __all__ = sorted(_EXPORTS)

@@ -44,6 +44,8 @@ class ModeKind(str, Enum):
     SLIDING = "sliding"      # rigid translation on one face (parallel faces pooled)
     ROTATION = "rotation"    # rigid rotation about a vertex (toppling)
     SARMA = "sarma"          # blocks translate separately, shearing their shared joints
+    TOPPLING = "toppling"    # a row of blocks toppling and sliding on their own bases
+                             # (Goodman & Bray 1976, kgm.toppling)
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -456,6 +458,10 @@ class Mode:
     """Sarma's K_c: horizontal acceleration (in g, toward the direction of motion) that brings
     the mode to limit equilibrium at the actual strength; < 0 means unstable under gravity
     alone [-]."""
+    block_modes: Optional[tuple] = None
+    """Block toppling only: the Goodman–Bray recursion at limit equilibrium (strength reduced
+    by FS), one `kgm.toppling.BlockStep` per member (stable, toppling or sliding, with its
+    forces), top block first."""
 
 
 def rigid_modes(system: BlockSystem, blocks: frozenset, removed: frozenset = frozenset()) -> list[Mode]:

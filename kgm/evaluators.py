@@ -7,6 +7,10 @@
   mobilised strength (c/F, tanφ/F), with Sarma's critical acceleration K_c (§5). The group's
   factor of safety is the least over these mechanisms and the rigid modes (§5.3).
 
+Both add **block toppling** (`kgm.toppling`, Goodman & Bray 1976) when the group's geometry
+admits it (a row of blocks on their own bases, each pushing on the next one downslope): the
+group's FS is that of the least safe admissible mechanism, translation, rotation or toppling.
+
 The DDA evaluator lives in :mod:`kgm.dda` (it starts Taichi) and is imported only when used.
 
 Sarma mechanisms (§5.2, generalised to any group): with member velocities v ∈ R^{2n}, every
@@ -36,6 +40,7 @@ from typing import Callable, Optional
 import numpy as np
 
 from .blocks import BlockSystem, Mode, ModeKind, _parallel_sets, group_faces, rigid_modes
+from .toppling import toppling_mode
 
 #: Velocity tolerance of the mechanism checks, relative to the fastest member [-].
 VELOCITY_TOL = 1e-7
@@ -66,17 +71,28 @@ def _governing(modes: list[Mode]) -> Evaluation:
     return Evaluation(fs=modes[0].fs, mode=modes[0], modes=tuple(modes))
 
 
+def _with_toppling(system: BlockSystem, blocks: frozenset, removed: frozenset, modes: list[Mode]) -> list[Mode]:
+    """The modes plus the group's block-toppling mode where its geometry admits one (a row of
+    two or more blocks; a single block's toppling is the rigid rotation, §4.5)."""
+    if len(blocks) > 1 and not any(m.fs == 0.0 for m in modes):
+        mode = toppling_mode(system, blocks, removed)
+        if mode is not None:
+            modes = modes + [mode]
+    return modes
+
+
 def evaluate_rigid(system: BlockSystem, blocks: frozenset, removed: frozenset = frozenset()) -> Evaluation:
-    """KGM: the group as one rigid body (kgm-method.md §4)."""
-    return _governing(rigid_modes(system, blocks, removed))
+    """KGM: the group as one rigid body (kgm-method.md §4), and its block toppling."""
+    return _governing(_with_toppling(system, blocks, removed, rigid_modes(system, blocks, removed)))
 
 
 def evaluate_sarma(system: BlockSystem, blocks: frozenset, removed: frozenset = frozenset()) -> Evaluation:
-    """SKGM: least safe of the rigid modes and the Sarma mechanisms (kgm-method.md §5.3)."""
+    """SKGM: least safe of the rigid modes, the Sarma mechanisms (kgm-method.md §5.3) and
+    block toppling."""
     modes = rigid_modes(system, blocks, removed)
     if len(blocks) > 1 and not any(m.fs == 0.0 for m in modes):
         modes += sarma_modes(system, blocks, removed)
-    return _governing(modes)
+    return _governing(_with_toppling(system, blocks, removed, modes))
 
 
 def critical_friction_of(evaluation: Evaluation) -> float:

@@ -43,6 +43,12 @@ class GroupResult:
         return "stable" if self.stable else "unstable"
 
     @property
+    def block_modes(self) -> dict:
+        """Block toppling (``mode.kind`` TOPPLING): block id -> 'stable', 'toppling' or
+        'sliding' at limit equilibrium (Goodman & Bray's recursion); otherwise empty."""
+        return {s.block: s.state.value for s in (self.mode.block_modes or ())}
+
+    @property
     def critical_acceleration(self) -> Optional[float]:
         """Sarma's K_c of the governing mode [g], if the evaluator computed it."""
         return self.mode.critical_acceleration
@@ -140,6 +146,41 @@ def format_groups(groups: Sequence[GroupResult]) -> str:
         ids = "{" + ", ".join(str(b) for b in sorted(g.blocks)) + "}"
         rows.append(f"{i + 1:>3}  {ids:<18} {g.evaluator:<6} {_fmt(g.fs):>7} {_fmt(g.critical_friction, 2):>7} "
                     f"{_fmt(g.critical_acceleration):>8}  {g.mode.kind.value:<9} {g.verdict}")
+        if g.mode.block_modes:
+            rows.append(f"{'':>5}{_block_modes_line(g.mode.block_modes)}")
+    return "\n".join(rows)
+
+
+def _block_modes_line(steps) -> str:
+    """'stable {13-15}; toppling {3-12}; sliding {0-2}': blocks by state, top to toe, runs of
+    consecutive ids joined."""
+    parts = []
+    for state in ("stable", "toppling", "sliding"):
+        ids = sorted(s.block for s in steps if s.state.value == state)
+        if not ids:
+            continue
+        runs, start = [], ids[0]
+        for a, b in zip(ids, ids[1:] + [None]):
+            if b != a + 1:
+                runs.append(f"{start}" if start == a else f"{start}-{a}")
+                start = b
+        parts.append(f"{state} {{{', '.join(runs)}}}")
+    return "; ".join(parts)
+
+
+def format_toppling(mode: Mode) -> str:
+    """Goodman & Bray's table of a block-toppling mode (Hoek & Bray 1981): per block, top to
+    toe, its height y_n, the heights M_n and L_n of the interface forces, P_n from above, the
+    forces P_{n-1,t} and P_{n-1,s} it needs from below [kN/m], and its state; at limit
+    equilibrium (strength reduced by FS)."""
+    if not mode.block_modes:
+        return ""
+    head = (f"{'block':>5} {'y_n':>7} {'M_n':>7} {'L_n':>7} {'P_n':>10} {'P_n-1,t':>10} {'P_n-1,s':>10}  state")
+    rows = [head, "-" * len(head)]
+    for st in mode.block_modes:
+        rows.append(f"{st.block:>5} {st.height:7.2f} {st.contact_above:7.2f} {st.contact_below:7.2f} "
+                    f"{_fmt(st.force_above / 1e3, 1):>10} {_fmt(st.force_toppling / 1e3, 1):>10} "
+                    f"{_fmt(st.force_sliding / 1e3, 1):>10}  {st.state.value}")
     return "\n".join(rows)
 
 

@@ -29,6 +29,7 @@ from .blocks import (BlockSystem, build_block_system, check_group, classify_bloc
                      is_connected, is_removable)
 from .evaluators import Evaluation, critical_friction_of, evaluate_rigid, evaluate_sarma
 from .report import GroupResult, Report, contact_polylines
+from .toppling import upslope_neighbours
 from .settings import Settings
 
 METHODS = ("rigid", "sarma", "dda")
@@ -96,22 +97,50 @@ def _mobile_neighbours(system: BlockSystem, blocks: frozenset, removed: frozense
 def grow(system: BlockSystem, seed: int, evaluate, seeds, settings: Settings,
          removed: frozenset = frozenset()) -> tuple[frozenset, Evaluation]:
     """Greedy growth from a seed (§3.3): add the neighbour that lowers FS most while the group
-    stays a key group; stop when none lowers it by more than the tolerance."""
+    stays a key group; stop when none lowers it by more than the tolerance.
+
+    When no single neighbour helps and the group is a toppling row (`kgm.toppling`), the row
+    is also grown upslope one leaning block at a time to its top: the blocks above add their
+    push only once a toppling one is reached (Goodman & Bray's upper blocks are stable, their
+    toe blocks slide), so the least safe of these longer rows is taken, if it lowers FS."""
     group = frozenset([seed])
     ev = evaluate(group)
-    while len(group) < settings.max_group_size:
+    while True:
         best = None
-        for nb in _mobile_neighbours(system, group, removed):
-            g2 = group | {nb}
-            ev2 = evaluate(g2)
-            if not is_key_group(system, g2, ev2, seeds, removed):
-                continue
-            if ev2.fs < ev.fs - settings.growth_tolerance and (best is None or ev2.fs < best[1].fs):
-                best = (g2, ev2)
+        if len(group) < settings.max_group_size:
+            for nb in _mobile_neighbours(system, group, removed):
+                g2 = group | {nb}
+                ev2 = evaluate(g2)
+                if not is_key_group(system, g2, ev2, seeds, removed):
+                    continue
+                if ev2.fs < ev.fs - settings.growth_tolerance and (best is None or ev2.fs < best[1].fs):
+                    best = (g2, ev2)
+        if best is None:
+            best = _grow_row(system, group, ev, evaluate, seeds, settings, removed)
         if best is None:
             break
         group, ev = best
     return group, ev
+
+
+def _grow_row(system: BlockSystem, group: frozenset, ev: Evaluation, evaluate, seeds, settings: Settings,
+              removed: frozenset) -> Optional[tuple[frozenset, Evaluation]]:
+    """The least safe toppling row made of the group and the blocks leaning on it from upslope,
+    one after the other (a block joins if the row stays a row with it on top), if it lowers FS
+    by more than the tolerance; else None."""
+    best = None
+    row = group
+    while len(row) < max(settings.max_row_size, len(group) + 1):
+        above = upslope_neighbours(system, row, removed)
+        if len(above) != 1:
+            break  # the row ends (or forks: not a single row)
+        row = row | {above[0]}
+        ev2 = evaluate(row)
+        if not is_key_group(system, row, ev2, seeds, removed):
+            continue
+        if ev2.fs < ev.fs - settings.growth_tolerance and (best is None or ev2.fs < best[1].fs):
+            best = (row, ev2)
+    return best
 
 
 def connected_groups(system: BlockSystem, max_size: int, removed: frozenset = frozenset()) -> Iterator[frozenset]:

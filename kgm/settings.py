@@ -102,6 +102,9 @@ class Settings:
     """A neighbour joins a group only if it lowers FS by more than this [-]."""
     max_group_size: int = 8
     """Largest number of blocks in a group [-]."""
+    max_row_size: int = 32
+    """Largest number of blocks in a toppling row grown along its interfaces (its toppling
+    evaluation is linear in its length, so rows may be longer than ``max_group_size``) [-]."""
     max_iterations: int = 100
     """Largest number of removal rounds in progressive mode [-]."""
     screening: Literal["rigid", "sarma"] = "sarma"
@@ -113,7 +116,7 @@ class Settings:
         _positive(self, "fs_target")
         _require(isinstance(self.growth_tolerance, (int, float)) and self.growth_tolerance >= 0,
                  f"Settings.growth_tolerance must be >= 0, got {self.growth_tolerance!r}")
-        for name in ("max_group_size", "max_iterations"):
+        for name in ("max_group_size", "max_row_size", "max_iterations"):
             v = getattr(self, name)
             _require(isinstance(v, int) and not isinstance(v, bool) and v >= 1,
                      f"Settings.{name} must be an integer >= 1, got {v!r}")

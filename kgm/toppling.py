@@ -1,0 +1,392 @@
+"""Block toppling of a row of blocks: the Goodman & Bray (1976) limit-equilibrium recursion on
+the real polygons of a group (Hoek & Bray 1981, ch. 10; Wyllie & Mah 2004, §10.3).
+
+A group admits block toppling when its members form a **row**: every member rests on its own
+base (a face of contacts with the stable rock on which its active force presses), each pushes
+on the next one downslope through an interface (a face shared by the two, across the base),
+and the lowest member (the toe) has nothing in front of it. Going from the top block down to
+the toe, block n receives the force P_n from the block above and needs
+
+* P_{n-1,t} from the block below to hold it against toppling about the downslope end of its
+  base (moment equilibrium about that corner, Goodman & Bray eq. 11 / Wyllie & Mah eq. 10.9):
+  in the textbook geometry  P_{n-1,t} = [P_n (M_n − Δx tanφ_d) + W_n/2 (y_n sinψ − Δx cosψ)] / L_n;
+* P_{n-1,s} to hold it against sliding on its base (force equilibrium along and across the
+  base, Goodman & Bray eq. 13 / Wyllie & Mah eq. 10.10):
+  P_{n-1,s} = P_n − W_n (tanφ_p cosψ − sinψ) / (1 − tanφ_p tanφ_d).
+
+The block is stable if neither is positive (it passes 0 on), toppling if P_{n-1,t} > P_{n-1,s}
+and sliding otherwise; the larger force goes on to the block below. The interface forces have
+shear Q = c·L + P·tanφ_d (the face is closed while it transmits P): on the block below it acts
+toward that block's base, on the block above away from it (Hoek & Bray's sign convention). The
+slope is stable if and only if the force the toe block needs from below, P_0, is ≤ 0.
+
+Here the recursion is written with vectors on the real geometry instead of the textbook's
+rectangles: the active force (weight and point loads) and its moment from the block arrays,
+the base from the member's contacts with the stable rock (pooled by direction, length-weighted
+tanφ, Σ c·L), the pivot at the downslope end of the base, and each interface force applied at
+the point of the shared face farthest from the block's base (Goodman & Bray's M_n and L_n: the
+top of the shorter of the two faces, where the toppling columns touch). For the textbook
+rectangles the vector equations are exactly the two formulas above. P_0 acts parallel to the
+toe's base at the highest point of its free downslope face.
+
+The factor of safety is a strength reduction: tanφ/F and c/F on every joint, F found by
+bisection on the sign of P_0 (kgm-method.md §4.6); the critical friction angle is the φ of all
+joints (cohesion held) with P_0 = 0, also by bisection.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from enum import Enum
+from typing import Optional
+
+import numpy as np
+
+from .blocks import BlockSystem, Mode, ModeKind, _parallel_sets, group_faces
+
+#: Least cosine between the active force and a base face's inward normal for the face to carry
+#: the block (a base must be pressed, not a wall beside the block) [-].
+BASE_MIN_COS = 0.1
+#: Least |cos| between an interface normal and the base direction for the interface to be
+#: "across the base" (60° from the base normal) [-].
+INTERFACE_MIN_COS = 0.5
+#: Bracket of the strength-reduction factor F [-] and bisection steps.
+F_MIN, F_MAX = 1e-3, 1e3
+#: Largest friction angle of the critical-friction bisection [degrees].
+PHI_MAX = 89.9
+BISECTION_STEPS = 64
+
+
+class BlockState(str, Enum):
+    """How one block of a toppling row behaves in the Goodman–Bray recursion."""
+
+    STABLE = "stable"
+    TOPPLING = "toppling"
+    SLIDING = "sliding"
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class _Face:
+    """A face of one member: pooled contacts, their strength, and where its force acts."""
+
+    contacts: np.ndarray   # contact indices
+    normal: np.ndarray     # (2,) unit normal into the member
+    point: np.ndarray      # (2,) where the face's force acts [m]
+    length: float          # Σ L [m]
+    cl: float              # Σ c·L [N/m]
+    tan_phi: float         # length-weighted tanφ [-]
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class RowBlock:
+    """One member of a toppling row, with the geometry the recursion uses."""
+
+    block: int
+    force: np.ndarray       # (2,) active force [N/m]
+    moment: float           # its moment about the origin, counter-clockwise [N·m/m]
+    base: _Face             # base face (normal into the block)
+    downslope: np.ndarray   # (2,) unit base tangent pointing downslope
+    pivot: np.ndarray       # (2,) downslope end of the base [m]
+    below: _Face            # face toward the next block down (for the toe: its free face)
+    height: float           # largest distance of the polygon from its base line [m]
+    base_length: float      # Σ L of the base [m]
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class TopplingRow:
+    """Members of a group that admits block toppling, ordered from the top block to the toe."""
+
+    blocks: tuple  # (RowBlock, ...), top first
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class BlockStep:
+    """The recursion's answer for one block (one row of Hoek & Bray's table)."""
+
+    block: int
+    """Block id."""
+    state: BlockState
+    """Stable, toppling or sliding."""
+    force_above: float
+    """P_n: force from the block above [N/m]."""
+    force_toppling: float
+    """P_{n-1,t}: force needed from below to prevent toppling [N/m] (±inf: cannot / need not)."""
+    force_sliding: float
+    """P_{n-1,s}: force needed from below to prevent sliding [N/m]."""
+    force_below: float
+    """P_{n-1} passed to the block below (0 for a stable block) [N/m]."""
+    height: float
+    """y_n: height of the block above its base [m]."""
+    contact_above: float
+    """M_n: height of the upper interface force above the base [m] (0: top block)."""
+    contact_below: float
+    """L_n: height of the lower interface force above the base [m]."""
+    base_dip: float
+    """Dip of the base [degrees]."""
+
+
+# ---------------------------------------------------------------------- geometry of a row
+def _face(system: BlockSystem, contacts: np.ndarray, normal: np.ndarray, point: np.ndarray) -> _Face:
+    length = system.contact_length[contacts]
+    total = float(length.sum())
+    return _Face(contacts=np.asarray(contacts, dtype=np.int64), normal=normal, point=point, length=total,
+                 cl=float((system.contact_cohesion[contacts] * length).sum()),
+                 tan_phi=float((np.tan(np.radians(system.contact_friction[contacts])) * length).sum()
+                               / max(total, 1e-300)))
+
+
+def toppling_row(system: BlockSystem, blocks: frozenset, removed: frozenset = frozenset()
+                 ) -> Optional[TopplingRow]:
+    """The group as a toppling row (top block first), or None if its geometry does not admit
+    block toppling: a member without a base, members not in a single chain of interfaces
+    across their bases, or a toe blocked by rock in front of it."""
+    members = sorted(blocks)
+    if not members:
+        return None
+    gf = group_faces(system, frozenset(members), removed)
+    cb = system.contact_blocks
+    bases: dict[int, tuple] = {}
+    for m in members:
+        sel = np.flatnonzero(gf.boundary_member == m)
+        f = system.block_force[m]
+        fnorm = float(np.hypot(*f))
+        if fnorm == 0.0 or len(sel) == 0:
+            return None
+        best = None
+        for grp in _parallel_sets(gf.boundary_normal[sel]):
+            k = sel[grp]
+            nrm = gf.boundary_normal[k[0]]
+            press = -float(f @ nrm) / fnorm
+            if press >= BASE_MIN_COS and (best is None or press > best[0] + 1e-12):
+                best = (press, gf.boundary[k], nrm)
+        if best is None:
+            return None
+        tangent = f - (f @ best[2]) * best[2]
+        if float(np.hypot(*tangent)) <= 1e-9 * fnorm:
+            return None  # level base: no downslope direction
+        bases[m] = (best[1], best[2], tangent / np.hypot(*tangent))
+    # interfaces between members, pooled per pair; the normal into the first of the pair
+    pairs: dict[tuple[int, int], list[int]] = {}
+    for k in gf.internal.tolist():
+        pairs.setdefault((int(cb[k, 0]), int(cb[k, 1])), []).append(k)
+    down: dict[int, int] = {}
+    up: dict[int, int] = {}
+    for (a, b), ks in pairs.items():
+        ks = np.array(ks)
+        n_a = system.contact_normal[ks[0]]  # into a
+        ta, tb = bases[a][2], bases[b][2]
+        if float(ta @ tb) <= 0.0:
+            return None  # members sliding opposite ways
+        c = float(n_a @ ta)
+        if abs(c) < INTERFACE_MIN_COS or abs(float(n_a @ tb)) < INTERFACE_MIN_COS:
+            return None  # not across the bases (a block stacked on another)
+        lower, upper = (b, a) if c < 0 else (a, b)  # n into a points upslope: b lies below a
+        if upper in down or lower in up:
+            return None
+        down[upper], up[lower] = lower, upper
+    tops = [m for m in members if m not in up]
+    if len(tops) != 1:
+        return None
+    order = [tops[0]]
+    while order[-1] in down:
+        order.append(down[order[-1]])
+    if len(order) != len(members):
+        return None
+    toe = order[-1]
+    # the toe must be free to move downslope: no remaining rock in front of it
+    sel = np.flatnonzero(gf.boundary_member == toe)
+    if np.any(gf.boundary_normal[sel] @ bases[toe][2] < -INTERFACE_MIN_COS):
+        return None
+    rows = []
+    for i, m in enumerate(order):
+        base_k, n_b, t = bases[m]
+        ends = np.concatenate([system.contact_start[base_k], system.contact_end[base_k]])
+        pivot = ends[int(np.argmax(ends @ t))]
+        poly = system.polygon(m)
+        height = float(((poly - pivot) @ n_b).max())
+        if i + 1 < len(order):
+            lo = order[i + 1]
+            ks = np.array(pairs.get((m, lo), pairs.get((lo, m))))
+            sign = 1.0 if cb[ks[0], 0] == m else -1.0
+            n_l = system.contact_normal[ks[0]] * sign
+            pts = np.concatenate([system.contact_start[ks], system.contact_end[ks]])
+            point = pts[int(np.argmax((pts - pivot) @ n_b))]
+            below = _face(system, ks, n_l, point)
+        else:
+            # the toe: P_0 pushes up the base at the top of its free downslope face
+            front = poly[(poly - pivot) @ t >= -1e-9 * system.scale]
+            point = front[int(np.argmax((front - pivot) @ n_b))] if len(front) else pivot
+            up_face = rows[-1].below if rows else None
+            tan_phi = up_face.tan_phi if up_face is not None else _face(system, base_k, n_b, pivot).tan_phi
+            below = _Face(contacts=np.zeros(0, np.int64), normal=-t, point=point, length=0.0, cl=0.0,
+                          tan_phi=tan_phi)
+        rows.append(RowBlock(block=m, force=system.block_force[m].copy(), moment=float(system.block_moment[m]),
+                             base=_face(system, base_k, n_b, pivot), downslope=t, pivot=pivot, below=below,
+                             height=height, base_length=float(system.contact_length[base_k].sum())))
+    return TopplingRow(blocks=tuple(rows))
+
+
+# ---------------------------------------------------------------------- the recursion
+def _cross(p: np.ndarray, f: np.ndarray) -> float:
+    return float(p[0] * f[1] - p[1] * f[0])
+
+
+def _shear_direction(normal: np.ndarray, base_normal: np.ndarray, away_from_base: bool) -> np.ndarray:
+    """Unit tangent of an interface pointing away from (or toward) the block's base."""
+    s = np.array([-normal[1], normal[0]])
+    if (float(s @ base_normal) >= 0.0) != away_from_base:
+        s = -s
+    return s
+
+
+def recursion(row: TopplingRow, *, reduction: float = 1.0, friction: Optional[float] = None) -> tuple:
+    """Goodman & Bray's recursion from the top block to the toe at the strength (tanφ/F, c/F)
+    on every joint (``reduction`` F), or with every joint's friction set to ``friction``
+    [degrees] (cohesion held). Returns one `BlockStep` per member, top first; the last one's
+    ``force_below`` is P_0, the force the toe needs from below (stable iff ≤ 0)."""
+    def tan_of(face: _Face) -> float:
+        t = math.tan(math.radians(friction)) if friction is not None else face.tan_phi
+        return t / reduction
+
+    steps = []
+    p_above = 0.0
+    above: Optional[_Face] = None  # the face of the block above, normal into that block
+    for rb in row.blocks:
+        n_b, t, o = rb.base.normal, rb.downslope, rb.pivot
+        # toppling sense: the rotation about the pivot that moves the block's top downslope
+        sense = 1.0 if float(np.array([-n_b[1], n_b[0]]) @ t) > 0 else -1.0
+        m_force = sense * (rb.moment - _cross(o, rb.force))  # moment of the active force about o
+        f_above = np.zeros(2)
+        m_above = 0.0
+        if above is not None and p_above > 0.0:
+            n_u = -above.normal  # into this block
+            s_u = _shear_direction(n_u, n_b, away_from_base=False)
+            q = p_above * tan_of(above) + above.cl / reduction
+            f_above = p_above * n_u + q * s_u
+            m_above = sense * _cross(above.point - o, f_above)
+        lo = rb.below
+        s_l = _shear_direction(lo.normal, n_b, away_from_base=True)
+        tan_l, cl_l = tan_of(lo), lo.cl / reduction
+        unit = lo.normal + tan_l * s_l          # force on the block per unit P_{n-1}
+        # toppling (Goodman & Bray eq. 11): moment about the pivot, base reaction through it
+        lever = sense * _cross(lo.point - o, unit)
+        driving = m_force + m_above + sense * _cross(lo.point - o, cl_l * s_l)
+        if lever < -1e-12 * rb.height:
+            p_t = -driving / lever
+        else:
+            p_t = math.inf if driving > 0 else -math.inf  # the force below cannot hold it
+        # sliding (Goodman & Bray eq. 13): forces along and across the base, S = c·A + R tanφ_p
+        tan_b, cl_b = tan_of(rb.base), rb.base.cl / reduction
+        k_t = float((rb.force + f_above + cl_l * s_l) @ t)
+        k_n = float((rb.force + f_above + cl_l * s_l) @ n_b)
+        denominator = float(unit @ t) + tan_b * float(unit @ n_b)
+        if denominator < -1e-12:
+            p_s = (cl_b - k_t - tan_b * k_n) / denominator
+        else:
+            p_s = -math.inf  # pushing from below only jams it on its base: it cannot slide
+        if p_t <= 0.0 and p_s <= 0.0:
+            state, p_below = BlockState.STABLE, 0.0
+        elif p_t > p_s:
+            state, p_below = BlockState.TOPPLING, p_t
+        else:
+            state, p_below = BlockState.SLIDING, p_s
+        steps.append(BlockStep(
+            block=rb.block, state=state, force_above=p_above, force_toppling=p_t, force_sliding=p_s,
+            force_below=p_below, height=rb.height,
+            contact_above=float((above.point - o) @ n_b) if above is not None else 0.0,
+            contact_below=float((lo.point - o) @ n_b),
+            base_dip=float(np.degrees(math.atan2(abs(t[1]), abs(t[0]))))))
+        p_above, above = p_below, lo
+    return tuple(steps)
+
+
+def toe_force(row: TopplingRow, *, reduction: float = 1.0, friction: Optional[float] = None) -> float:
+    """P_0: the force the toe block needs from below [N/m] (≤ 0: the row is stable)."""
+    return recursion(row, reduction=reduction, friction=friction)[-1].force_below
+
+
+def _is_stable(row: TopplingRow, weight: float, **strength) -> bool:
+    return toe_force(row, **strength) <= 1e-12 * weight
+
+
+def _weight(row: TopplingRow) -> float:
+    return float(sum(np.hypot(*rb.force) for rb in row.blocks))
+
+
+def row_factor_of_safety(row: TopplingRow) -> float:
+    """Strength-reduction factor F with P_0 = 0 (tanφ/F, c/F on every joint), by bisection on
+    log F; 0 if the row fails with a thousand times the strength, inf if it stands with a
+    thousandth of it."""
+    w = _weight(row)
+    lo, hi = math.log(F_MIN), math.log(F_MAX)
+    if not _is_stable(row, w, reduction=F_MIN):
+        return 0.0
+    if _is_stable(row, w, reduction=F_MAX):
+        return math.inf
+    for _ in range(BISECTION_STEPS):
+        mid = 0.5 * (lo + hi)
+        if _is_stable(row, w, reduction=math.exp(mid)):
+            lo = mid
+        else:
+            hi = mid
+    return math.exp(0.5 * (lo + hi))
+
+
+def row_critical_friction(row: TopplingRow) -> float:
+    """Friction angle of every joint (cohesion held) with P_0 = 0 [degrees], by bisection; 0
+    if the row stands without friction, 90 if no friction angle holds it."""
+    w = _weight(row)
+    if _is_stable(row, w, friction=0.0):
+        return 0.0
+    if not _is_stable(row, w, friction=PHI_MAX):
+        return 90.0
+    lo, hi = 0.0, PHI_MAX
+    for _ in range(BISECTION_STEPS):
+        mid = 0.5 * (lo + hi)
+        if _is_stable(row, w, friction=mid):
+            hi = mid
+        else:
+            lo = mid
+    return 0.5 * (lo + hi)
+
+
+def toppling_mode(system: BlockSystem, blocks: frozenset, removed: frozenset = frozenset()) -> Optional[Mode]:
+    """The block-toppling mode of a group (Goodman & Bray 1976), or None if the group is not a
+    toppling row, stands even with a thousandth of its strength, or has no toppling block at
+    limit equilibrium (a row whose blocks only slide is a translational mechanism, left to the
+    rigid and Sarma evaluators). ``Mode.block_modes`` holds
+    the recursion at limit equilibrium (strength reduced by FS), top block first."""
+    row = toppling_row(system, blocks, removed)
+    if row is None:
+        return None
+    fs = row_factor_of_safety(row)
+    if not math.isfinite(fs):
+        return None
+    steps = recursion(row, reduction=fs if fs > 0 else F_MIN)
+    if not any(s.state == BlockState.TOPPLING for s in steps):
+        return None  # blocks that only slide: a translational mechanism (rigid or Sarma)
+    moving = [rb for rb, s in zip(row.blocks, steps) if s.state != BlockState.STABLE]
+    # the failure surface: the bases the moving blocks slide or pivot on
+    sliding = np.concatenate([rb.base.contacts for rb in moving])
+    sheared = np.concatenate([rb.below.contacts for rb in moving] or [np.zeros(0, np.int64)])
+    return Mode(kind=ModeKind.TOPPLING, fs=fs, critical_friction=row_critical_friction(row),
+                sliding_contacts=np.sort(sliding), sheared_contacts=np.sort(sheared),
+                pivot=row.blocks[-1].pivot.copy(), block_modes=steps)
+
+
+def upslope_neighbours(system: BlockSystem, blocks: frozenset, removed: frozenset = frozenset()) -> list[int]:
+    """Free blocks that lean on the top block of a toppling row from upslope: the group plus
+    one of them is again a toppling row with it on top (the search grows rows this way)."""
+    row = toppling_row(system, blocks, removed)
+    if row is None:
+        return []
+    top = row.blocks[0].block
+    out = []
+    for nb in sorted(system.neighbours([top], removed) - set(blocks)):
+        if system.block_fixed[nb]:
+            continue
+        grown = toppling_row(system, frozenset(blocks) | {nb}, removed)
+        if grown is not None and grown.blocks[0].block == nb:
+            out.append(nb)
+    return out
