@@ -1,0 +1,190 @@
+"""Block toppling in kgm (kgm.toppling): Goodman & Bray's (1976) recursion on the real polygons
+of a row of blocks, as a mode of the rigid and Sarma evaluators and in the group search.
+
+The textbook case is Goodman & Bray's 16-block example (Hoek & Bray 1981, Rock Slope
+Engineering, ch. 10; Wyllie & Mah 2004, §10.3): φ = 38.15° for limit equilibrium, blocks
+16–14 stable, 13–4 toppling, 3–1 sliding (scenes/toppling_slope.py). Independent checks: the
+single-block limits (toppling iff b/h < tanψ, sliding iff φ < ψ) and a two-block row solved by
+hand. Fast: no DDA.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+import ddatai as dd
+import kgm
+from kgm.blocks import ModeKind, build_block_system
+from kgm.evaluators import evaluate_rigid, evaluate_sarma
+from kgm.toppling import (BlockState, recursion, row_critical_friction, row_factor_of_safety, toe_force,
+                          toppling_mode, toppling_row)
+from scenes import toppling_slope
+
+PUBLISHED_PHI = 38.15  # degrees (Hoek & Bray 1981; Wyllie & Mah 2004)
+
+
+def _textbook(friction):
+    scene, _ = toppling_slope.build(friction=friction)
+    return scene
+
+
+def _published_states(blocks):
+    """Published mode of each scene block id (textbook block n is scene block n − 1)."""
+    return {b: toppling_slope.PUBLISHED_MODES[b + 1] for b in blocks}
+
+
+@pytest.mark.parametrize("method", ["rigid", "sarma"])
+def test_textbook_critical_friction(method):
+    scene = _textbook(35.0)
+    for group in (range(13), range(16)):
+        assert kgm.critical_friction(scene, list(group), method=method) == pytest.approx(PUBLISHED_PHI, abs=0.1)
+    # toe block alone: it slides on its 30° base (the only answer before toppling was checked)
+    assert kgm.critical_friction(scene, [0], method=method) == pytest.approx(30.0, abs=1e-6)
+
+
+def test_textbook_block_modes_and_forces():
+    """Per-block modes at the published φ, and Hoek & Bray's forces: P_12 = 292.5 kN/m from
+    block 13 (γ = 25 kN/m³), and the toe needs nothing from below."""
+    system = build_block_system(_textbook(PUBLISHED_PHI))
+    row = toppling_row(system, frozenset(range(16)))
+    assert [rb.block for rb in row.blocks] == list(range(15, -1, -1))  # top block first
+    steps = recursion(row)
+    assert {s.block: s.state.value for s in steps} == _published_states(range(16))
+    by_block = {s.block: s for s in steps}
+    assert by_block[12].force_below == pytest.approx(292.5e3, rel=1e-3)
+    assert by_block[12].contact_above == pytest.approx(17.0) and by_block[12].contact_below == pytest.approx(22.0)
+    assert by_block[9].contact_above == pytest.approx(35.0) and by_block[9].contact_below == pytest.approx(35.0)
+    # P_0 ≈ 0 at φ = 38.15° (1.2 kN/m: the published angle's rounding; the peak is 4.8 MN/m)
+    assert abs(by_block[0].force_below) < 2e3
+    assert row_critical_friction(row) == pytest.approx(PUBLISHED_PHI, abs=0.01)
+
+
+@pytest.mark.parametrize("friction, unstable", [(35.0, True), (41.0, False)])
+def test_textbook_factor_of_safety(friction, unstable):
+    scene = _textbook(friction)
+    fs = kgm.factor_of_safety(scene, list(range(13)), method="rigid")
+    assert (fs < 1.0) == unstable
+    # c = 0: strength reduction scales tanφ, so FS = tanφ / tanφc
+    assert fs == pytest.approx(math.tan(math.radians(friction)) / math.tan(math.radians(38.1512)), rel=1e-4)
+    assert kgm.factor_of_safety(scene, list(range(13)), method="sarma") == pytest.approx(fs, rel=1e-9)
+
+
+@pytest.mark.parametrize("method", ["rigid", "sarma"])
+def test_analyze_finds_the_toppling_group(method):
+    rep = kgm.analyze(_textbook(35.0), method=method)
+    crit = rep.critical
+    assert crit.mode.kind == ModeKind.TOPPLING
+    assert set(range(13)) <= set(crit.blocks)
+    assert crit.critical_friction == pytest.approx(PUBLISHED_PHI, abs=0.1)
+    assert not crit.stable and crit.fs == pytest.approx(0.8914, abs=1e-3)
+    assert crit.block_modes == _published_states(crit.blocks)
+    table = rep.table()
+    assert "toppling" in table and "toppling {3-12}; sliding {0-2}" in table
+    assert "P_n-1,t" in kgm.format_toppling(crit.mode)
+
+
+# ---------------------------------------------------------------------- independent checks
+G, RHO = 9.81, 2500.0
+ROCK = dd.Material(density=RHO, young=5e9, poisson=0.25)
+
+
+def _row_on_plane(dip, blocks, friction, cohesion=0.0):
+    """Rectangles (width along the plane, height across it) side by side on one fixed plane
+    dipping ``dip`` toward +x, the first one at the toe. Returns (scene, [base, ids toe first])."""
+    t = np.array([math.cos(math.radians(dip)), -math.sin(math.radians(dip))])   # downslope
+    n = np.array([math.sin(math.radians(dip)), math.cos(math.radians(dip))])    # up, normal
+    scene = dd.Scene(gravity=G)
+    total = sum(w for w, _ in blocks)
+    base = scene.add_block([5 * t - 3 * n, -(total + 5) * t - 3 * n, -(total + 5) * t, 5 * t], material=ROCK,
+                           fixed=True)
+    ids, x = [base], 0.0  # x: distance upslope of the block's downslope side from the toe
+    for width, height in blocks:
+        p = -x * t
+        ids.append(scene.add_block([p, p - width * t, p - width * t + height * n, p + height * n], material=ROCK))
+        x += width
+    scene.set_joint(dd.Joint(friction=friction, cohesion=cohesion))
+    return scene, ids
+
+
+@pytest.mark.parametrize("width, height, friction", [(1.0, 4.0, 40.0), (1.0, 1.5, 40.0), (4.0, 1.0, 20.0),
+                                                     (4.0, 1.0, 35.0), (1.0, 4.0, 20.0)])
+def test_single_block_limits(width, height, friction):
+    """One block on a plane of dip ψ = 30° (Wyllie & Mah §10.2): the recursion needs a force
+    against toppling iff b/h < tanψ and against sliding iff φ < ψ."""
+    scene, (_, block) = _row_on_plane(30.0, [(width, height)], friction)
+    row = toppling_row(build_block_system(scene), frozenset([block]))
+    (step,) = recursion(row)
+    psi = math.radians(30.0)
+    assert (step.force_toppling > 0) == (width / height < math.tan(psi))
+    assert (step.force_sliding > 0) == (friction < 30.0)
+    # P_{0,t} = W/2 (h sinψ − b cosψ)/h with the force at the top of the free face (eq. 11, P_1 = 0)
+    w = RHO * G * width * height
+    assert step.force_toppling == pytest.approx(0.5 * w * (height * math.sin(psi) - width * math.cos(psi)) / height,
+                                                rel=1e-9)
+
+
+def test_single_block_sliding_with_cohesion_matches_planar_sliding():
+    """A squat block that only slides: the row's strength-reduction FS is the planar one,
+    FS = (c·A + W cosψ tanφ) / (W sinψ) (Hoek & Bray 1981, eq. for a plane, no water)."""
+    scene, (_, block) = _row_on_plane(30.0, [(4.0, 1.0)], 25.0, cohesion=5e3)
+    row = toppling_row(build_block_system(scene), frozenset([block]))
+    w, psi = RHO * G * 4.0, math.radians(30.0)
+    expected = (5e3 * 4.0 + w * math.cos(psi) * math.tan(math.radians(25.0))) / (w * math.sin(psi))
+    assert row_factor_of_safety(row) == pytest.approx(expected, rel=1e-9)
+
+
+def test_two_block_row_by_hand():
+    """Two blocks on a 30° plane (no steps, γ = ρg, Δx = 1 m): an upper column 4 m high and a
+    toe block 1 m high.
+
+    Upper block (n = 2, P_2 = 0, L_2 = 1 m, the top of the toe block): it topples since
+    y/Δx = 4 > cot 30°, and needs P_{1,t} = W_2/2 (4 sin30° − cos30°)/1 = 2.2679 γ from below
+    (its sliding force is negative for any φ > 30°, as 1 − tan²φ > 0 up to 45°).
+    Toe block (n = 1, W_1 = γ, M_1 = L_1 = 1 m): P_{0,t} = P_1 (1 − tanφ) + W_1/2 (sin30° − cos30°)
+    and P_{0,s} = P_1 − W_1 (tanφ cos30° − sin30°)/(1 − tan²φ). The limit is reached by sliding:
+    P_{0,s} = 0 ⇔ 2.2679 t² + 0.8660 t − 2.7679 = 0 (t = tanφ) ⇒ t = 0.9302, φc = 42.93°,
+    where P_{0,t} = 2.2679·0.0698 − 0.1830 = −0.025 < 0 (per γ), so the toe slides and the
+    column topples.
+    """
+    scene, (_, toe, column) = _row_on_plane(30.0, [(1.0, 1.0), (1.0, 4.0)], 40.0)
+    system = build_block_system(scene)
+    row = toppling_row(system, frozenset([toe, column]))
+    assert [rb.block for rb in row.blocks] == [column, toe]
+    gamma, psi = RHO * G, math.radians(30.0)
+    p1 = 0.5 * 4.0 * gamma * (4.0 * math.sin(psi) - math.cos(psi)) / 1.0
+    a, b, c = p1, gamma * math.cos(psi), -(p1 + gamma * math.sin(psi))
+    t = (-b + math.sqrt(b * b - 4 * a * c)) / (2 * a)
+    phi_c = math.degrees(math.atan(t))
+    assert phi_c == pytest.approx(42.93, abs=0.01)
+    assert row_critical_friction(row) == pytest.approx(phi_c, abs=1e-6)
+    steps = recursion(row, friction=phi_c - 1e-6)  # just below the limit: the toe slides
+    assert [s.state for s in steps] == [BlockState.TOPPLING, BlockState.SLIDING]
+    assert steps[0].force_below == pytest.approx(p1, rel=1e-9)
+    t_below = math.tan(math.radians(phi_c - 1e-6))
+    assert steps[1].force_toppling == pytest.approx(p1 * (1 - t_below) + 0.5 * gamma * (math.sin(psi) - math.cos(psi)),
+                                                    rel=1e-9)
+    assert abs(toe_force(row, friction=phi_c)) < 1e-6 * gamma
+    # as a mode of the evaluators: toppling governs the pair, which glued would just slide
+    mode = toppling_mode(system, frozenset([toe, column]))
+    assert mode.kind == ModeKind.TOPPLING and mode.critical_friction == pytest.approx(phi_c, abs=1e-6)
+    for ev in (evaluate_rigid(system, frozenset([toe, column])), evaluate_sarma(system, frozenset([toe, column]))):
+        assert ev.mode.kind == ModeKind.TOPPLING
+        assert ev.fs == pytest.approx(math.tan(math.radians(40.0)) / t, rel=1e-6)
+
+
+def test_rows_that_are_not_toppling_rows():
+    """No toppling mode for blocks stacked on one another, a toe held by rock in front, or a
+    row whose blocks only slide (a translational mechanism)."""
+    scene, (_, toe, column) = _row_on_plane(30.0, [(1.0, 1.0), (1.0, 4.0)], 40.0)
+    system = build_block_system(scene)
+    assert toppling_row(system, frozenset([toe, column])) is not None
+    # the column alone has the toe block in front of it: held by rock
+    assert toppling_row(system, frozenset([column])) is None
+    stacked = dd.Scene(gravity=G)
+    stacked.add_block([(-5, -1), (5, -1), (5, 0), (-5, 0)], material=ROCK, fixed=True)
+    a = stacked.add_block([(0, 0), (1, 0), (1, 1), (0, 1)], material=ROCK)
+    b = stacked.add_block([(0, 1), (1, 1), (1, 2), (0, 2)], material=ROCK)
+    assert toppling_row(build_block_system(stacked), frozenset([a, b])) is None
+    squat, (_, s1, s2) = _row_on_plane(30.0, [(4.0, 1.0), (4.0, 1.0)], 20.0)
+    assert toppling_mode(build_block_system(squat), frozenset([s1, s2])) is None
