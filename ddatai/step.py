@@ -140,6 +140,9 @@ class Stepper:
         contacts0 = Contacts.start(model, state.vertex_xy, cint, length, state.memory, state.step == 0)
         pattern = self._pattern = BlockPattern.build(model, contacts0, self._pattern)
         vec, sca = self.contact_vectors(state.vertex_xy, geom, contacts0)
+        # the shear springs as the step finds them (the lock point carried from the last step,
+        # or the stage's force at strength): their energy belongs to the step's start energy
+        contacts0.ds[:] = np.where(contacts0.cint[:, KIND] == VV, 0.0, sca[:, 2])
         t0 = timer.add("contacts", t0)
 
         cuts = 0

@@ -215,3 +215,18 @@ def test_shaken_cut_block_without_gravity(density, young, poisson, friction, sha
                     friction=friction, cohesion=0.0, tensile=0.0, gravity=0.0,
                     joints=((0.5, 0.5, 0.0),), shaking=shaking, steps=100)
     _holds(spec, refuse_ok=False)
+
+
+@pytest.mark.parametrize("spec", [
+    CaseSpec(kind="stack", size=1.0, density=800.0, young=1202604.2841647768, poisson=0.4375, friction=33.0,
+             cohesion=0.0, tensile=0.0, gravity=9.81, shapes=("rect",), aspects=(1.0,), gaps=(0.0,),
+             shifts=(0.0,), velocities=((0.0, 0.0),), spins=(0.0,), steps=100),
+    CaseSpec(kind="cut", size=1.0, density=1800.0, young=485165195.4097903, poisson=0.109375, friction=37.0,
+             cohesion=0.0, tensile=0.0, gravity=0.0, joints=((0.5, 0.25, 0.0),), load=1.0, steps=100),
+], ids=["soft-block-at-rest", "loaded-cut-domain"])
+def test_start_energy_counts_the_stage_s_shear_springs(spec):
+    """Shrunk by the long profile: a block the equilibrium stage leaves with its contacts locked
+    at their strength. The first step's start energy measured those shear springs at ds = 0
+    (the stage's lock point carries ds = S/ks), so a block at rest 'created' 0.27 J/m in step 1;
+    the start energy now takes each spring as the step finds it."""
+    _holds(spec, refuse_ok=False)
