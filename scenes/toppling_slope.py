@@ -64,9 +64,12 @@ def build(friction: float = 35.0, cohesion: float = 0.0, young: float = 10e9):
         if n < N_BLOCKS:
             steps.append(at(n * WIDTH, n * STEP))
     back = at(N_BLOCKS * WIDTH + WIDTH, (N_BLOCKS - 1) * STEP)
-    bottom = -20.0
-    front = 30.0
-    scene.add_block([(front, bottom), (front, 0.0), *steps, back, (back[0], bottom)], material=rock, fixed=True)
+    # in front of the toe the rock follows the toe block's base plane down (the base daylights,
+    # as the recursion assumes): a ground surface at the toe's level would buttress block 1
+    # and stop it sliding
+    daylight = at(-20.0, 0.0)
+    bottom = daylight[1] - 20.0
+    scene.add_block([(daylight[0], bottom), daylight, *steps, back, (back[0], bottom)], material=rock, fixed=True)
     scene.set_joint(dd.Joint(friction=friction, cohesion=cohesion, tensile=0.0))
     return scene, dd.Params(dt=0.002, penalty_ratio=10.0)
 
