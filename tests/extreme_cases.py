@@ -169,11 +169,18 @@ def run_case(spec: CaseSpec) -> Outcome:
     contact within the open-close tolerances."""
     import ddatai as dd
 
+    import warnings
+
     try:
         scene, steps = build(spec)
-        model = dd.build_model(scene)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            model = dd.build_model(scene)
     except ValueError as err:
         return Outcome("refused", str(err))
+    # a model warned for block strains beyond what a first-order block carries accurately
+    # (docs/method/limits.md) is held to everything but the energy balance
+    strained = any("elastic strain" in str(w.message) for w in caught)
     try:
         res = dd.simulate(scene, steps=steps)
     except dd.SimulationError as err:
@@ -182,11 +189,12 @@ def run_case(spec: CaseSpec) -> Outcome:
         return Outcome("refused", str(err))
     except Exception as err:  # noqa: BLE001 - the campaign tallies crashes
         return Outcome("crash", f"{type(err).__name__}: {err}")
-    return Outcome("ok", problems=tuple(check(res, model)), steps=len(res.steps))
+    return Outcome("ok", problems=tuple(check(res, model, energy=not strained)), steps=len(res.steps))
 
 
-def check(res, model) -> list[str]:
-    """The properties of a finished run (`run_case`); returns what it broke."""
+def check(res, model, energy: bool = True) -> list[str]:
+    """The properties of a finished run (`run_case`); returns what it broke. ``energy=False``
+    leaves out the energy balance."""
     out = []
     s = res.steps
     arrays = {"vertices": res.vertices, "centroid": res.centroid, "velocity": res.velocity,
@@ -225,7 +233,7 @@ def check(res, model) -> list[str]:
     # "rotation" limit). Allowed, summed over the steps
     allowance = allowance + np.cumsum(_rotation_error(res, model))
     created = -rest - allowance
-    if np.any(created > 0):
+    if energy and np.any(created > 0):
         k = int(np.argmax(created))
         out.append(f"energy created by step {k + 1}: {-rest[k]:.3g} J/m, allowance {allowance[k]:.3g} J/m")
     # Coulomb: |shear| − S ≤ oc_force_tolerance·S + round-off, S ≤ p·pen·tanφ + c·L
