@@ -92,6 +92,14 @@ def write_result_gif(path: str, scene, report, params=None, settings=None) -> No
             labels[sorted(g)] = i
         names = [f"removed in round {i + 1}" for i in range(len(report.removed))]
         title = f"progressive {report.method}: {len(report.removed)} groups removed"
+    elif crit is not None and crit.block_modes:
+        # a toppling group: each block coloured by its state at limit equilibrium
+        states = ["toppling", "sliding", "stable"]
+        for b, state in crit.block_modes.items():
+            labels[b] = states.index(state)
+        names = [f"{state} (critical group)" for state in states]
+        title = (f"{report.method}: {crit.mode.kind.value} of {len(crit.blocks)} blocks, FS {crit.fs:.2f} "
+                 f"({crit.verdict})")
     else:
         if crit is not None:
             labels[sorted(crit.blocks)] = 0

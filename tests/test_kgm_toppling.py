@@ -188,3 +188,25 @@ def test_rows_that_are_not_toppling_rows():
     assert toppling_row(build_block_system(stacked), frozenset([a, b])) is None
     squat, (_, s1, s2) = _row_on_plane(30.0, [(4.0, 1.0), (4.0, 1.0)], 20.0)
     assert toppling_mode(build_block_system(squat), frozenset([s1, s2])) is None
+
+
+def test_gif_colours_blocks_by_their_toppling_state(tmp_path, monkeypatch):
+    """`kgm analyze --gif` on a toppling group labels each block by its state."""
+    import kgm
+    from kgm import cli
+
+    seen = {}
+
+    def fake_write_gif(res, path, labels=None, label_names=None, **kw):
+        seen.update(labels=list(labels), names=list(label_names), title=kw.get("title", ""))
+
+    import ddatai.render
+
+    monkeypatch.setattr(ddatai.render, "write_gif", fake_write_gif)
+    scene, _ = toppling_slope.build(friction=35.0)
+    rep = kgm.analyze(scene, method="rigid")
+    cli.write_result_gif(str(tmp_path / "t.gif"), scene, rep)
+    names = seen["names"]
+    state_of = {b: names[k].split()[0] for b, k in enumerate(seen["labels"]) if k >= 0}
+    assert state_of == {b: s for b, s in rep.critical.block_modes.items()}
+    assert "toppling" in seen["title"]
