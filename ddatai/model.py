@@ -358,12 +358,14 @@ def build_model(scene: Scene, params: Optional[Params] = None) -> Model:
 #: impact at its initial speed (v·√(ρ/E), the uniform strain that stores its kinetic energy):
 #: beyond STRAIN_WARNING a warning (a first-order DDA block updates one uniform strain as a
 #: small strain, whose error grows as ε/2 of it: 2.5 % at 5 %); beyond STRAIN_LIMIT the model
-#: is refused (its blocks would lose half their height, and their contacts and penalty springs
-#: leave the method) (docs/method/limits.md)
+#: is refused: its blocks would deform by a quarter of their size, which the equilibrium stage
+#: cannot tell from a mechanism (`ddatai.start.MECHANISM_SIZE`), and their contacts and penalty
+#: springs leave the method (a frictionless soft mass at 35 % turned singular in its 46th step)
+#: (docs/method/limits.md)
 STRAIN_WARNING = 0.05
+STRAIN_LIMIT = 0.25
 #: a model whose extent is this many times its median block size is warned about (precision)
 PRECISION_EXTENT = 1e6
-STRAIN_LIMIT = 0.5
 #: the automatic penalty keeps the static contact penetration under the weight of a model's
 #: columns and point loads within this share of the penetration limit 2.5·g3·w0 ...
 STATIC_PENETRATION_SHARE = 0.05

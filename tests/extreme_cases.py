@@ -249,7 +249,8 @@ def check(res, model, energy: bool = True) -> list[str]:
 
 def _mass_change_energy(res, model) -> np.ndarray:
     """(frames,) energy of the mass that DDA's constant-density blocks gained or lost since
-    frame 0: Σ ρ·|S − S0|·(|g·(y − y_model centre)| + ½v²) over the free blocks [J/m]."""
+    frame 0: Σ ρ·|S − S0|·(|g·(y − y_model centre)| + ½v²) + 2|S − S0|/S0·½Iω² over the free
+    blocks [J/m]."""
     o = res.vertex_offset
     xy = res.vertices
     x, y = xy[..., 0], xy[..., 1]
@@ -263,6 +264,9 @@ def _mass_change_energy(res, model) -> np.ndarray:
     height = np.abs(res.centroid[..., 1] - model.origin[1])
     speed2 = res.velocity[..., 0] ** 2 + res.velocity[..., 1] ** 2
     per_block = model.block_density * np.abs(area - area[0]) * (g * height + 0.5 * speed2)
+    # the spin: I grows as S² under a uniform strain, so ½Iω² by 2|ΔS|/S of itself
+    spin = 0.5 * _polar_moment(res, model) * res.angular_velocity ** 2
+    per_block = per_block + 2.0 * np.abs(area - area[0]) / np.abs(area[0]) * spin
     return np.sum(per_block[:, free], axis=1)
 
 

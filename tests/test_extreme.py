@@ -266,3 +266,26 @@ def test_strained_models_are_warned_and_run(spec):
     with pytest.warns(UserWarning, match=r"block \d+: elastic strain"):
         dd.build_model(scene)
     _holds(spec, refuse_ok=False)
+
+
+def test_spinning_block_leaving_its_base():
+    """Shrunk by the long profile: a 2.7 m block settled on its base, launched up at 5 m/s with
+    a spin of 2 rad/s. Its area grows as its settled strain is released, and DDA's constant
+    density adds ρ·ΔS of mass: its spin energy grows by 2ΔS/S of itself, which the energy
+    balance allows as it allows the translation's."""
+    spec = CaseSpec(kind="stack", size=math.e, density=1800.0, young=333448837.24767584, poisson=0.25,
+                    friction=10.0, cohesion=0.0, tensile=0.0, gravity=9.81, shapes=("rect",), aspects=(math.e,),
+                    gaps=(0.0,), shifts=(0.0,), velocities=((0.0, 5.0),), spins=(2.0,), steps=100)
+    _holds(spec, refuse_ok=False)
+
+
+def test_soft_frictionless_mass_at_35_percent_strain_is_refused():
+    """Shrunk by the long profile: a 1 MPa, 11,881 kg/m³ domain cut by frictionless cohesive
+    joints (weight strain 0.35) turned singular at step 46. Beyond 25 % strain the stage cannot
+    tell a block's deformation from a mechanism: refused before any work, naming the block."""
+    spec = CaseSpec(kind="cut", size=1.0, density=11881.390705363707, young=1e6, poisson=0.0505099107197387,
+                    friction=0.0, cohesion=2077855.8864777847, tensile=2658362.0, gravity=9.81,
+                    joints=((0.5, 0.74609375, 0.0), (0.380859375, 0.6171875, 165.0)), steps=100)
+    out = run_case(spec)
+    assert out.status == "refused"
+    assert "block 1: elastic strain 0.35" in out.message and "exceeds 0.25" in out.message
