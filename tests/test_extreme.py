@@ -289,3 +289,20 @@ def test_soft_frictionless_mass_at_35_percent_strain_is_refused():
     out = run_case(spec)
     assert out.status == "refused"
     assert "block 1: elastic strain 0.35" in out.message and "exceeds 0.25" in out.message
+
+
+@pytest.mark.xfail(strict=True, reason="open: energy created beyond the method's allowance (found by "
+                   "the long profile, 1 in ~1,000 examples of each regime; cause not yet found)")
+@pytest.mark.parametrize("spec", [
+    # a constant point load (¼ of the block's weight) on a block sliding on a 33° cut joint, no
+    # gravity, φ = 34°, c = 26 Pa: 17.8 J/m created by step 70 against 0.95 J/m allowed
+    CaseSpec(kind="cut", size=1.0, density=1800.0, young=1318815734.4832146, poisson=0.25, friction=34.0,
+             cohesion=26.0, tensile=0.0, gravity=0.0, joints=((0.5, 0.5625, 33.0),), load=0.25, steps=100),
+    # a soft (1 MPa), light, frictionless mass cut by three joints under gravity (strain 2.4 %,
+    # not warned): 2.69e3 J/m created by step 28 against 2.53e3 J/m allowed
+    CaseSpec(kind="cut", size=1.0, density=800.0, young=1e6, poisson=0.0, friction=0.0, cohesion=0.0,
+             tensile=7015.0, gravity=9.81, joints=((0.5, 0.28125, 0.0), (0.34375, 0.5625, 19.0), (0.6875, 0.625, 68.0)),
+             steps=100),
+], ids=["point-load-no-gravity-sliding", "soft-frictionless-cut-mass"])
+def test_known_energy_creation(spec):
+    _holds(spec, refuse_ok=False)
