@@ -325,7 +325,7 @@ def build_model(scene: Scene, params: Optional[Params] = None) -> Model:
     d0 = max(d0, d9)
     free_young = np.array([s.material.young for s in specs], dtype=float)
     loads = _loads_at_start(scene)
-    column = _column_load(xy0, offset, vblock, fixed, density, areas, scene.gravity, loads)
+    column = _column_load(xy0, offset, fixed, density, areas, scene.gravity, loads)
     _check_strain(specs, fixed, column, vel, density, free_young)
     penalty = params.penalty if params.penalty is not None else \
         _automatic_penalty(params, free_young, fixed, column, vel, density, areas, xy0, offset,
@@ -386,10 +386,12 @@ def _loads_at_start(scene: Scene) -> np.ndarray:
     return out
 
 
-def _column_load(xy0, offset, vblock, fixed, density, areas, gravity, loads) -> np.ndarray:
+def _column_load(xy0, offset, fixed, density, areas, gravity, loads) -> np.ndarray:
     """(B,) the vertical stress at the base of each free block from its own weight and that of
     the free blocks above it (those overlapping it in x), plus the point loads on them,
-    spread over the block's width [Pa]: the load its contacts carry at rest."""
+    spread over the wider of the two blocks [Pa]: the load its contacts carry at rest."""
+    import shapely
+
     nb = len(offset) - 1
     x_lo = np.minimum.reduceat(xy0[:, 0], offset[:-1])
     x_hi = np.maximum.reduceat(xy0[:, 0], offset[:-1])
@@ -398,22 +400,30 @@ def _column_load(xy0, offset, vblock, fixed, density, areas, gravity, loads) -> 
     if len(loads):
         np.add.at(weight, loads[:, 0].astype(int), loads[:, 1])
     weight[fixed] = 0.0
-    width = np.maximum(x_hi - x_lo, 1e-300)
     out = np.zeros(nb)
-    free = np.flatnonzero(~fixed)
-    # blocks above b and overlapping it in x press on it; their weight spreads over the wider
-    # of the two (chunks keep the pairwise test in bounded memory)
-    for start in range(0, len(free), 2048):
-        b = free[start:start + 2048]
-        over = (x_lo[None, free] < x_hi[b, None]) & (x_hi[None, free] > x_lo[b, None]) & \
-            (y_lo[None, free] >= y_lo[b, None])
-        share = weight[None, free] / np.maximum(width[None, free], width[b, None])
-        out[b] = np.sum(np.where(over, share, 0.0), axis=1)
+    free = np.flatnonzero(~fixed & (weight > 0.0))  # only loaded blocks press on others
+    if not len(free):
+        return out
+    width = np.maximum(x_hi - x_lo, 1e-300)
+    top = float(xy0[:, 1].max())
+    # candidate pairs from a tree of the loaded blocks' boxes, queried with each free block's
+    # strip from its base up (chunks keep the pair lists in bounded memory)
+    tree = shapely.STRtree(shapely.box(x_lo[free], y_lo[free], x_hi[free], top))
+    targets = np.flatnonzero(~fixed)
+    for start in range(0, len(targets), 4096):
+        b = targets[start:start + 4096]
+        q, c = tree.query(shapely.box(x_lo[b], y_lo[b], x_hi[b], top), predicate="intersects")
+        bb, cc = b[q], free[c]
+        # strict overlap in x (boxes that only touch do not press), at or above b's base
+        keep = (x_lo[cc] < x_hi[bb]) & (x_hi[cc] > x_lo[bb]) & (y_lo[cc] >= y_lo[bb])
+        bb, cc = bb[keep], cc[keep]
+        out += np.bincount(bb, weights=weight[cc] / np.maximum(width[cc], width[bb]), minlength=nb)
     return out
 
 
 def _check_strain(specs, fixed, column, vel, density, young) -> None:
-    """Refuse a block whose weight-and-load strain or impact strain exceeds MAX_BLOCK_STRAIN."""
+    """Warn about a block whose weight-and-load strain or impact strain exceeds STRAIN_WARNING;
+    refuse one beyond STRAIN_LIMIT."""
     free = ~fixed
     static = np.where(free, column / young, 0.0)
     speed = np.hypot(vel[:, 0], vel[:, 1])
