@@ -43,7 +43,7 @@ from typing import Optional
 
 import numpy as np
 
-from .blocks import BlockSystem, Mode, ModeKind, _parallel_sets, group_faces
+from .blocks import BlockSystem, Mode, ModeKind, _cross, _parallel_sets, group_faces
 
 #: Least cosine between the active force and a base face's inward normal for the face to carry
 #: the block (a base must be pressed, not a wall beside the block) [-].
@@ -228,10 +228,6 @@ def toppling_row(system: BlockSystem, blocks: frozenset, removed: frozenset = fr
 
 
 # ---------------------------------------------------------------------- the recursion
-def _cross(p: np.ndarray, f: np.ndarray) -> float:
-    return float(p[0] * f[1] - p[1] * f[0])
-
-
 def _shear_direction(normal: np.ndarray, base_normal: np.ndarray, away_from_base: bool) -> np.ndarray:
     """Unit tangent of an interface pointing away from (or toward) the block's base."""
     s = np.array([-normal[1], normal[0]])
@@ -314,23 +310,29 @@ def _weight(row: TopplingRow) -> float:
     return float(sum(np.hypot(*rb.force) for rb in row.blocks))
 
 
+def _bisect(stands, lo: float, hi: float) -> float:
+    """The point in [lo, hi] where ``stands(x)`` turns from False (at lo) to True (at hi)."""
+    for _ in range(BISECTION_STEPS):
+        mid = 0.5 * (lo + hi)
+        if stands(mid):
+            hi = mid
+        else:
+            lo = mid
+    return 0.5 * (lo + hi)
+
+
 def row_factor_of_safety(row: TopplingRow) -> float:
     """Strength-reduction factor F with P_0 = 0 (tanφ/F, c/F on every joint), by bisection on
     log F; 0 if the row fails with a thousand times the strength, inf if it stands with a
     thousandth of it."""
     w = _weight(row)
-    lo, hi = math.log(F_MIN), math.log(F_MAX)
     if not _is_stable(row, w, reduction=F_MIN):
         return 0.0
     if _is_stable(row, w, reduction=F_MAX):
         return math.inf
-    for _ in range(BISECTION_STEPS):
-        mid = 0.5 * (lo + hi)
-        if _is_stable(row, w, reduction=math.exp(mid)):
-            lo = mid
-        else:
-            hi = mid
-    return math.exp(0.5 * (lo + hi))
+    # the row stands at small F and fails at large F: bisect on −log F
+    return math.exp(-_bisect(lambda x: _is_stable(row, w, reduction=math.exp(-x)),
+                             -math.log(F_MAX), -math.log(F_MIN)))
 
 
 def row_critical_friction(row: TopplingRow) -> float:
@@ -341,14 +343,7 @@ def row_critical_friction(row: TopplingRow) -> float:
         return 0.0
     if not _is_stable(row, w, friction=PHI_MAX):
         return 90.0
-    lo, hi = 0.0, PHI_MAX
-    for _ in range(BISECTION_STEPS):
-        mid = 0.5 * (lo + hi)
-        if _is_stable(row, w, friction=mid):
-            hi = mid
-        else:
-            lo = mid
-    return 0.5 * (lo + hi)
+    return _bisect(lambda phi: _is_stable(row, w, friction=phi), 0.0, PHI_MAX)
 
 
 def toppling_mode(system: BlockSystem, blocks: frozenset, removed: frozenset = frozenset()) -> Optional[Mode]:
