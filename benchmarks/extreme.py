@@ -21,8 +21,6 @@ sys.path.insert(0, str(ROOT / "tests"))
 
 
 def one(regime: str, seed: int, steps: int) -> dict:
-    import dataclasses
-
     from extreme_cases import random_spec, run_case
 
     spec = random_spec(np.random.default_rng(seed), regime, steps)

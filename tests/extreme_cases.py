@@ -9,11 +9,12 @@ a literal that a regression test can hold. `build(spec)` turns it into a Scene.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass
 
 import numpy as np
+
+from ddatai.geometry import polygon_integrals, signed_area
 
 #: parameter ranges per regime: (low, high); "log" ranges are sampled log-uniformly
 REGIMES = {
@@ -101,17 +102,12 @@ def build(spec: CaseSpec):
         import shapely
 
         c = shapely.Polygon(scene.polygon(b)).representative_point().coords[0]
-        weight = spec.density * 9.81 * _area(scene.polygon(b))
+        weight = spec.density * 9.81 * abs(signed_area(scene.polygon(b)))
         scene.add_point_load(b, tuple(c), (0.6 * spec.load * weight, -0.8 * spec.load * weight))
     if spec.shaking:
         amp = spec.shaking
         scene.set_ground_acceleration(lambda t: (amp * math.sin(2 * math.pi * 2.0 * t), 0.0))
     return scene, spec.steps
-
-
-def _area(xy: np.ndarray) -> float:
-    x, y = xy[:, 0], xy[:, 1]
-    return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
 
 
 def random_spec(rng: np.random.Generator, regime: str, steps: int = 30) -> CaseSpec:
@@ -143,10 +139,6 @@ def random_spec(rng: np.random.Generator, regime: str, steps: int = 30) -> CaseS
     n = int(rng.integers(1, 4))
     return CaseSpec(kind="cut", joints=tuple((float(rng.uniform(0.2, 0.8)), float(rng.uniform(0.2, 0.8)),
                                               float(rng.uniform(0, 180))) for _ in range(n)), **base)
-
-
-def replace(spec: CaseSpec, **changes) -> CaseSpec:
-    return dataclasses.replace(spec, **changes)
 
 
 @dataclass
@@ -251,14 +243,7 @@ def _mass_change_energy(res, model) -> np.ndarray:
     """(frames,) energy of the mass that DDA's constant-density blocks gained or lost since
     frame 0: Σ ρ·|S − S0|·(|g·(y − y_model centre)| + ½v²) + 2|S − S0|/S0·½Iω² over the free
     blocks [J/m]."""
-    o = res.vertex_offset
-    xy = res.vertices
-    x, y = xy[..., 0], xy[..., 1]
-    cross = x * np.roll(y, -1, axis=1) - y * np.roll(x, -1, axis=1)
-    # the roll wraps across blocks: fix each block's last vertex to close on its own first
-    last = o[1:] - 1
-    cross[:, last] = x[:, last] * y[:, o[:-1]] - y[:, last] * x[:, o[:-1]]
-    area = 0.5 * np.add.reduceat(cross, o[:-1], axis=1)
+    area = np.array([polygon_integrals(frame, res.vertex_offset)["area"] for frame in res.vertices])
     free = ~res.block_fixed
     g = float(np.hypot(*model.gravity))
     height = np.abs(res.centroid[..., 1] - model.origin[1])
@@ -272,17 +257,8 @@ def _mass_change_energy(res, model) -> np.ndarray:
 
 def _polar_moment(res, model) -> np.ndarray:
     """(B,) ρ·∫r² dA about each block's centroid, frame 0 [kg·m]."""
-    o = res.vertex_offset
-    out = np.zeros(len(o) - 1)
-    for b in range(len(o) - 1):
-        xy = res.vertices[0, o[b]:o[b + 1]] - res.centroid[0, b]
-        x, y = xy[:, 0], xy[:, 1]
-        x1, y1 = np.roll(x, -1), np.roll(y, -1)
-        c = x * y1 - x1 * y
-        ixx = np.sum(c * (y * y + y * y1 + y1 * y1)) / 12.0
-        iyy = np.sum(c * (x * x + x * x1 + x1 * x1)) / 12.0
-        out[b] = model.block_density[b] * abs(ixx + iyy)
-    return out
+    moments = polygon_integrals(res.vertices[0], res.vertex_offset)
+    return model.block_density * (moments["s1"] + moments["s2"])
 
 
 def _rotation_error(res, model) -> np.ndarray:
