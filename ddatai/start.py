@@ -94,6 +94,10 @@ class StartRecord:
     """Wall time of the stage [s]."""
 
 
+#: the record of a model with nothing to settle
+NOTHING = StartRecord(solves=0, held=0, released=0, settlement=0.0, at_strength=0, wall_time=0.0)
+
+
 def needs_settling(model) -> bool:
     """Whether anything loads the model at t = 0: gravity, point loads or initial stresses."""
     if model.n_free == 0:
@@ -107,31 +111,31 @@ def settle(stepper, state: State) -> tuple[State, StartRecord]:
     contact memory carries the held contacts into the first step, and the stage's record."""
     t0 = _time.perf_counter()
     model = stepper.model
-    nothing = StartRecord(solves=0, held=0, released=0, settlement=0.0, at_strength=0, wall_time=0.0)
     if not needs_settling(model):
-        return state, nothing
+        return state, NOTHING
     geom = model.block_geometry(state.vertex_xy)
     size = np.sqrt(geom["area"])
     dt_static = _pseudo_time_step(stepper, geom, size)
-    settled, record = _stage(stepper, state, size, dt_static, None, t0)
-    if record.held == 0 and record.released == np.count_nonzero(~model.block_fixed) and record.solves:
+    settled, record, converged = _stage(stepper, state, size, dt_static, None, t0)
+    if not converged:
         # the static solve did not converge (contacts near zero force in a fitted mass of
         # blocks flip between states): approach it through pseudo-steps whose inertia keeps
         # each solve close to the last — Δt doubling from the run's step, each starting from
         # the contact states of the last, until the increments are round-off
         p = stepper.params
         dt = min(p.dt if p.dt is not None else p.dt_max, dt_static)
-        settled, again = _stage(stepper, state, size, dt_static, dt, t0)
+        settled, again, _ = _stage(stepper, state, size, dt_static, dt, t0)
         record = StartRecord(**{**vars(again), "solves": record.solves + again.solves})
     return settled, record
 
 
 def _stage(stepper, state: State, size: np.ndarray, dt_static: float, dt_ladder, t0: float
-           ) -> tuple[State, StartRecord]:
+           ) -> tuple[State, StartRecord, bool]:
     """Pseudo-steps: with Δt = ``dt_static`` until the increment is round-off, or (the ladder)
     from ``dt_ladder`` doubling up to ``dt_static`` — a pseudo-step that does not converge is
     tried again with a smaller Δt (a quarter at the start, then half-way in log to the last
-    that converged), and once an increment is round-off the ladder goes to ``dt_static``."""
+    that converged), and once an increment is round-off the ladder goes to ``dt_static``.
+    Returns (state, record, whether the open-close iterations converged)."""
     model = stepper.model
     free = ~model.block_fixed
     initial = state
@@ -139,7 +143,6 @@ def _stage(stepper, state: State, size: np.ndarray, dt_static: float, dt_ladder,
     at_strength: set = set()
     memory = ContactMemory.empty()
     solves = 0
-    nothing = StartRecord(solves=0, held=0, released=0, settlement=0.0, at_strength=0, wall_time=0.0)
     dt = dt_static if dt_ladder is None else dt_ladder
     converged_dt = None  # the last Δt of the ladder that converged
     failed_dt = None     # and the last that did not
@@ -166,7 +169,8 @@ def _stage(stepper, state: State, size: np.ndarray, dt_static: float, dt_ladder,
             continue
         if disp is None:  # no equilibrium: start under sudden gravity, as without the stage
             return initial, StartRecord(solves=solves, held=0, released=int(np.count_nonzero(free)),
-                                        settlement=0.0, at_strength=0, wall_time=_time.perf_counter() - t0)
+                                        settlement=0.0, at_strength=0,
+                                        wall_time=_time.perf_counter() - t0), False
         if found.any():
             # a released block starts from where it was at t = 0
             released |= found
@@ -185,7 +189,7 @@ def _stage(stepper, state: State, size: np.ndarray, dt_static: float, dt_ladder,
             # holds anything back: go to the static step
             dt = dt_static if step <= LADDER_DONE * float(np.median(size)) else min(2.0 * dt, dt_static)
     if solves == 0:
-        return initial, nothing
+        return initial, NOTHING, True
     held = free & ~released
     moved = np.hypot(*(state.vertex_xy - initial.vertex_xy).T)
     settlement = float(np.max(moved[held[model.vertex_block]], initial=0.0))
@@ -193,7 +197,7 @@ def _stage(stepper, state: State, size: np.ndarray, dt_static: float, dt_ladder,
                          released=int(np.count_nonzero(free & released)), settlement=settlement,
                          at_strength=len(at_strength & set(memory.key.tolist())),
                          wall_time=_time.perf_counter() - t0)
-    return state.replace(memory=memory), record
+    return state.replace(memory=memory), record, True
 
 
 def _restore(model, state: State, initial: State, blocks: np.ndarray) -> State:

@@ -298,11 +298,18 @@ def test_soft_frictionless_mass_at_35_percent_strain_is_refused():
     # gravity, φ = 34°, c = 26 Pa: 17.8 J/m created by step 70 against 0.95 J/m allowed
     CaseSpec(kind="cut", size=1.0, density=1800.0, young=1318815734.4832146, poisson=0.25, friction=34.0,
              cohesion=26.0, tensile=0.0, gravity=0.0, joints=((0.5, 0.5625, 33.0),), load=0.25, steps=100),
-    # a soft (1 MPa), light, frictionless mass cut by three joints under gravity (strain 2.4 %,
-    # not warned): 2.69e3 J/m created by step 28 against 2.53e3 J/m allowed
-    CaseSpec(kind="cut", size=1.0, density=800.0, young=1e6, poisson=0.0, friction=0.0, cohesion=0.0,
-             tensile=7015.0, gravity=9.81, joints=((0.5, 0.28125, 0.0), (0.34375, 0.5625, 19.0), (0.6875, 0.625, 68.0)),
-             steps=100),
-], ids=["point-load-no-gravity-sliding", "soft-frictionless-cut-mass"])
+], ids=["point-load-no-gravity-sliding"])
 def test_known_energy_creation(spec):
+    _holds(spec, refuse_ok=False)
+
+
+def test_soft_frictionless_cut_mass():
+    """Shrunk by the long profile: a soft (1 MPa), light, frictionless mass cut by three joints
+    under gravity (strain 2.4 %, not warned) created 2.69e3 J/m by step 28 (2.53e3 allowed).
+    Every block is a mechanism, and the stage took "every block released" for "the static
+    solve did not converge" and ran its ladder of pseudo-steps on them; the ladder now runs only
+    when the open-close iteration did not converge."""
+    spec = CaseSpec(kind="cut", size=1.0, density=800.0, young=1e6, poisson=0.0, friction=0.0, cohesion=0.0,
+                    tensile=7015.0, gravity=9.81,
+                    joints=((0.5, 0.28125, 0.0), (0.34375, 0.5625, 19.0), (0.6875, 0.625, 68.0)), steps=100)
     _holds(spec, refuse_ok=False)
