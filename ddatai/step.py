@@ -58,7 +58,9 @@ class _Attempt:
     friction: Optional[np.ndarray] = None  # friction magnitude S of each contact in the accepted solve
     vec: Optional[np.ndarray] = None       # contact vectors of the accepted solve
     coulomb: float = 0.0                   # largest (|shear force| − S)/S of a closed contact
-    where: tuple = ()                      # blocks of the contact (or block) behind a failure
+    culprits: tuple = ()                   # (block a, block b) of the contacts behind a failure
+    culprit_force: float = 0.0             # normal force of the deepest contact [N/m]
+    changing: int = 0                      # contacts still changing state (open-close failure)
 
 
 @dataclass
@@ -206,17 +208,16 @@ class Stepper:
         step = state.step + 1
         m, p = self.model, self.params
         if attempt.cause == "open-close":
-            n_bad, *pairs = attempt.where or (0,)
-            named = ", ".join(f"blocks {a}-{b}" for a, b in pairs)
+            named = ", ".join(f"blocks {a}-{b}" for a, b in attempt.culprits)
             what = (f"the open-close iteration did not converge in {p.oc_max_iterations} iterations "
-                    f"({n_bad} contacts still changing state, e.g. between {named})")
+                    f"({attempt.changing} contacts still changing state, e.g. between {named})")
             advice = "raise Params.oc_max_iterations, or loosen Params.oc_state_tolerance"
         elif attempt.cause == "nan":
             what = "the solution is not finite (NaN or infinite displacements)"
             advice = ("the system is singular or overflowed: check the blocks' Young's moduli and "
                       f"densities and the penalty p = {m.penalty:.3g} Pa")
         elif attempt.cause == "penetration":
-            a, b, force = attempt.where
+            (a, b), force = attempt.culprits[0], attempt.culprit_force
             what = (f"runaway penetration: {attempt.max_penetration:.4g} m between blocks {a} and {b} "
                     f"exceeds the limit 2.5·g3·w0 = {m.penetration_limit:.4g} m (contact force "
                     f"{force:.3g} N/m against the penalty p = {m.penalty:.3g} Pa)")
@@ -682,10 +683,9 @@ class Stepper:
         if disp is None:
             return _Attempt(ok=False, cause="nan", iterations=it)
         if not converged:
-            bad = np.flatnonzero(self.last_bad) if getattr(self, "last_bad", None) is not None else []
-            where = (len(bad),) + tuple(sorted({(int(contacts.block_a[i]), int(contacts.block_b[i]))
-                                                 for i in bad[:200]})[:3])
-            return _Attempt(ok=False, cause="open-close", iterations=it, where=where)
+            bad = np.flatnonzero(self.last_bad)  # of the last judgement
+            pairs = tuple(sorted({(int(contacts.block_a[i]), int(contacts.block_b[i])) for i in bad[:200]})[:3])
+            return _Attempt(ok=False, cause="open-close", iterations=it, culprits=pairs, changing=len(bad))
         t0 = _time.perf_counter()
         umax = self._max_vertex_displacement(state.vertex_xy, geom, disp)
         closed = contacts.state != OPEN
@@ -700,8 +700,8 @@ class Stepper:
             result.ok, result.cause = False, "displacement"
         elif pen > m.penetration_limit:
             result.ok, result.cause = False, "penetration"
-            result.where = (int(contacts.block_a[deepest]), int(contacts.block_b[deepest]),
-                            float(contacts.normal_force[deepest]))
+            result.culprits = ((int(contacts.block_a[deepest]), int(contacts.block_b[deepest])),)
+            result.culprit_force = float(contacts.normal_force[deepest])
         timer.add("update", t0)
         return result
 
