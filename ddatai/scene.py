@@ -82,6 +82,10 @@ class Scene:
         self.point_loads: list[PointSpec] = []
         self.measured_points: list[PointSpec] = []
         self.ground_acceleration: Optional[Callable[[float], Sequence[float]]] = None
+        #: `ddatai.water.WaterTable` or None (no water: nothing is computed for it)
+        self.water = None
+        #: `ddatai.water.BoltSpec` of every rock bolt, in the order added
+        self.bolts: list = []
 
     # ------------------------------------------------------------------ blocks
     @property
@@ -256,6 +260,95 @@ class Scene:
         self.measured_points.append(PointSpec(block=b, xy=p))
         return len(self.measured_points) - 1
 
+    # ------------------------------------------------------------------ water and bolts
+    def set_water_table(self, polyline, *, density: float = 1000.0) -> None:
+        """Put the scene under a water table h(x): ``polyline`` of (x, y) points [m] with x
+        strictly increasing, linear between them and held level beyond its ends; None removes it.
+
+        The pressure is hydrostatic below the table, p = ρw·g·(h(x) − y) [Pa] with ``density``
+        ρw [kg/m³] and the scene's gravity, and acts on every block edge below it (joint faces
+        of both blocks and free faces). The water is uncoupled: it does not flow and the table
+        does not move with the blocks. A water-filled tension crack of Hoek & Bray (water depth
+        z_w in the crack, pressure falling linearly to zero where the sliding plane daylights) is
+        the table level at the crack's water level behind the crack, then straight down to the
+        daylight point. Raises ValueError (naming the points or segments) for a table that
+        crosses itself or runs backwards.
+        """
+        if polyline is None:
+            self.water = None
+            return
+        from .water import check_water_table
+
+        self.water = check_water_table(polyline, density)
+
+    def add_bolt(self, p1: Sequence[float], p2: Sequence[float], *, stiffness: float,
+                 pretension: float = 0.0, capacity: float = float("inf")) -> int:
+        """Add a rock bolt (Shi's bolt element) from ``p1`` to ``p2`` [m]: an axial spring of
+        ``stiffness`` [N/m per m thickness] between the material point at ``p1`` of the block
+        that holds it and the one at ``p2`` of another block, tensioned to ``pretension`` [N/m]
+        at its initial length, breaking for good when its tension exceeds ``capacity`` [N/m]
+        (inf: never). Tension positive. Forces are per metre of thickness (a row of bolts at
+        spacing S, T each, is T/S). Returns the bolt's index. Raises ValueError naming the bolt
+        for an end in no block, both ends in one block, or a negative or non-finite value.
+        """
+        import math
+
+        k = len(self.bolts)
+        name = f"bolt {k}"
+        for what, v, lo in (("stiffness", stiffness, None), ("pretension", pretension, 0.0)):
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise ValueError(f"{name}: {what} must be a finite number, got {v!r}")
+        if stiffness <= 0:
+            raise ValueError(f"{name}: stiffness must be > 0 N/m, got {stiffness!r}")
+        if pretension < 0:
+            raise ValueError(f"{name}: pretension must be >= 0 N/m (tension positive), got {pretension!r}")
+        if isinstance(capacity, bool) or not isinstance(capacity, (int, float)) or math.isnan(capacity) \
+                or capacity < 0:
+            raise ValueError(f"{name}: capacity must be a number >= 0 N/m (inf: unbreakable), got {capacity!r}")
+        if pretension > capacity:
+            raise ValueError(f"{name}: pretension {pretension:g} N/m exceeds its capacity {capacity:g} N/m")
+        ends = []
+        for label, p in (("p1", p1), ("p2", p2)):
+            q = np.asarray(p, dtype=float)
+            if q.shape != (2,) or not np.all(np.isfinite(q)):
+                raise ValueError(f"{name}: {label} must be a finite (x, y) pair, got {p!r}")
+            ends.append(q)
+        if np.hypot(*(ends[1] - ends[0])) == 0:
+            raise ValueError(f"{name}: p1 and p2 are the same point {tuple(ends[0])!r}")
+        found = [self._blocks_at(q) for q in ends]
+        for label, q, ids in zip(("p1", "p2"), ends, found):
+            if not ids:
+                raise ValueError(f"{name}: end {label} ({q[0]:g}, {q[1]:g}) lies in no block")
+        b1, b2 = _bolt_blocks(found[0], found[1])
+        if b1 == b2:
+            raise ValueError(f"{name}: both ends ({ends[0][0]:g}, {ends[0][1]:g}) and ({ends[1][0]:g}, "
+                             f"{ends[1][1]:g}) lie in block {b1}; a bolt joins two blocks")
+        from .water import BoltSpec
+
+        self.bolts.append(BoltSpec(block1=b1, block2=b2, xy1=(float(ends[0][0]), float(ends[0][1])),
+                                   xy2=(float(ends[1][0]), float(ends[1][1])), stiffness=float(stiffness),
+                                   pretension=float(pretension), capacity=float(capacity)))
+        return k
+
+    def _blocks_at(self, q: np.ndarray) -> list[int]:
+        """Blocks whose polygon holds the point (on an edge counts), interior ones first."""
+        import shapely
+
+        inside, edge = [], []
+        pt = shapely.Point(q)
+        for b, spec in enumerate(self.blocks):
+            lo, hi = spec.vertices.min(axis=0), spec.vertices.max(axis=0)
+            size = float(np.max(hi - lo))
+            tol = 1e-9 * size
+            if np.any(q < lo - tol) or np.any(q > hi + tol):
+                continue
+            poly = shapely.Polygon(spec.vertices)
+            if poly.contains(pt):
+                inside.append(b)
+            elif poly.distance(pt) <= tol:
+                edge.append(b)
+        return inside + edge
+
     def set_ground_acceleration(self, fn) -> None:
         """Shake the ground: ``fn(t) -> (ax, ay)`` [m/s²], or a sampled record
         ``(times, accelerations)`` with times (n,) [s] and accelerations (n, 2) or (n,)
@@ -277,6 +370,16 @@ class Scene:
         if a0.shape != (2,) or not np.all(np.isfinite(a0)):
             raise ValueError(f"ground acceleration: fn(t) must return a finite (ax, ay), got {a0!r} at t=0")
         self.ground_acceleration = fn
+
+
+def _bolt_blocks(at1: list[int], at2: list[int]) -> tuple[int, int]:
+    """Blocks of a bolt's ends: the first candidate of each, preferring two different blocks
+    when an end lies on an edge shared by two."""
+    for b1 in at1:
+        for b2 in at2:
+            if b1 != b2:
+                return b1, b2
+    return at1[0], at2[0]
 
 
 def _sampled_record(record) -> Callable[[float], tuple[float, float]]:

@@ -101,6 +101,22 @@ class BlockSystem:
     """Gravitational acceleration [m/s²], acting in −y."""
     scale: float
     """Largest side of the model's bounding box [m]; tolerances are relative to it."""
+    block_water: Optional[np.ndarray] = None
+    """(B, 2) water force on each block's whole boundary [N/m] (included in ``block_force``),
+    None without a water table (docs/method/water_bolts.md)."""
+    block_seismic: Optional[np.ndarray] = None
+    """(B, 2) pseudo-static seismic force (kh, kv)·W of each block [N/m] (included in
+    ``block_force``), None without a seismic coefficient."""
+    block_bolt: Optional[np.ndarray] = None
+    """(B, 2) active bolt force (pretension) on each block [N/m] (included in
+    ``block_force``), None without bolts."""
+    block_passive: Optional[np.ndarray] = None
+    """(B, 2) passive bolt force (capacity beyond the pretension) on each block [N/m]; a
+    resistance, not in ``block_force``; None without bolts."""
+    contact_water: Optional[np.ndarray] = None
+    """(C,) water force ∫p ds on each contact segment [N/m], None without a water table."""
+    seismic: tuple = (0.0, 0.0)
+    """Seismic coefficients (kh, kv) [-] the system was built with."""
 
     # ------------------------------------------------------------------ basic queries
     @property
@@ -174,7 +190,7 @@ class BlockSystem:
 
 
 # ---------------------------------------------------------------------- building
-def build_block_system(scene) -> BlockSystem:
+def build_block_system(scene, *, seismic=None) -> BlockSystem:
     """Block-theory arrays of a `ddatai.Scene`: contacts from shared edges with their joint
     properties, active forces, fixed flags (kgm-method.md §2.1, §2.5).
 
@@ -185,12 +201,29 @@ def build_block_system(scene) -> BlockSystem:
     block's vertices, so the segment carries both; limit equilibrium needs one value, and the
     weaker is the safe choice.
 
-    Blocks with a fixed point are treated as fixed (the point holds them in DDA). Point loads
-    are included in the active force (a load given as a function of time at t = 0).
+    Blocks with a fixed point are treated as fixed (the point holds them in DDA). Constant point
+    loads are included in the active force. Limit equilibrium is static: a scene with a ground
+    acceleration or a point load that varies with time is refused (ValueError); give the
+    earthquake as the pseudo-static ``seismic`` = (kh, kv) instead.
+
+    Water, bolts and the seismic coefficient (docs/method/water_bolts.md): the water force on
+    each block's boundary, the active bolt forces (pretension) and the seismic force
+    (kh·W, kv·W) — kh positive towards +x, kv positive upwards — join the active force and its
+    moment; the passive bolt forces (capacity − pretension) are kept apart as a resistance.
     """
     specs = scene.blocks
     if not specs:
         raise ValueError("the scene has no blocks")
+    if scene.ground_acceleration is not None:
+        raise ValueError("kgm is a limit-equilibrium (static) analysis and cannot use the scene's ground "
+                         "acceleration: give a pseudo-static seismic coefficient instead, "
+                         "kgm.analyze(scene, seismic=(kh, kv)), on a scene without one "
+                         "(scene.set_ground_acceleration(None))")
+    for k, pt in enumerate(scene.point_loads):
+        if callable(pt.force):
+            raise ValueError(f"point load {k} on block {pt.block} varies with time: kgm is a static analysis "
+                             f"and needs a constant (fx, fy); give the design value as a constant load")
+    kh, kv = _check_seismic(seismic)
     counts = np.array([len(s.vertices) for s in specs])
     offset = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
     xy = np.concatenate([s.vertices for s in specs]).astype(float)
@@ -207,9 +240,29 @@ def build_block_system(scene) -> BlockSystem:
     force[:, 1] = -mass * g
     moment = centroid[:, 0] * force[:, 1] - centroid[:, 1] * force[:, 0]
     for pt in scene.point_loads:
-        f = np.asarray(pt.force(0.0) if callable(pt.force) else pt.force, dtype=float)
+        f = np.asarray(pt.force, dtype=float)
         force[pt.block] += f
         moment[pt.block] += pt.xy[0] * f[1] - pt.xy[1] * f[0]
+    extra = {}
+    if kh or kv:
+        # pseudo-static seismic load k·W at each block's centroid
+        # (docs/method/water_bolts.md, eq. S1)
+        f = np.stack([kh * mass * g, kv * mass * g], axis=1)
+        force += f
+        moment += centroid[:, 0] * f[:, 1] - centroid[:, 1] * f[:, 0]
+        extra["block_seismic"] = f
+    if getattr(scene, "water", None) is not None:
+        from ddatai.water import polygon_water_force
+
+        f, m = polygon_water_force(xy, offset, scene.water, g)   # eq. W1–W2 on every boundary
+        force += f
+        moment += m
+        extra["block_water"] = f
+    if getattr(scene, "bolts", None):
+        act, act_m, pas = _bolt_forces(scene.bolts, nb)
+        force += act
+        moment += act_m
+        extra["block_bolt"], extra["block_passive"] = act, pas
     fixed = np.array([s.fixed for s in specs], dtype=bool)
     for pt in scene.fixed_points:
         fixed[pt.block] = True
@@ -251,7 +304,54 @@ def build_block_system(scene) -> BlockSystem:
         contact_friction=np.array([joints[j].friction for j in jidx], dtype=float),
         contact_cohesion=np.array([joints[j].cohesion for j in jidx], dtype=float),
         contact_tensile=np.array([joints[j].tensile for j in jidx], dtype=float),
-        contact_joint=jidx, contact_edge=edge, contact_span=span, gravity=g, scale=scale)
+        contact_joint=jidx, contact_edge=edge, contact_span=span, gravity=g, scale=scale,
+        contact_water=_contact_water(scene, start, end, g) if "block_water" in extra else None,
+        seismic=(kh, kv), **extra)
+
+
+def _check_seismic(seismic) -> tuple[float, float]:
+    """(kh, kv) from None, a number (kh) or a pair; ValueError for anything else."""
+    if seismic is None:
+        return 0.0, 0.0
+    if isinstance(seismic, (int, float)) and not isinstance(seismic, bool):
+        seismic = (seismic, 0.0)
+    try:
+        kh, kv = (float(v) for v in seismic)
+    except (TypeError, ValueError):
+        raise ValueError(f"seismic must be (kh, kv) or kh, got {seismic!r}") from None
+    if not (math.isfinite(kh) and math.isfinite(kv)):
+        raise ValueError(f"seismic coefficients must be finite, got {seismic!r}")
+    if abs(kh) >= 1 or abs(kv) >= 1:
+        raise ValueError(f"seismic coefficients are fractions of g, |k| < 1; got (kh, kv) = ({kh:g}, {kv:g})")
+    return kh, kv
+
+
+def _bolt_forces(bolts, nb: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Active force (pretension), its moment about the origin, and passive force (capacity
+    beyond the pretension; none for an unbreakable bolt) of the bolts on every block: each end
+    is pulled towards the other (tension positive)."""
+    act = np.zeros((nb, 2))
+    mom = np.zeros(nb)
+    pas = np.zeros((nb, 2))
+    for b in bolts:
+        p1, p2 = np.asarray(b.xy1), np.asarray(b.xy2)
+        u = (p2 - p1) / np.hypot(*(p2 - p1))
+        passive = b.capacity - b.pretension if math.isfinite(b.capacity) else 0.0
+        for blk, p, sgn in ((b.block1, p1, 1.0), (b.block2, p2, -1.0)):
+            f = sgn * b.pretension * u
+            act[blk] += f
+            mom[blk] += p[0] * f[1] - p[1] * f[0]
+            pas[blk] += sgn * passive * u
+    return act, mom, pas
+
+
+def _contact_water(scene, start: np.ndarray, end: np.ndarray, g: float) -> np.ndarray:
+    """∫p ds over every contact segment [N/m] (eq. W1), for the reports."""
+    from ddatai.water import edge_pressure_points
+
+    table = scene.water
+    edge, _, w = edge_pressure_points(start, end, table.xy, table.density * g)
+    return np.bincount(edge, weights=w, minlength=len(start)).astype(float)
 
 
 def _area_centroid(p: np.ndarray) -> tuple[float, np.ndarray]:
@@ -485,20 +585,24 @@ def rigid_modes(system: BlockSystem, blocks: frozenset, removed: frozenset = fro
     rnorm = float(np.hypot(*r))
     if rnorm == 0.0:
         return []
+    # passive bolt force: a resistance mobilised by the motion (docs/method/water_bolts.md, B2)
+    passive = (system.block_passive[members].sum(axis=0) if system.block_passive is not None
+               else np.zeros(2))
     n = faces.boundary_normal
     idx = faces.boundary
     modes: list[Mode] = []
     rn = n @ r
     if len(idx) == 0 or np.all(rn > ANGLE_TOL * rnorm):
-        modes.append(Mode(kind=ModeKind.LIFTING, fs=0.0, critical_friction=90.0,
-                          sliding_contacts=np.zeros(0, np.int64), direction=r / rnorm))
+        d = r / rnorm
+        modes.append(Mode(kind=ModeKind.LIFTING, fs=max(-float(passive @ d), 0.0) / rnorm,
+                          critical_friction=90.0, sliding_contacts=np.zeros(0, np.int64), direction=d))
         return modes
     if np.all(rn >= -ANGLE_TOL * rnorm):
         # r lies on the edge of the joint pyramid: the group moves along r, sliding without
         # normal force on the contacts parallel to r (e.g. down a vertical slot); only their
-        # cohesion resists (§4.2 with N' = 0)
+        # cohesion (and passive bolts) resist (§4.2 with N' = 0)
         k = idx[np.abs(rn) <= ANGLE_TOL * rnorm]
-        cl = float((system.contact_cohesion[k] * system.contact_length[k]).sum())
+        cl = float((system.contact_cohesion[k] * system.contact_length[k]).sum()) - float(passive @ (r / rnorm))
         modes.append(Mode(kind=ModeKind.SLIDING, fs=cl / rnorm, critical_friction=90.0 if cl < rnorm else 0.0,
                           sliding_contacts=k, direction=r / rnorm))
         return modes
@@ -517,8 +621,11 @@ def rigid_modes(system: BlockSystem, blocks: frozenset, removed: frozenset = fro
         if np.any(n[others] @ s < -ANGLE_TOL):
             continue
         k = idx[face]
-        fs, phi_c = _sliding_fs(system, k, normal_force, snorm)
-        kc = _sliding_kc(system, members, k, ni, s, r)
+        # B2: the passive force's normal part presses the face (N' grows by −P·n), its part
+        # against the motion (−P·s) adds to the resisting shear
+        fs, phi_c = _sliding_fs(system, k, normal_force - float(passive @ ni), snorm,
+                                resisting=-float(passive @ s))
+        kc = _sliding_kc(system, members, k, ni, s, r + passive)
         modes.append(Mode(kind=ModeKind.SLIDING, fs=fs, critical_friction=phi_c, sliding_contacts=k,
                           direction=s, critical_acceleration=kc))
     pivot = _toppling_pivot(system, idx, n, r, m0)
@@ -544,9 +651,10 @@ def _parallel_sets(normals: np.ndarray) -> list[np.ndarray]:
     return [np.array(g) for g in out]
 
 
-def _sliding_fs(system: BlockSystem, contacts: np.ndarray, normal_force: float, shear: float
-                ) -> tuple[float, float]:
-    """FS and critical friction angle of rigid sliding on pooled contacts (§4.2, §4.6).
+def _sliding_fs(system: BlockSystem, contacts: np.ndarray, normal_force: float, shear: float,
+                resisting: float = 0.0) -> tuple[float, float]:
+    """FS and critical friction angle of rigid sliding on pooled contacts (§4.2, §4.6), with
+    a resisting shear of passive bolts ``resisting`` [N/m] (B2).
 
     The normal force is spread over the pooled segments in proportion to their lengths
     (uniform normal stress), so the face's friction is the length-weighted mean of tanφ.
@@ -554,9 +662,10 @@ def _sliding_fs(system: BlockSystem, contacts: np.ndarray, normal_force: float, 
     length = system.contact_length[contacts]
     cl = float((system.contact_cohesion[contacts] * length).sum())
     tan_phi = float((np.tan(np.radians(system.contact_friction[contacts])) * length).sum() / length.sum())
-    fs = (cl + normal_force * tan_phi) / shear
-    # tan φc = (T − c·L)/N'  (§4.6); 0 if cohesion alone holds the face
-    tan_c = (shear - cl) / normal_force
+    normal_force = max(normal_force, 0.0)
+    fs = (cl + normal_force * tan_phi + resisting) / shear
+    # tan φc = (T − c·L − P_s)/N'  (§4.6); 0 if cohesion (and bolts) alone hold the face
+    tan_c = (shear - cl - resisting) / normal_force if normal_force > 0 else math.inf
     return fs, (float(np.degrees(np.arctan(tan_c))) if tan_c > 0 else 0.0)
 
 

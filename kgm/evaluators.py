@@ -410,15 +410,18 @@ def sarma_modes(system: BlockSystem, blocks: frozenset, removed: frozenset = fro
     n = len(members)
     faces = _merge_faces(system, members, removed)
     force = system.block_force[members]
+    passive = system.block_passive[members] if system.block_passive is not None else None
     weight = system.block_mass[members] * system.gravity
     modes = []
     for mech in _mechanisms(faces, force, n):
         def k_of_u(u, _m=mech):
-            st = _statics(_m, faces, force, weight, math.exp(u), faces.tan_phi, check=False)
+            st = _statics(_m, faces, _loaded(force, passive, _m, math.exp(u)), weight, math.exp(u),
+                          faces.tan_phi, check=False)
             return math.nan if st is None else st.k
 
         def admissible_at_u(u, _m=mech):
-            st = _statics(_m, faces, force, weight, math.exp(u), faces.tan_phi)
+            st = _statics(_m, faces, _loaded(force, passive, _m, math.exp(u)), weight, math.exp(u),
+                          faces.tan_phi)
             return st is not None and st.admissible
 
         # K(F) falls as F grows where the forces are admissible; outside that range (tension
@@ -431,8 +434,8 @@ def sarma_modes(system: BlockSystem, blocks: frozenset, removed: frozenset = fro
             fs = 0.0  # fails even with a thousand times the strength
         else:
             continue
-        kc = _statics(mech, faces, force, weight, 1.0, faces.tan_phi, check=False)
-        phi_c = _mechanism_critical_friction(mech, faces, force, weight)
+        kc = _statics(mech, faces, _loaded(force, passive, mech, 1.0), weight, 1.0, faces.tan_phi, check=False)
+        phi_c = _mechanism_critical_friction(mech, faces, _loaded(force, passive, mech, 1.0), weight)
         if phi_c is None:
             continue
         sliding = np.concatenate([faces.contacts[k] for k in np.flatnonzero(mech.closed & (faces.b < 0))]
@@ -446,6 +449,20 @@ def sarma_modes(system: BlockSystem, blocks: frozenset, removed: frozenset = fro
                           block_velocity=vel,
                           critical_acceleration=(kc.k if kc is not None else math.nan)))
     return modes
+
+
+def _loaded(force: np.ndarray, passive: Optional[np.ndarray], mech: _Mechanism, reduction: float) -> np.ndarray:
+    """Member forces with the passive bolt forces of a mechanism at strength 1/F
+    (docs/method/water_bolts.md, B2): each member's passive force splits into its part along
+    the member's velocity, a resistance reduced with the joints' strength (÷F), and the rest,
+    which acts in full (for one block on one plane: the normal part presses the plane, as in
+    RocPlane's passive support)."""
+    if passive is None:
+        return force
+    v = mech.velocity.reshape(-1, 2)
+    vhat = v / np.maximum(np.hypot(v[:, 0], v[:, 1]), 1e-300)[:, None]
+    along = (passive * vhat).sum(axis=1)
+    return force + passive + ((1.0 / reduction - 1.0) * along)[:, None] * vhat
 
 
 def _mechanism_critical_friction(mech: _Mechanism, faces: _Faces, force: np.ndarray,

@@ -37,6 +37,14 @@ class GroupResult:
     """Removal round of a progressive analysis (0: the first)."""
     dda: Optional[object] = None
     """`kgm.dda.DdaEvaluation` of a DDA-judged group (runs, times, verdict), else None."""
+    water_force: Optional[float] = None
+    """Water force ∫p ds on the group's failure surface (the uplift U of its sliding and
+    sheared contacts) [N/m]; None: the scene has no water table."""
+    bolt_force: Optional[float] = None
+    """Resultant of the bolt forces on the group, active (pretension) plus passive (capacity
+    beyond it) [N/m]; None: the scene has no bolts."""
+    seismic: Optional[tuple] = None
+    """Seismic coefficients (kh, kv) [-] of the analysis; None: none given."""
 
     @property
     def verdict(self) -> str:
@@ -140,12 +148,27 @@ def _fmt(x: Optional[float], digits: int = 3) -> str:
 
 def format_groups(groups: Sequence[GroupResult]) -> str:
     """Text table of candidate groups: rank, blocks, evaluator, FS, φc, K_c, mode, verdict."""
-    head = f"{'#':>3}  {'blocks':<18} {'eval':<6} {'FS':>7} {'phi_c':>7} {'K_c':>8}  {'mode':<9} verdict"
+    # water, bolt and seismic columns only where the analysis has them
+    water = any(g.water_force is not None for g in groups)
+    bolts = any(g.bolt_force is not None for g in groups)
+    quake = any(g.seismic is not None for g in groups)
+    extra_head = ((f" {'U kN/m':>8}" if water else "") + (f" {'bolt kN/m':>9}" if bolts else "")
+                  + (f" {'kh, kv':>11}" if quake else ""))
+    head = (f"{'#':>3}  {'blocks':<18} {'eval':<6} {'FS':>7} {'phi_c':>7} {'K_c':>8}{extra_head}  "
+            f"{'mode':<9} verdict")
     rows = [head, "-" * len(head)]
     for i, g in enumerate(groups):
         ids = "{" + ", ".join(str(b) for b in sorted(g.blocks)) + "}"
+        extra = ""
+        if water:
+            extra += f" {_fmt(None if g.water_force is None else g.water_force / 1e3, 1):>8}"
+        if bolts:
+            extra += f" {_fmt(None if g.bolt_force is None else g.bolt_force / 1e3, 1):>9}"
+        if quake:
+            k = "-" if g.seismic is None else f"{g.seismic[0]:.3g}, {g.seismic[1]:.3g}"
+            extra += f" {k:>11}"
         rows.append(f"{i + 1:>3}  {ids:<18} {g.evaluator:<6} {_fmt(g.fs):>7} {_fmt(g.critical_friction, 2):>7} "
-                    f"{_fmt(g.critical_acceleration):>8}  {g.mode.kind.value:<9} {g.verdict}")
+                    f"{_fmt(g.critical_acceleration):>8}{extra}  {g.mode.kind.value:<9} {g.verdict}")
         if g.mode.block_modes:
             rows.append(f"{'':>5}{_block_modes_line(g.mode.block_modes)}")
     return "\n".join(rows)

@@ -35,9 +35,12 @@ from .settings import Settings
 METHODS = ("rigid", "sarma", "dda")
 
 
-def _check_method(method: str) -> str:
+def _check_method(method: str, seismic=None) -> str:
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}: expected 'rigid', 'sarma' or 'dda'")
+    if method == "dda" and seismic is not None:
+        raise ValueError("seismic coefficients are a limit-equilibrium load ('rigid' or 'sarma'); a DDA "
+                         "run is dynamic: give the scene a ground acceleration instead")
     return method
 
 
@@ -164,7 +167,7 @@ def connected_groups(system: BlockSystem, max_size: int, removed: frozenset = fr
 
 
 def exhaustive(scene, method: str = "sarma", *, max_size: int = 4, settings: Optional[Settings] = None,
-               removed: frozenset = frozenset()) -> list[tuple[frozenset, float]]:
+               removed: frozenset = frozenset(), seismic=None) -> list[tuple[frozenset, float]]:
     """All key groups of up to ``max_size`` blocks with their limit-equilibrium FS, least safe
     first (exponential: for small models and for checking the greedy search, §3.3)."""
     method = _check_method(method)
@@ -172,7 +175,7 @@ def exhaustive(scene, method: str = "sarma", *, max_size: int = 4, settings: Opt
         raise ValueError("exhaustive: method must be 'rigid' or 'sarma' (a DDA run per group is "
                          "too slow for an enumeration)")
     settings = settings or Settings()
-    system = build_block_system(_check_scene(scene))
+    system = build_block_system(_check_scene(scene), seismic=seismic)
     evaluate = _Evaluator(system, method, settings, frozenset(removed))
     seeds = key_blocks(system, frozenset(removed))
     out = []
@@ -189,7 +192,21 @@ def _le_result(system: BlockSystem, blocks: frozenset, ev: Evaluation, method: s
     return GroupResult(blocks=blocks, fs=ev.fs, critical_friction=critical_friction_of(ev),
                        stable=ev.fs >= settings.fs_target, mode=ev.mode,
                        surface=contact_polylines(system, ev.mode.sliding_contacts), evaluator=method,
-                       seed=seed, iteration=iteration)
+                       seed=seed, iteration=iteration, **_loads_of(system, blocks, ev))
+
+
+def _loads_of(system: BlockSystem, blocks: frozenset, ev: Evaluation) -> dict:
+    """The water, bolt and seismic loads of a group for its report row (only those present)."""
+    members = sorted(blocks)
+    out = {}
+    if system.contact_water is not None:
+        surface = np.concatenate([ev.mode.sliding_contacts, ev.mode.sheared_contacts]).astype(np.int64)
+        out["water_force"] = float(system.contact_water[np.unique(surface)].sum())
+    if system.block_bolt is not None:
+        out["bolt_force"] = float(np.hypot(*(system.block_bolt[members] + system.block_passive[members]).sum(axis=0)))
+    if system.block_seismic is not None:
+        out["seismic"] = system.seismic
+    return out
 
 
 def _dda_result(scene, system: BlockSystem, le: GroupResult, settings: Settings, params,
@@ -200,7 +217,8 @@ def _dda_result(scene, system: BlockSystem, le: GroupResult, settings: Settings,
                         fs_guess=le.fs, friction_guess=le.critical_friction)
     return GroupResult(blocks=le.blocks, fs=dres.fs, critical_friction=dres.critical_friction,
                        stable=dres.judgement.stable, mode=le.mode, surface=le.surface, evaluator="dda",
-                       seed=le.seed, iteration=le.iteration, dda=dres)
+                       seed=le.seed, iteration=le.iteration, dda=dres, water_force=le.water_force,
+                       bolt_force=le.bolt_force, seismic=le.seismic)
 
 
 def _order(fs: float, blocks: frozenset) -> tuple:
@@ -234,7 +252,7 @@ def _round(scene, system: BlockSystem, method: str, settings: Settings, params, 
 
 
 def analyze(scene, method: str = "sarma", progressive: bool = False, *, settings: Optional[Settings] = None,
-            params=None) -> Report:
+            params=None, seismic=None) -> Report:
     """Key Group Method analysis of a scene (kgm-method.md §3).
 
     Parameters
@@ -246,13 +264,18 @@ def analyze(scene, method: str = "sarma", progressive: bool = False, *, settings
     settings : `kgm.Settings` (search and DDA settings); None: defaults.
     params : `ddatai.Params` of the DDA runs (e.g. the scene module's), unless
         ``settings.dda.params`` is given.
+    seismic : pseudo-static seismic coefficients (kh, kv) [-] (or kh alone): a force
+        (kh·W, kv·W) on every block, kh positive towards +x, kv positive upwards (rigid and
+        sarma only). The scene's water table and bolts are always included
+        (docs/method/water_bolts.md); a scene with a ground acceleration or a time-varying
+        point load is refused (ValueError).
     """
     t0 = time.perf_counter()
-    method = _check_method(method)
+    method = _check_method(method, seismic)
     settings = settings or Settings()
     if not isinstance(settings, Settings):
         raise ValueError(f"settings must be a kgm.Settings, got {type(settings).__name__}")
-    system = build_block_system(_check_scene(scene))
+    system = build_block_system(_check_scene(scene), seismic=seismic)
     removed: frozenset = frozenset()
     history, removal, first = [], [], None
     for it in range(settings.max_iterations):
@@ -281,12 +304,12 @@ def analyze(scene, method: str = "sarma", progressive: bool = False, *, settings
 
 # ---------------------------------------------------------------------- one group
 def evaluate(scene, blocks, method: str = "sarma", *, settings: Optional[Settings] = None,
-             params=None) -> GroupResult:
+             params=None, seismic=None) -> GroupResult:
     """Evaluate one group (any connected set of free blocks) with one evaluator: FS, critical
-    friction angle, governing mode, failure surface, verdict."""
-    method = _check_method(method)
+    friction angle, governing mode, failure surface, verdict (``seismic`` as in `analyze`)."""
+    method = _check_method(method, seismic)
     settings = settings or Settings()
-    system = build_block_system(_check_scene(scene))
+    system = build_block_system(_check_scene(scene), seismic=seismic)
     group = check_group(system, blocks)
     if not is_connected(system, group):
         raise ValueError(f"group {sorted(group)} is not connected: its blocks must share contacts")
@@ -297,21 +320,22 @@ def evaluate(scene, blocks, method: str = "sarma", *, settings: Optional[Setting
 
 
 def factor_of_safety(scene, blocks, method: str = "sarma", *, settings: Optional[Settings] = None,
-                     params=None) -> float:
-    """Factor of safety of a group [-] (inf: the group has no failure mode)."""
-    method = _check_method(method)
+                     params=None, seismic=None) -> float:
+    """Factor of safety of a group [-] (inf: the group has no failure mode; ``seismic`` as
+    in `analyze`)."""
+    method = _check_method(method, seismic)
     if method != "dda":
-        return evaluate(scene, blocks, method, settings=settings).fs
+        return evaluate(scene, blocks, method, settings=settings, seismic=seismic).fs
     return _judge_with_dda(scene, blocks, settings, params, fs=True).fs
 
 
 def critical_friction(scene, blocks, method: str = "sarma", *, settings: Optional[Settings] = None,
-                      params=None) -> float:
+                      params=None, seismic=None) -> float:
     """Friction angle of all joints (cohesion held) at which the group reaches limit
     equilibrium [degrees]: closed form for 'rigid' (§4.6), bisection for 'sarma' and 'dda'."""
-    method = _check_method(method)
+    method = _check_method(method, seismic)
     if method != "dda":
-        return evaluate(scene, blocks, method, settings=settings).critical_friction
+        return evaluate(scene, blocks, method, settings=settings, seismic=seismic).critical_friction
     return _judge_with_dda(scene, blocks, settings, params, fs=False).critical_friction
 
 
