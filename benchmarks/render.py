@@ -45,7 +45,7 @@ def main() -> None:
             times.append(time.perf_counter() - t)
         with tempfile.TemporaryDirectory() as d:
             t = time.perf_counter()
-            dd.write_gif(res, Path(d) / "x.gif")
+            dd.write_gif(res, Path(d) / "x.gif", stride=1)
             gif = (time.perf_counter() - t) / 20
         print(f"| {side * side:,} | {1e3 * np.median(times):.1f} | {1e3 * gif:.1f} |")
 

@@ -1,7 +1,7 @@
 """Command line: ``ddatai run SCENE.py`` (or ``ddatai run MODEL.geo MODEL.ana``).
 
     ddatai run SCENE.py [--duration S] [--steps N] [--every K] [--gif PATH] [--out DIR]
-                        [--contacts] [--size WxH] [--fps F] [--stride K] [--arch cpu|gpu]
+                        [--contacts] [--size WxH] [--fps F] [--speed X] [--stride K] [--arch cpu|gpu]
 
 A scene script is a Python file defining ``build(**sizes) -> (Scene, Params)`` and
 ``DURATION`` (seconds); ``python scenes/NAME.py [options]`` runs the same way through
@@ -37,8 +37,11 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", type=Path, default=Path("out"), help="directory for the results (.npz)")
     p.add_argument("--contacts", action="store_true", help="record contacts and draw them in the GIF")
     p.add_argument("--size", type=_size, default=(640, 480), help="GIF size, e.g. 640x480")
-    p.add_argument("--fps", type=float, default=20.0, help="GIF frames per second")
-    p.add_argument("--stride", type=int, default=1, help="draw every K-th recorded frame in the GIF")
+    p.add_argument("--fps", type=float, default=20.0, help="GIF frames per second (at most 50)")
+    p.add_argument("--speed", type=float, default=1.0,
+                   help="GIF playback speed: simulated seconds per second of animation (default 1: real time)")
+    p.add_argument("--stride", type=int, default=None,
+                   help="GIF: draw every K-th recorded frame, each for 1/fps s, instead of sampling time")
     p.add_argument("--arch", choices=("cpu", "gpu", "cuda"), default=None,
                    help="Taichi backend (default: the scene's Params)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -140,14 +143,23 @@ def _simulate_and_report(scene, params, duration, steps, name, args, after=None)
     if args.gif is not None:
         from .render import write_gif
 
-        write_gif(results, args.gif, size=args.size, fps=args.fps, stride=args.stride,
+        write_gif(results, args.gif, size=args.size, fps=args.fps, speed=args.speed, stride=args.stride,
                   show_contacts=args.contacts, title=name)
-        print(f"GIF written to {args.gif}")
+        print(f"GIF written to {args.gif} ({_gif_speed(results, args)})")
     s = results.summary()
     print(f"{name}: {s['blocks']} blocks, {s['steps']} steps to t = {s['simulated_time']:.4g} s, "
           f"{s['dt_cuts']} dt cuts, {s['oc_iterations']} open-close iterations, "
           f"{wall:.2f} s wall time; results in {out}")
     return 0
+
+
+def _gif_speed(results, args) -> str:
+    """How the GIF plays, in words."""
+    if args.stride is not None:
+        return f"every {args.stride} recorded frame(s), {args.fps:g} frames/s"
+    span = float(results.time[-1] - results.time[0])
+    pace = "real time" if args.speed == 1 else f"{args.speed:g}× real time"
+    return f"{pace}: {span:.3g} s simulated play in {span / args.speed:.3g} s at {args.fps:g} frames/s"
 
 
 def _save(results, out_dir: Path, name: str) -> Path:

@@ -1,8 +1,9 @@
-"""Offscreen rendering of recorded results to GIF (imageio) and PNG.
+"""Offscreen rendering of recorded results to GIF and PNG.
 
 Reads `ddatai.results.Results` only; never starts Taichi and never opens a window. Pillow draws
-the frames (filled polygons, outlines, contacts, text) and imageio writes the animation; both
-are imported inside the functions, so ``import ddatai`` and runs without a GIF never load them.
+the frames (filled polygons, outlines, contacts, text) and encodes them; a GIF is written one
+frame at a time (`GifStream`), so its memory does not grow with its length. Pillow is imported
+inside the functions, so ``import ddatai`` and runs without a GIF never load it.
 
 Why Pillow and not a Taichi raster kernel: measured with ``benchmarks/render.py`` on the
 development machine (2-vCPU EPYC), a 640×480 frame with its colours, outlines and text takes
@@ -23,7 +24,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Optional, Sequence
+from typing import Iterator, Optional, Sequence
 
 import numpy as np
 
@@ -159,6 +160,10 @@ class _Painter:
         level = np.clip((self.speed[frame] / self.max_speed * n).astype(int), 0, n - 1)
         return [FIXED if r.block_fixed[b] else SPEED_COLOURS[level[b]] for b in range(r.n_blocks)]
 
+    def image(self, frame: int) -> np.ndarray:
+        """One frame as an (H, W, 3) uint8 array."""
+        return np.asarray(self.draw(frame))
+
     def draw(self, frame: int):
         from PIL import Image, ImageDraw
 
@@ -234,12 +239,16 @@ def _frames(results: Results, stride: int, frames: Optional[Sequence[int]]) -> l
     if frames is not None:
         out = [range(results.n_frames)[f] for f in frames]  # IndexError for a bad frame
     else:
-        if not (isinstance(stride, (int, np.integer)) and stride >= 1):
-            raise ValueError(f"stride must be a positive integer, got {stride!r}")
+        _check_stride(stride)
         out = list(range(0, results.n_frames, stride))
         if out[-1] != results.n_frames - 1:
             out.append(results.n_frames - 1)  # always end on the last frame
     return out
+
+
+def _check_stride(stride) -> None:
+    if not (isinstance(stride, (int, np.integer)) and not isinstance(stride, bool) and stride >= 1):
+        raise ValueError(f"stride must be a positive integer, got {stride!r}")
 
 
 def _check_size(size) -> tuple[int, int]:
@@ -252,28 +261,121 @@ def _check_size(size) -> tuple[int, int]:
     return w, h
 
 
+#: GIF frame delays are whole hundredths of a second, and most viewers slow down frames shown
+#: for less than 0.02 s: 50 frames per second is the fastest GIF that plays as written
+MAX_FPS = 50.0
+
+
+def check_gif_options(*, size=(640, 480), fps: float = 20.0, speed: Optional[float] = 1.0,
+                      stride: Optional[int] = None) -> tuple[int, int]:
+    """Validate the GIF options of `write_gif` without drawing anything (the command line calls
+    it before a run); returns the size as (width, height). Raises `ValueError`."""
+    size = _check_size(size)
+    if not (isinstance(fps, (int, float)) and not isinstance(fps, bool) and math.isfinite(fps)
+            and 0 < fps <= MAX_FPS):
+        raise ValueError(f"fps must be a number in (0, {MAX_FPS:g}] frames per second, got {fps!r}")
+    if speed is not None and not (isinstance(speed, (int, float)) and not isinstance(speed, bool)
+                                  and math.isfinite(speed) and speed > 0):
+        raise ValueError(f"speed must be a number > 0 (simulated seconds per second of playback), got {speed!r}")
+    if stride is not None:
+        _check_stride(stride)
+    return size
+
+
+def gif_schedule(time: np.ndarray, *, fps: float = 20.0, speed: float = 1.0
+                 ) -> tuple[list[int], list[float]]:
+    """Which recorded frames a GIF shows, and for how long, to play at a fixed speed.
+
+    The animation samples simulated time every ``speed / fps`` seconds: target k shows the
+    recorded frame nearest to ``time[0] + k·speed/fps`` for ``1/fps`` seconds, and the last
+    recorded frame ends the animation. A frame chosen for consecutive targets (recorded frames
+    sparser than the targets) is shown once for their combined time, so the animation lasts
+    ``(time[-1] − time[0]) / speed`` seconds whatever the time steps were (to a frame).
+
+    Returns (frame indices, display time of each frame [s]); the display times are whole
+    hundredths of a second (the GIF unit), rounded so that their running sum stays on the
+    schedule.
+    """
+    time = np.asarray(time, dtype=float)
+    if len(time) == 0:
+        raise ValueError("results have no frames to render")
+    interval = speed / fps  # simulated seconds per GIF frame
+    span = float(time[-1] - time[0])
+    n = int(math.floor(span / interval * (1 + 1e-12))) + 1  # targets 0 .. n-1
+    targets = time[0] + interval * np.arange(n)
+    right = np.clip(np.searchsorted(time, targets), 1, len(time) - 1) if len(time) > 1 else np.zeros(n, int)
+    if len(time) > 1:
+        left = right - 1
+        nearest = np.where(targets - time[left] <= time[right] - targets, left, right)
+    else:
+        nearest = right
+    idx = [int(i) for i in nearest]
+    if idx[-1] != len(time) - 1:
+        idx.append(len(time) - 1)  # always end on the last frame
+    frames: list[int] = []
+    ends: list[int] = []  # each frame's display ends after this many targets
+    for k, f in enumerate(idx):
+        if frames and frames[-1] == f:
+            ends[-1] = k + 1
+        else:
+            frames.append(f)
+            ends.append(k + 1)
+    return frames, _display_times(ends, fps)
+
+
+def _display_times(ends: Sequence[int], fps: float) -> list[float]:
+    """Display time of each frame [s] whose display ends after ``ends[i]`` frame periods,
+    in whole hundredths of a second that add up to the schedule (no drift)."""
+    stops = np.round(np.asarray(ends, dtype=float) * (100.0 / fps))
+    durations = np.diff(np.concatenate([[0.0], stops])) / 100.0
+    return [float(max(d, 0.01)) for d in durations]
+
+
 def render_frames(results: Results, *, size=(640, 480), stride: int = 1, frames=None, labels=None,
                   label_names=None, show_contacts: bool = False, title: Optional[str] = None,
                   max_speed: Optional[float] = None) -> list[np.ndarray]:
-    """Render frames to a list of (H, W, 3) uint8 arrays (see `write_gif` for the options)."""
+    """Render frames to a list of (H, W, 3) uint8 arrays (see `write_gif` for the options).
+
+    The list holds every image at once: for a long animation use `iter_frames` or `write_gif`,
+    which keep one frame at a time."""
+    return list(iter_frames(results, size=size, stride=stride, frames=frames, labels=labels,
+                            label_names=label_names, show_contacts=show_contacts, title=title,
+                            max_speed=max_speed))
+
+
+def iter_frames(results: Results, *, size=(640, 480), stride: int = 1, frames=None, labels=None,
+                label_names=None, show_contacts: bool = False, title: Optional[str] = None,
+                max_speed: Optional[float] = None) -> Iterator[np.ndarray]:
+    """Yield rendered frames one at a time as (H, W, 3) uint8 arrays (see `write_gif` for the
+    options); the arguments are checked before the first frame is drawn."""
     size = _check_size(size)
     idx = _frames(results, stride, frames)
     painter = _Painter(results, idx, size=size, labels=labels, label_names=label_names,
                        show_contacts=show_contacts, title=title, max_speed=max_speed)
-    return [np.asarray(painter.draw(f)) for f in idx]
+    return (painter.image(f) for f in idx)
 
 
-def write_gif(results: Results, path, *, size=(640, 480), fps: float = 20.0, stride: int = 1,
-              frames=None, labels=None, label_names=None, show_contacts: bool = False,
-              title: Optional[str] = None, max_speed: Optional[float] = None) -> Path:
-    """Render recorded frames to an animated GIF (offscreen; deterministic).
+def write_gif(results: Results, path, *, size=(640, 480), fps: float = 20.0, speed: float = 1.0,
+              stride: Optional[int] = None, frames=None, labels=None, label_names=None,
+              show_contacts: bool = False, title: Optional[str] = None,
+              max_speed: Optional[float] = None) -> Path:
+    """Render recorded frames to an animated GIF (offscreen; deterministic; bounded memory).
+
+    By default the animation plays at a stated speed: it samples simulated time every
+    ``speed / fps`` seconds (`gif_schedule`), so one second of playback shows ``speed``
+    seconds of simulation wherever the time step was cut, and a run of T seconds plays for
+    T / speed seconds (``speed=1``: real time; ``speed=0.1``: ten times slower). ``stride`` or
+    ``frames`` choose recorded frames instead, each shown for 1/fps s (playback then follows
+    the time steps). Each frame is drawn and written to the file before the next one
+    (`GifStream`), so memory does not grow with the number of frames.
 
     Parameters
     ----------
     results : the run to draw.
     path : output file (.gif).
-    size : (width, height) in pixels.
-    fps : frames per second of the animation.
+    size : (width, height) in pixels, at least 64 × 64.
+    fps : frames per second of the animation, at most 50 (GIF delays are whole hundredths).
+    speed : simulated seconds shown per second of playback (ignored with ``stride``/``frames``).
     stride : draw every stride-th recorded frame (the last frame is always drawn).
     frames : explicit frame indices (overrides stride).
     labels : (B,) int group label per block (-1: none) to colour by group instead of speed;
@@ -284,18 +386,89 @@ def write_gif(results: Results, path, *, size=(640, 480), fps: float = 20.0, str
 
     Returns the path written.
     """
-    if not (isinstance(fps, (int, float)) and fps > 0):
-        raise ValueError(f"fps must be > 0, got {fps!r}")
-    import imageio.v3 as iio
-
-    images = render_frames(results, size=size, stride=stride, frames=frames, labels=labels,
-                           label_names=label_names, show_contacts=show_contacts, title=title,
-                           max_speed=max_speed)
+    size = check_gif_options(size=size, fps=fps, speed=speed, stride=stride)
+    if results.n_frames == 0:
+        raise ValueError("results have no frames to render")
+    if frames is None and stride is None:
+        idx, durations = gif_schedule(results.time, fps=fps, speed=speed)
+    else:
+        idx = _frames(results, 1 if stride is None else stride, frames)
+        durations = _display_times(range(1, len(idx) + 1), fps)
+    images = iter_frames(results, size=size, frames=idx, labels=labels, label_names=label_names,
+                         show_contacts=show_contacts, title=title, max_speed=max_speed)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    # every frame uses fewer than 256 colours, so GIF quantisation is exact (and deterministic)
-    iio.imwrite(path, np.stack(images), extension=".gif", duration=1000.0 / fps, loop=0)
+    with GifStream(path) as gif:
+        for image, seconds in zip(images, durations):
+            gif.append(image, seconds)
     return path
+
+
+class GifStream:
+    """An animated GIF written one frame at a time: memory does not grow with the frames.
+
+    Each frame goes to the file as it is appended: the rectangle that changed since the last
+    frame, with its own colour table, so only the last frame is kept. Pillow encodes the
+    frames (``PIL.GifImagePlugin.getheader`` and ``getdata``, its frame-by-frame GIF
+    interface). Neither imageio's Pillow writer nor ``Image.save(save_all=True)`` streams: both
+    hold every frame until the file is closed (gigabytes for a long run), and imageio's older
+    streaming GIF writer declares a 256-colour table for every frame, which corrupts frames
+    with fewer colours. A frame of at most 256 colours (every frame `write_gif` draws) is
+    written exactly.
+
+    >>> with GifStream("out.gif") as gif:              # doctest: +SKIP
+    ...     for image in images:                       # (H, W, 3) uint8 arrays
+    ...         gif.append(image, 0.05)                # shown for 0.05 s
+    """
+
+    def __init__(self, path, *, loop: int = 0):
+        self.path = Path(path)
+        self.loop = int(loop)  # 0: repeat for ever
+        self.frames = 0
+        self._previous: Optional[np.ndarray] = None  # the last frame (only the change is written)
+        self._file = open(self.path, "wb")
+
+    def append(self, image: np.ndarray, seconds: float) -> None:
+        """Write one (H, W, 3) uint8 frame, shown for ``seconds`` (rounded to 0.01 s)."""
+        from PIL import GifImagePlugin, Image
+
+        image = np.asarray(image)
+        if image.ndim != 3 or image.shape[2] != 3 or image.dtype != np.uint8:
+            raise ValueError(f"a GIF frame must be an (H, W, 3) uint8 array, got {image.shape} {image.dtype}")
+        ms = 10 * max(1, int(round(100.0 * seconds)))
+        offset = (0, 0)
+        part = image
+        if self._previous is not None:
+            if image.shape != self._previous.shape:
+                raise ValueError(f"frame {self.frames} is {image.shape[1]}×{image.shape[0]} pixels, "
+                                 f"the first was {self._previous.shape[1]}×{self._previous.shape[0]}")
+            # only the rectangle that changed is written; the rest of the last frame stays
+            changed = np.any(image != self._previous, axis=2)
+            rows, cols = np.flatnonzero(changed.any(axis=1)), np.flatnonzero(changed.any(axis=0))
+            y0, y1 = (int(rows[0]), int(rows[-1]) + 1) if len(rows) else (0, 1)
+            x0, x1 = (int(cols[0]), int(cols[-1]) + 1) if len(cols) else (0, 1)
+            part, offset = image[y0:y1, x0:x1], (x0, y0)
+        frame = Image.fromarray(np.ascontiguousarray(part), "RGB")
+        frame = frame.convert("P", palette=Image.Palette.ADAPTIVE, colors=256)
+        if self._previous is None:
+            header, _ = GifImagePlugin.getheader(frame, info={"loop": self.loop, "duration": ms})
+            self._file.writelines(header)
+        self._file.writelines(GifImagePlugin.getdata(frame, offset, duration=ms, disposal=1,
+                                                     include_color_table=True))
+        self._file.flush()
+        self._previous = image
+        self.frames += 1
+
+    def close(self) -> None:
+        if not self._file.closed:
+            self._file.write(b";")  # GIF trailer
+            self._file.close()
+
+    def __enter__(self) -> "GifStream":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
 
 
 def write_png(results: Results, path, frame: int = -1, *, size=(640, 480), labels=None,

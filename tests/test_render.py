@@ -77,3 +77,107 @@ def test_ten_thousand_blocks_render(tmp_path):
 def test_bad_render_arguments(run, tmp_path, kwargs, message):
     with pytest.raises(ValueError, match=message):
         dd.write_gif(run, tmp_path / "x.gif", **kwargs)
+
+
+def _moving_square(time):
+    """Results of one square moving right at 1 m/s over the given frame times (no simulation)."""
+    from ddatai.results import Results
+
+    time = np.asarray(time, float)
+    n = len(time)
+    square = np.array([(0, 0), (1, 0), (1, 1), (0, 1)], float)
+    ground = np.array([(-1, -1), (12, -1), (12, 0), (-1, 0)], float)
+    verts = np.stack([np.concatenate([ground, square + (t, 0.0)]) for t in time])
+    centroid = np.stack([[(5.5, -0.5), (0.5 + t, 0.5)] for t in time])
+    velocity = np.zeros((n, 2, 2))
+    velocity[:, 1, 0] = 1.0
+    return Results(time=time, centroid=centroid, rotation=np.zeros((n, 2)), velocity=velocity,
+                   angular_velocity=np.zeros((n, 2)), stress=np.zeros((n, 2, 3)), vertices=verts,
+                   vertex_offset=np.array([0, 4, 8]), block_fixed=np.array([True, False]),
+                   measured=np.zeros((n, 0, 2)), contact_offset=np.zeros(n + 1, np.int64),
+                   contact_xy=np.zeros((0, 2)), contact_state=np.zeros(0, np.int8),
+                   steps=np.zeros(0, dd.STEP_DTYPE))
+
+
+def _gif_durations(path):
+    from PIL import Image
+
+    with Image.open(path) as im:
+        out = []
+        for k in range(im.n_frames):
+            im.seek(k)
+            out.append(im.info["duration"] / 1000.0)
+    return out
+
+
+def test_long_gif_is_streamed_in_bounded_memory(tmp_path, monkeypatch):
+    """Drawing every one of 600 frames: at no time are more than a few frames alive, and the
+    file grows while frames are still being drawn (each frame reaches the writer and the disk
+    as it is drawn, none is kept)."""
+    import weakref
+
+    from ddatai import render
+
+    res = _moving_square(np.linspace(0.0, 10.0, 600))
+    path = tmp_path / "long.gif"
+    refs: list = []
+    most, sizes = [0], []
+    original = render._Painter.image
+
+    class Frame(np.ndarray):  # a plain ndarray cannot be weakly referenced
+        pass
+
+    def image(self, frame):
+        most[0] = max(most[0], sum(r() is not None for r in refs))
+        sizes.append(path.stat().st_size if path.exists() else 0)
+        out = original(self, frame).view(Frame)
+        refs.append(weakref.ref(out))
+        return out
+
+    monkeypatch.setattr(render._Painter, "image", image)
+    dd.write_gif(res, path, size=(64, 64), stride=1)
+    assert len(sizes) == 600
+    assert most[0] <= 3, f"{most[0]} frames alive at once"
+    assert 0 < sizes[300] < sizes[-1] < path.stat().st_size
+
+
+def test_gif_plays_at_the_stated_speed_whatever_the_time_steps(tmp_path):
+    """Frames recorded at uneven steps (Δt cut to a tenth in the middle): the GIF samples
+    simulated time evenly, so it plays for duration / speed seconds."""
+    time = np.concatenate([np.arange(0, 1.0, 0.01), np.arange(1.0, 1.5, 0.001), np.arange(1.5, 3.0001, 0.01)])
+    res = _moving_square(time)
+    for speed, fps in ((1.0, 20.0), (0.5, 20.0), (2.0, 30.0)):
+        path = dd.write_gif(res, tmp_path / f"s{speed}.gif", size=(64, 64), fps=fps, speed=speed)
+        durations = _gif_durations(path)
+        assert abs(sum(durations) - 3.0 / speed) <= 1.0 / fps + 0.01
+        assert len(durations) == round(3.0 / speed * fps) + 1
+    # the old way: one GIF frame per recorded frame, the cut stretch plays ten times slower
+    path = dd.write_gif(res, tmp_path / "stride.gif", size=(64, 64), stride=1)
+    assert len(_gif_durations(path)) == len(time)
+
+
+def test_gif_schedule_picks_the_nearest_frame_and_merges_repeats():
+    from ddatai.render import gif_schedule
+
+    frames, durations = gif_schedule(np.array([0.0, 0.04, 0.3, 0.31, 1.0]), fps=10.0, speed=1.0)
+    # targets 0, 0.1, ..., 1.0: 0.1 -> 0.04, 0.2 -> 0.3 (nearer than 0.04), 0.3 -> 0.3, 0.4-0.6 -> 0.31, 0.7-1.0 -> 1.0
+    assert frames == [0, 1, 2, 3, 4]
+    assert durations == [0.1, 0.1, 0.2, 0.3, 0.4]
+    # fps that does not divide 100: hundredths that add up without drift
+    frames, durations = gif_schedule(np.linspace(0, 3, 301), fps=30.0, speed=1.0)
+    assert len(frames) == 91 and abs(sum(durations) - 91 / 30) < 0.006
+    assert set(durations) <= {0.03, 0.04}
+
+
+def test_gif_frames_read_back_exactly(run, tmp_path):
+    """Every frame reaches the file unchanged (each with its own colour table), also small
+    frames of few colours, and any GIF reader decodes the file."""
+    import imageio.v3 as iio
+
+    for size in ((200, 150), (64, 64)):
+        path = dd.write_gif(run, tmp_path / "exact.gif", size=size, stride=7, show_contacts=True)
+        drawn = dd.render_frames(run, size=size, stride=7, show_contacts=True)
+        back = iio.imread(path, index=None)
+        assert back.shape == (len(drawn), size[1], size[0], 3)
+        for a, b in zip(back, drawn):
+            assert np.array_equal(a, b)
