@@ -32,7 +32,7 @@ _EXPORTS = {
     "build_model": "model",
     "Results": "results", "load_results": "results", "SimulationError": "results",
     "STEP_DTYPE": "results",
-    "simulate": "step", "Stepper": "step",
+    "simulate": "step", "Stepper": "step", "sweep": "sweep",
     "polygon_integrals": "geometry", "validate_polygon": "geometry",
     "write_gif": "render", "write_png": "render", "render_frames": "render",
     "joint_sets": "jointsets", "JointSet": "jointsets",

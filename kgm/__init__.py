@@ -39,6 +39,8 @@ _EXPORTS = {
     "sub_scene": "dda",
     "toppling_mode": "toppling", "toppling_row": "toppling", "BlockState": "toppling",
     "BlockStep": "toppling",
+    "probabilistic": "probability", "Study": "probability", "read_study": "probability",
+    "sample_variables": "probability",
 }
 
 __all__ = sorted(_EXPORTS)

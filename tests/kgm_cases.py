@@ -98,3 +98,41 @@ def bent_chain(friction=25.0, cohesion=0.0):
     scene.add_block([(-20, -5), (5, -5), (5, 0), b0, j, k, m, (-20, m[1])], material=ROCK, fixed=True)
     scene.set_joint(dd.Joint(friction=friction, cohesion=cohesion))
     return scene, ids
+
+
+def incline_scene(friction=30.0, cohesion=0.0, theta=30.0, width=10.0, height=1.0):
+    """`block_on_incline` as a ``build(**sample) -> Scene`` for probabilistic studies (the
+    block is block 1; FS = (c·A + W cosθ tanφ) / (W sinθ), A = width)."""
+    return block_on_incline(theta=theta, width=width, height=height, friction=friction, cohesion=cohesion)[0]
+
+
+def incline_fs(friction, cohesion, theta=30.0, width=10.0, height=1.0):
+    """Closed-form FS of `incline_scene`'s block."""
+    t = np.radians(theta)
+    w = RHO * G * width * height
+    return (cohesion * width + w * np.cos(t) * np.tan(np.radians(friction))) / (w * np.sin(t))
+
+
+def incline_scene_slow(friction=30.0, cohesion=0.0, delay=0.05):
+    """`incline_scene` that takes ``delay`` seconds to build (a study that can be killed
+    half-way)."""
+    import time
+
+    time.sleep(delay)
+    return incline_scene(friction=friction, cohesion=cohesion)
+
+
+def jointed_scene(friction=30.0, seed=0):
+    """A 20 m slope face cut by one random joint set (`dd.joint_sets` with ``seed``): a new
+    realisation of the rock mass per seed."""
+    scene = dd.Scene(gravity=G)
+    outline = [(-10, -5), (30, -5), (30, 20), (14, 20), (6, 0), (-10, 0)]
+    sets = [dd.JointSet(dip=35.0, spacing=4.0, spacing_spread=1.0, dip_spread=3.0,
+                        joint=dd.Joint(friction=friction))]
+    ids = scene.cut(outline, dd.joint_sets(outline, sets, seed=seed), material=ROCK)
+    for b in ids:
+        c = scene.polygon(b).mean(axis=0)
+        if c[1] < 0.0 or c[0] > 26.0:
+            scene.set_fixed(b)
+    scene.set_joint(dd.Joint(friction=friction))
+    return scene
