@@ -338,6 +338,12 @@ class BlockPattern:
         coupled = (ra >= 0) & (rb >= 0) & (ra != rb)
         lo = np.minimum(ra[coupled], rb[coupled])
         hi = np.maximum(ra[coupled], rb[coupled])
+        if len(model.bolt_block):
+            # a bolt couples its two blocks even where they do not touch (docs/method/water_bolts.md, B1)
+            from .support import bolt_pairs
+
+            bi, bj = bolt_pairs(model)
+            lo, hi = np.concatenate([lo, np.minimum(bi, bj)]), np.concatenate([hi, np.maximum(bi, bj)])
         pair = np.unique(lo * nr + hi)
         if (previous is not None and previous.n_rows == nr and len(previous.pair_key) == len(pair)
                 and np.array_equal(previous.pair_key, pair)):

@@ -122,6 +122,25 @@ class Model:
     """Fixed-point spring [N/m per m]."""
     params: Params
     """The parameters the model was built with."""
+    water_xy: Optional[np.ndarray] = None
+    """(k, 2) water table h(x) [m, internal coordinates], None: no water
+    (docs/method/water_bolts.md)."""
+    water_unit_weight: float = 0.0
+    """ρw·g of the water [N/m³]."""
+    bolt_block: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), np.int32))
+    """(nb, 2) blocks of the two ends of every bolt."""
+    bolt_vertex: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 3), np.int64))
+    """(nb, 2, 3) three vertices of each end's block spanning its affine frame."""
+    bolt_coef: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 2)))
+    """(nb, 2, 2) affine coordinates of each end on those vertices [-]."""
+    bolt_length0: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    """(nb,) initial bolt lengths [m]."""
+    bolt_stiffness: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    """(nb,) axial stiffness [N/m per m thickness]."""
+    bolt_pretension: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    """(nb,) tension at the initial length [N/m]."""
+    bolt_capacity: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    """(nb,) tensile capacity [N/m] (inf: unbreakable)."""
 
     @property
     def n_blocks(self) -> int:
@@ -149,6 +168,11 @@ class Model:
             measured_xy=self.measured_xy0.copy(),
             dt=0.0, accel=0.0,
             memory=ContactMemory.empty(),
+            **({} if not len(self.bolt_block) else {
+                "bolt_force": self.bolt_pretension.copy(),
+                "bolt_broken_step": np.full(len(self.bolt_block), -1, np.int64),
+                "bolt_broken_time": np.full(len(self.bolt_block), np.nan),
+                "bolt_broken_force": np.full(len(self.bolt_block), np.nan)}),
         )
 
     def block_geometry(self, vertex_xy: np.ndarray) -> dict[str, np.ndarray]:
@@ -226,6 +250,14 @@ class State:
     [J/m]; None before the first step."""
     geometry: Optional[dict] = None
     """Polygon integrals of ``vertex_xy`` (a cache filled by the step that produced the state)."""
+    bolt_force: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    """(nb,) tension of every bolt at the end of the last step [N/m] (0 once broken)."""
+    bolt_broken_step: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    """(nb,) step at which each bolt broke, -1 while intact."""
+    bolt_broken_time: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    """(nb,) time at the end of that step [s] (NaN while intact)."""
+    bolt_broken_force: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    """(nb,) tension that broke it [N/m] (NaN while intact)."""
 
     def replace(self, **changes) -> "State":
         return replace(self, **changes)
@@ -351,7 +383,17 @@ def build_model(scene: Scene, params: Optional[Params] = None) -> Model:
         penalty=float(penalty), shear_penalty=float(penalty) / params.shear_ratio,
         fixed_point_penalty=params.fixed_point_ratio * float(penalty),
         params=params,
+        **_support_arrays(scene, xy0, offset, origin),
     )
+
+
+def _support_arrays(scene: Scene, xy0: np.ndarray, offset: np.ndarray, origin: np.ndarray) -> dict:
+    """Water and bolt fields of the model; none (and no import) for a scene without them."""
+    if scene.water is None and not scene.bolts:
+        return {}
+    from .support import bolt_arrays, water_arrays
+
+    return {**water_arrays(scene, origin), **bolt_arrays(scene, xy0, offset, origin)}
 
 
 #: the elastic strain of a block from its weight and what rests on it (ρ·g·H/E), or from an

@@ -50,6 +50,14 @@ START_DTYPE = np.dtype([
     ("wall_time", "f8"),        # wall time of the stage [s]
 ])
 
+#: a rock bolt that broke (docs/method/water_bolts.md), one record per broken bolt
+BOLT_EVENT_DTYPE = np.dtype([
+    ("bolt", "i4"),             # the bolt's index (order of Scene.add_bolt)
+    ("step", "i8"),             # the step at whose end its tension exceeded its capacity
+    ("time", "f8"),             # time at the end of that step [s]
+    ("force", "f8"),            # the tension that broke it [N/m]
+])
+
 
 class SimulationError(RuntimeError):
     """A run stopped because it diverged or could not converge.
@@ -111,6 +119,16 @@ class Results:
     start: np.ndarray = field(default_factory=lambda: np.zeros(0, START_DTYPE))
     """(1,) structured record of the equilibrium stage before t = 0 (`START_DTYPE`), (0,) when
     the run had none (``Params(initial_equilibrium=False)``)."""
+    bolt_xy: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 2, 2)))
+    """(F, nb, 2, 2) both ends of every rock bolt [m]; empty without bolts."""
+    bolt_force: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    """(F, nb) bolt tensions [N/m], tension positive, 0 once broken."""
+    bolt_broken: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), bool))
+    """(F, nb) whether each bolt has broken by the frame."""
+    bolt_events: np.ndarray = field(default_factory=lambda: np.zeros(0, BOLT_EVENT_DTYPE))
+    """(k,) bolts that broke, in the order they broke (`BOLT_EVENT_DTYPE`)."""
+    water_table: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    """(k, 2) the scene's water table h(x) [m]; empty without water."""
 
     @property
     def n_frames(self) -> int:
@@ -176,6 +194,8 @@ class Recorder:
         self.contact_count: list[int] = []
         self.steps: list[tuple] = []
         self.start: list[tuple] = []
+        self.bolts: dict[str, list] = {"bolt_xy": [], "bolt_force": [], "bolt_broken": []}
+        self.bolt_state = None  # the last frame's (broken step, time, force) of every bolt
 
     def frame(self, state, centroid: np.ndarray, contact_xy=None, contact_state=None) -> None:
         origin = self.model.origin
@@ -188,6 +208,13 @@ class Recorder:
         f["stress"].append(state.block_stress.copy())
         f["vertices"].append(state.vertex_xy + origin)
         f["measured"].append(state.measured_xy + origin)
+        if len(self.model.bolt_block):
+            from .support import bolt_ends
+
+            self.bolts["bolt_xy"].append(bolt_ends(self.model, state.vertex_xy) + origin)
+            self.bolts["bolt_force"].append(state.bolt_force.copy())
+            self.bolts["bolt_broken"].append(state.bolt_broken_step >= 0)
+            self.bolt_state = (state.bolt_broken_step, state.bolt_broken_time, state.bolt_broken_force)
         if self.record_contacts and contact_xy is not None:
             self.contact_xy.append(contact_xy + origin)
             self.contact_state.append(contact_state.astype(np.int8))
@@ -222,4 +249,20 @@ class Recorder:
             contact_state=np.concatenate(self.contact_state) if self.contact_state else np.zeros(0, np.int8),
             steps=np.array(self.steps, dtype=STEP_DTYPE),
             start=np.array(self.start, dtype=START_DTYPE),
+            **self._support(),
         )
+
+    def _support(self) -> dict:
+        """Bolt frames and events, and the water table, of a model that has them."""
+        m = self.model
+        out = {}
+        if m.water_xy is not None:
+            out["water_table"] = m.water_xy + m.origin
+        if len(m.bolt_block) and self.bolts["bolt_xy"]:
+            out.update({k: np.array(v) for k, v in self.bolts.items()})
+            step, time, force = self.bolt_state
+            broke = np.flatnonzero(step >= 0)
+            broke = broke[np.argsort(step[broke], kind="stable")]
+            out["bolt_events"] = np.array([(int(k), int(step[k]), float(time[k]), float(force[k])) for k in broke],
+                                          dtype=BOLT_EVENT_DTYPE)
+        return out

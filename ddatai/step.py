@@ -319,6 +319,14 @@ class Stepper:
         if len(model.load_block):
             K.assemble_points(model.load_block, state.load_xy, self._load_forces(t_mid), self._load_stiff,
                               self.dof, centroid, pattern.diag_slot, pattern.stride, data, rhs)
+        if model.water_xy is not None or len(model.bolt_block):
+            # water pressure (W2) and bolt springs (B1), docs/method/water_bolts.md
+            from .support import assemble_bolts, assemble_water
+
+            if model.water_xy is not None:
+                assemble_water(model, state.vertex_xy, centroid, rhs)
+            if len(model.bolt_block):
+                assemble_bolts(model, state.vertex_xy, centroid, state.bolt_broken_step < 0, pattern, data, rhs)
         return data, rhs
 
     def newmark_beta(self, state: State) -> float:
@@ -732,12 +740,18 @@ class Stepper:
         if p.static:
             velocity[:] = 0.0
             block_accel[:] = 0.0
+        bolts = {}
+        if len(m.bolt_block):
+            # bolt tensions on the moved ends; those beyond their capacity break (B1)
+            from .support import break_bolts
+
+            bolts = break_bolts(m, state, xy, state.step + 1, state.time + dt)
         return State(
             geometry=m.block_geometry(xy),
             time=state.time + dt, step=state.step + 1, vertex_xy=xy, block_velocity=velocity,
             block_stress=stress, block_accel=block_accel, block_rotation=state.block_rotation + disp[:, 2],
             fixed_point_xy=fp, load_xy=lp, measured_xy=mp, dt=dt, accel=accel,
-            memory=contacts.memory(p.bond_breaks_on_slip))
+            memory=contacts.memory(p.bond_breaks_on_slip), **bolts)
 
     # ------------------------------------------------------------------ helpers
     def _load_forces(self, t: float) -> np.ndarray:

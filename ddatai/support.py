@@ -1,0 +1,168 @@
+"""DDA terms of water pressure and rock bolts (docs/method/water_bolts.md), NumPy only.
+
+Imported by `ddatai.model` and `ddatai.step` only when a scene has a water table or bolts; a
+scene without them builds empty arrays and never loads this module.
+
+* `water_arrays`, `assemble_water`: the hydrostatic pressure (W1) on every edge of every free
+  block below the water table, as the exact load vector of DDA's first-order displacement
+  field (W2), on the geometry at the start of the step.
+* `bolt_arrays`, `assemble_bolts`, `bolt_ends`, `bolt_tension`: Shi's bolt element (B1). A
+  bolt end is a material point of its block; as DDA moves every point of a block by one affine
+  map, an end is stored by its affine coordinates on three vertices of its block and follows
+  them whatever moves the vertices (a step, or the equilibrium stage).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .water import edge_pressure_points
+
+
+def t_rows(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """(n, 2, 6) DDA displacement matrices T at centroidal offsets (x, y) [m]
+    (dda-method.md §1.1 in the project's kernels: u0, v0, r0, εx, εy, γxy)."""
+    n = len(x)
+    t = np.zeros((n, 2, 6))
+    t[:, 0, 0] = 1.0
+    t[:, 1, 1] = 1.0
+    t[:, 0, 2] = -y
+    t[:, 1, 2] = x
+    t[:, 0, 3] = x
+    t[:, 1, 4] = y
+    t[:, 0, 5] = 0.5 * y
+    t[:, 1, 5] = 0.5 * x
+    return t
+
+
+# ---------------------------------------------------------------------- water
+def water_arrays(scene, origin: np.ndarray) -> dict:
+    """Model fields of the scene's water table (internal coordinates), or empty ones."""
+    if scene.water is None:
+        return {}
+    return {"water_xy": scene.water.xy - origin,
+            "water_unit_weight": float(scene.water.density * scene.gravity)}
+
+
+def assemble_water(model, vertex_xy: np.ndarray, centroid: np.ndarray, rhs: np.ndarray) -> None:
+    """F_i += Σ_g T_i(x_g)ᵀ · w_g · n_in over the Gauss points of the wet edges of every free
+    block (W2), in place on ``rhs``."""
+    free_vertex = model.block_dof[model.vertex_block] >= 0
+    edges = np.flatnonzero(free_vertex)
+    start, end = vertex_xy[edges], vertex_xy[model.vertex_next[edges]]
+    edge, pts, w = edge_pressure_points(start, end, model.water_xy, model.water_unit_weight)
+    if len(edge) == 0:
+        return
+    t = end - start
+    n_in = np.stack([-t[:, 1], t[:, 0]], axis=1) / np.hypot(t[:, 0], t[:, 1])[:, None]  # left of CCW edge
+    f = w[:, None] * n_in[edge]
+    block = model.vertex_block[edges[edge]]
+    rel = pts - centroid[block]
+    tm = t_rows(rel[:, 0], rel[:, 1])
+    load = np.einsum("gij,gi->gj", tm, f)                      # Tᵀ f per Gauss point
+    rows = 6 * model.block_dof[block].astype(np.int64)
+    np.add.at(rhs, rows[:, None] + np.arange(6)[None, :], load)
+
+
+# ---------------------------------------------------------------------- bolts
+def bolt_arrays(scene, vertex_xy0: np.ndarray, offset: np.ndarray, origin: np.ndarray) -> dict:
+    """Model fields of the scene's bolts: blocks, the affine coordinates of each end on three
+    vertices of its block, initial length and properties; empty dict without bolts."""
+    bolts = scene.bolts
+    if not bolts:
+        return {}
+    nb = len(bolts)
+    block = np.array([(b.block1, b.block2) for b in bolts], dtype=np.int32)
+    ends = np.array([(b.xy1, b.xy2) for b in bolts], dtype=float) - origin
+    vert = np.zeros((nb, 2, 3), np.int64)
+    coef = np.zeros((nb, 2, 2))
+    for k in range(nb):
+        for e in range(2):
+            lo, hi = int(offset[block[k, e]]), int(offset[block[k, e] + 1])
+            tri = _wide_triangle(vertex_xy0[lo:hi]) + lo
+            a, b, c = vertex_xy0[tri]
+            coef[k, e] = np.linalg.solve(np.column_stack([b - a, c - a]), ends[k, e] - a)
+            vert[k, e] = tri
+    length = np.hypot(*(ends[:, 1] - ends[:, 0]).T)
+    return {"bolt_block": block, "bolt_vertex": vert, "bolt_coef": coef, "bolt_length0": length,
+            "bolt_stiffness": np.array([b.stiffness for b in bolts]),
+            "bolt_pretension": np.array([b.pretension for b in bolts]),
+            "bolt_capacity": np.array([b.capacity for b in bolts])}
+
+
+def _wide_triangle(xy: np.ndarray) -> np.ndarray:
+    """Indices of three vertices spanning a large triangle (well-conditioned affine frame)."""
+    i = 0
+    j = int(np.argmax(np.hypot(*(xy - xy[i]).T)))
+    d = xy[j] - xy[i]
+    k = int(np.argmax(np.abs(d[0] * (xy[:, 1] - xy[i, 1]) - d[1] * (xy[:, 0] - xy[i, 0]))))
+    return np.array([i, j, k])
+
+
+def bolt_ends(model, vertex_xy: np.ndarray) -> np.ndarray:
+    """(nb, 2, 2) current positions of both ends of every bolt [m, internal coordinates]."""
+    v = vertex_xy[model.bolt_vertex]                                # (nb, 2, 3, 2)
+    c = model.bolt_coef
+    return v[:, :, 0] + c[:, :, :1] * (v[:, :, 1] - v[:, :, 0]) + c[:, :, 1:] * (v[:, :, 2] - v[:, :, 0])
+
+
+def bolt_tension(model, vertex_xy: np.ndarray) -> np.ndarray:
+    """(nb,) tension N = P0 + k·(L − L0) of every bolt at these vertex positions [N/m]."""
+    e = bolt_ends(model, vertex_xy)
+    length = np.hypot(*(e[:, 1] - e[:, 0]).T)
+    return model.bolt_pretension + model.bolt_stiffness * (length - model.bolt_length0)
+
+
+def assemble_bolts(model, vertex_xy: np.ndarray, centroid: np.ndarray, intact: np.ndarray,
+                   pattern, data: np.ndarray, rhs: np.ndarray) -> None:
+    """Shi's bolt springs (B1) of the intact bolts, in place on the CSR ``data`` and ``rhs``."""
+    from .contacts import _block_slots
+
+    ends = bolt_ends(model, vertex_xy)
+    tension = bolt_tension(model, vertex_xy)
+    dof = model.block_dof
+    for k in np.flatnonzero(intact):
+        i, j = model.bolt_block[k]
+        p1, p2 = ends[k]
+        axis = (p2 - p1) / np.hypot(*(p2 - p1))
+        rel = np.array([p1 - centroid[i], p2 - centroid[j]])
+        tm = t_rows(rel[:, 0], rel[:, 1])
+        e_vec, g_vec = tm[0].T @ axis, tm[1].T @ axis              # E = T_i(p1)ᵀl, G = T_j(p2)ᵀl
+        s = model.bolt_stiffness[k]
+        ri, rj = int(dof[i]), int(dof[j])
+        terms = [(ri, ri, s * np.outer(e_vec, e_vec)), (rj, rj, s * np.outer(g_vec, g_vec)),
+                 (ri, rj, -s * np.outer(e_vec, g_vec)), (rj, ri, -s * np.outer(g_vec, e_vec))]
+        for r, c, block in terms:
+            if r < 0 or c < 0:
+                continue
+            slot = pattern.diag_slot[r] if r == c else \
+                int(_block_slots(pattern.block_key, pattern.block_slot, pattern.n_rows,
+                                 np.array([r]), np.array([c]))[0])
+            st = int(pattern.stride[r])
+            idx = int(slot) + np.arange(6)[:, None] * st + np.arange(6)[None, :]
+            data[idx] += block
+        if ri >= 0:
+            rhs[6 * ri:6 * ri + 6] += tension[k] * e_vec
+        if rj >= 0:
+            rhs[6 * rj:6 * rj + 6] -= tension[k] * g_vec
+
+
+def bolt_pairs(model) -> tuple[np.ndarray, np.ndarray]:
+    """Block-rows (r_i, r_j) of the bolts joining two free blocks (for the sparse pattern)."""
+    ri = model.block_dof[model.bolt_block[:, 0]].astype(np.int64)
+    rj = model.block_dof[model.bolt_block[:, 1]].astype(np.int64)
+    ok = (ri >= 0) & (rj >= 0) & (ri != rj)
+    return ri[ok], rj[ok]
+
+
+def break_bolts(model, state, vertex_xy: np.ndarray, step: int, time: float) -> dict:
+    """State fields after a step: every bolt's tension at ``vertex_xy``, and the bolts whose
+    tension now exceeds their capacity marked broken at this step (for good)."""
+    tension = bolt_tension(model, vertex_xy)
+    intact = state.bolt_broken_step < 0
+    breaking = intact & (tension > model.bolt_capacity)
+    broken_step = np.where(breaking, step, state.bolt_broken_step)
+    broken_time = np.where(breaking, time, state.bolt_broken_time)
+    broken_force = np.where(breaking, tension, state.bolt_broken_force)
+    return {"bolt_force": np.where(broken_step >= 0, 0.0, tension), "bolt_broken_step": broken_step,
+            "bolt_broken_time": broken_time, "bolt_broken_force": broken_force}

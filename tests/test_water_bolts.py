@@ -1,0 +1,237 @@
+"""Water pressure and rock bolts in DDA against closed forms (docs/method/water_bolts.md), and
+the scene's checks of their input.
+
+Tolerances come from the method: a sliding block's acceleration is exact up to the start-up
+perturbation (< 0.1 % at θ − φ ≥ 5°, the verification cases), held here to the issue's 1 %; the
+critical angle to the issue's 0.3°; a floating block's buoyancy is a load of the step's start
+geometry (explicit), whose lag changes the period by O((ωΔt)²) ≈ 1e-3 at Δt = 0.01 s, held to
+1 %; a bolt holding a frictionless block carries the static demand up to its elastic stretch
+(T/k ≈ 3e-4 m turns it by ~1e-4 rad), held to 1 %.
+"""
+
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import ddatai as dd
+from cases import G, block_on_incline, downslope_displacement, incline_base, incline_frame
+
+RHO_W = 1000.0
+WIDTH, HEIGHT, RHO = 2.0, 1.0, 2500.0          # block on the incline [m, m, kg/m³]
+HW = 0.5                                        # water table: 0.5 m (vertically) above the plane [m]
+PHI = 30.0                                      # joint friction [degrees]
+
+
+def wet_incline(theta: float, phi: float = PHI):
+    """A block on a plane of dip θ with a water table parallel to the plane, HW above it (the
+    block's top is dry). The pressure γw·(HW − n/cosθ) depends only on the distance n from the
+    plane, so the water on the block's sides cancels and the net water force is the uplift on
+    its base, U = γw·HW·b, normal to the plane."""
+    scene = dd.Scene(gravity=G)
+    incline_base(scene, theta)
+    block = block_on_incline(scene, theta, at=4.0, width=WIDTH, height=HEIGHT)
+    scene.set_joint(dd.Joint(friction=phi))
+    tn = math.tan(math.radians(theta))
+    scene.set_water_table([(-20.0, -20.0 * tn + HW), (30.0, 30.0 * tn + HW)])
+    return scene, block
+
+
+def _weight_and_uplift() -> tuple[float, float]:
+    return RHO * G * WIDTH * HEIGHT, RHO_W * G * HW * WIDTH
+
+
+def critical_angle() -> float:
+    """W·sinθ = (W·cosθ − U)·tanφ  ⇒  θc = φ − asin((U/W)·sinφ) [degrees]."""
+    w, u = _weight_and_uplift()
+    return PHI - math.degrees(math.asin(u / w * math.sin(math.radians(PHI))))
+
+
+def sliding_acceleration(theta: float) -> float:
+    """a = [W·sinθ − (W·cosθ − U)·tanφ] / m, effective normal force N' = W·cosθ − U."""
+    w, u = _weight_and_uplift()
+    th, ph = math.radians(theta), math.radians(PHI)
+    return (w * math.sin(th) - (w * math.cos(th) - u) * math.tan(ph)) / (RHO * WIDTH * HEIGHT)
+
+
+def test_wet_block_slides_at_the_effective_stress_critical_angle():
+    """0.3° below θc the block stays; 0.3° above it slides (a dry block would rest there:
+    θc + 0.3° < φ), at the effective-stress acceleration."""
+    tc = critical_angle()
+    assert tc + 0.3 < PHI - 5.0  # the uplift matters: a dry block holds up to φ
+    below, b = wet_incline(tc - 0.3)
+    res = dd.simulate(below, duration=0.5)
+    assert np.linalg.norm(res.centroid[-1, b] - res.centroid[0, b]) < 1e-5 * HEIGHT
+    above, b = wet_incline(tc + 0.3)
+    res = dd.simulate(above, duration=0.5)
+    d = downslope_displacement(res, b, tc + 0.3)
+    exact = 0.5 * sliding_acceleration(tc + 0.3) * 0.5 ** 2
+    # within 0.3° of the threshold the start-up perturbation dominates: 2 % (verification cases)
+    assert d == pytest.approx(exact, rel=2e-2)
+
+
+@pytest.mark.parametrize("theta", [30.0, 40.0])
+def test_wet_block_accelerates_as_its_effective_normal_force_predicts(theta):
+    """d(1 s) = ½·a·t² with a from N' = W·cosθ − U, within 1 %."""
+    scene, b = wet_incline(theta)
+    res = dd.simulate(scene, duration=1.0)
+    d = downslope_displacement(res, b, theta)
+    assert d == pytest.approx(0.5 * sliding_acceleration(theta), rel=1e-2)
+
+
+def _floating(draft0: float):
+    wood = dd.Material(density=600.0, young=1e9, poisson=0.25)
+    scene = dd.Scene(gravity=G)
+    top = 5.0 - draft0 + 1.0
+    b = scene.add_block([(0, top - 1.0), (1, top - 1.0), (1, top), (0, top)], material=wood)
+    scene.set_water_table([(-10.0, 5.0), (10.0, 5.0)])
+    return scene, b
+
+
+def test_floating_block_rests_at_its_buoyancy_depth():
+    """A 1 m block of ρ = 600 kg/m³ placed at its draft d = ρ/ρw·h = 0.6 m stays there."""
+    scene, b = _floating(0.6)
+    res = dd.simulate(scene, duration=1.0)
+    assert abs(res.centroid[-1, b, 1] - res.centroid[0, b, 1]) < 1e-6
+
+
+def test_floating_block_oscillates_about_its_buoyancy_depth():
+    """Released at half its draft it oscillates about d = 0.6 m (the extremes symmetric about
+    it) with the period 2π·√(d/g) of a block on a buoyancy spring ρw·g·b."""
+    scene, b = _floating(0.3)
+    res = dd.simulate(scene, duration=3.0)
+    draft = 5.0 - (res.centroid[:, b, 1] - 0.5)
+    d_eq = 600.0 / RHO_W * 1.0
+    assert 0.5 * (draft.min() + draft.max()) == pytest.approx(d_eq, rel=1e-2)
+    z = draft - d_eq
+    up = res.time[1:][(z[:-1] < 0) & (z[1:] >= 0)]
+    assert len(up) >= 2
+    assert np.diff(up).mean() == pytest.approx(2 * math.pi * math.sqrt(d_eq / G), rel=1e-2)
+
+
+# ------------------------------------------------------------------ bolts
+THETA, ALPHA = 30.0, 20.0  # plane dip; bolt plunge below the plane, pointing upslope [degrees]
+
+
+def bolted(capacity: float, load=None):
+    """A frictionless block on a 30° plane held by a bolt anchored upslope in the base."""
+    scene = dd.Scene(gravity=G)
+    incline_base(scene, THETA)
+    b = block_on_incline(scene, THETA, at=4.0, width=WIDTH, height=HEIGHT)
+    scene.set_joint(dd.Joint(friction=0.0))
+    t, n = incline_frame(THETA)
+    a = math.radians(ALPHA)
+    p1 = 5.8 * t + 0.5 * n
+    scene.add_bolt(p1, p1 + 3.0 * (math.cos(a) * t - math.sin(a) * n), stiffness=1e8, capacity=capacity)
+    if load is not None:
+        scene.add_point_load(b, 5.0 * t + 0.5 * n, load)
+    return scene, b
+
+
+def static_demand(extra: float = 0.0) -> float:
+    """T·cos α = W·sinθ + P (frictionless plane; P a downslope load) [N/m]."""
+    w = RHO * G * WIDTH * HEIGHT
+    return (w * math.sin(math.radians(THETA)) + extra) / math.cos(math.radians(ALPHA))
+
+
+def test_bolt_holds_a_sliding_block_at_the_static_demand():
+    """Without the bolt the block slides (φ = 0); with it, it stays and the bolt's tension is
+    the static demand within 1 %."""
+    scene, b = bolted(math.inf)
+    res = dd.simulate(scene, duration=0.5)
+    assert abs(downslope_displacement(res, b, THETA)) < 1e-3
+    assert res.bolt_force[-1, 0] == pytest.approx(static_demand(), rel=1e-2)
+    assert len(res.bolt_events) == 0 and not res.bolt_broken.any()
+
+
+def test_weak_bolt_breaks_and_the_block_slides_freely():
+    """Capacity half the demand: the bolt breaks at the first step (an event), then the block
+    accelerates at g·sinθ within 1 %."""
+    scene, b = bolted(0.5 * static_demand())
+    res = dd.simulate(scene, duration=0.5)
+    ev = res.bolt_events
+    assert len(ev) == 1 and ev[0]["bolt"] == 0 and ev[0]["step"] == 1
+    assert ev[0]["force"] > 0.5 * static_demand()
+    assert res.bolt_broken[-1, 0] and res.bolt_force[-1, 0] == 0.0
+    t = incline_frame(THETA)[0]
+    v = -(res.velocity[:, b] @ t)
+    i, j = len(res.time) // 3, len(res.time) - 1
+    assert (v[j] - v[i]) / (res.time[j] - res.time[i]) == pytest.approx(G * math.sin(math.radians(THETA)), rel=1e-2)
+
+
+def test_bolt_breaks_when_a_growing_load_exceeds_its_capacity():
+    """A downslope load P = r·t raises the demand; the bolt breaks in the step whose mid-step
+    demand first exceeds its capacity, t_b = (C·cos α − W·sinθ)/r, then the block slides with
+    a = g·sinθ + r·t/m."""
+    rate = 2e4  # N/m per s
+    cap = 1.2 * static_demand()
+    t_dir = incline_frame(THETA)[0]
+    scene, b = bolted(cap, load=lambda time: tuple(-rate * time * t_dir))
+    res = dd.simulate(scene, dd.Params(dt=0.01), duration=1.0)
+    t_b = (cap * math.cos(math.radians(ALPHA)) - RHO * G * WIDTH * HEIGHT * math.sin(math.radians(THETA))) / rate
+    ev = res.bolt_events
+    assert len(ev) == 1
+    assert t_b <= ev[0]["time"] - 0.005 <= t_b + 0.01 + 1e-9   # the mid-step load of its step
+    mass = RHO * WIDTH * HEIGHT
+    te = float(ev[0]["time"])
+    v_end = -(res.velocity[-1, b] @ t_dir)
+    exact = G * math.sin(math.radians(THETA)) * (1.0 - te) + rate / (2 * mass) * (1.0 - te ** 2)
+    assert v_end == pytest.approx(exact, rel=1e-2)
+
+
+# ------------------------------------------------------------------ input checks
+def _two_blocks():
+    s = dd.Scene()
+    r = dd.Material(density=2500.0, young=1e9, poisson=0.2)
+    s.add_block([(0, 0), (2, 0), (2, 1), (0, 1)], material=r)
+    s.add_block([(0, 1), (2, 1), (2, 2), (0, 2)], material=r)
+    return s
+
+
+@pytest.mark.parametrize("table, match", [
+    ([(0, 0), (2, 2), (2, 0), (0, 2)], r"crosses itself: segment 0 .* segment 2"),
+    ([(0, 0), (1, 0), (0.5, 0)], r"crosses itself: segment 0 .* segment 1"),
+    ([(0, 0), (1, 1), (0.5, 2)], r"point 2 \(0.5, 2\) does not lie to the right"),
+    ([(0, 0)], "at least two"),
+    ([(0, 0), (1, float("nan"))], "point 1 is not finite"),
+])
+def test_bad_water_table_is_refused(table, match):
+    with pytest.raises(ValueError, match=match):
+        _two_blocks().set_water_table(table)
+
+
+@pytest.mark.parametrize("p1, p2, kw, match", [
+    ((5, 5), (1, 1.5), {}, r"bolt 0: end p1 \(5, 5\) lies in no block"),
+    ((1, 0.5), (9, 9), {}, r"bolt 0: end p2 \(9, 9\) lies in no block"),
+    ((1, 0.2), (1, 0.8), {}, "both ends .* lie in block 0"),
+    ((1, 0.5), (1, 1.5), {"capacity": -1.0}, "bolt 0: capacity must be a number >= 0"),
+    ((1, 0.5), (1, 1.5), {"stiffness": 0.0}, "bolt 0: stiffness must be > 0"),
+    ((1, 0.5), (1, 1.5), {"pretension": 5.0, "capacity": 1.0}, "pretension 5 N/m exceeds its capacity"),
+])
+def test_bad_bolt_is_refused(p1, p2, kw, match):
+    s = _two_blocks()
+    with pytest.raises(ValueError, match=match):
+        s.add_bolt(p1, p2, **{"stiffness": 1e6, **kw})
+    assert s.bolts == []
+
+
+def test_a_scene_without_water_or_bolts_loads_nothing_for_them():
+    """No water, no bolts: the model has empty bolt arrays and no water table, and neither the
+    water nor the support module is imported (by building or by a step)."""
+    code = """
+import sys
+import ddatai as dd
+s = dd.Scene()
+r = dd.Material(density=2500.0, young=1e9, poisson=0.2)
+s.add_block([(0, 0), (4, 0), (4, 1), (0, 1)], material=r, fixed=True)
+s.add_block([(1, 1), (2, 1), (2, 2), (1, 2)], material=r)
+m = dd.build_model(s)
+assert m.water_xy is None and len(m.bolt_block) == 0
+res = dd.simulate(s, steps=2)
+assert res.bolt_xy.size == 0 and res.water_table.size == 0
+print([k for k in ("ddatai.water", "ddatai.support") if k in sys.modules])
+"""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip().splitlines()[-1] == "[]"
