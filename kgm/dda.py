@@ -115,6 +115,10 @@ def sub_scene(scene: Scene, system: BlockSystem, blocks: frozenset, *, removed: 
     and everything farther away left out. Every joint gets the friction angle ``friction``
     [degrees] if given, and tanφ and c divided by ``reduction``.
 
+    The scene's water table comes along, and so does every bolt with an end in a moving block
+    (its other block held fixed if it is not already in the sub-scene), its capacity divided
+    by ``reduction`` like the joints' strength (docs/method/water_bolts.md).
+
     Returns the sub-scene and the original id of each of its blocks.
     """
     ring1 = system.neighbours(blocks, removed)
@@ -123,6 +127,8 @@ def sub_scene(scene: Scene, system: BlockSystem, blocks: frozenset, *, removed: 
     if free_neighbours:
         moving |= {b for b in ring1 if not system.block_fixed[b]}
         held = system.neighbours(moving, removed) | {b for b in ring1 if system.block_fixed[b]}
+    bolts = [b for b in scene.bolts if b.block1 in moving or b.block2 in moving]
+    held |= {blk for b in bolts for blk in (b.block1, b.block2) if blk not in moving}
     ids = sorted(moving | held)
     new_id = {b: i for i, b in enumerate(ids)}
     sub = Scene(gravity=scene.gravity)
@@ -136,6 +142,9 @@ def sub_scene(scene: Scene, system: BlockSystem, blocks: frozenset, *, removed: 
     sub.point_loads = [PointSpec(block=new_id[p.block], xy=p.xy, force=p.force)
                        for p in scene.point_loads if p.block in new_id]
     sub.ground_acceleration = scene.ground_acceleration
+    sub.water = scene.water
+    sub.bolts = [replace(b, block1=new_id[b.block1], block2=new_id[b.block2],
+                         capacity=b.capacity / reduction) for b in bolts]
     return sub, ids
 
 
@@ -351,4 +360,7 @@ def _subset(scene: Scene, keep: list[int]) -> tuple[Scene, list[int]]:
     sub.fixed_points = [replace(p, block=new_id[p.block]) for p in scene.fixed_points if p.block in new_id]
     sub.point_loads = [replace(p, block=new_id[p.block]) for p in scene.point_loads if p.block in new_id]
     sub.ground_acceleration = scene.ground_acceleration
+    sub.water = scene.water
+    sub.bolts = [replace(b, block1=new_id[b.block1], block2=new_id[b.block2]) for b in scene.bolts
+                 if b.block1 in new_id and b.block2 in new_id]
     return sub, keep

@@ -171,3 +171,19 @@ def test_time_varying_inputs_are_refused():
         kgm.analyze(planar_scene(0.0)[0], method="dda", seismic=(0.1, 0.0))
     with pytest.raises(ValueError, match="seismic"):
         kgm.analyze(planar_scene(0.0)[0], method="rigid", seismic=(1.5, 0.0))
+
+
+def test_dda_evaluator_carries_bolts_and_water():
+    """kgm's DDA judgement runs the sub-scene with the scene's bolts and water table: a
+    frictionless block held by a bolt of 1.2 × its demand has the rigid FS C·cos α/(W·sinθ)
+    = 1.2, and DDA's strength reduction (capacity ÷ F) finds it within its bracket (2 %) plus
+    the judgement's acceleration resolution (1 %)."""
+    from test_water_bolts import bolted, static_demand
+
+    s, b = bolted(1.2 * static_demand())
+    s.set_water_table([(-20.0, -5.0), (30.0, -5.0)])   # below the model: dry, but carried along
+    assert kgm.factor_of_safety(s, [b], method="rigid") == pytest.approx(1.2, rel=1e-9)
+    sub, ids = kgm.sub_scene(s, kgm.build_block_system(s), frozenset([b]), reduction=2.0)
+    assert sub.water is s.water and len(sub.bolts) == 1
+    assert sub.bolts[0].capacity == pytest.approx(0.6 * static_demand())
+    assert kgm.factor_of_safety(s, [b], method="dda") == pytest.approx(1.2, rel=0.03)
