@@ -45,6 +45,11 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--arch", choices=("cpu", "gpu", "cuda"), default=None,
                    help="Taichi backend (default: the scene's Params)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--checkpoint-every", type=int, default=None, metavar="N",
+                   help="write a checkpoint every N steps to DIR/NAME.checkpoint.npz (Ctrl-C writes one too)")
+    p.add_argument("--resume", nargs="?", type=Path, const=True, default=None, metavar="CHECKPOINT",
+                   help="continue the run from a checkpoint (default DIR/NAME.checkpoint.npz) with "
+                        "identical results")
 
 
 class Progress:
@@ -121,13 +126,20 @@ def run_scene(build: Callable, duration: float, name: str, args: argparse.Namesp
 
 def _simulate_and_report(scene, params, duration, steps, name, args, after=None) -> int:
     import ddatai as dd
+    from .results import SimulationInterrupted
 
-    every = args.every if args.every else 1
+    checkpoint = args.out / f"{name}.checkpoint.npz"
+    resume = None
+    if args.resume is not None:
+        resume = checkpoint if args.resume is True else args.resume
+        if args.duration is None and args.steps is None:
+            duration = steps = None  # the checkpoint's own targets
     progress = Progress(duration, steps, enabled=not args.quiet)
     t0 = time.perf_counter()
     try:
-        results = dd.simulate(scene, params=params, duration=duration, steps=steps, record_every=every,
-                              record_contacts=args.contacts, progress=progress)
+        results = dd.simulate(scene, params=params, duration=duration, steps=steps, record_every=args.every,
+                              record_contacts=args.contacts or None, progress=progress,
+                              checkpoint=checkpoint, checkpoint_every=args.checkpoint_every, resume=resume)
     except dd.SimulationError as err:
         progress.close(err.time)
         print(f"ddatai: {err}", file=sys.stderr)
@@ -135,6 +147,12 @@ def _simulate_and_report(scene, params, duration, steps, name, args, after=None)
             out = _save(err.results, args.out, name)
             print(f"results up to step {err.step - 1} saved to {out}", file=sys.stderr)
         return 1
+    except SimulationInterrupted as stop:
+        progress.close(stop.time)
+        out = _save(stop.results, args.out, name)
+        print(f"ddatai: interrupted after step {stop.step} (t = {stop.time:.6g} s): the results recorded so far "
+              f"are in {out}; continue with --resume {stop.checkpoint}", file=sys.stderr)
+        return 130
     wall = time.perf_counter() - t0
     progress.close(float(results.time[-1]))
     out = _save(results, args.out, name)

@@ -83,6 +83,34 @@ class SimulationError(RuntimeError):
         self.results = results
 
 
+class SimulationInterrupted(KeyboardInterrupt):
+    """A run stopped by Ctrl-C (`KeyboardInterrupt`): what was recorded is kept.
+
+    A subclass of `KeyboardInterrupt`, so a script that does not catch it still stops as
+    Ctrl-C stops it. The interrupt is taken between two steps or inside one (that step is
+    dropped); the results hold every frame recorded before it.
+
+    Attributes
+    ----------
+    step : int
+        Steps accepted before the interrupt.
+    time : float
+        Simulated time reached [s].
+    results : Results
+        Everything recorded up to then.
+    checkpoint : Path or None
+        The checkpoint written at the interrupt (``simulate(..., checkpoint=PATH)``), from
+        which ``simulate(..., resume=PATH)`` continues.
+    """
+
+    def __init__(self, *, step: int, time: float, results: "Results", checkpoint=None):
+        super().__init__(f"simulation interrupted after step {step} (t = {time:.6g} s)")
+        self.step = step
+        self.time = time
+        self.results = results
+        self.checkpoint = checkpoint
+
+
 @dataclass(kw_only=True, eq=False)
 class Results:
     """Recorded frames of a run (F frames, B blocks, V vertices) and per-step records."""
@@ -224,6 +252,27 @@ class Recorder:
 
     def step(self, record: tuple) -> None:
         self.steps.append(record)
+
+    def seed(self, results: "Results", state) -> None:
+        """Start from the frames and step records of a partial run (a checkpoint) whose last
+        state is ``state``, so that the finished `results` equal those of an unbroken run."""
+        for name, frames in self.frames.items():
+            frames.extend(getattr(results, name))
+        off = results.contact_offset
+        for f in range(results.n_frames):
+            n = int(off[f + 1] - off[f])
+            self.contact_count.append(n)
+            if n:
+                self.contact_xy.append(results.contact_xy[off[f]:off[f + 1]])
+                self.contact_state.append(results.contact_state[off[f]:off[f + 1]])
+        self.steps.extend(r.item() for r in results.steps)
+        self.start.extend(r.item() for r in results.start)
+        # per-frame records of optional model parts (bolts), kept by name like the Results field
+        for name, frames in getattr(self, "bolts", {}).items():
+            if len(getattr(results, name, ())) == results.n_frames:
+                frames.extend(getattr(results, name))
+        if getattr(self, "bolts", None) and len(getattr(state, "bolt_broken_step", ())):
+            self.bolt_state = (state.bolt_broken_step, state.bolt_broken_time, state.bolt_broken_force)
 
     def results(self) -> Results:
         f = self.frames
