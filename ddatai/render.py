@@ -177,6 +177,7 @@ class _Painter:
         for b in range(r.n_blocks):
             pts = [tuple(p) for p in pix[off[b]:off[b + 1]].tolist()]
             d.polygon(pts, fill=colours[b], outline=OUTLINE)
+        _draw_water_and_bolts(d, v, r, frame, width)
         if self.show_contacts and r.contact_offset[-1] > 0:
             cxy, cst = r.contacts(frame)
             cpix = v.pixels(cxy)
@@ -226,6 +227,7 @@ class _Painter:
             y += bar_h + 16
         if self.show_contacts:
             entries += [(CONTACT_COLOURS[s], CONTACT_NAMES[s] + " contact") for s in (1, 2)]
+        entries += _water_and_bolt_legend(self.results)
         for colour, name in entries:
             w = d.textlength(name, font=self.font)
             d.rectangle([x - 10, y + 2, x - 2, y + 10], fill=colour, outline=OUTLINE)
@@ -483,3 +485,51 @@ def write_png(results: Results, path, frame: int = -1, *, size=(640, 480), label
     path.parent.mkdir(parents=True, exist_ok=True)
     Image.fromarray(image).save(path, format="PNG")
     return path
+
+
+# ---------------------------------------------------------------------- water and bolts
+WATER = (0, 150, 255)
+BOLT = (200, 20, 20)
+BROKEN_BOLT = (90, 90, 90)
+
+
+def _draw_water_and_bolts(d, view: View, results: Results, frame: int, width: int) -> None:
+    """The water table (held level beyond its ends, across the picture) and the rock bolts:
+    intact ones solid red with their ends, broken ones dashed grey with a cross at the middle.
+    Nothing for results without them."""
+    table = results.water_table
+    if len(table):
+        x_lo = view.x0 - view.left / view.scale
+        x_hi = view.x0 + (width - view.left) / view.scale
+        xs = np.concatenate([[min(x_lo, table[0, 0])], table[:, 0], [max(x_hi, table[-1, 0])]])
+        line = view.pixels(np.stack([xs, np.interp(xs, table[:, 0], table[:, 1])], axis=1))
+        d.line([tuple(p) for p in line.tolist()], fill=WATER, width=2)
+    if results.bolt_xy.size == 0:
+        return
+    ends = view.pixels(results.bolt_xy[frame])          # (nb, 2, 2) in pixels
+    for k, ((x1, y1), (x2, y2)) in enumerate(ends.tolist()):
+        if results.bolt_broken[frame, k]:
+            n = max(int(math.hypot(x2 - x1, y2 - y1) / 6), 1)
+            for i in range(0, n, 2):  # dashes of 6 px
+                a, b = i / n, min((i + 1) / n, 1.0)
+                d.line([(x1 + a * (x2 - x1), y1 + a * (y2 - y1)), (x1 + b * (x2 - x1), y1 + b * (y2 - y1))],
+                       fill=BROKEN_BOLT, width=2)
+            mx, my = 0.5 * (x1 + x2), 0.5 * (y1 + y2)
+            d.line([(mx - 4, my - 4), (mx + 4, my + 4)], fill=BOLT, width=2)
+            d.line([(mx - 4, my + 4), (mx + 4, my - 4)], fill=BOLT, width=2)
+        else:
+            d.line([(x1, y1), (x2, y2)], fill=BOLT, width=2)
+            for x, y in ((x1, y1), (x2, y2)):
+                d.ellipse([x - 2, y - 2, x + 2, y + 2], fill=BOLT)
+
+
+def _water_and_bolt_legend(results: Results) -> list:
+    """Legend entries for the water table and the bolts of results that have them."""
+    out = []
+    if len(results.water_table):
+        out.append((WATER, "water table"))
+    if results.bolt_xy.size:
+        out.append((BOLT, "bolt"))
+        if results.bolt_broken.any():
+            out.append((BROKEN_BOLT, "broken bolt"))
+    return out

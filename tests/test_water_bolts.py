@@ -235,3 +235,44 @@ print([k for k in ("ddatai.water", "ddatai.support") if k in sys.modules])
 """
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip().splitlines()[-1] == "[]"
+
+
+# ------------------------------------------------------------------ the bolted slope scene
+def test_bolted_slope_design_reaches_the_target_and_holds():
+    """scenes/bolted_slope.py: kgm's FS grows with every row of bolts and the design is the
+    first row count with FS ≥ 1.5; DDA lets the unbolted wedge slide and holds the designed
+    one (its bolts intact and under their capacity)."""
+    from scenes import bolted_slope as bs
+
+    rows, history = bs.design()
+    assert history[0] < 1.0 and history[-1] >= bs.FS_TARGET > history[-2]
+    assert all(b > a for a, b in zip(history, history[1:]))
+    unbolted, params = bs.build("none")
+    res = dd.simulate(unbolted, params, duration=1.0, record_every=10)
+    free = ~res.block_fixed
+    assert np.hypot(*(res.centroid[-1] - res.centroid[0]).T)[free].min() > 0.5    # slid
+    bolted_scene, params = bs.build("design")
+    assert len(bolted_scene.bolts) == rows
+    res = dd.simulate(bolted_scene, params, duration=1.0, record_every=10)
+    assert np.hypot(*(res.centroid[-1] - res.centroid[0]).T)[free].max() < 0.01   # held
+    assert len(res.bolt_events) == 0 and np.all(res.bolt_force[-1] < bs.BOLT_CAPACITY)
+
+
+def test_weak_bolting_breaks_and_the_picture_shows_it(tmp_path):
+    """One row of half-capacity bolts: the bolt breaks (an event) and the wedge slides; a frame
+    draws the water table, and the broken bolt in its own colour."""
+    pytest.importorskip("PIL")
+    from PIL import Image
+
+    from ddatai import render
+    from scenes import bolted_slope as bs
+
+    scene, params = bs.build("weak")
+    res = dd.simulate(scene, params, duration=0.5, record_every=10)
+    assert len(res.bolt_events) == 1 and res.bolt_broken[-1].all()
+    free = ~res.block_fixed
+    assert np.hypot(*(res.centroid[-1] - res.centroid[0]).T)[free].min() > 0.1
+    path = tmp_path / "weak.png"
+    dd.write_png(res, path, size=(480, 300))
+    pixels = {tuple(p) for p in np.asarray(Image.open(path).convert("RGB")).reshape(-1, 3).tolist()}
+    assert render.WATER in pixels and render.BROKEN_BOLT in pixels
