@@ -26,11 +26,12 @@ __version__ = "0.1.0"
 
 # public name -> module that defines it (PEP 562 lazy attributes)
 _EXPORTS = {
-    "Material": "params", "Joint": "params", "Params": "params",
+    "Material": "params", "Joint": "params", "Params": "params", "UnitWarning": "params",
     "Scene": "scene",
     "Model": "model", "State": "model", "ContactState": "model", "ContactKind": "model",
     "build_model": "model",
     "Results": "results", "load_results": "results", "SimulationError": "results",
+    "SimulationInterrupted": "results",
     "STEP_DTYPE": "results",
     "simulate": "step", "Stepper": "step", "sweep": "sweep",
     "polygon_integrals": "geometry", "validate_polygon": "geometry",

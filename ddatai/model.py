@@ -20,7 +20,7 @@ from typing import Callable, Optional
 import numpy as np
 
 from .geometry import polygon_integrals
-from .params import Params
+from .params import Params, likely_unit_mistake
 from .scene import Scene
 
 
@@ -484,7 +484,7 @@ def _check_strain(specs, fixed, column, vel, density, young) -> None:
                 + (f", v = {speed[b]:.3g} m/s" if name == "impact" else f", stress {column[b]:.3g} Pa") + ")")
         if strain[b] > STRAIN_LIMIT:
             raise ValueError(f"{what} exceeds {STRAIN_LIMIT:g}, beyond what a first-order DDA block can "
-                             f"represent (docs/method/limits.md); give it {change}")
+                             f"represent (docs/method/limits.md); give it {change}{likely_unit_mistake(m)}")
         warnings.warn(f"{what} exceeds {STRAIN_WARNING:g}: a first-order DDA block's small-strain "
                       f"update loses accuracy (error ~ε/2 of the strain, docs/method/limits.md); "
                       f"consider {change}", stacklevel=3)

@@ -15,6 +15,73 @@ from dataclasses import dataclass
 from typing import Literal, Optional
 
 
+class UnitWarning(UserWarning):
+    """A value valid in SI units but implausible for rock: most likely given in another unit
+    (friction in radians, density in g/cm³, Young's modulus in MPa). The message names the
+    value and the likely unit; silence it with ``warnings.simplefilter("ignore", UnitWarning)``
+    for a deliberate model (a soft analogue material, a frictionless test)."""
+
+
+#: Plausible ranges for rock in SI units; a value outside is warned about with its likely unit
+#: (rock densities are 1,000–5,000 kg/m³, moduli 0.1–200 GPa; soils and ores reach a little
+#: beyond, so the bounds leave room).
+DENSITY_RANGE = (100.0, 2.0e4)      # kg/m³
+YOUNG_MIN = 1.0e5                   # Pa
+STRENGTH_MIN = 100.0                # Pa, a cohesion or tensile strength that is not 0
+FRICTION_RADIANS = math.pi / 2      # degrees: a friction angle at or below this looks like radians
+
+
+def unit_hint(name: str, value: float) -> Optional[str]:
+    """Why ``value`` of the parameter ``name`` ("density" [kg/m³], "young" [Pa], "friction"
+    [degrees], "cohesion" or "tensile" [Pa]) looks like another unit, or None if it is
+    plausible for rock."""
+    v = float(value)
+    if name == "density":
+        if v < 10.0:
+            return (f"density = {v:g} kg/m³ is implausible for rock (1,000–5,000 kg/m³): it looks like "
+                    f"g/cm³ or t/m³ ({v:g} g/cm³ = {v * 1e3:g} kg/m³)")
+        if v < DENSITY_RANGE[0]:
+            return (f"density = {v:g} kg/m³ is implausible for rock (1,000–5,000 kg/m³): it looks like "
+                    f"a unit weight in kN/m³ ({v:g} kN/m³ is a density of {v * 1e3 / 9.81:.4g} kg/m³)")
+        if v > DENSITY_RANGE[1]:
+            return (f"density = {v:g} kg/m³ is implausible for rock (1,000–5,000 kg/m³): it looks like "
+                    f"a unit weight in N/m³ ({v:g} N/m³ is a density of {v / 9.81:.4g} kg/m³)")
+    elif name == "young":
+        if 0 < v <= 1e3:
+            return (f"young = {v:g} Pa (Young's modulus) is implausible for rock (0.1–200 GPa): it "
+                    f"looks like GPa ({v:g} GPa = {v * 1e9:g} Pa)")
+        if 0 < v < YOUNG_MIN:
+            return (f"young = {v:g} Pa (Young's modulus) is implausible for rock (0.1–200 GPa): it "
+                    f"looks like MPa ({v:g} MPa = {v * 1e6:g} Pa)")
+    elif name == "friction":
+        if 0 < v <= FRICTION_RADIANS:
+            return (f"friction = {v:g}° is implausible for a rock joint: friction is an angle in degrees, "
+                    f"and this looks like radians ({v:g} rad = {math.degrees(v):.4g}°) or a friction "
+                    f"coefficient tan φ (φ = {math.degrees(math.atan(v)):.4g}°)")
+    elif name in ("cohesion", "tensile"):
+        if 0 < v < STRENGTH_MIN:
+            return (f"{name} = {v:g} Pa is implausibly small for a rock joint: it looks like kPa "
+                    f"({v:g} kPa = {v * 1e3:g} Pa) or MPa ({v:g} MPa = {v * 1e6:g} Pa)")
+    return None
+
+
+def likely_unit_mistake(material: "Material") -> str:
+    """"; likely cause: …" naming a `Material` value that looks like another unit, for the end
+    of an error message; empty if none does."""
+    hints = [h for name in ("young", "density") if (h := unit_hint(name, getattr(material, name)))]
+    return ("; likely cause: Material." + "; Material.".join(hints)) if hints else ""
+
+
+def _warn_units(owner: str, names: tuple[str, ...], obj) -> None:
+    import warnings
+
+    for name in names:
+        hint = unit_hint(name, getattr(obj, name))
+        if hint is not None:
+            # stacklevel 4: the line that built the Material / Joint (past __init__ and __post_init__)
+            warnings.warn(f"{owner}.{hint}", UnitWarning, stacklevel=4)
+
+
 def _require(cond: bool, message: str) -> None:
     if not cond:
         raise ValueError(message)
@@ -44,6 +111,7 @@ class Material:
                  f"Material.poisson must be in [0, 0.5), got {self.poisson!r}")
         for name in ("density", "young", "poisson"):
             object.__setattr__(self, name, float(getattr(self, name)))
+        _warn_units("Material", ("density", "young"), self)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -72,6 +140,7 @@ class Joint:
                  f"Joint.tensile (tensile strength) must be a finite number >= 0 Pa, got {self.tensile!r}")
         for name in ("friction", "cohesion", "tensile"):
             object.__setattr__(self, name, float(getattr(self, name)))
+        _warn_units("Joint", ("friction", "cohesion", "tensile"), self)
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -228,7 +228,23 @@ class Stepper:
                     f"{p.displacement_reject:g} × g2·w0 = {p.displacement_reject * m.max_step:.4g} m")
             advice = "lower Params.max_displacement_ratio or the time step"
         return (f"simulation diverged at step {step} (t = {state.time:.6g} s): {what}, even with the "
-                f"time step cut to {dt:.3g} s; {advice}")
+                f"time step cut to {dt:.3g} s; {advice}{self._unit_causes()}")
+
+    def _unit_causes(self) -> str:
+        """The model's material and joint values that look like another unit (`unit_hint`), as
+        the likely cause of a failure; empty if none does."""
+        from .params import unit_hint
+
+        m, p = self.model, self.params
+        values = [("Material", "density", float(d)) for d in np.unique(m.block_density)]
+        if p.penalty is None:  # the automatic penalty comes from the largest Young's modulus
+            values.append(("Material", "young", m.penalty / p.penalty_ratio))
+        values += [("Joint", name, float(v)) for name, arr in (("friction", m.joint_friction),
+                                                               ("cohesion", m.joint_cohesion),
+                                                               ("tensile", m.joint_tensile))
+                   for v in np.unique(arr)]
+        hints = [f"{owner}.{h}" for owner, name, v in values if (h := unit_hint(name, v)) is not None]
+        return ". Likely cause: " + "; ".join(hints) if hints else ""
 
     # ------------------------------------------------------------------ phases
     def choose_time_step(self, state: State, geom: dict) -> float:
