@@ -188,6 +188,10 @@ class Stepper:
 
         kinetic, gravitational, strain, springs = mechanical_energy(
             self.model, geom, state.block_velocity, state.block_stress, state.fixed_point_xy)
+        if len(self.model.bolt_block):
+            from .support import bolt_energy
+
+            springs += bolt_energy(self.model, state)
         return kinetic, gravitational, strain, springs + contact_energy(self.model, contacts)
 
     def work(self, state: State, geom: dict, attempt: _Attempt, dt: float) -> tuple[float, float]:
@@ -199,6 +203,10 @@ class Stepper:
         ground = np.asarray(m.ground_acceleration(t_mid), float) if m.ground_acceleration is not None else None
         loads = self._load_forces(t_mid) if len(m.load_block) else np.zeros((0, 2))
         external = external_work(m, geom, attempt.displacement, state.load_xy, loads, ground)
+        if m.water_xy is not None:
+            from .support import support_work
+
+            external += support_work(m, state.vertex_xy, geom["centroid"], attempt.displacement)
         friction = friction_work(attempt.contacts, attempt.vec, attempt.friction, attempt.displacement) \
             if attempt.contacts.n else 0.0
         return external, friction

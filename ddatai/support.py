@@ -44,24 +44,50 @@ def water_arrays(scene, origin: np.ndarray) -> dict:
             "water_unit_weight": float(scene.water.density * scene.gravity)}
 
 
-def assemble_water(model, vertex_xy: np.ndarray, centroid: np.ndarray, rhs: np.ndarray) -> None:
-    """F_i += Σ_g T_i(x_g)ᵀ · w_g · n_in over the Gauss points of the wet edges of every free
-    block (W2), in place on ``rhs``."""
+def water_load(model, vertex_xy: np.ndarray, centroid: np.ndarray) -> np.ndarray:
+    """(B, 6) load vector F_i = Σ_g T_i(x_g)ᵀ · w_g · n_in over the Gauss points of the wet
+    edges of every free block (W2); zero rows for fixed blocks."""
+    out = np.zeros((model.n_blocks, 6))
     free_vertex = model.block_dof[model.vertex_block] >= 0
     edges = np.flatnonzero(free_vertex)
     start, end = vertex_xy[edges], vertex_xy[model.vertex_next[edges]]
     edge, pts, w = edge_pressure_points(start, end, model.water_xy, model.water_unit_weight)
     if len(edge) == 0:
-        return
+        return out
     t = end - start
     n_in = np.stack([-t[:, 1], t[:, 0]], axis=1) / np.hypot(t[:, 0], t[:, 1])[:, None]  # left of CCW edge
     f = w[:, None] * n_in[edge]
     block = model.vertex_block[edges[edge]]
     rel = pts - centroid[block]
     tm = t_rows(rel[:, 0], rel[:, 1])
-    load = np.einsum("gij,gi->gj", tm, f)                      # Tᵀ f per Gauss point
-    rows = 6 * model.block_dof[block].astype(np.int64)
-    np.add.at(rhs, rows[:, None] + np.arange(6)[None, :], load)
+    np.add.at(out, block, np.einsum("gij,gi->gj", tm, f))    # Tᵀ f per Gauss point
+    return out
+
+
+def assemble_water(model, vertex_xy: np.ndarray, centroid: np.ndarray, rhs: np.ndarray) -> None:
+    """The water load (W2) of every free block added to ``rhs`` in place."""
+    load = water_load(model, vertex_xy, centroid)
+    free = np.flatnonzero(model.block_dof >= 0)
+    rows = 6 * model.block_dof[free].astype(np.int64)
+    rhs[rows[:, None] + np.arange(6)[None, :]] += load[free]
+
+
+def support_work(model, vertex_xy: np.ndarray, centroid: np.ndarray, disp: np.ndarray) -> float:
+    """Work of the water pressure in a step, F_wᵀ·D with the step's load vector [J/m] (the
+    bolts' work is their spring energy, `bolt_energy`)."""
+    if model.water_xy is None:
+        return 0.0
+    return float(np.sum(water_load(model, vertex_xy, centroid) * disp))
+
+
+def bolt_energy(model, state) -> float:
+    """Energy stored in the intact bolts, Σ P0·e + ½·k·e² with e = L − L0 [J/m] (the potential
+    whose derivative is the tension N = P0 + k·e, B1)."""
+    if not len(model.bolt_block):
+        return 0.0
+    e = (bolt_tension(model, state.vertex_xy) - model.bolt_pretension) / model.bolt_stiffness
+    intact = state.bolt_broken_step < 0
+    return float(np.sum((model.bolt_pretension * e + 0.5 * model.bolt_stiffness * e * e)[intact]))
 
 
 # ---------------------------------------------------------------------- bolts
