@@ -142,6 +142,17 @@ def _print_report(rep, out) -> None:
     print(f"\nanalysis time {rep.wall_time:.2f} s", file=out)
 
 
+def _seismic(text: str) -> tuple[float, float]:
+    """'0.1' or '0.1,0.05' -> (kh, kv)."""
+    try:
+        parts = [float(v) for v in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected KH or KH,KV (numbers), got {text!r}") from None
+    if len(parts) not in (1, 2):
+        raise argparse.ArgumentTypeError(f"expected KH or KH,KV, got {text!r}")
+    return (parts[0], parts[1] if len(parts) == 2 else 0.0)
+
+
 def main(argv: Optional[Sequence[str]] = None, out=None) -> int:
     out = out or sys.stdout
     parser = argparse.ArgumentParser(prog="kgm", description="Key Group Method analysis of a ddatai scene")
@@ -150,6 +161,8 @@ def main(argv: Optional[Sequence[str]] = None, out=None) -> int:
     an.add_argument("scene", help="scene script with build() -> Scene or (Scene, Params)")
     an.add_argument("--method", choices=("rigid", "sarma", "dda"), default="sarma")
     an.add_argument("--progressive", action="store_true", help="remove unstable groups and repeat")
+    an.add_argument("--seismic", metavar="KH[,KV]", type=_seismic,
+                    help="pseudo-static seismic coefficients (kh towards +x, kv upwards) [-], rigid and sarma")
     an.add_argument("--compare", action="store_true",
                     help="also judge the critical group with all three evaluators (paper table)")
     an.add_argument("--compare-whole", action="store_true",
@@ -164,12 +177,14 @@ def main(argv: Optional[Sequence[str]] = None, out=None) -> int:
     try:
         scene, params = load_scene(args.scene)
         settings = Settings(dda=DdaSettings(compare_whole=args.compare_whole))
-        rep = analyze(scene, method=args.method, progressive=args.progressive, settings=settings, params=params)
+        rep = analyze(scene, method=args.method, progressive=args.progressive, settings=settings, params=params,
+                      seismic=args.seismic)
         _print_report(rep, out)
         if args.compare and rep.critical is not None:
             t0 = time.perf_counter()
-            rows = [evaluate(scene, rep.critical.blocks, m, settings=settings, params=params)
-                    if m != rep.method else rep.critical for m in ("rigid", "sarma", "dda")]
+            methods = ("rigid", "sarma") if args.seismic else ("rigid", "sarma", "dda")   # dda: no k·W
+            rows = [evaluate(scene, rep.critical.blocks, m, settings=settings, params=params, seismic=args.seismic)
+                    if m != rep.method else rep.critical for m in methods]
             print("", file=out)
             print(format_paper_table(rows, title=f"group {sorted(rep.critical.blocks)}"), file=out)
             print(f"(comparison {time.perf_counter() - t0:.1f} s)", file=out)

@@ -187,3 +187,23 @@ def test_dda_evaluator_carries_bolts_and_water():
     assert sub.water is s.water and len(sub.bolts) == 1
     assert sub.bolts[0].capacity == pytest.approx(0.6 * static_demand())
     assert kgm.factor_of_safety(s, [b], method="dda") == pytest.approx(1.2, rel=0.03)
+
+
+def test_cli_takes_a_seismic_coefficient_and_shows_the_columns():
+    """`kgm analyze SCENE --seismic KH[,KV]`: the table shows U, bolt and (kh, kv) columns,
+    and the seismic load lowers the FS of the bolted slope."""
+    import io
+    from pathlib import Path
+
+    from kgm.cli import main
+
+    scene = str(Path(__file__).resolve().parents[1] / "scenes" / "bolted_slope.py")
+    outs = []
+    for extra in ([], ["--seismic", "0.1,0"]):
+        out = io.StringIO()
+        assert main(["analyze", scene, "--method", "rigid", *extra], out=out) == 0
+        outs.append(out.getvalue())
+    assert "U kN/m" in outs[0] and "bolt kN/m" in outs[0] and "kh, kv" not in outs[0]
+    assert "kh, kv" in outs[1] and "0.1, 0" in outs[1]
+    fs = [float(o.split("critical key group")[1].split("FS ")[1].split(",")[0]) for o in outs]
+    assert fs[1] < fs[0]
