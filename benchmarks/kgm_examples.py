@@ -16,6 +16,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository root: scenes/
 import kgm  # noqa: E402
+from ddatai.scenefile import build_scene  # noqa: E402
 from scenes import example_1, example_2, kgm_slope  # noqa: E402
 
 
@@ -27,7 +28,7 @@ def main() -> None:
     settings = kgm.Settings(dda=kgm.DdaSettings(compare_whole=True))
     print(f"machine: {platform.processor() or platform.machine()}, Python {platform.python_version()}\n")
     for name, mod in (("Example I", example_1), ("Example II", example_2), ("jointed slope", kgm_slope)):
-        scene, params = mod.build()
+        scene, params = build_scene(mod)  # the loader of ddatai run and kgm analyze
         rep = kgm.analyze(scene, method="sarma", settings=settings)
         group = rep.critical.blocks
         rows = []

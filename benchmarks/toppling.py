@@ -17,6 +17,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository root: scenes/
 import kgm  # noqa: E402
+from ddatai.scenefile import build_scene  # noqa: E402
 from scenes import toppling_slope  # noqa: E402
 
 
@@ -26,7 +27,7 @@ def main() -> None:
     ap.add_argument("--tolerance", type=float, default=0.25, help="DDA bisection bracket [degrees]")
     args = ap.parse_args()
     print(f"machine: {platform.processor() or platform.machine()}, Python {platform.python_version()}\n")
-    scene, params = toppling_slope.build(friction=toppling_slope.PUBLISHED_CRITICAL_FRICTION)
+    scene, params = build_scene(toppling_slope, friction=toppling_slope.PUBLISHED_CRITICAL_FRICTION)
     group = list(range(13))  # textbook blocks 1–13
     print("| method | critical friction angle | wall time |")
     print("|---|---|---|")

@@ -1,19 +1,24 @@
 """Command line: ``ddatai run SCENE.py`` (or ``ddatai run MODEL.geo MODEL.ana``).
 
     ddatai run SCENE.py [--duration S] [--steps N] [--every K] [--gif PATH] [--out DIR]
-                        [--contacts] [--size WxH] [--fps F] [--speed X] [--stride K] [--arch cpu|gpu]
+                        [--contacts] [--size WxH] [--fps F] [--speed X] [--stride K]
+                        [--arch cpu|gpu] [--checkpoint-every N] [--resume [PATH]] [--quiet] [--debug]
 
-A scene script is a Python file defining ``build(**sizes) -> (Scene, Params)`` and
-``DURATION`` (seconds); ``python scenes/NAME.py [options]`` runs the same way through
-`scene_main`. The run shows a progress bar (simulated time, steps per second), writes the
-results to ``DIR/NAME.npz``, the GIF if ``--gif`` is given (only then are imaging libraries
-imported) and prints a short summary.
+A scene script is a Python file defining ``build(**options)`` returning a Scene or
+``(scene, params)``, and optionally ``DURATION`` (seconds; ``--duration`` or ``--steps``
+replaces it), loaded by `ddatai.scenefile` like ``kgm`` loads it; ``python scenes/NAME.py
+[options]`` runs the same way through `scene_main`. The options are checked before anything
+is built; a user error (a bad option, a broken scene) prints one line and exits with status 2
+(``--debug`` shows the traceback). The run shows a progress bar (simulated time, steps per
+second), writes the results to ``DIR/NAME.npz`` (NAME: the GIF's name when ``--gif`` is given,
+else the input's; an existing file is never overwritten: NAME-2.npz, ...), the GIF if ``--gif``
+is given (only then are imaging libraries imported) and prints a short summary. Ctrl-C saves
+what was recorded and a checkpoint (``DIR/NAME.checkpoint.npz``) and exits with status 130.
 """
 
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import sys
 import time
 from pathlib import Path
@@ -45,6 +50,7 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--arch", choices=("cpu", "gpu", "cuda"), default=None,
                    help="Taichi backend (default: the scene's Params)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--debug", action="store_true", help="show the traceback of an error")
     p.add_argument("--checkpoint-every", type=int, default=None, metavar="N",
                    help="write a checkpoint every N steps to DIR/NAME.checkpoint.npz (Ctrl-C writes one too)")
     p.add_argument("--resume", nargs="?", type=Path, const=True, default=None, metavar="CHECKPOINT",
@@ -97,31 +103,73 @@ class Progress:
 
 
 def load_scene_module(path: Path) -> ModuleType:
-    """Import a scene script by path (it must define build() and DURATION)."""
-    path = Path(path)
-    if not path.is_file():
-        raise SystemExit(f"ddatai: no such scene file: {path}")
-    spec = importlib.util.spec_from_file_location(f"ddatai_scene_{path.stem}", path)
-    module = importlib.util.module_from_spec(spec)
-    sys.path.insert(0, str(path.resolve().parent.parent))  # lets scenes import their package
-    spec.loader.exec_module(module)
-    for name in ("build", "DURATION"):
-        if not hasattr(module, name):
-            raise SystemExit(f"ddatai: {path} does not define {name} (a scene needs build() and DURATION)")
-    return module
+    """Import a scene script by path (`ddatai.scenefile.load_scene_script`)."""
+    from .scenefile import load_scene_script
+
+    return load_scene_script(path).module
 
 
-def run_scene(build: Callable, duration: float, name: str, args: argparse.Namespace) -> int:
-    """Build, simulate with a progress bar, save results (and GIF), print a summary."""
+def run_scene(build: Callable, duration: Optional[float], name: str, args: argparse.Namespace) -> int:
+    """Build, simulate with a progress bar, save results (and GIF), print a summary. ``build``
+    may return a Scene or (scene, params); ``duration`` (the script's DURATION) may be None
+    when --duration or --steps is given."""
     import dataclasses
 
-    scene, params = build()
+    from .params import Params
+    from .scenefile import SceneFileError, build_scene
+
+    if args.resume is None and args.duration is None and args.steps is None and duration is None:
+        raise SceneFileError(f"{name} defines no DURATION: give --duration SECONDS or --steps N")
+    scene, params = build_scene(build)
+    params = params if params is not None else Params()
     if args.arch is not None:
         params = dataclasses.replace(params, arch=args.arch)
     duration = args.duration if args.duration is not None else duration
     if args.steps is not None:
         duration = args.duration  # --steps alone runs a number of steps
     return _simulate_and_report(scene, params, duration, args.steps, name, args)
+
+
+def check_options(args: argparse.Namespace) -> None:
+    """Check the run options before anything is built or run; `ValueError` with one line."""
+    import math
+
+    from .render import check_gif_options
+
+    def positive(name: str, value, integer: bool) -> None:
+        if value is None:
+            return
+        if integer and not value >= 1:
+            raise ValueError(f"--{name} must be an integer >= 1, got {value}")
+        if not integer and not (math.isfinite(value) and value > 0):
+            raise ValueError(f"--{name} must be a number > 0, got {value}")
+
+    positive("duration", args.duration, False)
+    positive("steps", args.steps, True)
+    positive("every", args.every, True)
+    positive("checkpoint-every", args.checkpoint_every, True)
+    try:
+        check_gif_options(size=args.size, fps=args.fps, speed=args.speed, stride=args.stride)
+    except ValueError as err:
+        raise ValueError(f"--{err}") from None
+    _check_writable_dir(args.out, "--out")
+    if args.gif is not None:
+        if args.gif.suffix.lower() != ".gif":
+            raise ValueError(f"--gif must name a .gif file, got {args.gif}")
+        _check_writable_dir(args.gif.parent, "--gif")
+        if args.gif.is_dir():
+            raise ValueError(f"--gif {args.gif} is a directory")
+
+
+def _check_writable_dir(folder: Path, option: str) -> None:
+    import os
+
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise ValueError(f"{option}: cannot create the folder {folder}: {err.strerror}") from None
+    if not folder.is_dir() or not os.access(folder, os.W_OK | os.X_OK):
+        raise ValueError(f"{option}: cannot write in {folder}")
 
 
 def _simulate_and_report(scene, params, duration, steps, name, args, after=None) -> int:
@@ -181,8 +229,13 @@ def _gif_speed(results, args) -> str:
 
 
 def _save(results, out_dir: Path, name: str) -> Path:
+    """Save to DIR/NAME.npz, or NAME-2.npz, NAME-3.npz... when that exists (never overwritten)."""
     out_dir.mkdir(parents=True, exist_ok=True)
     path = out_dir / f"{name}.npz"
+    k = 2
+    while path.exists():
+        path = out_dir / f"{name}-{k}.npz"
+        k += 1
     results.save(path)
     return path
 
@@ -191,7 +244,7 @@ def _run_ntdda(geo: Path, ana: Path, args: argparse.Namespace) -> int:
     try:
         from .ntdda import read_ntdda, write_measured_csv
     except ImportError:
-        raise SystemExit("ddatai: this installation has no ntdda reader") from None
+        raise ValueError("this installation has no ntdda reader") from None
     import dataclasses
 
     case = read_ntdda(geo, ana)
@@ -204,7 +257,7 @@ def _run_ntdda(geo: Path, ana: Path, args: argparse.Namespace) -> int:
         duration, steps = case.duration, case.steps
     if args.every is None:
         args.every = case.record_every
-    name = Path(geo).stem
+    name = _output_name(args, Path(geo).stem)
 
     def measured(results) -> None:
         if results.measured.shape[1]:
@@ -215,6 +268,28 @@ def _run_ntdda(geo: Path, ana: Path, args: argparse.Namespace) -> int:
     return _simulate_and_report(case.scene, params, duration, steps, name, args, after=measured)
 
 
+def _output_name(args: argparse.Namespace, stem: str) -> str:
+    """Results are named after the GIF when one is written, else after the input."""
+    return args.gif.stem if args.gif is not None else stem
+
+
+def _guarded(args: argparse.Namespace, run: Callable[[], int], prog: str = "ddatai") -> int:
+    """Run ``run()``; a user error prints one line (``--debug``: the traceback) and returns 2."""
+    from .scenefile import SceneFileError
+
+    try:
+        return run()
+    except (SceneFileError, ValueError, OSError) as err:
+        if getattr(args, "debug", False):
+            raise
+        message = str(err).splitlines()[0] if str(err) else type(err).__name__
+        print(f"{prog}: error: {message}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:  # before the first step: nothing to keep
+        print(f"{prog}: interrupted before the run started; nothing saved", file=sys.stderr)
+        return 130
+
+
 def main(argv: Optional[Sequence[str]] = None) -> int:
     parser = argparse.ArgumentParser(prog="ddatai", description="2D DDA simulator")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -222,23 +297,33 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     run.add_argument("inputs", nargs="+", type=Path, help="SCENE.py, or MODEL.geo MODEL.ana")
     _add_run_options(run)
     args = parser.parse_args(argv)
-    if args.command == "run":
-        inputs = args.inputs
-        if len(inputs) == 1 and inputs[0].suffix == ".py":
-            module = load_scene_module(inputs[0])
-            return run_scene(module.build, module.DURATION, inputs[0].stem, args)
-        if len(inputs) == 2:
-            return _run_ntdda(inputs[0], inputs[1], args)
+    inputs = args.inputs
+    if not ((len(inputs) == 1 and inputs[0].suffix == ".py") or len(inputs) == 2):
         parser.error("run takes SCENE.py, or MODEL.geo MODEL.ana")
-    return 2
+
+    def go() -> int:
+        check_options(args)
+        if len(inputs) == 1:
+            from .scenefile import load_scene_script
+
+            script = load_scene_script(inputs[0])
+            return run_scene(script, script.duration, _output_name(args, script.name), args)
+        return _run_ntdda(inputs[0], inputs[1], args)
+
+    return _guarded(args, go)
 
 
-def scene_main(build: Callable, duration: float, name: str, argv: Optional[Sequence[str]] = None) -> int:
+def scene_main(build: Callable, duration: Optional[float], name: str, argv: Optional[Sequence[str]] = None) -> int:
     """Entry point of ``python scenes/NAME.py [options]``: the options of ``ddatai run``."""
     parser = argparse.ArgumentParser(prog=name, description=f"run the {name} scene")
     _add_run_options(parser)
     args = parser.parse_args(argv)
-    return run_scene(build, duration, name, args)
+
+    def go() -> int:
+        check_options(args)
+        return run_scene(build, duration, _output_name(args, name), args)
+
+    return _guarded(args, go, prog=name)
 
 
 if __name__ == "__main__":

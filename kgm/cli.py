@@ -12,7 +12,6 @@ under all three evaluators; ``--gif`` draws the scene with the critical group hi
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import sys
 import time
 from pathlib import Path
@@ -22,22 +21,30 @@ import numpy as np
 
 
 def load_scene(path: str):
-    """Run a scene script's ``build()``; returns (scene, params or None)."""
-    p = Path(path)
-    if not p.is_file():
-        raise ValueError(f"scene file not found: {path}")
-    spec = importlib.util.spec_from_file_location(f"_kgm_scene_{p.stem}", p)
-    module = importlib.util.module_from_spec(spec)
-    sys.path.insert(0, str(p.resolve().parent))
-    try:
-        spec.loader.exec_module(module)
-    finally:
-        sys.path.pop(0)
-    if not hasattr(module, "build"):
-        raise ValueError(f"{path}: a scene script must define build() returning a Scene or (scene, params)")
-    built = module.build()
-    scene, params = (built if isinstance(built, tuple) else (built, None))[:2]
-    return scene, params
+    """Run a scene script's ``build()`` (`ddatai.scenefile`, the loader of ``ddatai run``);
+    returns (scene, params or None). A broken script is a `ValueError` with one line."""
+    from ddatai.scenefile import build_scene, load_scene_script
+
+    return build_scene(load_scene_script(path))
+
+
+def _dda_progress(err):
+    """A line on stderr as each DDA run ends (a DDA analysis makes tens of runs)."""
+    count = [0]
+
+    def show(j) -> None:
+        count[0] += 1
+        if j.friction is not None:
+            strength = f"φ = {j.friction:.2f}°"
+        elif j.reduction != 1.0:
+            strength = f"strength / {j.reduction:.3f}"
+        else:
+            strength = "the scene's strength"
+        verdict = "stable" if j.stable else "unstable"
+        print(f"  DDA run {count[0]} at {strength}: {verdict}, moved {j.displacement:.3g} m in "
+              f"{j.simulated:.3g} s ({j.steps} steps, {j.wall_time:.1f} s)", file=err, flush=True)
+
+    return show
 
 
 def scene_frame(scene):
@@ -176,7 +183,7 @@ def main(argv: Optional[Sequence[str]] = None, out=None) -> int:
 
     try:
         scene, params = load_scene(args.scene)
-        settings = Settings(dda=DdaSettings(compare_whole=args.compare_whole))
+        settings = Settings(dda=DdaSettings(compare_whole=args.compare_whole, progress=_dda_progress(sys.stderr)))
         rep = analyze(scene, method=args.method, progressive=args.progressive, settings=settings, params=params,
                       seismic=args.seismic)
         _print_report(rep, out)

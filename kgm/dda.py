@@ -230,6 +230,8 @@ def judge(scene: Scene, system: BlockSystem, blocks: frozenset, *, settings: Dda
                      friction=friction, reduction=reduction, model_blocks=len(ids),
                      moving_blocks=sum(not s.fixed for s in sub.blocks), scene_blocks=scene.n_blocks,
                      note=note)
+    if settings.progress is not None:
+        settings.progress(j)
     if record_every is not None:
         return j, results, ids
     return j

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Literal, Optional
+from typing import Callable, Literal, Optional
 
 from ddatai.params import Params
 
@@ -74,6 +74,9 @@ class DdaSettings:
     """Also time the whole slope over ``whole_steps`` steps to report the time saved."""
     whole_steps: int = 100
     """Steps of the timing runs of the sub-model and the whole slope [-]."""
+    progress: Optional[Callable[..., None]] = None
+    """Called with each `kgm.dda.DdaJudgement` as its run ends (``kgm analyze`` prints a line
+    per run); None: silent."""
 
     def __post_init__(self) -> None:
         _require(self.params is None or isinstance(self.params, Params),

@@ -22,7 +22,7 @@ def test_analyze_prints_the_candidate_table():
 
 def test_bad_scene_file_is_reported(capsys):
     assert main(["analyze", str(ROOT / "scenes" / "nope.py")]) == 2
-    assert "scene file not found" in capsys.readouterr().err
+    assert "no such scene file" in capsys.readouterr().err
 
 
 def test_scene_frame_is_a_one_frame_result():
