@@ -157,6 +157,30 @@ class Results:
     """(k,) bolts that broke, in the order they broke (`BOLT_EVENT_DTYPE`)."""
     water_table: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     """(k, 2) the scene's water table h(x) [m]; empty without water."""
+    contact_normal_force: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    """(C,) normal force of each recorded contact at the end of its step [N/m], compression
+    positive, 0 when open (recorded with the contacts)."""
+    contact_shear_force: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    """(C,) shear force of each recorded contact [N/m], signed along the contact's reference
+    edge; at most its Coulomb strength N·tanφ + c·L; 0 when open and for vertex-vertex contacts."""
+    metadata: str = ""
+    """JSON text: the ddatai version, the parameters, the units of every field and a summary of
+    the scene (`meta` reads it); empty for results written before it existed."""
+
+    def __repr__(self) -> str:
+        s = self.summary()
+        t = f"t = {self.time[0]:.4g}–{self.time[-1]:.4g} s" if self.n_frames else "no frames"
+        contacts = f", {len(self.contact_xy)} contacts recorded" if len(self.contact_xy) else ""
+        return (f"<Results: {s['blocks']} blocks ({int(np.count_nonzero(self.block_fixed))} fixed), "
+                f"{self.n_frames} frames ({t}), {s['steps']} steps{contacts}>")
+
+    @property
+    def meta(self) -> dict:
+        """The run's metadata (`metadata` as a dict): ``ddatai_version``, ``params``,
+        ``units`` (of every field), ``scene`` (blocks, vertices, materials, joints, ...)."""
+        import json
+
+        return json.loads(self.metadata) if self.metadata else {}
 
     @property
     def n_frames(self) -> int:
@@ -182,9 +206,100 @@ class Results:
         a, b = self.contact_offset[f], self.contact_offset[f + 1]
         return self.contact_xy[a:b], self.contact_state[a:b]
 
+    def contact_forces(self, frame: int = -1) -> tuple[np.ndarray, np.ndarray]:
+        """Normal (compression positive) and shear forces (n,) of the contacts recorded at a
+        frame [N/m], in the order of `contacts`."""
+        f = range(self.n_frames)[frame]
+        a, b = self.contact_offset[f], self.contact_offset[f + 1]
+        if len(self.contact_normal_force) < b:
+            raise ValueError("these results have no contact forces (recorded since contacts carry them)")
+        return self.contact_normal_force[a:b], self.contact_shear_force[a:b]
+
+    def measured_displacement(self) -> np.ndarray:
+        """(F, nm, 2) displacement of each measured point from frame 0 [m]."""
+        return self.measured - self.measured[:1]
+
+    def block_at(self, point, frame: int = 0) -> int:
+        """The block whose polygon contains ``point`` (x, y) [m] at a frame (default the
+        first), or -1 if none does; a point on an edge shared by two blocks goes to the lower id."""
+        x, y = float(point[0]), float(point[1])
+        xy = self.vertices[frame]
+        off = self.vertex_offset
+        nxt = np.arange(len(xy)) + 1
+        nxt[off[1:] - 1] = off[:-1]  # each block's last vertex closes on its first
+        x0, y0, x1, y1 = xy[:, 0], xy[:, 1], xy[nxt, 0], xy[nxt, 1]
+        block = np.repeat(np.arange(self.n_blocks), np.diff(off))
+        # on an edge (within 1e-12 of the model size): inside
+        scale = 1e-12 * max(float(np.ptp(xy)), 1.0)
+        ex, ey = x1 - x0, y1 - y0
+        cross = ex * (y - y0) - ey * (x - x0)
+        along = (x - x0) * ex + (y - y0) * ey
+        on_edge = (np.abs(cross) <= scale * np.hypot(ex, ey)) & (along >= 0) & (along <= ex * ex + ey * ey)
+        if on_edge.any():
+            return int(block[np.flatnonzero(on_edge)[0]])
+        # even-odd rule: crossings of a ray towards +x
+        spans = (y0 > y) != (y1 > y)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            xc = x0 + (y - y0) * ex / np.where(ey == 0, 1.0, ey)
+        hits = spans & (xc > x)
+        inside = np.bincount(block[hits], minlength=self.n_blocks) % 2 == 1
+        found = np.flatnonzero(inside)
+        return int(found[0]) if len(found) else -1
+
+    def history(self, point=None, *, block: Optional[int] = None, measured: Optional[int] = None) -> "History":
+        """Time history of a material point, a block or a measured point.
+
+        ``point`` (x, y) [m] is a point of the model at frame 0: the history follows the
+        material point there (its block's exact affine motion, rigid rotation and strain).
+        ``block`` follows a block's centroid; ``measured`` the scene's measured point of that
+        index. The velocity of a point is its block's rigid-body velocity at it (the strain
+        rate is not recorded). See `History`."""
+        given = sum(v is not None for v in (point, block, measured))
+        if given != 1:
+            raise ValueError("history: give one of point=(x, y), block=id or measured=index")
+        if self.n_frames == 0:
+            raise ValueError("history: the results have no frames")
+        if measured is not None:
+            nm = self.measured.shape[1]
+            if not (0 <= measured < nm):
+                raise ValueError(f"history: measured must be in [0, {nm}), got {measured}")
+            point = self.measured[0, measured]
+            what = f"measured point {measured}"
+        if block is not None:
+            if not (0 <= block < self.n_blocks):
+                raise ValueError(f"history: block must be in [0, {self.n_blocks}), got {block}")
+            pos = self.centroid[:, block]
+            what = f"block {block} (centroid)"
+            vel = self.velocity[:, block]
+        else:
+            p = np.asarray(point, dtype=float).reshape(2)
+            block = self.block_at(p, 0)
+            if block < 0:
+                raise ValueError(f"history: no block contains the point ({p[0]:g}, {p[1]:g}) at frame 0")
+            if measured is None:
+                what = f"point ({p[0]:g}, {p[1]:g}) of block {block}"
+            pos = self._follow(p, block)
+            r = pos - self.centroid[:, block]
+            w = self.angular_velocity[:, block]
+            vel = self.velocity[:, block] + np.stack([-w * r[:, 1], w * r[:, 0]], axis=1)
+        return History(what=what, block=int(block), time=self.time.copy(), position=pos.copy(),
+                       displacement=pos - pos[0], velocity=np.array(vel), rotation=self.rotation[:, block].copy(),
+                       stress=self.stress[:, block].copy())
+
+    def _follow(self, p: np.ndarray, block: int) -> np.ndarray:
+        """(F, 2) positions of the material point at ``p`` (frame 0) of ``block``: every DDA
+        step moves a block by an affine map (translation, finite rotation, constant strain), so
+        frame 0's vertices map exactly onto each frame's; a least-squares fit recovers the map."""
+        o0, o1 = self.vertex_offset[block], self.vertex_offset[block + 1]
+        x0 = self.vertices[0, o0:o1]
+        c = x0.mean(axis=0)
+        basis = np.column_stack([x0 - c, np.ones(len(x0))])       # (n, 3)
+        maps = np.einsum("kn,fnd->fkd", np.linalg.pinv(basis), self.vertices[:, o0:o1])  # (F, 3, 2)
+        return np.einsum("k,fkd->fd", np.append(p - c, 1.0), maps)
+
     def save(self, path) -> None:
-        """Write all arrays to an `.npz` file."""
-        np.savez_compressed(Path(path), **{f.name: getattr(self, f.name) for f in fields(self)})
+        """Write all arrays (and the metadata) to an `.npz` file."""
+        np.savez_compressed(Path(path), **{f.name: np.asarray(getattr(self, f.name)) for f in fields(self)})
 
     def summary(self) -> dict:
         """A few totals of the run (steps, time-step cuts, open-close iterations, wall time)."""
@@ -205,7 +320,90 @@ def load_results(path) -> Results:
     with np.load(Path(path), allow_pickle=False) as data:
         # files written before the equilibrium stage existed have no ``start``
         kwargs = {f.name: data[f.name] for f in fields(Results) if f.name in data.files}
+    if "metadata" in kwargs:
+        kwargs["metadata"] = str(kwargs["metadata"])
     return Results(**kwargs)
+
+
+#: unit of every `Results` field (as stored in a results file's metadata)
+UNITS = {
+    "time": "s", "centroid": "m", "rotation": "rad", "velocity": "m/s", "angular_velocity": "rad/s",
+    "stress": "Pa (sigma_x, sigma_y, tau_xy; compression negative)", "vertices": "m",
+    "vertex_offset": "-", "block_fixed": "-", "measured": "m", "contact_offset": "-", "contact_xy": "m",
+    "contact_state": "0 open, 1 sliding, 2 locked", "contact_normal_force": "N/m (compression positive)",
+    "contact_shear_force": "N/m", "steps": "see STEP_DTYPE (s, m, J/m, N/m)", "start": "see START_DTYPE",
+    "bolt_xy": "m", "bolt_force": "N/m (tension positive)", "bolt_broken": "-", "bolt_events": "see BOLT_EVENT_DTYPE",
+    "water_table": "m", "forces": "per metre of thickness (plane problem)",
+}
+
+
+def run_metadata(scene, model) -> str:
+    """The metadata of a run as JSON text: ddatai version, parameters, units, scene summary."""
+    import dataclasses
+    import json
+
+    from . import __version__
+
+    blocks = scene.blocks
+    materials = []
+    for b in blocks:
+        m = dataclasses.asdict(b.material)
+        if m not in materials:
+            materials.append(m)
+    xy = np.concatenate([b.vertices for b in blocks]) if blocks else np.zeros((0, 2))
+    summary = {
+        "blocks": len(blocks), "fixed_blocks": int(sum(b.fixed for b in blocks)), "vertices": int(len(xy)),
+        "bounding_box_m": [float(v) for v in (*xy.min(axis=0), *xy.max(axis=0))] if len(xy) else [],
+        "gravity_m_per_s2": scene.gravity,
+        "materials": materials,
+        "joints": [dataclasses.asdict(j) for j in scene.joints],
+        "fixed_points": len(scene.fixed_points), "point_loads": len(scene.point_loads),
+        "measured_points": len(scene.measured_points),
+        "ground_acceleration": scene.ground_acceleration is not None,
+        "water_table": getattr(scene, "water", None) is not None, "bolts": len(getattr(scene, "bolts", ())),
+        "penalty_Pa": float(model.penalty), "model_scale_w0_m": float(model.max_step / model.params.max_displacement_ratio),
+    }
+    meta = {"ddatai_version": __version__, "params": dataclasses.asdict(model.params),
+            "units": UNITS, "scene": summary}
+    return json.dumps(meta, sort_keys=True, default=float)
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class History:
+    """Time history of one point or block (`Results.history`), one row per recorded frame."""
+
+    what: str
+    """What is followed, in words."""
+    block: int
+    """The block it belongs to."""
+    time: np.ndarray
+    """(F,) simulated time [s]."""
+    position: np.ndarray
+    """(F, 2) position [m]."""
+    displacement: np.ndarray
+    """(F, 2) displacement from the first frame [m]."""
+    velocity: np.ndarray
+    """(F, 2) velocity [m/s] (for a point: its block's rigid-body velocity there)."""
+    rotation: np.ndarray
+    """(F,) the block's accumulated rotation [rad], counter-clockwise positive."""
+    stress: np.ndarray
+    """(F, 3) the block's stress (σx, σy, τxy) [Pa], compression negative."""
+
+    COLUMNS = ("time_s", "x_m", "y_m", "ux_m", "uy_m", "vx_m_per_s", "vy_m_per_s", "rotation_rad",
+               "sigma_x_Pa", "sigma_y_Pa", "tau_xy_Pa")
+
+    def table(self) -> np.ndarray:
+        """(F, 11) the columns of `COLUMNS`."""
+        return np.column_stack([self.time, self.position, self.displacement, self.velocity, self.rotation,
+                                self.stress])
+
+    def to_csv(self, path) -> Path:
+        """Write the history as CSV (header line, one row per frame, SI units in the names)."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        np.savetxt(path, self.table(), delimiter=",", header=",".join(self.COLUMNS), comments="",
+                   fmt="%.10g")
+        return path
 
 
 class Recorder:
@@ -219,13 +417,17 @@ class Recorder:
             "measured")}
         self.contact_xy: list[np.ndarray] = []
         self.contact_state: list[np.ndarray] = []
+        self.contact_normal: list[np.ndarray] = []
+        self.contact_shear: list[np.ndarray] = []
+        self.metadata = ""  # JSON text (`run_metadata`)
         self.contact_count: list[int] = []
         self.steps: list[tuple] = []
         self.start: list[tuple] = []
         self.bolts: dict[str, list] = {"bolt_xy": [], "bolt_force": [], "bolt_broken": []}
         self.bolt_state = None  # the last frame's (broken step, time, force) of every bolt
 
-    def frame(self, state, centroid: np.ndarray, contact_xy=None, contact_state=None) -> None:
+    def frame(self, state, centroid: np.ndarray, contact_xy=None, contact_state=None,
+              contact_forces=None) -> None:
         origin = self.model.origin
         f = self.frames
         f["time"].append(state.time)
@@ -247,6 +449,9 @@ class Recorder:
             self.contact_xy.append(contact_xy + origin)
             self.contact_state.append(contact_state.astype(np.int8))
             self.contact_count.append(len(contact_xy))
+            normal, shear = contact_forces if contact_forces is not None else (np.zeros(len(contact_xy)),) * 2
+            self.contact_normal.append(np.asarray(normal, float))
+            self.contact_shear.append(np.asarray(shear, float))
         else:
             self.contact_count.append(0)
 
@@ -265,6 +470,9 @@ class Recorder:
             if n:
                 self.contact_xy.append(results.contact_xy[off[f]:off[f + 1]])
                 self.contact_state.append(results.contact_state[off[f]:off[f + 1]])
+                self.contact_normal.append(results.contact_normal_force[off[f]:off[f + 1]])
+                self.contact_shear.append(results.contact_shear_force[off[f]:off[f + 1]])
+        self.metadata = results.metadata
         self.steps.extend(r.item() for r in results.steps)
         self.start.extend(r.item() for r in results.start)
         # per-frame records of optional model parts (bolts), kept by name like the Results field
@@ -296,6 +504,9 @@ class Recorder:
             contact_offset=np.concatenate([[0], np.cumsum(self.contact_count)]).astype(np.int64),
             contact_xy=np.concatenate(self.contact_xy) if self.contact_xy else np.zeros((0, 2)),
             contact_state=np.concatenate(self.contact_state) if self.contact_state else np.zeros(0, np.int8),
+            contact_normal_force=np.concatenate(self.contact_normal) if self.contact_normal else np.zeros(0),
+            contact_shear_force=np.concatenate(self.contact_shear) if self.contact_shear else np.zeros(0),
+            metadata=self.metadata,
             steps=np.array(self.steps, dtype=STEP_DTYPE),
             start=np.array(self.start, dtype=START_DTYPE),
             **self._support(),

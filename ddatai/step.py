@@ -886,6 +886,9 @@ def simulate(scene: Scene, params: Optional[Params] = None, duration: Optional[f
                          record_every=record_every, record_contacts=record_contacts)
     stepper = Stepper(model)
     recorder = Recorder(model, record_contacts)
+    from .results import run_metadata
+
+    recorder.metadata = run_metadata(scene, model)
     if resume is not None:
         state = saved.state
         recorder.seed(saved.results, state)
@@ -914,7 +917,7 @@ def simulate(scene: Scene, params: Optional[Params] = None, duration: Optional[f
                 recorder.step(record)
                 state = new_state
                 if state.step % record_every == 0 or finished(state):
-                    _record_frame(recorder, state, stepper.last_contacts if record_contacts else None)
+                    _record_frame(recorder, stepper, state, record_contacts)
                 if checkpoint_every is not None and state.step % checkpoint_every == 0:
                     write_checkpoint(checkpoint, state=state, results=recorder.results(), model=model,
                                      targets=targets)
@@ -935,10 +938,24 @@ def simulate(scene: Scene, params: Optional[Params] = None, duration: Optional[f
     return recorder.results()
 
 
-def _record_frame(recorder: Recorder, state: State, contacts: Optional[Contacts]) -> None:
-    """Record a frame of ``state``; ``contacts`` are those of the step that produced it."""
-    cxy = cst = None
-    if contacts is not None:
-        cxy = state.vertex_xy[contacts.cint[:, V0]]
-        cst = contacts.state
-    recorder.frame(state, state.geometry["centroid"], cxy, cst)
+def _record_frame(recorder: Recorder, stepper: Stepper, state: State, record_contacts: bool) -> None:
+    """Record a frame of ``state``, with the contacts of the step that produced it."""
+    if not record_contacts:
+        recorder.frame(state, state.geometry["centroid"])
+        return
+    c = stepper.last_contacts
+    recorder.frame(state, state.geometry["centroid"], state.vertex_xy[c.cint[:, V0]], c.state,
+                   _contact_forces(stepper, c))
+
+
+def _contact_forces(stepper: Stepper, c: Contacts) -> tuple[np.ndarray, np.ndarray]:
+    """Normal (compression positive) and shear force [N/m] of each contact of an accepted step:
+    the contact law at its last solve, in which no contact changed state (`Stepper.judge`) — a
+    locked contact's shear spring k_s·ds, a sliding one's friction, nothing for an open one."""
+    closed = c.state != OPEN
+    normal = np.where(closed, c.normal_force, 0.0)
+    ve = c.cint[:, KIND] != VV
+    friction = np.broadcast_to(np.asarray(getattr(stepper, "_friction", 0.0), float), (c.n,))
+    shear = np.where(c.state == LOCK, stepper.model.shear_penalty * c.ds,
+                     np.where(c.state == SLIDE, c.shear_dir * friction, 0.0))
+    return normal, np.where(ve, shear, 0.0)

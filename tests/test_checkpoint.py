@@ -19,7 +19,9 @@ def _assert_same_run(a, b):
     """Every recorded number equal, bit for bit (wall-clock timings aside)."""
     for f in fields(a):
         x, y = getattr(a, f.name), getattr(b, f.name)
-        if x.dtype.names:
+        if isinstance(x, str):
+            assert x == y, f.name
+        elif x.dtype.names:
             assert x.dtype == y.dtype, f.name
             for name in x.dtype.names:
                 if name not in WALL:

@@ -1,0 +1,96 @@
+"""Outputs users take elsewhere: contact forces, point and block histories (CSV), the block at a
+point, metadata in the results file, a short repr."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+import ddatai as dd
+from cases import G, ROCK, sliding_scene
+
+
+def _run(theta, phi, **kw):
+    scene, block = sliding_scene(theta, phi)
+    idx = scene.add_measured_point(block, scene.polygon(block).mean(axis=0) + (0.2, 0.1))
+    res = dd.simulate(scene, params=dd.Params(dt=0.005), duration=0.2, record_every=4, record_contacts=True, **kw)
+    return scene, block, idx, res
+
+
+@pytest.fixture(scope="module")
+def sliding():
+    return _run(30.0, 20.0)
+
+
+def test_contact_forces_balance_the_weight(sliding):
+    """A block sliding on a 30° incline (φ = 20°): its contacts carry N = W cos θ and, sliding,
+    a shear force N tan φ; one at rest (φ = 40°) carries W sin θ in shear, locked."""
+    weight = ROCK.density * G * 1.0
+    theta = math.radians(30.0)
+    for phi, state, shear in ((20.0, dd.ContactState.SLIDE, None), (40.0, dd.ContactState.LOCK, math.sin(theta))):
+        _, _, _, res = _run(30.0, phi) if phi != 20.0 else (None, None, None, sliding[3])
+        _, st = res.contacts(-1)
+        normal, tangential = res.contact_forces(-1)
+        assert len(normal) == 2 and np.all(st == state)
+        assert normal.sum() == pytest.approx(weight * math.cos(theta), rel=2e-3)
+        expected = weight * math.cos(theta) * math.tan(math.radians(phi)) if shear is None else weight * shear
+        assert abs(tangential.sum()) == pytest.approx(expected, rel=2e-3)
+    assert len(sliding[3].contact_normal_force) == len(sliding[3].contact_xy)
+
+
+def test_histories_follow_points_blocks_and_measured_points(sliding, tmp_path):
+    scene, block, idx, res = sliding
+    # a vertex of the block, followed as a material point: exactly the recorded vertex
+    v0 = res.vertex_offset[block]
+    h = res.history(point=res.vertices[0, v0] + (1e-9, 1e-9))
+    assert h.block == block
+    assert np.allclose(h.position, res.vertices[:, v0], atol=1e-8)
+    assert np.allclose(h.displacement, res.vertices[:, v0] - res.vertices[0, v0], atol=1e-8)
+    # the measured point: its recorded positions, and its displacements
+    m = res.history(measured=idx)
+    assert np.allclose(m.position, res.measured[:, idx], atol=1e-10)
+    assert np.allclose(res.measured_displacement()[:, idx], m.displacement, atol=1e-10)
+    assert np.linalg.norm(m.displacement[-1]) > 1e-3  # it slid
+    # a block: its centroid and velocity
+    b = res.history(block=block)
+    assert np.array_equal(b.position, res.centroid[:, block]) and np.array_equal(b.velocity, res.velocity[:, block])
+    # the velocity of a point of a translating block is the block's
+    assert np.allclose(m.velocity, res.velocity[:, block], atol=1e-6 + 1e-3 * np.abs(res.velocity[:, block]).max())
+    path = m.to_csv(tmp_path / "h" / "m.csv")
+    header = path.read_text().splitlines()[0].split(",")
+    assert header[:3] == ["time_s", "x_m", "y_m"] and len(header) == 11
+    back = np.loadtxt(path, delimiter=",", skiprows=1)
+    assert back.shape == (res.n_frames, 11) and np.allclose(back, m.table(), rtol=1e-9, atol=1e-12)
+    with pytest.raises(ValueError, match="one of"):
+        res.history()
+    with pytest.raises(ValueError, match="no block contains"):
+        res.history(point=(100.0, 100.0))
+
+
+def test_block_at_a_point(sliding):
+    _, block, _, res = sliding
+    assert res.block_at(res.centroid[0, block]) == block
+    assert res.block_at(res.centroid[-1, block], frame=-1) == block
+    assert res.block_at((1e3, 1e3)) == -1
+    base = 1 - block
+    assert res.block_at(res.centroid[0, base]) == base
+
+
+def test_results_file_carries_metadata_and_repr_is_short(sliding, tmp_path):
+    _, _, _, res = sliding
+    path = tmp_path / "run.npz"
+    res.save(path)
+    back = dd.load_results(path)
+    meta = back.meta
+    assert meta["ddatai_version"] == dd.__version__
+    assert meta["params"]["dt"] == 0.005 and meta["params"]["solver"] == "auto"
+    assert meta["scene"]["blocks"] == 2 and meta["scene"]["fixed_blocks"] == 1
+    assert meta["scene"]["materials"] == [{"density": 2500.0, "young": 5e9, "poisson": 0.25}]
+    assert meta["scene"]["joints"][-1]["friction"] == 20.0
+    for name in ("time", "centroid", "velocity", "stress", "contact_normal_force", "contact_shear_force"):
+        assert name in meta["units"]
+    assert json.loads(back.metadata) == meta
+    assert np.array_equal(back.contact_shear_force, res.contact_shear_force)
+    text = repr(res)
+    assert len(text) < 200 and "2 blocks" in text and f"{res.n_frames} frames" in text
