@@ -75,7 +75,9 @@ def check_water_table(polyline, density: float) -> WaterTable:
         raise ValueError(f"water table: point {int(bad[0])} is not finite: {tuple(xy[bad[0]])!r}")
     if not (isinstance(density, (int, float)) and np.isfinite(density) and density > 0):
         raise ValueError(f"water table: density must be a finite number > 0 kg/m³, got {density!r}")
-    crossing = _self_crossing(xy)
+    import shapely
+
+    crossing = None if shapely.LineString(xy).is_simple and _no_fold(xy) else _self_crossing(xy)
     if crossing is not None:
         i, j = crossing
         raise ValueError(f"water table crosses itself: segment {i} ({_pt(xy[i])} → {_pt(xy[i + 1])}) and "
@@ -90,6 +92,15 @@ def check_water_table(polyline, density: float) -> WaterTable:
 
 def _pt(p) -> str:
     return f"({p[0]:g}, {p[1]:g})"
+
+
+def _no_fold(xy: np.ndarray) -> bool:
+    """No two consecutive segments turn back along one line (a fold shapely calls simple)."""
+    d = np.diff(xy, axis=0)
+    cross = d[:-1, 0] * d[1:, 1] - d[:-1, 1] * d[1:, 0]
+    dot = (d[:-1] * d[1:]).sum(axis=1)
+    size = np.hypot(d[:-1, 0], d[:-1, 1]) * np.hypot(d[1:, 0], d[1:, 1])
+    return not np.any((np.abs(cross) <= 1e-12 * size) & (dot < 0))
 
 
 def _self_crossing(xy: np.ndarray):

@@ -146,11 +146,14 @@ def test_bolt_holds_a_sliding_block_at_the_static_demand():
     assert len(res.bolt_events) == 0 and not res.bolt_broken.any()
 
 
-def test_weak_bolt_breaks_and_the_block_slides_freely():
-    """Capacity half the demand: the bolt breaks at the first step (an event), then the block
-    accelerates at g·sinθ within 1 %."""
+def test_weak_bolt_breaks_and_the_block_slides_freely(tmp_path):
+    """Capacity half the demand: the bolt breaks at the first step (an event, kept by a saved
+    and reloaded result), then the block accelerates at g·sinθ within 1 %."""
     scene, b = bolted(0.5 * static_demand())
     res = dd.simulate(scene, duration=0.5)
+    res.save(tmp_path / "run.npz")
+    again = dd.load_results(tmp_path / "run.npz")
+    assert np.array_equal(again.bolt_events, res.bolt_events) and np.array_equal(again.bolt_xy, res.bolt_xy)
     ev = res.bolt_events
     assert len(ev) == 1 and ev[0]["bolt"] == 0 and ev[0]["step"] == 1
     assert ev[0]["force"] > 0.5 * static_demand()
