@@ -175,7 +175,21 @@ def main(argv: Optional[Sequence[str]] = None, out=None) -> int:
     an.add_argument("--compare-whole", action="store_true",
                     help="dda: time the sub-model against the whole slope")
     an.add_argument("--gif", metavar="PATH", help="write a GIF of the result")
+    pr = sub.add_parser("probabilistic", help="probability of failure with uncertain inputs (Monte Carlo)")
+    pr.add_argument("scene", help="scene script whose build(**sample) takes the variables as keyword arguments")
+    pr.add_argument("--vars", required=True, metavar="TOML", help="variables file (distributions, correlation)")
+    pr.add_argument("--n", type=int, default=1000, help="samples (default 1000)")
+    pr.add_argument("--method", choices=("rigid", "sarma", "dda"), default="sarma")
+    pr.add_argument("--sampling", choices=("monte-carlo", "latin-hypercube"), default="monte-carlo")
+    pr.add_argument("--seed", type=int, default=0)
+    pr.add_argument("--group", metavar="IDS", help="judge this group (comma-separated block ids) in every sample")
+    pr.add_argument("--workers", type=int, default=None, help="local worker processes (default: one per CPU)")
+    pr.add_argument("--scheduler", metavar="ADDRESS", help="run on a Dask cluster, e.g. tcp://host:8786")
+    pr.add_argument("--out", metavar="CSV", help="append samples to this file as they finish (and resume it)")
+    pr.add_argument("--png", metavar="PATH", help="draw how often each block is in the critical group")
     args = parser.parse_args(argv)
+    if args.command == "probabilistic":
+        return _probabilistic(args, out)
 
     from .report import format_paper_table
     from .search import analyze, evaluate
@@ -199,6 +213,42 @@ def main(argv: Optional[Sequence[str]] = None, out=None) -> int:
             write_result_gif(args.gif, scene, rep, params, settings)
             print(f"wrote {args.gif}", file=out)
     except (ValueError, RuntimeError) as exc:
+        print(f"kgm: error: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
+def _probabilistic(args, out) -> int:
+    from ddatai.parallel import ScriptFunction
+
+    from .probability import probabilistic, read_variables
+
+    def bar(done, total):
+        if sys.stderr.isatty() or done == total:
+            width = 30
+            k = int(width * done / total)
+            print(f"\r[{'#' * k}{'.' * (width - k)}] {done}/{total} samples", end="" if done < total else "\n",
+                  file=sys.stderr, flush=True)
+
+    try:
+        variables, correlation = read_variables(args.vars)
+        group = None if not args.group else [int(b) for b in args.group.split(",")]
+        study = probabilistic(ScriptFunction(args.scene), variables, args.n, method=args.method,
+                              sampling=args.sampling, seed=args.seed, correlation=correlation or None,
+                              group=group, client=args.scheduler, workers=args.workers, out=args.out,
+                              progress=bar)
+        print(study.summary(), file=out)
+        print("FS quantiles 5/50/95 %: " + ", ".join(f"{v:.3f}" for v in study.fs_quantiles().values()), file=out)
+        freq = study.block_frequency()
+        top = sorted(freq.items(), key=lambda kv: -kv[1])[:10]
+        print("blocks most often in the critical group: " + ", ".join(f"{b} ({f:.0%})" for b, f in top), file=out)
+        if args.out:
+            print(f"samples in {args.out}", file=out)
+        if args.png:
+            scene, _ = load_scene(args.scene)
+            study.write_png(scene, args.png)
+            print(f"wrote {args.png}", file=out)
+    except (ValueError, RuntimeError, FileNotFoundError) as exc:
         print(f"kgm: error: {exc}", file=sys.stderr)
         return 2
     return 0

@@ -75,7 +75,8 @@ class Study:
 
     @property
     def fs(self) -> np.ndarray:
-        """Factor of safety of every sample's critical group [-] (inf: no failure mode)."""
+        """Factor of safety of every sample's critical group [-] (inf: no failure mode; nan: a
+        DDA verdict without strength reduction)."""
         return self.table["fs"]
 
     @property
@@ -239,6 +240,7 @@ class _Job:
     settings: Any
     group: Optional[frozenset]
     pass_seed: bool
+    dda_fs: bool = False
 
 
 def _evaluate(job: _Job, item: tuple) -> tuple:
@@ -251,17 +253,31 @@ def _evaluate(job: _Job, item: tuple) -> tuple:
         built = job.build(**kwargs)
         scene, params = (built[0], built[1] if len(built) > 1 else None) if isinstance(built, tuple) else (built, None)
         from . import search
+        from .settings import Settings
 
+        settings = job.settings or Settings()
+        # DDA judges the critical group of the screening evaluator (a DDA-ranked search runs
+        # DDA on every candidate): the verdict from one run at the sample's strength, FS by
+        # strength reduction only when asked (several runs)
+        method = settings.screening if job.method == "dda" else job.method
         if job.group is not None:
-            result = search.evaluate(scene, job.group, job.method, settings=job.settings, params=params)
+            result = search.evaluate(scene, job.group, method, settings=settings, params=params)
         else:
-            result = search.analyze(scene, job.method, settings=job.settings, params=params).critical
+            result = search.analyze(scene, method, settings=settings, params=params).critical
+        if result is None:  # no key group: nothing can fail
+            return math.inf, False, ""
+        critical = " ".join(str(b) for b in sorted(result.blocks))
+        if job.method != "dda":
+            return float(result.fs), not bool(result.stable), critical
+        from .blocks import build_block_system
+        from .dda import evaluate_dda
+
+        dres = evaluate_dda(scene, build_block_system(scene), frozenset(result.blocks), settings=settings.dda,
+                            params=params, fs_guess=result.fs, with_fs=job.dda_fs, with_friction=False)
+        return float(dres.fs), not bool(dres.judgement.stable), critical
     except Exception as exc:
         raise RuntimeError(f"sample {index} ({_describe(values)}, seed {seed}) failed: "
                            f"{type(exc).__name__}: {exc}") from exc
-    if result is None:  # no key group: nothing can fail
-        return math.inf, False, ""
-    return float(result.fs), not bool(result.stable), " ".join(str(b) for b in sorted(result.blocks))
 
 
 def _describe(values: Mapping) -> str:
@@ -272,8 +288,8 @@ def _describe(values: Mapping) -> str:
 def probabilistic(build, variables: Mapping, n: int, *, method: str = "sarma",
                   sampling: str = "monte-carlo", seed: int = 0, correlation: Optional[Mapping] = None,
                   group=None, settings=None, client=None, workers: Optional[int] = None,
-                  out=None, geometry_seed: Optional[bool] = None, progress: Optional[Callable] = None
-                  ) -> Study:
+                  out=None, geometry_seed: Optional[bool] = None, progress: Optional[Callable] = None,
+                  dda_fs: bool = False) -> Study:
     """Probability of failure of a slope with uncertain inputs (module docstring).
 
     Parameters
@@ -297,6 +313,9 @@ def probabilistic(build, variables: Mapping, n: int, *, method: str = "sarma",
     geometry_seed : pass each sample's seed to ``build(seed=...)`` (a new joint-set
         realisation per sample); None: when ``build`` has a ``seed`` parameter.
     progress : called as ``progress(done, n)`` after each completed sample.
+    dda_fs : with ``method="dda"``, also find each sample's FS by strength reduction (several
+        DDA runs a sample); by default only the verdict at the sample's strength (one run),
+        which is all P_f needs, and ``fs`` is nan.
     """
     from ddatai.parallel import ScriptFunction, check_execution, run
 
@@ -319,15 +338,16 @@ def probabilistic(build, variables: Mapping, n: int, *, method: str = "sarma",
     samples = sample_variables(variables, n, sampling=sampling, seed=seed, correlation=correlation)
     seeds = sample_seeds(seed, n)
     names = tuple(variables)
-    identity = dict(n=n, seed=seed, sampling=sampling, method=method, variables=list(names))
     group = None if group is None else frozenset(int(b) for b in group)
+    identity = dict(n=n, seed=seed, sampling=sampling, method=method, variables=list(names),
+                    group=None if group is None else sorted(group), dda_fs=bool(dda_fs))
 
     done: dict = {}
     if out is not None:
         done = _read_done(Path(out), identity, names)
     resumed = len(done)
     items = [(i, {k: _scalar(samples[k][i]) for k in names}, int(seeds[i])) for i in range(n) if i not in done]
-    job = _Job(build=build, method=method, settings=settings, group=group, pass_seed=pass_seed)
+    job = _Job(build=build, method=method, settings=settings, group=group, pass_seed=pass_seed, dda_fs=bool(dda_fs))
     writer = _Appender(Path(out), identity, names) if out is not None else None
     try:
         for index, (fs, failed, critical) in run(functools.partial(_evaluate, job),
@@ -505,3 +525,88 @@ def write_frequency_png(scene, frequency: Mapping, path, *, size=(640, 480), tit
     path.parent.mkdir(parents=True, exist_ok=True)
     img.save(path)
     return path
+
+
+# ---------------------------------------------------------------------- variables file
+def variables_from_mapping(spec: Mapping) -> tuple[dict, dict]:
+    """Variables and correlations from a plain mapping (a TOML file's tables), e.g.::
+
+        [friction]                     # degrees
+        distribution = "normal"        # normal | lognormal | truncated-normal | uniform | triangular | constant
+        mean = 30.0
+        sd = 3.0
+        [cohesion]                     # Pa
+        distribution = "truncated-normal"
+        mean = 20e3
+        sd = 5e3
+        min = 0.0
+        [correlation]
+        "friction,cohesion" = -0.5
+
+    lognormal takes the variable's own mean and sd; uniform min and max; triangular min, mode
+    and max; truncated-normal mean, sd and optional min and max; constant value. Returns
+    (variables, correlation) for `probabilistic`."""
+    import scipy.stats as st
+
+    variables, correlation = {}, {}
+    for name, v in spec.items():
+        if name == "correlation":
+            for pair, rho in dict(v).items():
+                a, _, b = str(pair).partition(",")
+                correlation[(a.strip(), b.strip())] = rho
+            continue
+        if not isinstance(v, Mapping) or "distribution" not in v:
+            raise ValueError(f"variable {name!r}: a table with 'distribution' and its parameters, got {v!r}")
+        kind = v["distribution"]
+        need = {"normal": ("mean", "sd"), "lognormal": ("mean", "sd"), "truncated-normal": ("mean", "sd"),
+                "uniform": ("min", "max"), "triangular": ("min", "mode", "max"), "constant": ("value",)}
+        if kind not in need:
+            raise ValueError(f"variable {name!r}: distribution must be one of {sorted(need)}, got {kind!r}")
+        missing = [k for k in need[kind] if k not in v]
+        if missing:
+            raise ValueError(f"variable {name!r} ({kind}) needs {', '.join(missing)}")
+        if kind in ("normal", "lognormal", "truncated-normal") and not v["sd"] > 0:
+            raise ValueError(f"variable {name!r}: sd must be > 0, got {v['sd']!r}")
+        if kind == "normal":
+            variables[name] = st.norm(v["mean"], v["sd"])
+        elif kind == "lognormal":
+            if not v["mean"] > 0:
+                raise ValueError(f"variable {name!r}: a lognormal mean must be > 0, got {v['mean']!r}")
+            s2 = math.log1p((v["sd"] / v["mean"]) ** 2)
+            variables[name] = st.lognorm(math.sqrt(s2), scale=v["mean"] / math.sqrt(1.0 + (v["sd"] / v["mean"]) ** 2))
+        elif kind == "truncated-normal":
+            lo, hi = v.get("min", -math.inf), v.get("max", math.inf)
+            variables[name] = st.truncnorm((lo - v["mean"]) / v["sd"], (hi - v["mean"]) / v["sd"],
+                                           loc=v["mean"], scale=v["sd"])
+        elif kind == "uniform":
+            if not v["max"] > v["min"]:
+                raise ValueError(f"variable {name!r}: max must be > min")
+            variables[name] = st.uniform(v["min"], v["max"] - v["min"])
+        elif kind == "triangular":
+            lo, mode, hi = v["min"], v["mode"], v["max"]
+            if not lo <= mode <= hi or not hi > lo:
+                raise ValueError(f"variable {name!r}: needs min <= mode <= max and max > min")
+            variables[name] = st.triang((mode - lo) / (hi - lo), loc=lo, scale=hi - lo)
+        else:
+            variables[name] = float(v["value"])
+    return variables, correlation
+
+
+def read_variables(path) -> tuple[dict, dict]:
+    """`variables_from_mapping` of a TOML file."""
+    try:
+        import tomllib
+    except ImportError:  # Python 3.10
+        try:
+            import tomli as tomllib
+        except ImportError as exc:
+            raise ValueError("reading a variables file needs Python 3.11 (tomllib) or pip install tomli") from exc
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"variables file not found: {path}")
+    with open(path, "rb") as fh:
+        try:
+            spec = tomllib.load(fh)
+        except tomllib.TOMLDecodeError as exc:
+            raise ValueError(f"{path}: not valid TOML: {exc}") from None
+    return variables_from_mapping(spec)

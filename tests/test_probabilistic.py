@@ -231,3 +231,57 @@ def test_sweep_rows_follow_the_sliding_closed_form():
         dd.sweep(kgm_cases.incline_scene, {"friction": 20.0}, duration=0.1)
     with pytest.raises(ValueError, match="duration must be"):
         dd.sweep(kgm_cases.incline_scene, [{"friction": 20.0}], duration=-1)
+
+
+def test_dda_verdicts_of_sampled_friction_follow_the_closed_form():
+    """method='dda': each sample's group simulated at its own strength (one run); the block on
+    the 30° plane fails exactly when φ < 30° (samples within 1° of it are not asserted: the
+    judgement resolves ~0.3° there)."""
+    study = kgm.probabilistic(kgm_cases.incline_scene, {"friction": st.uniform(10.0, 40.0)}, 4, method="dda",
+                              sampling="latin-hypercube", group={1}, seed=3, workers=1)
+    phi = study.table["friction"]
+    clear = np.abs(phi - THETA) > 1.0
+    assert clear.sum() >= 3
+    assert np.array_equal(study.failed[clear], phi[clear] < THETA)
+    assert np.all(np.isnan(study.fs))  # verdicts only, no strength reduction
+
+
+def test_cli_reads_a_variables_file_and_writes_the_study(tmp_path):
+    from kgm.cli import main
+
+    vars_toml = tmp_path / "vars.toml"
+    vars_toml.write_text('[friction]\ndistribution = "normal"\nmean = 33.0\nsd = 3.0\n'
+                         '[cohesion]\ndistribution = "constant"\nvalue = 0.0\n')
+    script = tmp_path / "scene.py"
+    script.write_text(f"import sys; sys.path.insert(0, {str(ROOT / 'tests')!r})\n"
+                      "import kgm_cases\n\n\ndef build(friction=30.0, cohesion=0.0):\n"
+                      "    return kgm_cases.incline_scene(friction=friction, cohesion=cohesion)\n")
+    import io
+
+    out = io.StringIO()
+    rc = main(["probabilistic", str(script), "--vars", str(vars_toml), "--n", "300", "--method", "rigid",
+               "--group", "1", "--workers", "1", "--seed", "7", "--out", str(tmp_path / "s.csv"),
+               "--png", str(tmp_path / "f.png")], out=out)
+    assert rc == 0, out.getvalue()
+    back = kgm.read_study(tmp_path / "s.csv")
+    ref = kgm.probabilistic(kgm_cases.incline_scene, {"friction": st.norm(33.0, 3.0), "cohesion": 0.0}, 300,
+                            method="rigid", group={1}, seed=7, workers=1)
+    assert np.array_equal(back.table, ref.table)
+    assert f"P_f = {ref.pf:.4f}" in out.getvalue() and (tmp_path / "f.png").exists()
+    # bad variables files: one clear line, exit status 2
+    vars_toml.write_text('[friction]\ndistribution = "gaussian"\nmean = 30\nsd = 3\n')
+    assert main(["probabilistic", str(script), "--vars", str(vars_toml), "--n", "5"], out=io.StringIO()) == 2
+
+
+@pytest.mark.parametrize("spec, check", [
+    ({"x": {"distribution": "lognormal", "mean": 20e3, "sd": 5e3}}, lambda d: (d.mean(), d.std()) == pytest.approx((20e3, 5e3))),
+    ({"x": {"distribution": "uniform", "min": 1.0, "max": 3.0}}, lambda d: (d.ppf(0), d.ppf(1)) == (1.0, 3.0)),
+    ({"x": {"distribution": "triangular", "min": 0.0, "mode": 1.0, "max": 4.0}},
+     lambda d: d.mean() == pytest.approx(5.0 / 3.0) and d.pdf(1.0) == pytest.approx(0.5)),
+    ({"x": {"distribution": "truncated-normal", "mean": 1.0, "sd": 1.0, "min": 0.0}}, lambda d: d.ppf(0) == 0.0),
+])
+def test_variables_file_distributions(spec, check):
+    from kgm.probability import variables_from_mapping
+
+    variables, _ = variables_from_mapping(spec)
+    assert check(variables["x"])
