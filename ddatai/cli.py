@@ -2,7 +2,8 @@
 
     ddatai run SCENE.py [--duration S] [--steps N] [--every K] [--gif PATH] [--out DIR]
                         [--contacts] [--size WxH] [--fps F] [--speed X] [--stride K]
-                        [--arch cpu|gpu] [--checkpoint-every N] [--resume [PATH]] [--quiet] [--debug]
+                        [--arch cpu|gpu] [--checkpoint-every N] [--resume [PATH]] [--vtk DIR]
+                        [--history X,Y ...] [--quiet] [--debug]
 
 A scene script is a Python file defining ``build(**options)`` returning a Scene or
 ``(scene, params)``, and optionally ``DURATION`` (seconds; ``--duration`` or ``--steps``
@@ -12,8 +13,10 @@ is built; a user error (a bad option, a broken scene) prints one line and exits 
 (``--debug`` shows the traceback). The run shows a progress bar (simulated time, steps per
 second), writes the results to ``DIR/NAME.npz`` (NAME: the GIF's name when ``--gif`` is given,
 else the input's; an existing file is never overwritten: NAME-2.npz, ...), the GIF if ``--gif``
-is given (only then are imaging libraries imported) and prints a short summary. Ctrl-C saves
-what was recorded and a checkpoint (``DIR/NAME.checkpoint.npz``) and exits with status 130.
+is given (only then are imaging libraries imported), the measured points' CSV
+(``DIR/NAME_measured.csv``), a CSV per ``--history`` point, VTK files with ``--vtk`` and prints a
+short summary. Ctrl-C saves what was recorded and a checkpoint (``DIR/NAME.checkpoint.npz``)
+and exits with status 130.
 """
 
 from __future__ import annotations
@@ -34,6 +37,14 @@ def _size(text: str) -> tuple[int, int]:
         raise argparse.ArgumentTypeError(f"size must look like 640x480, got {text!r}") from None
 
 
+def _point(text: str) -> tuple[float, float]:
+    try:
+        x, y = (float(v) for v in text.split(","))
+        return x, y
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"a point must look like 12.5,3, got {text!r}") from None
+
+
 def _add_run_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--duration", type=float, help="simulated time [s] (default: the scene's DURATION)")
     p.add_argument("--steps", type=int, help="stop after this many steps")
@@ -51,6 +62,11 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
                    help="Taichi backend (default: the scene's Params)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument("--debug", action="store_true", help="show the traceback of an error")
+    p.add_argument("--vtk", type=Path, metavar="DIR",
+                   help="also write the frames as VTK files for ParaView (needs the [vtk] extra, meshio)")
+    p.add_argument("--history", type=_point, action="append", metavar="X,Y",
+                   help="write the history of the material point at (x, y) [m] to DIR/NAME_history_X_Y.csv "
+                        "(repeatable)")
     p.add_argument("--checkpoint-every", type=int, default=None, metavar="N",
                    help="write a checkpoint every N steps to DIR/NAME.checkpoint.npz (Ctrl-C writes one too)")
     p.add_argument("--resume", nargs="?", type=Path, const=True, default=None, metavar="CHECKPOINT",
@@ -122,12 +138,21 @@ def run_scene(build: Callable, duration: Optional[float], name: str, args: argpa
         raise SceneFileError(f"{name} defines no DURATION: give --duration SECONDS or --steps N")
     scene, params = build_scene(build)
     params = params if params is not None else Params()
+    for x, y in args.history or ():
+        if not any(_covers(b.vertices, (x, y)) for b in scene.blocks):
+            raise ValueError(f"--history {x:g},{y:g}: no block of {name} contains that point")
     if args.arch is not None:
         params = dataclasses.replace(params, arch=args.arch)
     duration = args.duration if args.duration is not None else duration
     if args.steps is not None:
         duration = args.duration  # --steps alone runs a number of steps
     return _simulate_and_report(scene, params, duration, args.steps, name, args)
+
+
+def _covers(polygon, point) -> bool:
+    import shapely
+
+    return bool(shapely.Polygon(polygon).covers(shapely.Point(point)))
 
 
 def check_options(args: argparse.Namespace) -> None:
@@ -153,6 +178,12 @@ def check_options(args: argparse.Namespace) -> None:
     except ValueError as err:
         raise ValueError(f"--{err}") from None
     _check_writable_dir(args.out, "--out")
+    if args.vtk is not None:
+        import importlib.util
+
+        if importlib.util.find_spec("meshio") is None:
+            raise ValueError("--vtk needs meshio, an optional extra: pip install 'ddatai[vtk]'")
+        _check_writable_dir(args.vtk, "--vtk")
     if args.gif is not None:
         if args.gif.suffix.lower() != ".gif":
             raise ValueError(f"--gif must name a .gif file, got {args.gif}")
@@ -206,6 +237,15 @@ def _simulate_and_report(scene, params, duration, steps, name, args, after=None)
     out = _save(results, args.out, name)
     if after is not None:
         after(results)
+    elif results.measured.shape[1]:
+        path = results.measured_csv(out.with_name(out.stem + "_measured.csv"))
+        print(f"measured points written to {path}")
+    for x, y in args.history or ():
+        path = results.history(point=(x, y)).to_csv(out.with_name(f"{out.stem}_history_{x:g}_{y:g}.csv"))
+        print(f"history of ({x:g}, {y:g}) written to {path}")
+    if args.vtk is not None:
+        pvd = results.to_vtk(args.vtk)
+        print(f"VTK files written to {args.vtk} (open {pvd.name} in ParaView)")
     if args.gif is not None:
         from .render import write_gif
 

@@ -163,6 +163,9 @@ class Results:
     contact_shear_force: np.ndarray = field(default_factory=lambda: np.zeros(0))
     """(C,) shear force of each recorded contact [N/m], signed along the contact's reference
     edge; at most its Coulomb strength N·tanφ + c·L; 0 when open and for vertex-vertex contacts."""
+    block_material: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    """(B,) index of each block's material in ``meta["scene"]["materials"]`` (empty for results
+    written before it existed)."""
     metadata: str = ""
     """JSON text: the ddatai version, the parameters, the units of every field and a summary of
     the scene (`meta` reads it); empty for results written before it existed."""
@@ -218,6 +221,23 @@ class Results:
     def measured_displacement(self) -> np.ndarray:
         """(F, nm, 2) displacement of each measured point from frame 0 [m]."""
         return self.measured - self.measured[:1]
+
+    def measured_csv(self, path) -> Path:
+        """Write the measured points' positions and displacements as CSV: one row per frame,
+        columns ``time_s`` then ``x{k}_m, y{k}_m, ux{k}_m, uy{k}_m`` for each point k."""
+        nm = self.measured.shape[1]
+        if nm == 0:
+            raise ValueError("the results have no measured points")
+        u = self.measured_displacement()
+        cols = [self.time[:, None]]
+        names = ["time_s"]
+        for k in range(nm):
+            cols.append(np.column_stack([self.measured[:, k], u[:, k]]))
+            names += [f"x{k}_m", f"y{k}_m", f"ux{k}_m", f"uy{k}_m"]
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        np.savetxt(path, np.column_stack(cols), delimiter=",", header=",".join(names), comments="", fmt="%.10g")
+        return path
 
     def block_at(self, point, frame: int = 0) -> int:
         """The block whose polygon contains ``point`` (x, y) [m] at a frame (default the
@@ -297,6 +317,14 @@ class Results:
         maps = np.einsum("kn,fnd->fkd", np.linalg.pinv(basis), self.vertices[:, o0:o1])  # (F, 3, 2)
         return np.einsum("k,fkd->fd", np.append(p - c, 1.0), maps)
 
+    def to_vtk(self, directory, *, frames=None) -> Path:
+        """Write frames (default all) as VTK files for ParaView: blocks with their fields,
+        contacts with their forces, ``.pvd`` time series (`ddatai.vtk`; needs the optional
+        ``ddatai[vtk]`` extra, meshio). Returns the path of ``blocks.pvd``."""
+        from .vtk import write_vtk
+
+        return write_vtk(self, directory, frames=frames)
+
     def save(self, path) -> None:
         """Write all arrays (and the metadata) to an `.npz` file."""
         np.savez_compressed(Path(path), **{f.name: np.asarray(getattr(self, f.name)) for f in fields(self)})
@@ -333,8 +361,23 @@ UNITS = {
     "contact_state": "0 open, 1 sliding, 2 locked", "contact_normal_force": "N/m (compression positive)",
     "contact_shear_force": "N/m", "steps": "see STEP_DTYPE (s, m, J/m, N/m)", "start": "see START_DTYPE",
     "bolt_xy": "m", "bolt_force": "N/m (tension positive)", "bolt_broken": "-", "bolt_events": "see BOLT_EVENT_DTYPE",
-    "water_table": "m", "forces": "per metre of thickness (plane problem)",
+    "water_table": "m", "block_material": "index into scene.materials",
+    "forces": "per metre of thickness (plane problem)",
 }
+
+
+def block_materials(scene) -> tuple[list[dict], np.ndarray]:
+    """The scene's distinct materials (as dicts) and each block's index among them."""
+    import dataclasses
+
+    materials: list[dict] = []
+    index = []
+    for b in scene.blocks:
+        m = dataclasses.asdict(b.material)
+        if m not in materials:
+            materials.append(m)
+        index.append(materials.index(m))
+    return materials, np.array(index, np.int64)
 
 
 def run_metadata(scene, model) -> str:
@@ -345,11 +388,7 @@ def run_metadata(scene, model) -> str:
     from . import __version__
 
     blocks = scene.blocks
-    materials = []
-    for b in blocks:
-        m = dataclasses.asdict(b.material)
-        if m not in materials:
-            materials.append(m)
+    materials, _ = block_materials(scene)
     xy = np.concatenate([b.vertices for b in blocks]) if blocks else np.zeros((0, 2))
     summary = {
         "blocks": len(blocks), "fixed_blocks": int(sum(b.fixed for b in blocks)), "vertices": int(len(xy)),
@@ -420,6 +459,7 @@ class Recorder:
         self.contact_normal: list[np.ndarray] = []
         self.contact_shear: list[np.ndarray] = []
         self.metadata = ""  # JSON text (`run_metadata`)
+        self.block_material = np.zeros(0, np.int64)  # (B,) index into the metadata's materials
         self.contact_count: list[int] = []
         self.steps: list[tuple] = []
         self.start: list[tuple] = []
@@ -473,6 +513,7 @@ class Recorder:
                 self.contact_normal.append(results.contact_normal_force[off[f]:off[f + 1]])
                 self.contact_shear.append(results.contact_shear_force[off[f]:off[f + 1]])
         self.metadata = results.metadata
+        self.block_material = results.block_material
         self.steps.extend(r.item() for r in results.steps)
         self.start.extend(r.item() for r in results.start)
         # per-frame records of optional model parts (bolts), kept by name like the Results field
@@ -507,6 +548,7 @@ class Recorder:
             contact_normal_force=np.concatenate(self.contact_normal) if self.contact_normal else np.zeros(0),
             contact_shear_force=np.concatenate(self.contact_shear) if self.contact_shear else np.zeros(0),
             metadata=self.metadata,
+            block_material=np.asarray(self.block_material, np.int64),
             steps=np.array(self.steps, dtype=STEP_DTYPE),
             start=np.array(self.start, dtype=START_DTYPE),
             **self._support(),

@@ -886,9 +886,10 @@ def simulate(scene: Scene, params: Optional[Params] = None, duration: Optional[f
                          record_every=record_every, record_contacts=record_contacts)
     stepper = Stepper(model)
     recorder = Recorder(model, record_contacts)
-    from .results import run_metadata
+    from .results import block_materials, run_metadata
 
     recorder.metadata = run_metadata(scene, model)
+    recorder.block_material = block_materials(scene)[1]
     if resume is not None:
         state = saved.state
         recorder.seed(saved.results, state)

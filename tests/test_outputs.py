@@ -94,3 +94,74 @@ def test_results_file_carries_metadata_and_repr_is_short(sliding, tmp_path):
     assert np.array_equal(back.contact_shear_force, res.contact_shear_force)
     text = repr(res)
     assert len(text) < 200 and "2 blocks" in text and f"{res.n_frames} frames" in text
+
+
+def test_vtk_files_read_back(sliding, tmp_path):
+    meshio = pytest.importorskip("meshio", reason="VTK output is the optional [vtk] extra (meshio), not installed")
+    from xml.etree import ElementTree
+
+    _, block, _, res = sliding
+    pvd = res.to_vtk(tmp_path / "vtk")
+    entries = ElementTree.parse(pvd).getroot().findall("./Collection/DataSet")
+    assert [float(e.get("timestep")) for e in entries] == [float(t) for t in res.time]
+    f = res.n_frames - 1
+    mesh = meshio.read(tmp_path / "vtk" / entries[f].get("file"))
+    assert np.allclose(mesh.points[:, :2], res.vertices[f])
+    ids = np.concatenate(mesh.cell_data["block_id"])
+    disp = np.concatenate(mesh.cell_data["displacement"])
+    stress = np.concatenate(mesh.cell_data["stress"])
+    for row, b in enumerate(ids):
+        assert np.allclose(disp[row, :2], res.displacement(f)[b]) and np.allclose(stress[row], res.stress[f, b])
+    assert set(np.concatenate(mesh.cell_data["material"]).tolist()) == {0}
+    contacts = meshio.read(tmp_path / "vtk" / f"contacts_{f:05d}.vtu")
+    normal, shear = res.contact_forces(f)
+    assert np.allclose(contacts.points[:, :2], res.contacts(f)[0])
+    assert np.allclose(contacts.point_data["normal_force"], normal)
+    assert np.allclose(contacts.point_data["shear_force"], shear)
+
+
+SCRIPT = '''
+import sys
+sys.path.insert(0, {tests!r})
+from cases import sliding_scene
+
+DURATION = 0.05
+
+
+def build():
+    scene, block = sliding_scene(30.0, 20.0)
+    scene.add_measured_point(block, scene.polygon(block).mean(axis=0))
+    return scene
+'''
+
+
+def test_command_line_writes_histories_measured_points_and_vtk(tmp_path, capsys, monkeypatch):
+    from pathlib import Path
+
+    from ddatai.cli import main
+
+    script = tmp_path / "slide.py"
+    script.write_text(SCRIPT.format(tests=str(Path(__file__).parent)))
+    out = tmp_path / "out"
+    scene, block = sliding_scene(30.0, 20.0)
+    x, y = scene.polygon(block).mean(axis=0)
+    assert main(["run", str(script), "--out", str(out), "--quiet", "--history", f"{x},{y}"]) == 0
+    res = dd.load_results(out / "slide.npz")
+    measured = np.loadtxt(out / "slide_measured.csv", delimiter=",", skiprows=1)
+    assert measured.shape == (res.n_frames, 5) and np.allclose(measured[:, 3:], res.measured_displacement()[:, 0])
+    history = np.loadtxt(out / f"slide_history_{x:g}_{y:g}.csv", delimiter=",", skiprows=1)
+    assert np.allclose(history[:, 3:5], measured[:, 3:5], atol=1e-9)
+    capsys.readouterr()
+    assert main(["run", str(script), "--out", str(out), "--history", "99,99"]) == 2
+    assert "no block of slide contains" in capsys.readouterr().err
+    import importlib.util
+
+    if importlib.util.find_spec("meshio") is not None:
+        assert main(["run", str(script), "--out", str(out), "--quiet", "--vtk", str(tmp_path / "v")]) == 0
+        assert (tmp_path / "v" / "blocks.pvd").is_file() and (tmp_path / "v" / "contacts.pvd").exists() is False
+    # --vtk without meshio: one line, before the run
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "meshio" else real(name, *a))
+    assert main(["run", str(script), "--out", str(out), "--vtk", str(tmp_path / "v")]) == 2
+    assert "--vtk needs meshio" in capsys.readouterr().err
