@@ -53,8 +53,9 @@ def main() -> None:
             raise SystemExit(f"tables differ between 1 and {w} workers")
         ref = ref if ref is not None else study
         fs = study.fs[np.isfinite(study.fs)]
-        print(f"| {w} | {wall:.1f} | {args.n / wall:.2f} | {base / wall:.2f} | {study.pf:.3f} | "
-              f"{fs.mean():.3f} |", flush=True)
+        mean = f"{fs.mean():.3f}" if len(fs) else "— (verdicts only)"
+        print(f"| {w} | {wall:.1f} | {args.n / wall:.2f} | {base / wall:.2f} | {study.pf:.3f} | {mean} |",
+              flush=True)
 
 
 if __name__ == "__main__":

@@ -19,44 +19,36 @@ module (a scene script loaded by path is run by `ScriptFunction`).
 
 from __future__ import annotations
 
-import importlib.util
 import os
-import sys
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any, Callable, Iterator, Optional, Sequence
 
 
 @dataclass(frozen=True)
 class ScriptFunction:
-    """A function of a script file, by path and name: picklable, loaded again in each worker
-    (a scene script loaded from a path is not importable by module name there)."""
+    """A scene script's ``build``, by the script's path: picklable, loaded again in each worker
+    (a script loaded from a path is not importable by module name there). Calling it returns
+    ``(scene, params)`` (`ddatai.scenefile.build_scene`)."""
 
     path: str
-    """Path of the Python script [-]."""
-    name: str = "build"
-    """Name of the function in it [-]."""
+    """Path of the scene script [-]."""
 
     def resolve(self) -> Callable:
-        fn = _SCRIPT_CACHE.get((self.path, self.name))
-        if fn is None:
-            path = Path(self.path)
-            if not path.is_file():
-                raise FileNotFoundError(f"script {self.path!r} does not exist")
-            spec = importlib.util.spec_from_file_location(f"_ddatai_script_{abs(hash(self.path))}", path)
-            module = importlib.util.module_from_spec(spec)
-            sys.path.insert(0, str(path.resolve().parent))
-            try:
-                spec.loader.exec_module(module)
-            finally:
-                sys.path.pop(0)
-            if not callable(getattr(module, self.name, None)):
-                raise ValueError(f"script {self.path!r} has no function {self.name}()")
-            fn = _SCRIPT_CACHE[(self.path, self.name)] = getattr(module, self.name)
-        return fn
+        """The script's ``build`` function (for its signature)."""
+        return self._script().build
 
-    def __call__(self, *args, **kwargs):
-        return self.resolve()(*args, **kwargs)
+    def _script(self):
+        from .scenefile import load_scene_script
+
+        script = _SCRIPT_CACHE.get(self.path)
+        if script is None:
+            script = _SCRIPT_CACHE[self.path] = load_scene_script(self.path)
+        return script
+
+    def __call__(self, **kwargs):
+        from .scenefile import build_scene
+
+        return build_scene(self._script(), **kwargs)
 
 
 # per-process cache of loaded scripts (a worker loads each script once)

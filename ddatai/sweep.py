@@ -40,9 +40,10 @@ def _run_one(job: _Run, values: dict) -> dict:
     from .results import SimulationError
     from .step import simulate
 
+    from .scenefile import build_scene
+
     t0 = time.perf_counter()
-    built = job.build(**values)
-    scene, params = (built[0], built[1] if len(built) > 1 else None) if isinstance(built, tuple) else (built, None)
+    scene, params = build_scene(job.build, **values)
     finished, cause = True, ""
     try:
         res = simulate(scene, params, duration=job.duration, record_every=10 ** 9)

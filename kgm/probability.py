@@ -250,8 +250,9 @@ def _evaluate(job: _Job, item: tuple) -> tuple:
     if job.pass_seed:
         kwargs["seed"] = int(seed)
     try:
-        built = job.build(**kwargs)
-        scene, params = (built[0], built[1] if len(built) > 1 else None) if isinstance(built, tuple) else (built, None)
+        from ddatai.scenefile import build_scene
+
+        scene, params = build_scene(job.build, **kwargs)
         from . import search
         from .settings import Settings
 
@@ -362,11 +363,17 @@ def probabilistic(build, variables: Mapping, n: int, *, method: str = "sarma",
         if writer is not None:
             writer.close()
     table = _table(n, names, samples, seeds, done)
-    finite = table["fs"][np.isfinite(table["fs"])]
-    beta = float((np.mean(finite) - 1.0) / np.std(finite, ddof=1)) if len(finite) > 1 and np.std(finite) > 0 else math.nan
-    return Study(n=n, pf=float(np.mean(table["failed"])), beta=beta, table=table, variables=names,
+    return Study(n=n, pf=float(np.mean(table["failed"])), beta=_beta(table["fs"]), table=table, variables=names,
                  method=method, sampling=sampling, seed=seed, resumed=resumed,
                  wall_time=time.perf_counter() - t0)
+
+
+def _beta(fs: np.ndarray) -> float:
+    """β = (mean FS − 1) / sd(FS) over the finite FS (`Study.beta`)."""
+    finite = fs[np.isfinite(fs)]
+    if len(finite) < 2 or np.std(finite) == 0:
+        return math.nan
+    return float((np.mean(finite) - 1.0) / np.std(finite, ddof=1))
 
 
 def _scalar(v):
@@ -479,9 +486,7 @@ def read_study(path) -> Study:
     for j, r in enumerate(rows):
         table[j] = (int(r["index"]), int(r["seed"]), *[float(r[k]) for k in names], float(r["fs"]),
                     bool(int(r["failed"])), r["critical"])
-    finite = table["fs"][np.isfinite(table["fs"])]
-    beta = float((np.mean(finite) - 1.0) / np.std(finite, ddof=1)) if len(finite) > 1 and np.std(finite) > 0 else math.nan
-    return Study(n=len(rows), pf=float(np.mean(table["failed"])) if len(rows) else math.nan, beta=beta,
+    return Study(n=len(rows), pf=float(np.mean(table["failed"])) if len(rows) else math.nan, beta=_beta(table["fs"]),
                  table=table, variables=names, method=identity["method"], sampling=identity["sampling"],
                  seed=identity["seed"])
 
