@@ -4,8 +4,8 @@
 
 The study is Example II's critical group (blocks 0 and 1 of ``scenes/example_2.py``) with its
 joint friction angle N(22°, 2°) and cohesion N(20 kPa, 5 kPa) truncated at 0, correlated
-−0.3 (``docs/kgm/example_2_vars.toml``), judged by DDA (each sample: the group simulated at its
-strength, and its FS by strength reduction) or by the rigid / Sarma evaluators. Prints, per
+−0.3 (``docs/kgm/example_2_vars.toml``), judged by DDA (each sample: one run of the group at its
+own strength, the verdict) or by the rigid / Sarma evaluators. Prints, per
 worker count, the wall time, samples per second, the speed-up over one worker and P_f; the
 tables of all worker counts must be identical (the study's samples do not depend on them).
 """
