@@ -142,6 +142,7 @@ def _stage(stepper, state: State, size: np.ndarray, dt_static: float, dt_ladder,
     released = np.zeros(model.n_blocks, bool)
     at_strength: set = set()
     memory = ContactMemory.empty()
+    last = None  # contacts of the last pseudo-step that converged
     solves = 0
     dt = dt_static if dt_ladder is None else dt_ladder
     converged_dt = None  # the last Δt of the ladder that converged
@@ -180,6 +181,10 @@ def _stage(stepper, state: State, size: np.ndarray, dt_static: float, dt_ladder,
         disp[~held] = 0.0
         step = float(_block_displacement(stepper, state.vertex_xy, geom, disp).max(initial=0.0))
         state = _apply(stepper, state, geom, disp)
+        last = contacts
+        # the contact states go on into the next pseudo-step (sliding ones keep sliding: locked
+        # at their strength, an O(strain) increment would tip them over again and the next
+        # open-close iteration would start from scratch)
         memory = contacts.memory(stepper.params.bond_breaks_on_slip)
         if step <= model.open_tol and dt >= dt_static:
             break  # the increment is round-off: an equilibrium of the settled geometry
@@ -190,6 +195,12 @@ def _stage(stepper, state: State, size: np.ndarray, dt_static: float, dt_ladder,
             dt = dt_static if step <= LADDER_DONE * float(np.median(size)) else min(2.0 * dt, dt_static)
     if solves == 0:
         return initial, NOTHING, True
+    if last is not None:
+        # contacts sliding at their strength are handed over locked at it (force-continuous):
+        # the stage ends in an equilibrium of springs, and they keep their bonds
+        sliding = _lock_at_strength(stepper, last, state.vertex_xy)
+        at_strength |= _keys(last, sliding)
+        memory = last.memory(stepper.params.bond_breaks_on_slip)
     held = free & ~released
     moved = np.hypot(*(state.vertex_xy - initial.vertex_xy).T)
     settlement = float(np.max(moved[held[model.vertex_block]], initial=0.0))
@@ -267,10 +278,6 @@ def _static_solve(stepper, state: State, geom: dict, contacts: Contacts, dt: flo
         if not mechanism.any():
             break
         out |= mechanism  # release them and solve the rest again without their contacts
-    # contacts sliding at their strength carry it into the next pseudo-step locked (it
-    # re-solves them as springs, so the stage ends in an equilibrium of springs)
-    sliding = _lock_at_strength(stepper, contacts, state.vertex_xy)
-    at_strength |= _keys(contacts, sliding)
     return disp, solves, out & ~released, contacts
 
 
