@@ -41,7 +41,7 @@ import numpy as np
 
 from .ntdda_geometry import (BlockLocator, block_materials, blocks_inside_other_blocks,
                              clip_fixed_line, cut_segments, ntdda_fixed_points)
-from .params import Joint, Material, Params
+from .params import Joint, Material, Params, UnitWarning
 from .scene import Scene
 
 Format = Literal["ddaml", "original"]
@@ -1189,8 +1189,11 @@ def build_ntdda_case(geometry: NtddaGeometry, analysis: NtddaAnalysis) -> NtddaC
     log += blocks.warnings
     gravity = _effective_gravity(g, a, blocks, log)
 
-    materials = [Material(density=m.unit_mass, young=m.young, poisson=m.poisson) for m in a.block_materials]
-    joints = [Joint(friction=j.friction, cohesion=j.cohesion, tensile=j.tensile) for j in a.joint_materials]
+    with warnings.catch_warnings():
+        # an ntdda file's values are in the file's own consistent units, not a unit slip
+        warnings.simplefilter("ignore", UnitWarning)
+        materials = [Material(density=m.unit_mass, young=m.young, poisson=m.poisson) for m in a.block_materials]
+        joints = [Joint(friction=j.friction, cohesion=j.cohesion, tensile=j.tensile) for j in a.joint_materials]
     scene = Scene(gravity=gravity)
     for b, (poly, types) in enumerate(zip(blocks.polygons, blocks.edge_type)):
         mat = a.block_materials[blocks.material[b] - 1]
