@@ -144,33 +144,38 @@ def assemble_bolts(model, vertex_xy: np.ndarray, centroid: np.ndarray, intact: n
     """Shi's bolt springs (B1) of the intact bolts, in place on the CSR ``data`` and ``rhs``."""
     from .contacts import _block_slots
 
-    ends = bolt_ends(model, vertex_xy)
-    tension = bolt_tension(model, vertex_xy)
-    dof = model.block_dof
-    for k in np.flatnonzero(intact):
-        i, j = model.bolt_block[k]
-        p1, p2 = ends[k]
-        axis = (p2 - p1) / np.hypot(*(p2 - p1))
-        rel = np.array([p1 - centroid[i], p2 - centroid[j]])
-        tm = t_rows(rel[:, 0], rel[:, 1])
-        e_vec, g_vec = tm[0].T @ axis, tm[1].T @ axis              # E = T_i(p1)ᵀl, G = T_j(p2)ᵀl
-        s = model.bolt_stiffness[k]
-        ri, rj = int(dof[i]), int(dof[j])
-        terms = [(ri, ri, s * np.outer(e_vec, e_vec)), (rj, rj, s * np.outer(g_vec, g_vec)),
-                 (ri, rj, -s * np.outer(e_vec, g_vec)), (rj, ri, -s * np.outer(g_vec, e_vec))]
-        for r, c, block in terms:
-            if r < 0 or c < 0:
-                continue
-            slot = pattern.diag_slot[r] if r == c else \
-                int(_block_slots(pattern.block_key, pattern.block_slot, pattern.n_rows,
-                                 np.array([r]), np.array([c]))[0])
-            st = int(pattern.stride[r])
-            idx = int(slot) + np.arange(6)[:, None] * st + np.arange(6)[None, :]
-            data[idx] += block
-        if ri >= 0:
-            rhs[6 * ri:6 * ri + 6] += tension[k] * e_vec
-        if rj >= 0:
-            rhs[6 * rj:6 * rj + 6] -= tension[k] * g_vec
+    k = np.flatnonzero(intact)
+    if len(k) == 0:
+        return
+    ends = bolt_ends(model, vertex_xy)[k]                        # (n, 2, 2)
+    tension = bolt_tension(model, vertex_xy)[k]
+    axis = ends[:, 1] - ends[:, 0]
+    axis /= np.hypot(axis[:, 0], axis[:, 1])[:, None]
+    bi, bj = model.bolt_block[k, 0], model.bolt_block[k, 1]
+    r1, r2 = ends[:, 0] - centroid[bi], ends[:, 1] - centroid[bj]
+    e_vec = np.einsum("nij,ni->nj", t_rows(r1[:, 0], r1[:, 1]), axis)   # E = T_i(p1)ᵀ·l
+    g_vec = np.einsum("nij,ni->nj", t_rows(r2[:, 0], r2[:, 1]), axis)   # G = T_j(p2)ᵀ·l
+    s = model.bolt_stiffness[k][:, None, None]
+    ri = model.block_dof[bi].astype(np.int64)
+    rj = model.block_dof[bj].astype(np.int64)
+    a = np.arange(6)
+    for r, c, blocks in ((ri, ri, s * e_vec[:, :, None] * e_vec[:, None, :]),
+                         (rj, rj, s * g_vec[:, :, None] * g_vec[:, None, :]),
+                         (ri, rj, -s * e_vec[:, :, None] * g_vec[:, None, :]),
+                         (rj, ri, -s * g_vec[:, :, None] * e_vec[:, None, :])):
+        ok = (r >= 0) & (c >= 0)
+        if not ok.any():
+            continue
+        r, c, blocks = r[ok], c[ok], blocks[ok]
+        off = r != c
+        slot = pattern.diag_slot[r].astype(np.int64)
+        slot[off] = _block_slots(pattern.block_key, pattern.block_slot, pattern.n_rows, r[off], c[off])
+        stride = pattern.stride[r].astype(np.int64)
+        idx = slot[:, None, None] + a[None, :, None] * stride[:, None, None] + a[None, None, :]
+        np.add.at(data, idx, blocks)
+    for rows, vec, sign in ((ri, e_vec, 1.0), (rj, g_vec, -1.0)):   # F_i += N0·E, F_j −= N0·G
+        ok = rows >= 0
+        np.add.at(rhs, 6 * rows[ok][:, None] + a[None, :], sign * tension[ok][:, None] * vec[ok])
 
 
 def bolt_pairs(model) -> tuple[np.ndarray, np.ndarray]:

@@ -303,3 +303,28 @@ def test_energy_balance_counts_water_and_bolts(case):
         # the spring energy F²/2k stored at the break is dissipated, not lost from the balance
         stored = res.bolt_events[0]["force"] ** 2 / (2 * 1e8)
         assert work[-1] > 0.5 * stored
+
+
+def test_bolt_between_two_free_blocks_couples_them():
+    """A bolt between two free blocks on a frictionless base (no contact between them: the
+    pair is coupled through the bolt alone), one pulled by F: the centre of mass accelerates at
+    F/(mA + mB) (the bolt's forces are internal), and the tension oscillates about
+    N̄ = F·mA/(mA + mB) with ω = √(k·(1/mA + 1/mB)); over whole periods its mean is N̄
+    (Newmark's damping shrinks the swing, not the mean)."""
+    rock = dd.Material(density=2500.0, young=5e9, poisson=0.25)
+    s = dd.Scene(gravity=G)
+    s.add_block([(0, 0), (10, 0), (10, 1), (0, 1)], material=rock, fixed=True)
+    a = s.add_block([(2, 1), (3, 1), (3, 2), (2, 2)], material=rock)
+    b = s.add_block([(4, 1), (6, 1), (6, 2), (4, 2)], material=rock)
+    s.set_joint(dd.Joint(friction=0.0))
+    k, force = 1e5, 3000.0
+    s.add_bolt((2.5, 1.5), (5.0, 1.5), stiffness=k)
+    s.add_point_load(b, (5.5, 1.5), (force, 0.0))
+    m_a, m_b = 2500.0, 5000.0
+    period = 2 * math.pi / math.sqrt(k * (1 / m_a + 1 / m_b))
+    res = dd.simulate(s, dd.Params(dt=0.005), duration=3 * period)
+    t = res.time
+    com = (m_a * res.centroid[:, a, 0] + m_b * res.centroid[:, b, 0]) / (m_a + m_b)
+    assert com[-1] - com[0] == pytest.approx(0.5 * force / (m_a + m_b) * t[-1] ** 2, rel=1e-4)
+    mean = np.trapezoid(res.bolt_force[:, 0], t) / t[-1]
+    assert mean == pytest.approx(force * m_a / (m_a + m_b), rel=1e-2)
