@@ -210,3 +210,59 @@ def test_gif_colours_blocks_by_their_toppling_state(tmp_path, monkeypatch):
     state_of = {b: names[k].split()[0] for b, k in enumerate(seen["labels"]) if k >= 0}
     assert state_of == {b: s for b, s in rep.critical.block_modes.items()}
     assert "toppling" in seen["title"]
+
+
+def _rotated(scene, angle):
+    """A copy of ``scene`` with every block turned by ``angle`` [rad] about the origin."""
+    import copy
+    import dataclasses
+
+    c, s = math.cos(angle), math.sin(angle)
+    rot = np.array([[c, -s], [s, c]])
+    out = copy.deepcopy(scene)
+    out.blocks = [dataclasses.replace(b, vertices=b.vertices @ rot.T) for b in out.blocks]
+    return out
+
+
+@pytest.mark.parametrize("kh, kv", [(0.1, 0.0), (0.15, -0.05)])
+def test_seismic_toppling_equals_the_row_turned_under_the_tilted_gravity(kh, kv):
+    """A pseudo-static load (kh, kv)·W tilts the body force by δ = atan(kh/(1 − kv)) towards the
+    face; the recursion with it must give the critical friction and per-block modes of the same
+    row turned by −δ under plain gravity (cohesionless: φc does not depend on the force's size)."""
+    scene = _textbook(35.0)
+    row = frozenset(range(16))
+    delta = math.atan2(kh, 1.0 - kv)
+    turned = _rotated(scene, -delta)
+    with_seismic = kgm.evaluate(scene, row, "rigid", seismic=(kh, kv))
+    plain = kgm.evaluate(turned, row, "rigid")
+    assert with_seismic.mode.kind == ModeKind.TOPPLING == plain.mode.kind
+    assert with_seismic.critical_friction == pytest.approx(plain.critical_friction, abs=1e-6)
+    assert with_seismic.block_modes == plain.block_modes
+    # the earthquake needs a higher friction angle than the static 38.15°, and more blocks topple
+    assert with_seismic.critical_friction > PUBLISHED_PHI + 1.0
+    toppling = [b for b, s in with_seismic.block_modes.items() if s == "toppling"]
+    assert len(toppling) >= 10
+
+
+def test_submerged_row_keeps_its_critical_friction_and_water_is_archimedes():
+    """Under a water table above the crest every face is wet: the water on each block is its
+    buoyancy ρw·g·A at its centroid (Archimedes), the net body force is scaled by (ρ − ρw)/ρ and
+    the cohesionless critical friction and modes are those of the dry row; with the table at
+    mid-height they change."""
+    scene = _textbook(35.0)
+    row = frozenset(range(16))
+    dry = kgm.evaluate(scene, row, "rigid")
+    top = max(float(np.max(b.vertices[:, 1])) for b in scene.blocks)
+    scene.set_water_table([(-1e3, top + 5.0), (1e3, top + 5.0)])
+    system = build_block_system(scene)
+    g = scene.gravity
+    for b in row:
+        xy = scene.blocks[b].vertices
+        area = float(dd.polygon_integrals(xy, np.array([0, len(xy)]))["area"][0])
+        assert system.block_water[b] == pytest.approx([0.0, 1000.0 * g * area], rel=1e-9, abs=1e-6 * area)
+    wet = kgm.evaluate(scene, row, "rigid")
+    assert wet.critical_friction == pytest.approx(dry.critical_friction, abs=1e-6)
+    assert wet.block_modes == dry.block_modes
+    scene.set_water_table([(-1e3, 0.5 * top), (1e3, 0.5 * top)])
+    half = kgm.evaluate(scene, row, "rigid")
+    assert abs(half.critical_friction - dry.critical_friction) > 0.1
