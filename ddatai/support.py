@@ -20,8 +20,8 @@ from .water import edge_pressure_points
 
 
 def t_rows(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """(n, 2, 6) DDA displacement matrices T at centroidal offsets (x, y) [m]
-    (dda-method.md §1.1 in the project's kernels: u0, v0, r0, εx, εy, γxy)."""
+    """(n, 2, 6) DDA displacement matrices T at centroidal offsets (x, y) [m], the unknowns
+    ordered as in `ddatai.kernels` (u0, v0, r0, εx, εy, γxy)."""
     n = len(x)
     t = np.zeros((n, 2, 6))
     t[:, 0, 0] = 1.0

@@ -2,8 +2,8 @@
 the scene's checks of their input.
 
 Tolerances come from the method: a sliding block's acceleration is exact up to the start-up
-perturbation (< 0.1 % at θ − φ ≥ 5°, the verification cases), held here to the issue's 1 %; the
-critical angle to the issue's 0.3°; a floating block's buoyancy is a load of the step's start
+perturbation (< 0.1 % at θ − φ ≥ 5°, the verification cases), held here to 1 %; the critical
+angle is bracketed to ±0.3°; a floating block's buoyancy is a load of the step's start
 geometry (explicit), whose lag changes the period by O((ωΔt)²) ≈ 1e-3 at Δt = 0.01 s, held to
 1 %; a bolt holding a frictionless block carries the static demand up to its elastic stretch
 (T/k ≈ 3e-4 m turns it by ~1e-4 rad), held to 1 %.
