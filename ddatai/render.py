@@ -13,9 +13,10 @@ init and kernel compile cost about a second in a fresh process) and also draws t
 labels, legend and scale bar. Output is deterministic: the same results give the same bytes.
 
 A frame shows fixed blocks grey, moving blocks coloured by speed (a discrete scale fixed for the
-whole animation) or by a group label the caller passes (with a legend), block outlines, optional
-contact points coloured by state (open / sliding / locked), the simulated time and a scale bar
-in metres. The view frames every block of every rendered frame, with equal scales in x and y,
+whole animation; by displacement when no block moves faster than 1 mm/s, as in a static run)
+or by a group label the caller passes (with a legend), measured points as crosses, block
+outlines, optional contact points coloured by state (open / sliding / locked), the simulated
+time and a scale bar in metres. The view frames every block of every rendered frame, with equal scales in x and y,
 and does not move.
 """
 
@@ -44,6 +45,7 @@ DEFAULT_FREE = (120, 150, 190)  # moving blocks without a label when colouring b
 CONTACT_COLOURS = {0: (160, 160, 160), 1: (230, 85, 13), 2: (33, 113, 181)}
 CONTACT_NAMES = {0: "open", 1: "sliding", 2: "locked"}
 MIN_SPEED_SCALE = 1e-3  # m/s: the smallest top of the speed colour scale
+MEASURED = (200, 0, 120)  # measured points (crosses)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -105,8 +107,15 @@ def _speed(results: Results) -> np.ndarray:
     return v + np.abs(results.angular_velocity) * radius
 
 
-def _format_speed(v: float) -> str:
-    return f"{v:.3g} m/s"
+def _moved(results: Results) -> np.ndarray:
+    """(F, B) how far each block has moved since frame 0: centroid displacement plus
+    |rotation| × block radius [m]."""
+    off = results.vertex_offset
+    centroid = results.centroid[0]
+    block = np.repeat(np.arange(results.n_blocks), np.diff(off))
+    radius = np.maximum.reduceat(np.hypot(*(results.vertices[0] - centroid[block]).T), off[:-1])
+    u = results.centroid - results.centroid[:1]
+    return np.hypot(u[..., 0], u[..., 1]) + np.abs(results.rotation - results.rotation[:1]) * radius
 
 
 class _Painter:
@@ -141,6 +150,15 @@ class _Painter:
             # 1 mm/s floor: a model at rest shows round-off speeds, which are not motion
             self.max_speed = float(max_speed) if max_speed is not None else max(top, MIN_SPEED_SCALE)
             self.speed = speed
+            self.quantity, self.unit = "speed", "m/s"
+            if max_speed is None and top < MIN_SPEED_SCALE:
+                # no block moves faster than the floor (a static or settled run): the colours
+                # show how far the blocks have moved instead, or a uniform scale shows nothing
+                moved = _moved(results)
+                far = float(moved[list(frames)][:, free].max(initial=0.0)) if free.any() else 0.0
+                if far > 0.0:
+                    self.speed, self.max_speed = moved, far
+                    self.quantity, self.unit = "displacement", "m"
         off = results.vertex_offset
         self.offsets = off
 
@@ -178,6 +196,10 @@ class _Painter:
             pts = [tuple(p) for p in pix[off[b]:off[b + 1]].tolist()]
             d.polygon(pts, fill=colours[b], outline=OUTLINE)
         _draw_water_and_bolts(d, v, r, frame, width)
+        if r.measured.shape[1]:
+            for x, y in v.pixels(r.measured[frame]).tolist():
+                d.line([(x - 4, y - 4), (x + 4, y + 4)], fill=MEASURED, width=2)
+                d.line([(x - 4, y + 4), (x + 4, y - 4)], fill=MEASURED, width=2)
         if self.show_contacts and r.contact_offset[-1] > 0:
             cxy, cst = r.contacts(frame)
             cpix = v.pixels(cxy)
@@ -218,16 +240,18 @@ class _Painter:
             for k, c in enumerate(SPEED_COLOURS):
                 d.rectangle([x0 + k * bar_w / n, y, x0 + (k + 1) * bar_w / n, y + bar_h], fill=c)
             d.text((x0, y + bar_h + 2), "0", fill=TEXT, font=self.font)
-            label = _format_speed(self.max_speed)
+            label = f"{self.max_speed:.3g} {self.unit}"
             w = d.textlength(label, font=self.font)
             d.text((x0 + bar_w - w, y + bar_h + 2), label, fill=TEXT, font=self.font)
-            label = "speed"
+            label = self.quantity
             w = d.textlength(label, font=self.font)
             d.text((x0 - w - 4, y - 1), label, fill=TEXT, font=self.font)
             y += bar_h + 16
         if self.show_contacts:
             entries += [(CONTACT_COLOURS[s], CONTACT_NAMES[s] + " contact") for s in (1, 2)]
         entries += _water_and_bolt_legend(self.results)
+        if self.results.measured.shape[1]:
+            entries.append((MEASURED, "measured point"))
         for colour, name in entries:
             w = d.textlength(name, font=self.font)
             d.rectangle([x - 10, y + 2, x - 2, y + 10], fill=colour, outline=OUTLINE)
@@ -384,7 +408,8 @@ def write_gif(results: Results, path, *, size=(640, 480), fps: float = 20.0, spe
         ``label_names`` gives the legend text of each label.
     show_contacts : draw sliding and locked contacts (needs ``record_contacts=True``).
     title : text at the top.
-    max_speed : top of the speed colour scale [m/s]; default the largest speed drawn.
+    max_speed : top of the speed colour scale [m/s]; default the largest speed drawn (and, when
+        that is below 1 mm/s, the blocks are coloured by how far they have moved instead).
 
     Returns the path written.
     """

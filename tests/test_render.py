@@ -181,3 +181,40 @@ def test_gif_frames_read_back_exactly(run, tmp_path):
         assert back.shape == (len(drawn), size[1], size[0], 3)
         for a, b in zip(back, drawn):
             assert np.array_equal(a, b)
+
+
+def _static_pair():
+    """A square that moves 2 m with zero recorded velocity (a static run) on a fixed ground,
+    and a measured point at its centre."""
+    res = _moving_square(np.array([0.0, 1.0, 2.0]))
+    res.velocity[:] = 0.0
+    res.measured = res.centroid[:, 1:2].copy()
+    return res
+
+
+def test_static_run_is_coloured_by_displacement():
+    """With every speed below 1 mm/s a speed scale would paint one colour; the picture colours
+    blocks by how far they have moved instead (frame 0: not yet; frame 2: the most)."""
+    from ddatai import render
+
+    res = _static_pair()
+    painter = render._Painter(res, [0, 1, 2], size=(200, 150), labels=None, label_names=None,
+                              show_contacts=False, title=None, max_speed=None)
+    assert painter.quantity == "displacement" and painter.max_speed == pytest.approx(2.0)
+    first, last = painter.block_colours(0)[1], painter.block_colours(2)[1]
+    assert first == render.SPEED_COLOURS[0] and last == render.SPEED_COLOURS[-1]
+    # with a speed scale given explicitly, speed it is
+    painter = render._Painter(res, [0, 2], size=(200, 150), labels=None, label_names=None,
+                              show_contacts=False, title=None, max_speed=1.0)
+    assert painter.quantity == "speed" and painter.block_colours(2)[1] == render.SPEED_COLOURS[0]
+
+
+def test_measured_points_are_drawn():
+    from ddatai import render
+
+    res = _static_pair()
+    frame = dd.render_frames(res, size=(200, 150), frames=[2])[0]
+    assert np.any(np.all(frame == render.MEASURED, axis=-1))
+    res.measured = np.zeros((3, 0, 2))
+    frame = dd.render_frames(res, size=(200, 150), frames=[2])[0]
+    assert not np.any(np.all(frame == render.MEASURED, axis=-1))
