@@ -126,7 +126,10 @@ class Model:
     """(k, 2) water table h(x) [m, internal coordinates], None: no water
     (docs/method/water_bolts.md)."""
     water_unit_weight: float = 0.0
-    """ρw·g of the water [N/m³]."""
+    """ρw·g of the water [N/m³]; 0: no water."""
+    water_heads: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    """(n, 2) joint-table index and own hydraulic head [m, internal coordinates] of the joints
+    whose water replaces the table on their edges."""
     bolt_block: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), np.int32))
     """(nb, 2) blocks of the two ends of every bolt."""
     bolt_vertex: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 3), np.int64))

@@ -261,9 +261,10 @@ class Scene:
         return len(self.measured_points) - 1
 
     # ------------------------------------------------------------------ water and bolts
-    def set_water_table(self, polyline, *, density: float = 1000.0) -> None:
+    def set_water_table(self, polyline, *, density: float = 1000.0, heads=None) -> None:
         """Put the scene under a water table h(x): ``polyline`` of (x, y) points [m] with x
-        strictly increasing, linear between them and held level beyond its ends; None removes it.
+        strictly increasing, linear between them and held level beyond its ends; None (and no
+        ``heads``) removes the water.
 
         The pressure is hydrostatic below the table, p = ρw·g·(h(x) − y) [Pa] with ``density``
         ρw [kg/m³] and the scene's gravity, and acts on every block edge below it (joint faces
@@ -273,13 +274,26 @@ class Scene:
         the table level at the crack's water level behind the crack, then straight down to the
         daylight point. Raises ValueError (naming the points or segments) for a table that
         crosses itself or runs backwards.
+
+        ``heads`` {Joint: head [m]} gives joint lines of `cut` their own hydraulic head: on the
+        edges of such a joint (the faces of both its blocks) p = ρw·g·(head − y) replaces the
+        table (water confined in that joint); with ``polyline`` None only those joints carry
+        water.
         """
-        if polyline is None:
+        if polyline is None and not heads:
             self.water = None
             return
         from .water import check_water_table
 
-        self.water = check_water_table(polyline, density)
+        resolved = []
+        for jt, head in (heads or {}).items():
+            if not isinstance(jt, Joint) or jt not in self.joints[1:]:
+                raise ValueError(f"water heads: {jt!r} is not a joint line of the scene (give a Joint "
+                                 f"the scene was cut with)")
+            if isinstance(head, bool) or not isinstance(head, (int, float)) or not np.isfinite(head):
+                raise ValueError(f"water heads: the head of {jt!r} must be a finite height [m], got {head!r}")
+            resolved.append((self.joints.index(jt, 1), float(head)))
+        self.water = check_water_table(polyline, density, tuple(resolved))
 
     def add_bolt(self, p1: Sequence[float], p2: Sequence[float], *, stiffness: float,
                  pretension: float = 0.0, capacity: float = float("inf")) -> int:

@@ -203,7 +203,7 @@ class Stepper:
         ground = np.asarray(m.ground_acceleration(t_mid), float) if m.ground_acceleration is not None else None
         loads = self._load_forces(t_mid) if len(m.load_block) else np.zeros((0, 2))
         external = external_work(m, geom, attempt.displacement, state.load_xy, loads, ground)
-        if m.water_xy is not None:
+        if m.water_unit_weight > 0:
             from .support import support_work
 
             external += support_work(m, state.vertex_xy, geom["centroid"], attempt.displacement)
@@ -343,11 +343,11 @@ class Stepper:
         if len(model.load_block):
             K.assemble_points(model.load_block, state.load_xy, self._load_forces(t_mid), self._load_stiff,
                               self.dof, centroid, pattern.diag_slot, pattern.stride, data, rhs)
-        if model.water_xy is not None or len(model.bolt_block):
+        if model.water_unit_weight > 0 or len(model.bolt_block):
             # water pressure (W2) and bolt springs (B1), docs/method/water_bolts.md
             from .support import assemble_bolts, assemble_water
 
-            if model.water_xy is not None:
+            if model.water_unit_weight > 0:
                 assemble_water(model, state.vertex_xy, centroid, rhs)
             if len(model.bolt_block):
                 assemble_bolts(model, state.vertex_xy, centroid, state.bolt_broken_step < 0, pattern, data, rhs)

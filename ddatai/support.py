@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .water import edge_pressure_points
+from .water import water_points
 
 
 def t_rows(x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -38,10 +38,13 @@ def t_rows(x: np.ndarray, y: np.ndarray) -> np.ndarray:
 # ---------------------------------------------------------------------- water
 def water_arrays(scene, origin: np.ndarray) -> dict:
     """Model fields of the scene's water table (internal coordinates), or empty ones."""
-    if scene.water is None:
+    water = scene.water
+    if water is None:
         return {}
-    return {"water_xy": scene.water.xy - origin,
-            "water_unit_weight": float(scene.water.density * scene.gravity)}
+    heads = np.array(water.heads, float).reshape(-1, 2)
+    heads[:, 1] -= origin[1]
+    return {"water_xy": None if water.xy is None else water.xy - origin, "water_heads": heads,
+            "water_unit_weight": float(water.density * scene.gravity)}
 
 
 def water_load(model, vertex_xy: np.ndarray, centroid: np.ndarray) -> np.ndarray:
@@ -51,7 +54,8 @@ def water_load(model, vertex_xy: np.ndarray, centroid: np.ndarray) -> np.ndarray
     free_vertex = model.block_dof[model.vertex_block] >= 0
     edges = np.flatnonzero(free_vertex)
     start, end = vertex_xy[edges], vertex_xy[model.vertex_next[edges]]
-    edge, pts, w = edge_pressure_points(start, end, model.water_xy, model.water_unit_weight)
+    edge, pts, w = water_points(start, end, model.edge_joint[edges], model.water_xy, model.water_heads,
+                                model.water_unit_weight)
     if len(edge) == 0:
         return out
     t = end - start
@@ -75,7 +79,7 @@ def assemble_water(model, vertex_xy: np.ndarray, centroid: np.ndarray, rhs: np.n
 def support_work(model, vertex_xy: np.ndarray, centroid: np.ndarray, disp: np.ndarray) -> float:
     """Work of the water pressure in a step, F_wᵀ·D with the step's load vector [J/m] (the
     bolts' work is their spring energy, `bolt_energy`)."""
-    if model.water_xy is None:
+    if model.water_unit_weight == 0.0:
         return 0.0
     return float(np.sum(water_load(model, vertex_xy, centroid) * disp))
 

@@ -21,6 +21,7 @@ rule integrates the load vector F = ∫ Tᵀ p n ds exactly (W2).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 
@@ -32,14 +33,14 @@ _GAUSS = np.array([0.5 - 0.5 / np.sqrt(3.0), 0.5 + 0.5 / np.sqrt(3.0)])
 class WaterTable:
     """A water table (phreatic surface) over the scene (`Scene.set_water_table`)."""
 
-    xy: np.ndarray
-    """(k, 2) points of the table h(x) [m], x strictly increasing; held level beyond the ends."""
+    xy: Optional[np.ndarray]
+    """(k, 2) points of the table h(x) [m], x strictly increasing; held level beyond the ends.
+    None: no table (water only in the joints given ``heads``)."""
     density: float = 1000.0
     """Water density ρw [kg/m³]; the pressure is ρw·g·(h − y) [Pa] with the scene's gravity g."""
-
-    def height(self, x: np.ndarray) -> np.ndarray:
-        """h(x): the table's height above each abscissa [m]."""
-        return np.interp(x, self.xy[:, 0], self.xy[:, 1])
+    heads: tuple = ()
+    """((joint, head), ...): joint-table index and its own hydraulic head [m] (a level table
+    that replaces h(x) on the edges of that joint line only, both blocks' faces)."""
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -65,16 +66,19 @@ class BoltSpec:
     exceeds it, and limit equilibrium mobilises it as the passive force."""
 
 
-def check_water_table(polyline, density: float) -> WaterTable:
-    """Validate a water table; raise ValueError naming the offending point or segments."""
+def check_water_table(polyline, density: float, heads: tuple = ()) -> WaterTable:
+    """Validate a water table (``polyline`` may be None when ``heads``, already resolved to
+    (joint index, head) pairs, are given); raise ValueError naming the offending item."""
+    if not (isinstance(density, (int, float)) and np.isfinite(density) and density > 0):
+        raise ValueError(f"water table: density must be a finite number > 0 kg/m³, got {density!r}")
+    if polyline is None:
+        return WaterTable(xy=None, density=float(density), heads=tuple(heads))
     xy = np.asarray(polyline, dtype=float)
     if xy.ndim != 2 or xy.shape[1] != 2 or len(xy) < 2:
         raise ValueError(f"water table: expected a polyline of at least two (x, y) points, got shape {xy.shape}")
     bad = np.flatnonzero(~np.all(np.isfinite(xy), axis=1))
     if len(bad):
         raise ValueError(f"water table: point {int(bad[0])} is not finite: {tuple(xy[bad[0]])!r}")
-    if not (isinstance(density, (int, float)) and np.isfinite(density) and density > 0):
-        raise ValueError(f"water table: density must be a finite number > 0 kg/m³, got {density!r}")
     import shapely
 
     crossing = None if shapely.LineString(xy).is_simple and _no_fold(xy) else _self_crossing(xy)
@@ -87,7 +91,7 @@ def check_water_table(polyline, density: float) -> WaterTable:
         k = int(back[0]) + 1
         raise ValueError(f"water table: point {k} {_pt(xy[k])} does not lie to the right of point {k - 1} "
                          f"{_pt(xy[k - 1])}; a water table is a height h(x), its x must increase strictly")
-    return WaterTable(xy=xy.copy(), density=float(density))
+    return WaterTable(xy=xy.copy(), density=float(density), heads=tuple(heads))
 
 
 def _pt(p) -> str:
@@ -181,15 +185,40 @@ def edge_pressure_points(start: np.ndarray, end: np.ndarray, table: np.ndarray, 
     return np.concatenate(edge_idx), np.concatenate(pts), np.concatenate(wts)
 
 
-def polygon_water_force(xy: np.ndarray, offset: np.ndarray, table: WaterTable, gravity: float
-                        ) -> tuple[np.ndarray, np.ndarray]:
+def water_points(start: np.ndarray, end: np.ndarray, edge_joint: np.ndarray, table: Optional[np.ndarray],
+                 heads: np.ndarray, gamma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`edge_pressure_points` of edges each on a joint (``edge_joint``, joint-table indices):
+    those of a joint with its own head (``heads``: (n, 2) rows joint, head [m]) under that
+    level, the others under the table (none where ``table`` is None)."""
+    out = []
+    own = np.zeros(len(start), bool)
+    for j, h in np.asarray(heads, float).reshape(-1, 2):
+        sel = np.flatnonzero(edge_joint == int(j))
+        own[sel] = True
+        e, p, w = edge_pressure_points(start[sel], end[sel], np.array([[0.0, h], [1.0, h]]), gamma)
+        out.append((sel[e], p, w))
+    if table is not None:
+        sel = np.flatnonzero(~own)
+        e, p, w = edge_pressure_points(start[sel], end[sel], table, gamma)
+        out.append((sel[e], p, w))
+    if not out:
+        return np.zeros(0, np.int64), np.zeros((0, 2)), np.zeros(0)
+    return (np.concatenate([o[0] for o in out]), np.concatenate([o[1] for o in out]),
+            np.concatenate([o[2] for o in out]))
+
+
+def polygon_water_force(xy: np.ndarray, offset: np.ndarray, table: WaterTable, gravity: float,
+                        edge_joint: Optional[np.ndarray] = None) -> tuple[np.ndarray, np.ndarray]:
     """Water force (B, 2) [N/m] and its moment about the origin (B,) [N·m/m] on every block's
-    boundary (CCW polygons ``xy`` with ``offset``), by (W1)–(W2)."""
+    boundary (CCW polygons ``xy`` with ``offset``; ``edge_joint`` the joint of each edge, for
+    joints with their own head), by (W1)–(W2)."""
     nb = len(offset) - 1
     nxt = np.arange(len(xy)) + 1
     nxt[np.asarray(offset[1:]) - 1] = offset[:-1]
     block = np.repeat(np.arange(nb), np.diff(offset))
-    edge, pts, w = edge_pressure_points(xy, xy[nxt], table.xy, table.density * gravity)
+    joint = np.full(len(xy), -1) if edge_joint is None else np.asarray(edge_joint)
+    edge, pts, w = water_points(xy, xy[nxt], joint, table.xy, np.array(table.heads, float).reshape(-1, 2),
+                                table.density * gravity)
     t = xy[nxt] - xy
     n_in = np.stack([-t[:, 1], t[:, 0]], axis=1) / np.hypot(t[:, 0], t[:, 1])[:, None]  # left of a CCW edge
     f = w[:, None] * n_in[edge]

@@ -254,7 +254,8 @@ def build_block_system(scene, *, seismic=None) -> BlockSystem:
     if getattr(scene, "water", None) is not None:
         from ddatai.water import polygon_water_force
 
-        f, m = polygon_water_force(xy, offset, scene.water, g)   # eq. W1–W2 on every boundary
+        edge_joint = np.concatenate([s.edge_joint for s in specs])
+        f, m = polygon_water_force(xy, offset, scene.water, g, edge_joint)   # eq. W1–W2 on every boundary
         force += f
         moment += m
         extra["block_water"] = f
@@ -305,7 +306,7 @@ def build_block_system(scene, *, seismic=None) -> BlockSystem:
         contact_cohesion=np.array([joints[j].cohesion for j in jidx], dtype=float),
         contact_tensile=np.array([joints[j].tensile for j in jidx], dtype=float),
         contact_joint=jidx, contact_edge=edge, contact_span=span, gravity=g, scale=scale,
-        contact_water=_contact_water(scene, start, end, g) if "block_water" in extra else None,
+        contact_water=_contact_water(scene, start, end, jidx, g) if "block_water" in extra else None,
         seismic=(kh, kv), **extra)
 
 
@@ -345,12 +346,13 @@ def _bolt_forces(bolts, nb: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return act, mom, pas
 
 
-def _contact_water(scene, start: np.ndarray, end: np.ndarray, g: float) -> np.ndarray:
+def _contact_water(scene, start: np.ndarray, end: np.ndarray, joint: np.ndarray, g: float) -> np.ndarray:
     """∫p ds over every contact segment [N/m] (eq. W1), for the reports."""
-    from ddatai.water import edge_pressure_points
+    from ddatai.water import water_points
 
     table = scene.water
-    edge, _, w = edge_pressure_points(start, end, table.xy, table.density * g)
+    edge, _, w = water_points(start, end, joint, table.xy, np.array(table.heads, float).reshape(-1, 2),
+                              table.density * g)
     return np.bincount(edge, weights=w, minlength=len(start)).astype(float)
 
 

@@ -328,3 +328,47 @@ def test_bolt_between_two_free_blocks_couples_them():
     assert com[-1] - com[0] == pytest.approx(0.5 * force / (m_a + m_b) * t[-1] ** 2, rel=1e-4)
     mean = np.trapezoid(res.bolt_force[:, 0], t) / t[-1]
     assert mean == pytest.approx(force * m_a / (m_a + m_b), rel=1e-2)
+
+
+# ------------------------------------------------------------------ a joint with its own head
+def _confined_joint(theta: float, phi: float, head: float):
+    """A 2 × 1 m block cut from the rock of a θ plane by one joint line, water confined in that
+    joint at a level head (no water table): only the block's base carries pressure."""
+    t, n = incline_frame(theta)
+    domain = [-n, 12 * t - n, 12 * t, 6 * t, 6 * t + n, 4 * t + n, 4 * t, 0 * t]
+    scene = dd.Scene(gravity=G)
+    joint = dd.Joint(friction=phi)
+    ids = scene.cut(domain, [([4 * t, 6 * t], joint)], material=dd.Material(density=RHO, young=5e9, poisson=0.25))
+    for b in ids:
+        scene.set_fixed(b, bool(scene.polygon(b).mean(axis=0) @ n < 0))
+    scene.set_joint(joint)
+    scene.set_water_table(None, heads={joint: head})
+    return scene, next(b for b in ids if not scene.blocks[b].fixed)
+
+
+def test_joint_with_its_own_head_lifts_the_block():
+    """U = γw·b·(head − y_base) on the base only; as the block slides the base goes down and U
+    grows by γw·b·sinθ per metre: m·s'' = A + B·s, s(t) = (A/B)·(cosh(√(B/m)·t) − 1) with
+    A = W·sinθ − (W·cosθ − U0)·tanφ, B = γw·b·sinθ·tanφ. kgm's FS with U0 exact; DDA's
+    slide within 1 % (the pressure is taken on each step's start geometry)."""
+    import kgm
+
+    theta, phi, head = 30.0, 20.0, 3.5
+    scene, b = _confined_joint(theta, phi, head)
+    th, ph = math.radians(theta), math.radians(phi)
+    w = RHO * G * WIDTH * HEIGHT
+    u0 = RHO_W * G * WIDTH * (head - 5.0 * math.sin(th))      # base centre at 5 m along the plane
+    assert kgm.factor_of_safety(scene, [b], method="rigid") == pytest.approx(
+        (w * math.cos(th) - u0) * math.tan(ph) / (w * math.sin(th)), rel=1e-9)
+    res = dd.simulate(scene, duration=1.0)
+    d = downslope_displacement(res, b, theta)
+    mass = RHO * WIDTH * HEIGHT
+    a0 = w * math.sin(th) - (w * math.cos(th) - u0) * math.tan(ph)
+    b0 = RHO_W * G * WIDTH * math.sin(th) * math.tan(ph)
+    assert d == pytest.approx(a0 / b0 * (math.cosh(math.sqrt(b0 / mass) * 1.0) - 1.0), rel=1e-2)
+
+
+def test_head_of_an_unknown_joint_is_refused():
+    s = _two_blocks()
+    with pytest.raises(ValueError, match="is not a joint line of the scene"):
+        s.set_water_table(None, heads={dd.Joint(friction=12.0): 3.0})
