@@ -14,8 +14,8 @@ labels, legend and scale bar. Output is deterministic: the same results give the
 
 A frame shows fixed blocks grey, moving blocks coloured by speed (a discrete scale fixed for the
 whole animation; by displacement when no block moves faster than 1 mm/s, as in a static run)
-or by a group label the caller passes (with a legend), measured points as crosses, block
-outlines, optional contact points coloured by state (open / sliding / locked), the simulated
+or by a group label the caller passes (with a legend), fixed points as triangles, point loads
+as arrows along their force, measured points as crosses, block outlines, optional contact points coloured by state (open / sliding / locked), the simulated
 time and a scale bar in metres. The view frames every block of every rendered frame, with equal scales in x and y,
 and does not move.
 """
@@ -46,6 +46,8 @@ CONTACT_COLOURS = {0: (160, 160, 160), 1: (230, 85, 13), 2: (33, 113, 181)}
 CONTACT_NAMES = {0: "open", 1: "sliding", 2: "locked"}
 MIN_SPEED_SCALE = 1e-3  # m/s: the smallest top of the speed colour scale
 MEASURED = (200, 0, 120)  # measured points (crosses)
+FIXED_POINT = (0, 0, 0)  # fixed points (triangles)
+LOAD = (0, 140, 60)  # point loads (arrows along the force)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -116,6 +118,27 @@ def _moved(results: Results) -> np.ndarray:
     radius = np.maximum.reduceat(np.hypot(*(results.vertices[0] - centroid[block]).T), off[:-1])
     u = results.centroid - results.centroid[:1]
     return np.hypot(u[..., 0], u[..., 1]) + np.abs(results.rotation - results.rotation[:1]) * radius
+
+
+def _draw_points_and_loads(d, view: View, results: Results, frame: int) -> None:
+    """Fixed points as triangles; point loads as arrows of a fixed length along their force at
+    the frame's time (a dot for a zero force)."""
+    if results.fixed_points.size:
+        for x, y in view.pixels(results.fixed_points[frame]).tolist():
+            d.polygon([(x, y - 5), (x - 5, y + 4), (x + 5, y + 4)], fill=FIXED_POINT)
+    if results.load_points.size:
+        forces = results.load_forces[frame] if len(results.load_forces) > frame else np.zeros_like(
+            results.load_points[frame])
+        for (x, y), (fx, fy) in zip(view.pixels(results.load_points[frame]).tolist(), forces.tolist()):
+            size = math.hypot(fx, fy)
+            if not (size > 0 and math.isfinite(size)):
+                d.ellipse([x - 3, y - 3, x + 3, y + 3], fill=LOAD)
+                continue
+            ux, uy = fx / size, -fy / size  # image y points down
+            tail = (x - 28 * ux, y - 28 * uy)  # the arrow ends at the point it loads
+            d.line([tail, (x, y)], fill=LOAD, width=3)
+            d.polygon([(x, y), (x - 9 * ux + 5 * uy, y - 9 * uy - 5 * ux), (x - 9 * ux - 5 * uy, y - 9 * uy + 5 * ux)],
+                      fill=LOAD)
 
 
 class _Painter:
@@ -196,6 +219,7 @@ class _Painter:
             pts = [tuple(p) for p in pix[off[b]:off[b + 1]].tolist()]
             d.polygon(pts, fill=colours[b], outline=OUTLINE)
         _draw_water_and_bolts(d, v, r, frame, width)
+        _draw_points_and_loads(d, v, r, frame)
         if r.measured.shape[1]:
             for x, y in v.pixels(r.measured[frame]).tolist():
                 d.line([(x - 4, y - 4), (x + 4, y + 4)], fill=MEASURED, width=2)
@@ -252,6 +276,10 @@ class _Painter:
         entries += _water_and_bolt_legend(self.results)
         if self.results.measured.shape[1]:
             entries.append((MEASURED, "measured point"))
+        if self.results.fixed_points.size:
+            entries.append((FIXED_POINT, "fixed point"))
+        if self.results.load_points.size:
+            entries.append((LOAD, "point load"))
         for colour, name in entries:
             w = d.textlength(name, font=self.font)
             d.rectangle([x - 10, y + 2, x - 2, y + 10], fill=colour, outline=OUTLINE)

@@ -163,6 +163,12 @@ class Results:
     contact_shear_force: np.ndarray = field(default_factory=lambda: np.zeros(0))
     """(C,) shear force of each recorded contact [N/m], signed along the contact's reference
     edge; at most its Coulomb strength N·tanφ + c·L; 0 when open and for vertex-vertex contacts."""
+    fixed_points: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 2)))
+    """(F, nf, 2) positions of the scene's fixed points [m] (held by stiff springs)."""
+    load_points: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 2)))
+    """(F, nl, 2) positions of the scene's point loads [m] (they move with their blocks)."""
+    load_forces: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 2)))
+    """(F, nl, 2) the point loads' forces at each frame's time [N/m]."""
     block_material: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     """(B,) index of each block's material in ``meta["scene"]["materials"]`` (empty for results
     written before it existed)."""
@@ -361,7 +367,8 @@ UNITS = {
     "contact_state": "0 open, 1 sliding, 2 locked", "contact_normal_force": "N/m (compression positive)",
     "contact_shear_force": "N/m", "steps": "see STEP_DTYPE (s, m, J/m, N/m)", "start": "see START_DTYPE",
     "bolt_xy": "m", "bolt_force": "N/m (tension positive)", "bolt_broken": "-", "bolt_events": "see BOLT_EVENT_DTYPE",
-    "water_table": "m", "block_material": "index into scene.materials",
+    "water_table": "m", "block_material": "index into scene.materials", "fixed_points": "m",
+    "load_points": "m", "load_forces": "N/m",
     "forces": "per metre of thickness (plane problem)",
 }
 
@@ -453,7 +460,7 @@ class Recorder:
         self.record_contacts = record_contacts
         self.frames: dict[str, list] = {k: [] for k in (
             "time", "centroid", "rotation", "velocity", "angular_velocity", "stress", "vertices",
-            "measured")}
+            "measured", "fixed_points", "load_points", "load_forces")}
         self.contact_xy: list[np.ndarray] = []
         self.contact_state: list[np.ndarray] = []
         self.contact_normal: list[np.ndarray] = []
@@ -478,6 +485,11 @@ class Recorder:
         f["stress"].append(state.block_stress.copy())
         f["vertices"].append(state.vertex_xy + origin)
         f["measured"].append(state.measured_xy + origin)
+        f["fixed_points"].append(state.fixed_point_xy + origin)
+        f["load_points"].append(state.load_xy + origin)
+        t = state.time
+        f["load_forces"].append(np.array([fn(t) if callable(fn) else fn for fn in self.model.load_force],
+                                         dtype=float).reshape(-1, 2))
         if len(self.model.bolt_block):
             from .support import bolt_ends
 
@@ -542,6 +554,9 @@ class Recorder:
             vertex_offset=m.vertex_offset.astype(np.int64),
             block_fixed=m.block_fixed.copy(),
             measured=stack("measured", (nm, 2)),
+            fixed_points=stack("fixed_points", (len(m.fixed_point_block), 2)),
+            load_points=stack("load_points", (len(m.load_block), 2)),
+            load_forces=stack("load_forces", (len(m.load_block), 2)),
             contact_offset=np.concatenate([[0], np.cumsum(self.contact_count)]).astype(np.int64),
             contact_xy=np.concatenate(self.contact_xy) if self.contact_xy else np.zeros((0, 2)),
             contact_state=np.concatenate(self.contact_state) if self.contact_state else np.zeros(0, np.int8),

@@ -165,3 +165,25 @@ def test_command_line_writes_histories_measured_points_and_vtk(tmp_path, capsys,
     monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "meshio" else real(name, *a))
     assert main(["run", str(script), "--out", str(out), "--vtk", str(tmp_path / "v")]) == 2
     assert "--vtk needs meshio" in capsys.readouterr().err
+
+
+def test_fixed_points_and_loads_are_recorded_and_drawn():
+    from ddatai import render
+
+    scene = dd.Scene(gravity=G)
+    scene.add_block([(-2, -1), (6, -1), (6, 0), (-2, 0)], material=ROCK, fixed=True)
+    pushed = scene.add_block([(0, 0), (1, 0), (1, 1), (0, 1)], material=ROCK)
+    held = scene.add_block([(3, 0), (4, 0), (4, 1), (3, 1)], material=ROCK)
+    scene.add_fixed_point(held, (3.5, 0.5))
+    scene.add_point_load(pushed, (0.0, 0.5), lambda t: (1e5 * t, 0.0))
+    scene.set_joint(dd.Joint(friction=30.0))
+    res = dd.simulate(scene, params=dd.Params(dt=0.01), duration=0.2, record_every=5)
+    assert res.fixed_points.shape == (res.n_frames, 1, 2) and res.load_points.shape == (res.n_frames, 1, 2)
+    assert np.allclose(res.fixed_points[:, 0], (3.5, 0.5), atol=1e-4)
+    assert np.allclose(res.load_forces[:, 0, 0], 1e5 * res.time) and np.all(res.load_forces[:, 0, 1] == 0)
+    # the load point moves with its block
+    assert np.allclose(res.load_points[:, 0] - res.load_points[0, 0], res.centroid[:, pushed] - res.centroid[0, pushed],
+                       atol=1e-6)
+    image = dd.render_frames(res, size=(300, 200), frames=[-1])[0]
+    for colour in (render.LOAD, render.FIXED_POINT):
+        assert np.any(np.all(image == colour, axis=-1))
