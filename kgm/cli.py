@@ -56,13 +56,20 @@ def scene_frame(scene):
     offset = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
     nb = scene.n_blocks
     centroid = np.array([s.vertices.mean(axis=0) for s in scene.blocks])
+    support = {}  # the water table and the bolts, drawn where the scene has them
+    if scene.water is not None and scene.water.xy is not None:
+        support["water_table"] = scene.water.xy
+    if scene.bolts:
+        support["bolt_xy"] = np.array([[(b.xy1, b.xy2) for b in scene.bolts]], dtype=float)
+        support["bolt_force"] = np.array([[b.pretension for b in scene.bolts]], dtype=float)
+        support["bolt_broken"] = np.zeros((1, len(scene.bolts)), bool)
     return Results(time=np.zeros(1), centroid=centroid[None], rotation=np.zeros((1, nb)),
                    velocity=np.zeros((1, nb, 2)), angular_velocity=np.zeros((1, nb)),
                    stress=np.zeros((1, nb, 3)), vertices=xy[None], vertex_offset=offset,
                    block_fixed=np.array([s.fixed for s in scene.blocks]),
                    measured=np.zeros((1, 0, 2)), contact_offset=np.zeros(2, np.int64),
                    contact_xy=np.zeros((0, 2)), contact_state=np.zeros(0, np.int8),
-                   steps=np.zeros(0, dtype=STEP_DTYPE))
+                   steps=np.zeros(0, dtype=STEP_DTYPE), **support)
 
 
 def write_result_gif(path: str, scene, report, params=None, settings=None) -> None:

@@ -207,3 +207,25 @@ def test_cli_takes_a_seismic_coefficient_and_shows_the_columns():
     assert "kh, kv" in outs[1] and "0.1, 0" in outs[1]
     fs = [float(o.split("critical key group")[1].split("FS ")[1].split(",")[0]) for o in outs]
     assert fs[1] < fs[0]
+
+
+def test_cli_gif_draws_the_water_table_and_the_bolts(tmp_path):
+    """`kgm analyze --gif` of a limit-equilibrium result draws the scene's water table and
+    bolts."""
+    import io
+    from pathlib import Path
+
+    import numpy as np
+    pytest.importorskip("PIL")
+    from PIL import Image
+
+    from ddatai import render
+    from kgm.cli import main
+
+    scene = str(Path(__file__).resolve().parents[1] / "scenes" / "bolted_slope.py")
+    gif = tmp_path / "slope.gif"
+    assert main(["analyze", scene, "--method", "rigid", "--gif", str(gif)], out=io.StringIO()) == 0
+    image = Image.open(gif)
+    image.seek(0)
+    pixels = {tuple(p) for p in np.asarray(image.convert("RGB")).reshape(-1, 3).tolist()}
+    assert render.WATER in pixels and render.BOLT in pixels
