@@ -229,3 +229,33 @@ def test_cli_gif_draws_the_water_table_and_the_bolts(tmp_path):
     image.seek(0)
     pixels = {tuple(p) for p in np.asarray(image.convert("RGB")).reshape(-1, 3).tolist()}
     assert render.WATER in pixels and render.BOLT in pixels
+
+
+@pytest.mark.parametrize("level", [1.0, 2.0, 3.0])
+def test_sarma_biplanar_pair_under_a_level_water_table(level):
+    """Under a level table the water on each block sums to its buoyancy ρw·g·A_sub (vertical),
+    and every face force is effective: the bi-planar pair's limit equilibrium is the dry one
+    with the effective weights W' = (ρ·A − ρw·A_sub)·g (tests/cases.py, biplanar_critical_friction):
+    E = μ·W'_B/(1 − μ²) and E·[(cos α + μ sin α)/(sin α − μ cos α) + μ] = W'_A. The water on the
+    shared face enters both members (Sarma's internal face); critical φ within 0.01°."""
+    import shapely
+    from scipy.optimize import brentq
+
+    from cases import BIPLANAR, biplanar_polygons, biplanar_scene
+
+    scene, (a, b) = biplanar_scene(20.0)
+    scene.set_water_table([(-10.0, level), (10.0, level)])
+    upper, lower, _ = biplanar_polygons(**BIPLANAR)
+    below = shapely.box(-100.0, -100.0, 100.0, level)
+    w_a, w_b = (2500.0 * shapely.Polygon(p).area - RHO_W * shapely.Polygon(p).intersection(below).area
+                for p in (upper, lower))   # W'/g of cases.ROCK blocks [kg/m]
+    alpha = math.radians(BIPLANAR["dip"])
+
+    def f(mu):
+        e = w_b * mu / (1 - mu * mu)
+        return e * ((math.cos(alpha) + mu * math.sin(alpha)) / (math.sin(alpha) - mu * math.cos(alpha)) + mu) - w_a
+
+    expected = math.degrees(math.atan(brentq(f, 1e-9, min(math.tan(alpha), 1.0) - 1e-9)))
+    dry = kgm.critical_friction(biplanar_scene(20.0)[0], [a, b], method="sarma")
+    assert abs(expected - dry) > 0.05            # the water changes the answer
+    assert kgm.critical_friction(scene, [a, b], method="sarma") == pytest.approx(expected, abs=0.01)
