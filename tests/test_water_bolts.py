@@ -372,3 +372,27 @@ def test_head_of_an_unknown_joint_is_refused():
     s = _two_blocks()
     with pytest.raises(ValueError, match="is not a joint line of the scene"):
         s.set_water_table(None, heads={dd.Joint(friction=12.0): 3.0})
+
+
+@pytest.mark.parametrize("offset, slides", [(-0.2, True), (0.2, False)])
+def test_wet_biplanar_pair_in_dda_at_the_effective_stress_critical_friction(offset, slides):
+    """The bi-planar pair (tests/cases.py) under a level table 2 m above the kink: water on
+    every face, the shared one included. Its critical φ is kgm's (checked against the
+    effective-weight closed form in tests/test_kgm_water.py); DDA slides 0.2° below it and
+    holds 0.2° above it (starting under sudden gravity: held blocks settle by ~1e-4 m, then
+    rest)."""
+    import kgm
+    from cases import biplanar_scene
+
+    table = [(-10.0, 2.0), (10.0, 2.0)]
+    scene, (a, b) = biplanar_scene(20.0)
+    scene.set_water_table(table)
+    phi = kgm.critical_friction(scene, [a, b], method="sarma") + offset
+    scene, (a, b) = biplanar_scene(phi)
+    scene.set_water_table(table)
+    res = dd.simulate(scene, dd.Params(initial_equilibrium=False), duration=1.0)
+    moved = np.linalg.norm(res.centroid[-1, [a, b]] - res.centroid[0, [a, b]], axis=1).max()
+    if slides:
+        assert moved > 2e-3
+    else:
+        assert moved < 1e-3 and np.abs(res.velocity[-1, [a, b]]).max() < 1e-4
