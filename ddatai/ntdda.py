@@ -3,7 +3,7 @@
 ntdda, the Berkeley C port of Shi's DC/DF programs, reads a geometry file (``.geo``: joint
 lines, material lines, fixed, load, measured and hole points) and an analysis file (``.ana``:
 materials, joint properties, time step, load histories), each either in Shi's original
-whitespace-separated text format or in the XML "DDAML" format (peers.md §4). The format of
+whitespace-separated text format or in the XML "DDAML" format (docs/ntdda.md §4). The format of
 each file is detected from its first characters.
 
 >>> import ddatai as dd
@@ -13,7 +13,7 @@ each file is detected from its first characters.
 >>> from ddatai.ntdda import write_measured_csv
 >>> write_measured_csv(res, case, "pushblock.csv")               # doctest: +SKIP
 
-Where ntdda behaves oddly (peers.md §3.1.6, §7; ntdda-baseline.md §8) the reader makes an
+Where ntdda behaves oddly (docs/ntdda.md §3) the reader makes an
 explicit choice, documented where it is made and in README "Reading ntdda files", and warns
 with an `NtddaQuirkWarning` when a file relies on the odd behaviour. Settings ddatai does not
 implement are ignored with an `NtddaUnsupportedWarning`. A malformed file raises
@@ -22,7 +22,7 @@ element (DDAML) and what was expected, before any simulation work.
 
 Units: ntdda files use whatever consistent units their author chose; ddatai's SI names (m, kg,
 Pa) then stand for those units. Unit mass ρ enters inertia and unit weight γ the body force,
-so the effective gravity is γ/ρ (dda-method.md §6.3).
+so the effective gravity is γ/ρ (docs/method/dda.md §6.3).
 
 Run from the command line: ``python -m ddatai.ntdda MODEL.geo MODEL.ana --out DIR``.
 No Taichi at import: the solver is loaded only by `NtddaCase.simulate`.
@@ -46,13 +46,13 @@ from .scene import Scene
 
 Format = Literal["ddaml", "original"]
 
-#: ntdda's contact constants when a DDAML file gives none (constants.c; peers.md §4.5).
+#: ntdda's contact constants when a DDAML file gives none (constants.c; docs/ntdda.md §4.5).
 NTDDA_OPENCLOSE = 2e-4
 NTDDA_OPENCRITERIA = 2e-7
 NTDDA_NORM_SPRING_PEN = 4e-4
 NTDDA_ANGLE_OVERLAP = 3.0
 NTDDA_SHEAR_NORM_RATIO = 2.5
-#: ntdda's hard-coded open-close iteration cap (analysisdriver.c, peers.md §3.1.6-4).
+#: ntdda's hard-coded open-close iteration cap (analysisdriver.c, docs/ntdda.md §3.4).
 NTDDA_OC_LIMIT = 8
 #: ntdda's default penalty factor and gravitational acceleration.
 NTDDA_PFACTOR = 50.0
@@ -258,7 +258,7 @@ def _to_float(token: str) -> Optional[float]:
 
 
 def _detect_format(path: Path, text: str) -> Format:
-    """ntdda sniffs the first token (peers.md §4.1): ``<?`` is DDAML. We take the first
+    """ntdda sniffs the first token (docs/ntdda.md §4.1): ``<?`` is DDAML. We take the first
     non-blank characters, so a leading blank line (an error for ntdda) is accepted."""
     head = text.lstrip()
     if not head:
@@ -477,7 +477,7 @@ def read_ntdda_geometry(path) -> NtddaGeometry:
 
 
 def _read_original_geometry(path: Path, text: str, log: list) -> NtddaGeometry:
-    """GHS "DC" input (peers.md §4.2): e00, eight counts, then the records in a fixed order."""
+    """GHS "DC" input (docs/ntdda.md §4.2): e00, eight counts, then the records in a fixed order."""
     tk = _Tokens(path, text)
     e00 = tk.real("e00 (the minimum edge-node distance)")
     if e00 < 0:
@@ -497,7 +497,7 @@ def _read_original_geometry(path: Path, text: str, log: list) -> NtddaGeometry:
                                f"{n_joints} joint lines")
     if n_bolts:
         # ntdda accepts the count with a warning but never reads the bolt records, so the rest
-        # of the file is misread (peers.md §3.1.6-8); ddatai has no bolts
+        # of the file is misread (docs/ntdda.md §3.8); ddatai has no bolts
         raise NtddaFormatError(f"{path}, {bolts_where}: {n_bolts} rock bolts declared; bolts are not "
                                "supported by ddatai (and ntdda misreads the rest of such a file)")
     joints, jtype, jwhere = [], [], []
@@ -529,7 +529,7 @@ def _read_original_geometry(path: Path, text: str, log: list) -> NtddaGeometry:
 
 
 def _read_ddaml_geometry(path: Path, text: str, log: list) -> NtddaGeometry:
-    """DDAML geometry (peers.md §4.4)."""
+    """DDAML geometry (docs/ntdda.md §4.4)."""
     xml = _Xml(path)
     geo = _section(xml, _parse_xml(path, text), "Geometry", "Analysis")
     e00 = 0.0  # ntdda's calloc'ed default when <Edgenodedist> is absent: no node merging
@@ -580,7 +580,7 @@ def _read_ddaml_geometry(path: Path, text: str, log: list) -> NtddaGeometry:
             if bolts:
                 n_bolts, bolts_where = len(bolts), bolts[0].where()
         elif el.name == "Boundlist":
-            # ntdda parses it into a list it never allocates and crashes (peers.md §3.1.6-9)
+            # ntdda parses it into a list it never allocates and crashes (docs/ntdda.md §3.9)
             xml.fail(el, "<Boundlist> is not supported (ntdda crashes on it); put these lines "
                          "in <Jointlist>")
         else:
@@ -592,9 +592,9 @@ def _read_ddaml_geometry(path: Path, text: str, log: list) -> NtddaGeometry:
                                "by ddatai (remove the <Boltlist> to run the model without them)")
     seismic = points["Seismicpointlist"]
     if seismic[0]:
-        # ntdda parses the record into a local variable and never applies it (peers.md §3.1.6-6)
+        # ntdda parses the record into a local variable and never applies it (docs/ntdda.md §3.6)
         _warn(log, NtddaQuirkWarning, f"{path}, {seismic[1][0]}: seismic points ignored: ntdda never "
-              "applies seismic loads (its time history is lost, peers.md §3.1.6-6), and ddatai does "
+              "applies seismic loads (its time history is lost, docs/ntdda.md §3.6), and ddatai does "
               "not read them either (use Scene.set_ground_acceleration)")
 
     def arr(rows, width):
@@ -638,7 +638,7 @@ def read_ntdda_analysis(path) -> NtddaAnalysis:
 
 
 def _read_original_analysis(path: Path, text: str, log: list) -> NtddaAnalysis:
-    """GHS "DF" input (peers.md §4.3) and ntdda's implicit settings for it."""
+    """GHS "DF" input (docs/ntdda.md §4.3) and ntdda's implicit settings for it."""
     tk = _Tokens(path, text)
     where = tk.where()
     kind = tk.integer("the analysis type (0 static, 1 dynamic)")
@@ -676,7 +676,7 @@ def _read_original_analysis(path: Path, text: str, log: list) -> NtddaAnalysis:
     # ntdda's original-format reader replaces the contact constants by uninitialised memory
     # (B2: NaN at step 1, circleslope crashes); ddatai uses ntdda's defaults
     _warn(log, NtddaQuirkWarning, f"{path}: original-format analysis file: ntdda leaves the contact "
-          "constants uninitialised for this format (its runs end in NaN, ntdda-baseline.md B2); "
+          "constants uninitialised for this format (its runs end in NaN, docs/ntdda.md §3.12); "
           "ddatai uses ntdda's default constants")
     _warn(log, NtddaUnsupportedWarning, f"{path}: ntdda re-estimates the penalty every step for "
           "original-format files (automatic penalty); ddatai keeps it at 50 × the largest Young's "
@@ -684,11 +684,11 @@ def _read_original_analysis(path: Path, text: str, log: list) -> NtddaAnalysis:
     for m in bmats:
         if any(m.stress_gradient):
             _warn(log, NtddaQuirkWarning, f"{path}, {m.where}: stress gradients (txx tyy txy) given: "
-                  "ntdda also uses them as initial velocities (peers.md §4.3, ntdda-baseline.md D8); "
+                  "ntdda also uses them as initial velocities (docs/ntdda.md §4.3, §3.14); "
                   "ddatai applies them only as σ = s + y_centroid·t")
         if any(m.velocity):
             _warn(log, NtddaQuirkWarning, f"{path}, {m.where}: initial velocities given: ntdda ignores "
-                  "them in this format (it reads the stress gradients instead, ntdda-baseline.md D8); "
+                  "them in this format (it reads the stress gradients instead, docs/ntdda.md §3.14); "
                   "ddatai applies them")
     return NtddaAnalysis(
         path=str(path), format="original", dynamic=kind == 1, n_steps=n_steps, max_time_step=g1,
@@ -724,7 +724,7 @@ def _joint_material(path, where, friction, cohesion, tensile) -> NtddaJointMater
 
 
 def _read_ddaml_analysis(path: Path, text: str, log: list) -> NtddaAnalysis:
-    """DDAML analysis (peers.md §4.5). Elements are dispatched by name like ntdda does;
+    """DDAML analysis (docs/ntdda.md §4.5). Elements are dispatched by name like ntdda does;
     unknown ones are reported (ntdda ignores them silently)."""
     xml = _Xml(path)
     ana = _section(xml, _parse_xml(path, text), "Analysis", "Geometry")
@@ -803,7 +803,7 @@ def _read_ddaml_analysis(path: Path, text: str, log: list) -> NtddaAnalysis:
                 hwhere.append(lp.where())
         elif name == "Timehistory":
             _warn(log, NtddaQuirkWarning, f"{path}, {el.where()}: seismic time history ignored: ntdda "
-                  "loses it and never applies it (peers.md §3.1.6-6); use Scene.set_ground_acceleration")
+                  "loses it and never applies it (docs/ntdda.md §3.6); use Scene.set_ground_acceleration")
         elif name in ("Writevertices", "Boltproperties"):
             pass  # output selection; bolt properties without bolts
         else:
@@ -821,14 +821,14 @@ def _read_ddaml_analysis(path: Path, text: str, log: list) -> NtddaAnalysis:
         s["penalty_factor"] = NTDDA_PFACTOR
         where = autopenalty_el.where() if autopenalty_el is not None else "<Analysis>"
         _warn(log, NtddaQuirkWarning, f"{path}, {where}: no pfactor given: ntdda would use a penalty of "
-              f"0 (blocks sink into each other, peers.md §3.1.6-5); ddatai uses pfactor = {NTDDA_PFACTOR:g}")
+              f"0 (blocks sink into each other, docs/ntdda.md §3.5); ddatai uses pfactor = {NTDDA_PFACTOR:g}")
     if s["oc_limit"] is None:
         s["oc_limit"] = NTDDA_OC_LIMIT
     elif s["oc_limit"] != NTDDA_OC_LIMIT:
         what = ("ntdda ignores <OCLimit> (it only reads <Opencloselimit>)" if oc_el.name == "OCLimit"
                 else "ntdda's driver ignores it")
         _warn(log, NtddaQuirkWarning, f"{path}, {oc_el.where()}: open-close limit {s['oc_limit']}: {what} "
-              f"and always stops at {NTDDA_OC_LIMIT} iterations (peers.md §3.1.6-4); ddatai uses "
+              f"and always stops at {NTDDA_OC_LIMIT} iterations (docs/ntdda.md §3.4); ddatai uses "
               f"{s['oc_limit']}")
     if s["auto_penalty"]:
         _warn(log, NtddaUnsupportedWarning, f"{path}, {autopenalty_el.where()}: ntdda's automatic penalty "
@@ -883,13 +883,13 @@ def _read_ddaml_block_material(xml: _Xml, el: _Element, log: list) -> NtddaBlock
     where = f"{xml.path}, {el.where()}"
     if any(m.velocity):
         _warn(log, NtddaQuirkWarning, f"{where}: non-zero <Ivelocity>: ntdda also adds y_centroid × "
-              "Ivelocity to the initial stresses (its material columns are mixed up, peers.md §3.1.6-3); "
+              "Ivelocity to the initial stresses (its material columns are mixed up, docs/ntdda.md §3.3); "
               "ddatai applies it as initial velocity only")
     if any(m.strain):
         _warn(log, NtddaUnsupportedWarning, f"{where}: non-zero <Istrain> ignored (ntdda never uses it)")
     if m.damping:
         _warn(log, NtddaQuirkWarning, f"{where}: block damping {m.damping:g} ignored: ntdda reads it and "
-              "never uses it (ntdda-baseline.md D7)")
+              "never uses it (docs/ntdda.md §3.13)")
     return m
 
 
@@ -957,7 +957,7 @@ def cut_ntdda_geometry(geometry: NtddaGeometry) -> NtddaBlocks:
     points, then material lines); the documented choices are: blocks lying inside other blocks
     are deleted before points are located (ntdda deletes them after, leaving points on deleted
     blocks), and fixed lines pin each block they cross at both ends of the line's piece inside
-    it (peers.md §4.8 [R]; ntdda's rule is in `_fixed_points`).
+    it (docs/ntdda.md §4.8; ntdda's rule is in `_fixed_points`).
     """
     g = geometry
     log: list[str] = []
@@ -1024,7 +1024,7 @@ def cut_ntdda_geometry(geometry: NtddaGeometry) -> NtddaBlocks:
 
 
 def _fixed_points(g: NtddaGeometry, polygons, w0: float, log: list) -> tuple[np.ndarray, np.ndarray]:
-    """Fixed points from fixed lines (peers.md §4.8).
+    """Fixed points from fixed lines (docs/ntdda.md §4.8).
 
     ntdda's rule (dc10): a fixed point where the line crosses each block edge, inset 0.005·w0
     into the block; line ends inside a block are dropped, and a line crossing no edge becomes
@@ -1074,8 +1074,8 @@ def _fixed_points(g: NtddaGeometry, polygons, w0: float, log: list) -> tuple[np.
             ends = ", ".join(f"({e[0]:g}, {e[1]:g}) in block {b}" for b, e in inside)
             theirs = "; ".join(f"({q[0]:.6g}, {q[1]:.6g})" for _, q in ntdda_fixed_points(polygons, line, w0))
             _warn(log, NtddaQuirkWarning, f"{where}: fixed line ends inside a block at {ends}: ntdda drops "
-                  "such end points (a line inside one block pins it at its first end only, peers.md "
-                  f"§3.1.6-7, §4.8) and would fix {theirs}; ddatai pins every block the line crosses "
+                  "such end points (a line inside one block pins it at its first end only, docs/ntdda.md "
+                  f"§3.7, §4.8) and would fix {theirs}; ddatai pins every block the line crosses "
                   "at both ends of the line's piece inside it")
     return np.array(blocks, dtype=np.int64), np.array(points, dtype=float).reshape(-1, 2)
 
@@ -1223,7 +1223,7 @@ def build_ntdda_case(geometry: NtddaGeometry, analysis: NtddaAnalysis) -> NtddaC
             if end_time > hist[-1, 0] * (1 + 1e-12):
                 _warn(log, NtddaQuirkWarning, f"{a.path}, {a.load_where[k]}: the load history ends at "
                       f"t = {hist[-1, 0]:g} but the run lasts {'about ' if a.auto_time_step else ''}"
-                      f"{end_time:g}; ntdda then reads an unset record (peers.md §3.1.6-11), ddatai holds "
+                      f"{end_time:g}; ntdda then reads an unset record (docs/ntdda.md §3.11), ddatai holds "
                       "the last force")
             if hist[0, 0] > 0:
                 _warn(log, NtddaWarning, f"{a.path}, {a.load_where[k]}: the load history starts at "
@@ -1232,7 +1232,7 @@ def build_ntdda_case(geometry: NtddaGeometry, analysis: NtddaAnalysis) -> NtddaC
             force = (0.0, 0.0)
             _warn(log, NtddaQuirkWarning, f"{g.path}, {g.load_where[k]}: load point {k + 1} has no load "
                   f"history in {a.path} (ntdda cannot load it from an original-format analysis file, "
-                  "peers.md §3.1.6-8); it carries no load and is only tracked")
+                  "docs/ntdda.md §3.8); it carries no load and is only tracked")
         scene.add_point_load(int(b), xy, force)
         idx = scene.add_measured_point(int(b), xy)
         points.append(NtddaPoint(name=f"L{k + 1}", kind="load", index=idx, block=int(b),
@@ -1283,7 +1283,7 @@ def _check_references(g: NtddaGeometry, a: NtddaAnalysis, log: list) -> None:
 
 
 def _effective_gravity(g: NtddaGeometry, a: NtddaAnalysis, blocks: NtddaBlocks, log: list) -> float:
-    """Gravity g such that the body force of every block is ρ·g (dda-method.md §6.3).
+    """Gravity g such that the body force of every block is ρ·g (docs/method/dda.md §6.3).
 
     Rule: ``Gravaccel`` when the file gives it; otherwise γ/ρ of block material 1. ntdda uses
     γ₁/ρ₁ for original-format files and ``Gravaccel`` (9.81 by default) for DDAML, ignoring
