@@ -3,8 +3,8 @@
 `ddatai.geometry.cut` cuts a *given* domain polygon by joint traces. An ntdda geometry file has
 no domain polygon: the outline is itself made of joint lines, and the blocks are the closed
 regions of the whole line set after Shi's block-cutting program (GHS "DC", ntdda `blocks.c`,
-peers.md §3.1.2 step 2) has merged close nodes and dropped dangling segments. Reproducing those
-rules matters: they decide how many vertices a block has (circleslope's slices, peers.md §4.7)
+docs/ntdda.md §2) has merged close nodes and dropped dangling segments. Reproducing those
+rules matters: they decide how many vertices a block has (circleslope's slices, docs/ntdda.md §4.7)
 and the order in which blocks are numbered (ntdda's outputs refer to blocks by that number).
 
 The steps, in ntdda's order (function names of `blocks.c` in brackets):
@@ -153,7 +153,7 @@ def cut_segments(segments, *, edge_node_distance: float, n_boundary: int = 0) ->
     edge_node_distance : ntdda's e00 (relative): intersections closer than 1.25·e00·w0 merge
         into one node, and an edge passing within e00·w0 of a node is deleted.
     n_boundary : the first ``n_boundary`` segments are boundary lines: their intersections are
-        never merged and their edges never deleted (GHS's "boundary lines", peers.md §4.2).
+        never merged and their edges never deleted (GHS's "boundary lines", docs/ntdda.md §4.2).
 
     Returns
     -------
@@ -529,7 +529,7 @@ def block_materials(polygons, material_lines, w0: float) -> tuple[np.ndarray, li
 
 
 def clip_fixed_line(polygon: np.ndarray, line, tol: float) -> list[np.ndarray]:
-    """End points of the pieces of a fixed line inside a block (ddatai's rule, peers.md §4.8).
+    """End points of the pieces of a fixed line inside a block (ddatai's rule, docs/ntdda.md §4.8).
 
     Returns a list of (2,) points: both ends of every piece of positive length of the line
     within the closed polygon (a line end inside the block, or where the line crosses the
