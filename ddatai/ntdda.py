@@ -817,7 +817,7 @@ def _read_ddaml_analysis(path: Path, text: str, log: list) -> NtddaAnalysis:
     if not bmats:
         xml.fail(ana, "expected at least one <Blockmaterial> element")
     if s["penalty_factor"] is None:
-        # without pfactor ntdda sets the penalty to 0 and blocks sink into each other (§3.1.6-5)
+        # without pfactor ntdda sets the penalty to 0 and blocks sink into each other (docs/ntdda.md §3.5)
         s["penalty_factor"] = NTDDA_PFACTOR
         where = autopenalty_el.where() if autopenalty_el is not None else "<Analysis>"
         _warn(log, NtddaQuirkWarning, f"{path}, {where}: no pfactor given: ntdda would use a penalty of "
