@@ -674,7 +674,7 @@ def _read_original_analysis(path: Path, text: str, log: list) -> NtddaAnalysis:
         jmats.append(_joint_material(path, where, *v))
     tk.finish("the last joint material")
     # ntdda's original-format reader replaces the contact constants by uninitialised memory
-    # (B2: NaN at step 1, circleslope crashes); ddatai uses ntdda's defaults
+    # (docs/ntdda.md §3.12: NaN at step 1, circleslope crashes); ddatai uses ntdda's defaults
     _warn(log, NtddaQuirkWarning, f"{path}: original-format analysis file: ntdda leaves the contact "
           "constants uninitialised for this format (its runs end in NaN, docs/ntdda.md §3.12); "
           "ddatai uses ntdda's default constants")
