@@ -1,7 +1,7 @@
 """Toppling and sliding on one incline: a row of slender columns topples, squat blocks slide.
 
 A 30° plane with joints of φ = 25°. Slender 0.3 × 1.5 m columns (b/h = 0.2 < tan 30°, and
-tan 25° = 0.47 above the toppling limit 0.29 of dda-method.md §7d) rotate about their down-slope
+tan 25° = 0.47 above the toppling limit 0.29 of docs/method/dda.md §7d) rotate about their down-slope
 corners and fall onto each other; the squat 1.2 × 0.8 m blocks lower down (b/h ≥ tan θ,
 tan φ < tan θ) slide. Run ``python scenes/toppling.py [--gif out/toppling.gif]``.
 """
