@@ -6,7 +6,7 @@ c = 0.02 MPa, φ = 11°, ν = 0.25, ρ = 2500 kg/m³, "normal stiffness 10", Δt
 g = 9.81 m/s²) and reports a critical friction angle of 11° for the two-block key group; its
 figure and coordinates are not available. Choices where the paper is open:
 
-* **Geometry**: the reconstruction of kgm-method.md §8.2 (all coordinates in m). A sliding
+* **Geometry**: the reconstruction of docs/kgm/method.md §8.2 (all coordinates in m). A sliding
   joint dipping 20° daylights at the toe (0, 0) above a 5 m vertical toe cut; vertical cross
   joints at x = −4 and x = −10; a horizontal bench at y = 10·tan 20°. B1 (toe) and B2 rest on
   the 20° joint, B3 on the bench, B4 is the fixed base. With c = 20 kPa the group {B1, B2}
@@ -15,7 +15,7 @@ figure and coordinates are not available. Choices where the paper is open:
 * **Young's modulus**: not given; E = 5 GPa (a typical intact-rock value; the rigid-body
   answers do not depend on it, DDA's only through the small elastic settlement).
 * **"Normal stiffness 10"**: read as the DDA penalty ratio p = 10·E (= 5e10 N/m per m),
-  within the usual 10–100·E range (dda-method.md §6.3); the alternative "10 GN/m" (p = 2·E)
+  within the usual 10–100·E range (docs/method/dda.md §6.3); the alternative "10 GN/m" (p = 2·E)
   would only soften the contacts.
 * **Time step**: Δt = 0.0013 s, fixed, as in the paper; dynamic run (velocity carried over).
 
