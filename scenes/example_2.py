@@ -6,7 +6,7 @@ stable while the Sarma-based KGM and DDA find it unstable; its figure and coordi
 available. Choices where the paper is open:
 
 * **Geometry**: an active–passive (bi-planar) wedge, after the reconstruction of
-  kgm-method.md §8.3 with one change. Slope face 50°, crest C = (0, 95), toe T = (79.714, 0),
+  docs/kgm/method.md §8.3 with one change. Slope face 50°, crest C = (0, 95), toe T = (79.714, 0),
   horizontal ground behind the crest and in front of the toe. J1 (base, dips 15° out of the
   slope) runs from T to Q = (21.759, 15.529); J2 (rear, dips 70°) from Q up to
   C' = (−7.166, 95) on the upper ground. The cross joint J3 rises at 70° from the point Q'
@@ -56,7 +56,7 @@ def build(friction: float = 22.0, cohesion: float = 0.02e6, young: float = 5e9,
           cross_joint_offset: float = 2.0, cross_joint_angle: float = 70.0):
     """Returns (scene, params). ``friction`` [degrees] and ``cohesion`` [Pa] of all joints;
     ``cross_joint_offset`` [m] and ``cross_joint_angle`` [degrees] place J3 (0 and 45: the
-    reconstruction of kgm-method.md §8.3)."""
+    reconstruction of docs/kgm/method.md §8.3)."""
     scene = dd.Scene(gravity=9.81)
     rock = dd.Material(density=2500.0, young=young, poisson=0.25)
     foot, f = cross_joint(cross_joint_offset, cross_joint_angle)
