@@ -1,4 +1,4 @@
-"""A block sliding down an inclined plane, next to one that stays (dda-method.md §7a, §7b).
+"""A block sliding down an inclined plane, next to one that stays (docs/method/dda.md §7a, §7b).
 
 Both blocks sit on one 30° plane; the lower joint has φ = 20° (it slides with
 a = g(sinθ − cosθ tanφ)), the upper one φ = 40° (it stays).
