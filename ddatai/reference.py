@@ -2,7 +2,7 @@
 
 Slow and obvious: Python loops over pairs and vertices, dense matrices. Each function here
 computes what one kernel (or kernel group) of :mod:`ddatai.kernels` computes, written
-independently from the formulas of dda-method.md, so that the tests comparing the two catch
+independently from the formulas of docs/method/dda.md, so that the tests comparing the two catch
 mistakes in either. Use only on small models.
 """
 
@@ -49,7 +49,7 @@ def _wrap(a: float, lower: float) -> float:
 
 
 def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Shi's vertex-edge / vertex-vertex contact rules (dda-method.md §3.3–3.6), pair by pair.
+    """Shi's vertex-edge / vertex-vertex contact rules (docs/method/dda.md §3.3–3.6), pair by pair.
 
     Returns (cint (m, 5): kind, vertex0, edge0, vertex1, edge1; length (m,)), unsorted.
     """
