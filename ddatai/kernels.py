@@ -8,13 +8,13 @@ passed as ``ti.types.ndarray`` (no copies on the CPU backend) and has a plain Nu
 Conventions (see :mod:`ddatai.model`): block b owns vertices ``voff[b]:voff[b+1]`` in CCW
 order, edge k runs from vertex k to ``vnext[k]``. A vertex-edge contact of vertex P1 against
 edge k uses the reference line P2 = vnext[k] -> P3 = k, which runs clockwise around the edge's
-block, so that the signed normal distance is positive outside (dda-method.md §2.8.1, §3.5).
+block, so that the signed normal distance is positive outside (docs/method/dda.md §2.8.1, §3.5).
 
 Contact vectors are stored per contact c in ``vec[c, s, 0:6]`` with slots
 ``E0, G0`` (normal, line 0), ``E1, G1`` (normal, line 1 of a vertex-vertex contact) and
 ``ES, GS`` (shear, line 0: the gradient of ds, along which both the shear spring and the
 friction force act), and the constant parts in ``sca[c, 0:3]`` = (dn0 line 0, dn0 line 1, ds0);
-see dda-method.md §2.8.
+see docs/method/dda.md §2.8.
 """
 
 import math
@@ -307,7 +307,7 @@ def big_query(lo: F64_2, hi: F64_2, big: I32_1, big_ids: I32_1, fixed: I32_1,
 @ti.kernel
 def narrow_phase(pairs: I32_2, xy: F64_2, voff: I32_1, vnext: I32_1, vprev: I32_1,
                  d0: ti.f64, d9: ti.f64, h1: ti.f64, out_int: I32_2, out_len: F64_1, count: I32_1):
-    """Shi's narrow phase for each candidate block pair (A < B) (dda-method.md §3.3–3.6).
+    """Shi's narrow phase for each candidate block pair (A < B) (docs/method/dda.md §3.3–3.6).
 
     out_int rows: (kind, vertex0, edge0, vertex1, edge1); out_len: contact length.
     """
@@ -341,7 +341,7 @@ def narrow_phase(pairs: I32_2, xy: F64_2, voff: I32_1, vnext: I32_1, vprev: I32_
 # --------------------------------------------------------------------------- contact vectors
 @ti.func
 def _trow(a, b, X):
-    """a·T(X)row1 + b·T(X)row2 as a 6-vector (T of dda-method.md §1.1, X centroidal)."""
+    """a·T(X)row1 + b·T(X)row2 as a 6-vector (T of docs/method/dda.md §1.1, X centroidal)."""
     return ti.Vector([a, b, -a * X[1] + b * X[0], a * X[0], b * X[1], 0.5 * (a * X[1] + b * X[0])])
 
 
@@ -354,7 +354,7 @@ def _store(vec: ti.template(), c, slot, v):
 @ti.kernel
 def contact_vectors(xy: F64_2, vblock: I32_1, vnext: I32_1, centroid: F64_2, cint: I32_2,
                     omega: F64_1, vec: F64_3, sca: F64_2):
-    """Linearised normal and shear distances of every contact line (dda-method.md §2.8.1–2.8.4).
+    """Linearised normal and shear distances of every contact line (docs/method/dda.md §2.8.1–2.8.4).
 
     cint rows: (kind, vertex0, edge0, vertex1, edge1). Positions are taken relative to the
     contact vertex P1 so that the constant parts keep full precision.
@@ -392,7 +392,7 @@ def contact_vectors(xy: F64_2, vblock: I32_1, vnext: I32_1, centroid: F64_2, cin
 
 @ti.kernel
 def second_order_shift(xy: F64_2, vnext: I32_1, q: F64_2, cint: I32_2, omega: F64_1, shift: F64_2):
-    """Second-order rotation terms of the contact distances (dda-method.md §5.3): with q the
+    """Second-order rotation terms of the contact distances (docs/method/dda.md §5.3): with q the
     exact-minus-linear displacement of every vertex, shift = ∂Δ/∂P·q for each normal line and
     ∂s/∂P·q for the shear of a vertex-edge contact (§2.8.1, §2.8.3)."""
     for c in range(cint.shape[0]):
