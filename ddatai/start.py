@@ -3,7 +3,7 @@
 Gravity switched on at t = 0 is an impulsive load: contact springs that start unloaded
 overshoot the static forces, bonded joints slip in the first steps and lose their cohesion,
 and a slope that limit equilibrium calls stable can fail in its own start-up transient
-(dda-method.md §8.12). UDEC/3DEC and FLAC models start with an equilibrium stage, ntdda with its
+(docs/method/dda.md §8.12). UDEC/3DEC and FLAC models start with an equilibrium stage, ntdda with its
 gravity turn-on phase. ddatai's stage (`Params.initial_equilibrium`, on by default) is a static
 solve of the model under its weight, the point loads at t = 0 and its initial stresses:
 
