@@ -3,7 +3,7 @@
 Nothing in ddatai calls ``ti.init`` except `ensure`. It is called lazily by the first
 simulation (or test) that needs a kernel, with double precision as the default float type:
 penetrations of ~1e-8 m on coordinates of ~1e2 m do not survive float32
-(dda-method.md §8.9). Taichi keeps one runtime per process; asking for another arch
+(docs/method/dda.md §8.9). Taichi keeps one runtime per process; asking for another arch
 re-initialises it (and recompiles kernels on first use).
 """
 
