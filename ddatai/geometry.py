@@ -88,7 +88,7 @@ def signed_area(xy: np.ndarray) -> float:
 
 
 def polygon_integrals(xy: np.ndarray, offset: np.ndarray) -> dict[str, np.ndarray]:
-    """Area, centroid and central second moments of many CCW polygons (dda-method.md §1.2).
+    """Area, centroid and central second moments of many CCW polygons (docs/method/dda.md §1.2).
 
     Parameters
     ----------
@@ -101,7 +101,7 @@ def polygon_integrals(xy: np.ndarray, offset: np.ndarray) -> dict[str, np.ndarra
     ``s1 = ∫X² dA``, ``s2 = ∫Y² dA``, ``s3 = ∫XY dA`` (B,) [m⁴], X, Y centroidal.
 
     The triangle-fan sums are evaluated relative to each block's first vertex, so a model far
-    from the origin loses no precision (dda-method.md §1.2, numerical tip).
+    from the origin loses no precision (docs/method/dda.md §1.2, numerical tip).
     """
     offset = np.asarray(offset)
     counts = np.diff(offset)
@@ -136,7 +136,7 @@ def polygon_integrals(xy: np.ndarray, offset: np.ndarray) -> dict[str, np.ndarra
 
 
 def mass_matrix(area: np.ndarray, s1: np.ndarray, s2: np.ndarray, s3: np.ndarray) -> np.ndarray:
-    """M = ∫ TᵀT dA for each block, (B, 6, 6) [m², m³, m⁴] (dda-method.md §1.3; × ρ for mass)."""
+    """M = ∫ TᵀT dA for each block, (B, 6, 6) [m², m³, m⁴] (docs/method/dda.md §1.3; × ρ for mass)."""
     n = len(area)
     m = np.zeros((n, 6, 6))
     m[:, 0, 0] = area
@@ -154,7 +154,7 @@ def mass_matrix(area: np.ndarray, s1: np.ndarray, s2: np.ndarray, s3: np.ndarray
 
 
 def displacement_matrix(point: np.ndarray, centroid: np.ndarray) -> np.ndarray:
-    """T(x, y) of dda-method.md §1.1 for many points, (n, 2, 6): u = T D."""
+    """T(x, y) of docs/method/dda.md §1.1 for many points, (n, 2, 6): u = T D."""
     X = point[..., 0] - centroid[..., 0]
     Y = point[..., 1] - centroid[..., 1]
     t = np.zeros(X.shape + (2, 6))
