@@ -1,4 +1,4 @@
-"""kgm DDA evaluator (kgm-method.md §6): the verdict on clearly stable and clearly unstable
+"""kgm DDA evaluator (docs/kgm/method.md §6): the verdict on clearly stable and clearly unstable
 cases, the cohesion rule it relies on (ddatai `Params.bond_breaks_on_slip`) against the
 closed form, the sub-model, and the paper's examples.
 
@@ -103,7 +103,7 @@ def test_example_2_dda_finds_the_group_unstable():
 
 
 def test_example_2_reconstruction_is_stable_in_dda():
-    """On the geometry of kgm-method.md §8.3 Sarma's mechanism needs the active block's corner
+    """On the geometry of docs/kgm/method.md §8.3 Sarma's mechanism needs the active block's corner
     to cut into the rock under J1; DDA on the real geometry cannot, and the group that Sarma
     calls unstable (FS 0.895) holds at 22° (why scenes/example_2.py moves J3's foot)."""
     scene, params = example_2.build(cross_joint_offset=0.0, cross_joint_angle=45.0)
@@ -150,7 +150,7 @@ def test_example_2_dda_bisection():
 def test_dda_factor_of_safety_and_critical_friction_of_a_block_on_an_incline():
     """One block on a 30° plane, φ = 40°: FS = tanφ/tanθ and φc = θ (closed form), within the
     bisection tolerance plus the friction resolution of the DDA judgement,
-    Δtanφ ≈ a_r/(g cosθ) (kgm-method.md §6.3)."""
+    Δtanφ ≈ a_r/(g cosθ) (docs/kgm/method.md §6.3)."""
     theta, phi = 30.0, 40.0
     scene, _, b = block_on_incline(theta=theta, width=2.0, height=1.0, friction=phi, cohesion=0.0)
     s = kgm.DdaSettings()
