@@ -1,4 +1,4 @@
-"""Verification: DDA against closed-form answers (dda-method.md §7).
+"""Verification: DDA against closed-form answers (docs/method/dda.md §7).
 
 Every tolerance below comes from the method, not from what the code happens to give:
 - the DDA integrator (Newmark β = 1/2, γ = 1) is exact for constant acceleration, so free
@@ -182,7 +182,7 @@ def test_fitted_grid_with_friction_reaches_equilibrium():
 
 # ----------------------------------------------------------------------------- §7d Goodman–Bray
 def refined_mode(r: float, theta: float, phi: float) -> str:
-    """Initial motion of a rigid b × h block (r = b/h) released on a plane (dda-method.md §7d)."""
+    """Initial motion of a rigid b × h block (r = b/h) released on a plane (docs/method/dda.md §7d)."""
     t, mu = np.tan(np.radians(theta)), np.tan(np.radians(phi))
     if r >= t:
         return "stable" if t <= mu else "slide"
