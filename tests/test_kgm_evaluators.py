@@ -1,4 +1,4 @@
-"""kgm limit-equilibrium evaluators against closed forms and the targets of kgm-method.md §8.4.
+"""kgm limit-equilibrium evaluators against closed forms and the targets of docs/kgm/method.md §8.4.
 
 Tolerances: closed forms to round-off (1e-9 relative); §8.4 values to half a unit of the last
 digit given there (they are rounded)."""
