@@ -1,5 +1,5 @@
 """Contact detection: Taichi kernels against the NumPy reference, and the contact geometry of
-dda-method.md §2.8, §3 on hand-made cases (sign of dn, edge-edge lengths, vertex-vertex)."""
+docs/method/dda.md §2.8, §3 on hand-made cases (sign of dn, edge-edge lengths, vertex-vertex)."""
 
 import numpy as np
 import pytest
