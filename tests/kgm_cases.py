@@ -13,7 +13,7 @@ ROCK = dd.Material(density=RHO, young=5e9, poisson=0.25)
 
 
 def planar_slope(height=20.0, face=60.0, plane=30.0, crack=5.0, friction=30.0, cohesion=25e3):
-    """Hoek & Bray's planar failure with a dry vertical tension crack (kgm-method.md §4.2):
+    """Hoek & Bray's planar failure with a dry vertical tension crack (docs/kgm/method.md §4.2):
     a face of dip ψf and height H, a horizontal upper surface, a sliding plane of dip ψp
     daylighting at the toe (0, 0) and a crack of depth z. Returns (scene, block id)."""
     cot_f, cot_p = 1.0 / np.tan(np.radians(face)), 1.0 / np.tan(np.radians(plane))
@@ -29,7 +29,7 @@ def planar_slope(height=20.0, face=60.0, plane=30.0, crack=5.0, friction=30.0, c
 
 def hoek_bray_fs(height, face, plane, crack, friction, cohesion, gamma=RHO * G):
     """FS = [cA + W cosψp tanφ] / [W sinψp], W = ½γH²[(1 − (z/H)²)cotψp − cotψf],
-    A = (H − z)/sinψp (dry, no seismic load; kgm-method.md §4.2)."""
+    A = (H − z)/sinψp (dry, no seismic load; docs/kgm/method.md §4.2)."""
     p, f = np.radians(plane), np.radians(face)
     w = 0.5 * gamma * height ** 2 * ((1 - (crack / height) ** 2) / np.tan(p) - 1 / np.tan(f))
     a = (height - crack) / np.sin(p)
