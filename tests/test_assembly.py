@@ -1,5 +1,5 @@
 """Assembly: the Taichi kernels (straight into a fixed CSR pattern) against the dense NumPy
-reference, term by term (dda-method.md §2), on random small scenes and random contact states."""
+reference, term by term (docs/method/dda.md §2), on random small scenes and random contact states."""
 
 import numpy as np
 import pytest
