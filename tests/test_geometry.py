@@ -1,4 +1,4 @@
-"""Polygon validation, polygon integrals, mass matrix and block cutting (dda-method.md §1, §7j)."""
+"""Polygon validation, polygon integrals, mass matrix and block cutting (docs/method/dda.md §1, §7j)."""
 
 import numpy as np
 import pytest
