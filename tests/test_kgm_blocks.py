@@ -1,4 +1,4 @@
-"""kgm block theory (kgm-method.md §2): contacts from shared edges, free faces, the
+"""kgm block theory (docs/kgm/method.md §2): contacts from shared edges, free faces, the
 half-circle removability test, kinematic modes and block types on hand-made cases."""
 
 import math
