@@ -1,4 +1,4 @@
-"""Scene builders for the verification tests (closed-form set-ups of dda-method.md §7).
+"""Scene builders for the verification tests (closed-form set-ups of docs/method/dda.md §7).
 
 Inclines use real inclined geometry: a fixed base whose top face rises at angle θ along
 t = (cos θ, sin θ); blocks rest on it, rotated by θ. Down-slope is -t.
