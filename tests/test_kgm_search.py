@@ -1,4 +1,4 @@
-"""kgm key-group search (kgm-method.md §3): greedy against exhaustive enumeration on small
+"""kgm key-group search (docs/kgm/method.md §3): greedy against exhaustive enumeration on small
 models, progressive removal, the report, and bad input."""
 
 import itertools
