@@ -13,7 +13,7 @@ date), ``DIR/accuracy.csv`` (every run) and ``DIR/accuracy.png`` (log–log char
 against wall time, one curve per case: the lowest error reached within a given time, with the
 defaults marked). Default DIR: benchmarks/results.
 
-Cases (set-ups of tests/test_verification.py and dda-method.md §7; rock: ρ = 2500 kg/m³,
+Cases (set-ups of tests/test_verification.py and docs/method/dda.md §7; rock: ρ = 2500 kg/m³,
 E = 5 GPa, ν = 0.25; 1 m × 1 m blocks on a real inclined fixed base unless stated):
 
 - sliding: θ = 30°, φ = 20°; relative error of the down-slope distance after 1 s,
