@@ -5,7 +5,7 @@
 
 Three families:
 
-- ``grid``: ntdda's scaling scene (``ntdda-baseline.md`` §4.4, §6) with its parameters: a
+- ``grid``: ntdda's scaling scene (``docs/ntdda.md`` §5) with its parameters: a
   fitted n × n grid of 1 m blocks on a fixed base, ρ = 2000 kg/m³, E = 100 MPa, ν = 0.25, plane
   stress, p = 1e9 N/m, φ = 30°, dynamic, Δt = 1 ms, step displacement g2·w0 = 0.03 m;
 - ``stiffgrid``: the same grid in stiff rock (``scenes/stacked_grid.py``, gap 0: E = 5 GPa,
@@ -41,7 +41,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results"
-# ntdda (Berkeley DDA), same grid scene, same machine type: seconds per step (ntdda-baseline.md §6)
+# ntdda (Berkeley DDA), same grid scene, same machine type: seconds per step (docs/ntdda.md §5)
 NTDDA_GRID = {16: 9.8e-5, 64: 7.0e-4, 256: 1.00e-2, 1024: 0.112, 4096: 1.085, 16384: 17.20}
 # ntdda: seconds per open-close iteration and mean OC iterations per step (same table)
 NTDDA_GRID_OC = {1024: (0.063, 1.76), 4096: (1.05, 1.11), 16384: (17.16, 1.00)}
@@ -73,7 +73,7 @@ def slope_scene(n_blocks: int):
 
 
 def grid_scene(n_blocks: int):
-    """ntdda's grid (ntdda-baseline.md §6) with ntdda's material, penalty and step limit."""
+    """ntdda's grid (docs/ntdda.md §5) with ntdda's material, penalty and step limit."""
     import ddatai as dd
 
     n = int(round(math.sqrt(n_blocks)))
@@ -228,7 +228,7 @@ def table(rows: list[dict]) -> str:
                      f"{r['ms_solve']:.1f} | {r['ms_update']:.1f} | {r['peak_mb']:.0f} | {r['solver']} |")
     nt = [r for r in rows if r["family"] == "grid" and r["blocks"] in NTDDA_GRID_OC]
     if nt:
-        lines += ["", "Against ntdda on the same grid scene with the same parameters (ntdda-baseline.md §6, "
+        lines += ["", "Against ntdda on the same grid scene with the same parameters (docs/ntdda.md §5, "
                   "same machine type). ntdda converges in 1-2 open-close iterations because it tolerates "
                   "penetrations up to 2e-4·w0 before closing a contact and ignores lock/slide changes; "
                   "ddatai iterates until no contact changes state:", "",
@@ -290,7 +290,7 @@ def main() -> None:
     ap.add_argument("--sizes", default="100,400,1024,1600,4096,6400,16384,25600")
     ap.add_argument("--family", default="grid,stiffgrid,slope")
     ap.add_argument("--steps", type=int, default=None,
-                    help="timed steps per size; default ntdda's protocol (ntdda-baseline.md §6): "
+                    help="timed steps per size; default ntdda's protocol (docs/ntdda.md §5): "
                          "100 up to 1,600 blocks, 20 up to 6,400, 4 beyond")
     ap.add_argument("--warmup", type=int, default=1,
                     help="untimed first steps (compilation, the first factorisation); ntdda: 1")
