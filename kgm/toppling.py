@@ -30,7 +30,7 @@ rectangles the vector equations are exactly the two formulas above. P_0 acts par
 toe's base at the highest point of its free downslope face.
 
 The factor of safety is a strength reduction: tanφ/F and c/F on every joint, F found by
-bisection on the sign of P_0 (kgm-method.md §4.6); the critical friction angle is the φ of all
+bisection on the sign of P_0 (docs/kgm/method.md §4.6); the critical friction angle is the φ of all
 joints (cohesion held) with P_0 = 0, also by bisection.
 """
 
