@@ -1,5 +1,5 @@
 """Results of a KGM analysis: `GroupResult` (one evaluated group), `Report` (a whole analysis),
-the failure-surface polylines and the text tables (kgm-method.md §3.5)."""
+the failure-surface polylines and the text tables (docs/kgm/method.md §3.5)."""
 
 from __future__ import annotations
 
@@ -73,7 +73,7 @@ class Report:
     groups: tuple
     """Candidate key groups of the first round, least safe first (`GroupResult`)."""
     block_types: dict
-    """Block id -> Goodman–Shi type 'I'..'V' (kgm-method.md §2.3), first round."""
+    """Block id -> Goodman–Shi type 'I'..'V' (docs/kgm/method.md §2.3), first round."""
     history: tuple
     """Least safe group of every round, in order; in progressive mode the unstable ones were
     removed one after the other and the last is the first stable one (if any)."""
