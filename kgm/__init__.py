@@ -1,7 +1,7 @@
 """kgm: the Key Group Method for jointed rock slopes, on the blocks of a `ddatai.Scene`.
 
 Finds the groups of blocks that can fail together (Yarahmadi Bafghi & Verdel's Key Group
-Method) and judges them with three evaluators (kgm-method.md):
+Method) and judges them with three evaluators (docs/kgm/method.md):
 
 * ``"rigid"`` – the group glued into one rigid body, limit equilibrium (KGM);
 * ``"sarma"`` – blocks slide on their own bases and shear their shared joints (SKGM);
