@@ -1,4 +1,4 @@
-"""The key-group search (kgm-method.md §3): seeds, greedy growth, least safe group,
+"""The key-group search (docs/kgm/method.md §3): seeds, greedy growth, least safe group,
 progressive removal; an exhaustive enumeration of connected groups to cross-check it; and
 the public one-group evaluations.
 
@@ -253,7 +253,7 @@ def _round(scene, system: BlockSystem, method: str, settings: Settings, params, 
 
 def analyze(scene, method: str = "sarma", progressive: bool = False, *, settings: Optional[Settings] = None,
             params=None, seismic=None) -> Report:
-    """Key Group Method analysis of a scene (kgm-method.md §3).
+    """Key Group Method analysis of a scene (docs/kgm/method.md §3).
 
     Parameters
     ----------
