@@ -27,7 +27,7 @@ def _positive(obj, name: str, allow_none: bool = False) -> None:
 
 @dataclass(frozen=True, kw_only=True)
 class DdaSettings:
-    """How the DDA evaluator judges a group (kgm-method.md §6.3–6.4).
+    """How the DDA evaluator judges a group (docs/kgm/method.md §6.3–6.4).
 
     A run simulates the group and the blocks it touches (held fixed, as KGM assumes
     non-members stay in place; ``free_neighbours`` lets them move and fixes the next ring),
@@ -60,7 +60,7 @@ class DdaSettings:
     """Stop a run as unstable once the displacement exceeds this many δ [-]."""
     cohesion_held: bool = True
     """Joints keep their cohesion while they slide (lose it only when they open), as limit
-    equilibrium assumes (kgm-method.md §6.1, §6.6); False: Shi's DDA, where a joint loses it as
+    equilibrium assumes (docs/kgm/method.md §6.1, §6.6); False: Shi's DDA, where a joint loses it as
     soon as it slips (`ddatai.Params.bond_breaks_on_slip`)."""
     free_neighbours: bool = False
     """Let the blocks touching the group move too (and fix the ones touching them)."""
@@ -97,7 +97,7 @@ class DdaSettings:
 
 @dataclass(frozen=True, kw_only=True)
 class Settings:
-    """The key-group search (kgm-method.md §3.3–3.4)."""
+    """The key-group search (docs/kgm/method.md §3.3–3.4)."""
 
     fs_target: float = 1.0
     """A group with FS below this is unstable (removed in progressive mode) [-]."""
