@@ -1,10 +1,11 @@
-"""Reading ntdda ("DDA for Windows") input files and running them (issue 7).
+"""Reading ntdda ("DDA for Windows") input files and running them.
 
-The example files are ntdda's own (doolin/ntdda ``examples/``), kept in the project's shared
-data folder ``../shared/data/ntdda`` next to the repository (or ``$DDATAI_NTDDA_DATA``);
-ntdda's recorded runs of them are in ``../shared/data/ntdda-runs``. Expected values come from
-peers.md §4.7 (what a correct reader must produce), from the closed-form push of
-``pushblock`` and from ntdda's recorded outputs, never from this code.
+The example files are ntdda's own (doolin/ntdda ``examples/``), kept outside the repository in
+a data folder ``data/ntdda`` under a ``shared`` folder beside the checkout (or
+``$DDATAI_NTDDA_DATA``); ntdda's recorded runs of them are in ``data/ntdda-runs`` beside it. The
+tests that need them are skipped without them. Expected values come from docs/ntdda.md §4.7
+(what a correct reader must produce), from the closed-form push of ``pushblock`` and from
+ntdda's recorded outputs, never from this code.
 """
 
 import csv
@@ -25,8 +26,8 @@ from ddatai.ntdda import (NtddaFormatError, NtddaQuirkWarning, NtddaUnsupportedW
 from ddatai.ntdda_geometry import ntdda_fixed_points
 
 def _shared_data() -> Path:
-    """The shared data folder: next to the checkout (../shared), or the workplace's /work/shared
-    when CI runs from a clone elsewhere."""
+    """The data folder: in a ``shared`` folder beside the checkout, or the workplace's
+    /work/shared when CI runs from a clone elsewhere."""
     for root in (Path(__file__).resolve().parents[2] / "shared", Path("/work/shared")):
         if (root / "data" / "ntdda").is_dir():
             return root / "data"
@@ -68,7 +69,7 @@ def variant(tmp_path: Path, name: str, edit) -> Path:
 
 # ============================================================================ reading
 def test_circleslope_files_read_as_peers_4_7():
-    """Original-format circleslope: the content listed in peers.md §4.7."""
+    """Original-format circleslope: the content listed in docs/ntdda.md §4.7."""
     with pytest.warns(NtddaWarning):
         g = read_ntdda_geometry(data("circleslope.geo"))
         a = read_ntdda_analysis(data("circleslope.ana"))
@@ -88,7 +89,7 @@ def test_circleslope_files_read_as_peers_4_7():
 
 
 def test_pushblock_files_read_as_peers_4_7():
-    """DDAML pushblock: the content listed in peers.md §4.7, and no warning (it relies on no
+    """DDAML pushblock: the content listed in docs/ntdda.md §4.7, and no warning (it relies on no
     quirk: its ignored <OCLimit> holds ntdda's hard-coded 8)."""
     with warnings.catch_warnings():
         warnings.simplefilter("error", NtddaWarning)
@@ -119,7 +120,7 @@ def test_pushblock_files_read_as_peers_4_7():
 
 
 def test_circleslope_blocks_match_ntdda():
-    """7 blocks with 23/9/7/6/5/5/4 vertices (peers.md §4.7), in ntdda's order, with ntdda's
+    """7 blocks with 23/9/7/6/5/5/4 vertices (docs/ntdda.md §4.7), in ntdda's order, with ntdda's
     recorded step-0 areas and centroids (10 significant digits in the CSV)."""
     case = read_quietly(data("circleslope.geo"), data("circleslope.ana"))
     assert [len(p) for p in case.blocks.polygons] == [23, 9, 7, 6, 5, 5, 4]
@@ -127,7 +128,7 @@ def test_circleslope_blocks_match_ntdda():
     ints = [dd.polygon_integrals(p, np.array([0, len(p)])) for p in case.blocks.polygons]
     ours = np.array([[i["centroid"][0, 0], i["centroid"][0, 1], i["area"][0]] for i in ints])
     assert np.allclose(ours, ref, rtol=1e-8, atol=1e-9)
-    # the scene holds the same blocks; 3 fixed points on the base block (peers.md §4.7)
+    # the scene holds the same blocks; 3 fixed points on the base block (docs/ntdda.md §4.7)
     assert case.scene.n_blocks == 7
     assert [len(b.vertices) for b in case.scene.blocks] == [23, 9, 7, 6, 5, 5, 4]
     assert [fp.block for fp in case.scene.fixed_points] == [0, 0, 0]
@@ -169,7 +170,7 @@ OUR_FIXED_POINTS = {
     7: {0: [(0.5, 0.0), (0.5, 1.0)]},
     8: {0: [(0.5, 0.1), (0.5, 0.9)]},
 }
-# ntdda's output, peers.md §4.7 (printed to 4-5 decimals)
+# ntdda's output, docs/ntdda.md §4.7 (printed to 4-5 decimals)
 NTDDA_FIXED_POINTS = {
     1: [(0.00255, 0.5), (0.99745, 0.5)], 2: [(0.1, 0.5)], 3: [(0.00255, 0.5)], 4: [(0.99745, 0.5)],
     5: [(1.0039, 0.5), (0.9961, 0.5)], 6: [(0.0039, 0.5), (0.9961, 0.5), (1.0039, 0.5), (1.9961, 0.5)],
@@ -179,7 +180,7 @@ NTDDA_FIXED_POINTS = {
 
 @pytest.mark.parametrize("case", range(1, 9))
 def test_fixed_lines_pin_every_crossed_block_at_both_ends(case):
-    """ddatai's rule (peers.md §4.8 [R]): every block a fixed line passes through is pinned at
+    """ddatai's rule (docs/ntdda.md §4.8): every block a fixed line passes through is pinned at
     both ends of the line's piece inside it; a warning names ntdda's different points where a
     line ends inside a block (cases 2, 3, 4, 5, 8)."""
     g = read_ntdda_geometry(data(f"fixedlines/case{case}.geo"))
@@ -201,7 +202,7 @@ def test_fixed_lines_pin_every_crossed_block_at_both_ends(case):
 
 @pytest.mark.parametrize("case", range(1, 9))
 def test_ntdda_fixed_line_rule_is_understood(case):
-    """The replica of ntdda's rule used in the warnings gives ntdda's points (peers.md §4.7)."""
+    """The replica of ntdda's rule used in the warnings gives ntdda's points (docs/ntdda.md §4.7)."""
     g = read_ntdda_geometry(data(f"fixedlines/case{case}.geo"))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", NtddaWarning)
