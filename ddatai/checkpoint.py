@@ -173,6 +173,17 @@ def read_checkpoint(path, model) -> Checkpoint:
     return Checkpoint(state=state, results=load_results(path), targets=RunTargets(**meta["targets"]))
 
 
+def checkpoint_targets(path) -> RunTargets:
+    """The targets and recording options stored in a checkpoint (without reading its state)."""
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"no such checkpoint: {path}")
+    with np.load(path, allow_pickle=False) as data:
+        if "checkpoint.meta" not in data.files:
+            raise ValueError(f"{path} is not a checkpoint (results files cannot be resumed)")
+        return RunTargets(**json.loads(str(data["checkpoint.meta"]))["targets"])
+
+
 class DeferInterrupt:
     """Within the block, Ctrl-C (SIGINT) is held back and raised as `KeyboardInterrupt` when
     the block ends, so what the block stores (a step's records, a checkpoint) is never left

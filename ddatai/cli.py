@@ -210,9 +210,12 @@ def _simulate_and_report(scene, params, duration, steps, name, args, after=None)
     checkpoint = args.out / f"{name}.checkpoint.npz"
     resume = None
     if args.resume is not None:
+        from .checkpoint import checkpoint_targets
+
         resume = checkpoint if args.resume is True else args.resume
-        if args.duration is None and args.steps is None:
-            duration = steps = None  # the checkpoint's own targets
+        if args.duration is None and args.steps is None:  # the checkpoint's own targets
+            targets = checkpoint_targets(resume)
+            duration, steps = targets.duration, targets.steps
     progress = Progress(duration, steps, enabled=not args.quiet)
     t0 = time.perf_counter()
     try:

@@ -115,10 +115,10 @@ def test_command_line_ctrl_c_saves_and_resume_finishes(tmp_path):
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[1]
-    cmd = [sys.executable, "-m", "ddatai.cli", "run", "scenes/stacked_grid.py", "--steps", "3000",
+    cmd = [sys.executable, "-m", "ddatai.cli", "run", "scenes/sliding_block.py", "--steps", "3000",
            "--every", "10", "--checkpoint-every", "20", "--out", str(tmp_path), "--quiet"]
     proc = subprocess.Popen(cmd, cwd=root, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    checkpoint = tmp_path / "stacked_grid.checkpoint.npz"
+    checkpoint = tmp_path / "sliding_block.checkpoint.npz"
     deadline = time.monotonic() + 120
     while not checkpoint.exists() and proc.poll() is None and time.monotonic() < deadline:
         time.sleep(0.1)
@@ -129,13 +129,24 @@ def test_command_line_ctrl_c_saves_and_resume_finishes(tmp_path):
     assert "Traceback" not in err
     line = [s for s in err.splitlines() if "interrupted after step" in s]
     assert len(line) == 1 and "--resume" in line[0]
-    saved = dd.load_results(tmp_path / "stacked_grid.npz")
+    saved = dd.load_results(tmp_path / "sliding_block.npz")
     done = len(saved.steps)
     assert 20 <= done < 3000 and saved.n_frames == 1 + done // 10
-    os.remove(tmp_path / "stacked_grid.npz")
+    os.remove(tmp_path / "sliding_block.npz")
     resumed = subprocess.run([*cmd[:5], "--steps", "%d" % (done + 15), "--out", str(tmp_path), "--quiet",
                               "--resume"], cwd=root, capture_output=True, text=True, timeout=300)
     assert resumed.returncode == 0, resumed.stderr[-2000:]
-    res = dd.load_results(tmp_path / "stacked_grid.npz")
+    res = dd.load_results(tmp_path / "sliding_block.npz")
     assert len(res.steps) == done + 15
     assert np.array_equal(res.steps["time"][:done], saved.steps["time"])
+
+
+def test_command_line_resume_of_a_missing_checkpoint_is_one_line(tmp_path, capsys):
+    from pathlib import Path
+
+    from ddatai.cli import main
+
+    scene = Path(__file__).resolve().parents[1] / "scenes" / "sliding_block.py"
+    assert main(["run", str(scene), "--out", str(tmp_path), "--resume"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no such checkpoint" in err[0] and "sliding_block.checkpoint.npz" in err[0]
