@@ -443,6 +443,36 @@ class History:
         return np.column_stack([self.time, self.position, self.displacement, self.velocity, self.rotation,
                                 self.stress])
 
+    def plot(self, path=None):
+        """Displacement and velocity against time, two panels (matplotlib, the optional
+        ``ddatai[plot]`` extra); saved to ``path`` when given (any format matplotlib writes).
+        Returns the matplotlib Figure."""
+        try:
+            import matplotlib
+
+            if path is not None:
+                matplotlib.use("Agg")  # offscreen: no window for a file
+            import matplotlib.pyplot as plt
+        except ImportError:
+            raise ImportError("plots need matplotlib, an optional extra: pip install 'ddatai[plot]'") from None
+        fig, (top, bottom) = plt.subplots(2, 1, sharex=True, figsize=(7, 5), constrained_layout=True)
+        for ax, values, what, unit in ((top, self.displacement, "displacement", "m"),
+                                       (bottom, self.velocity, "velocity", "m/s")):
+            ax.plot(self.time, values[:, 0], label="x")
+            ax.plot(self.time, values[:, 1], label="y")
+            ax.plot(self.time, np.hypot(values[:, 0], values[:, 1]), "k--", lw=1, label="magnitude")
+            ax.set_ylabel(f"{what} [{unit}]")
+            ax.grid(True, alpha=0.3)
+        top.legend(loc="best")
+        top.set_title(self.what)
+        bottom.set_xlabel("time [s]")
+        if path is not None:
+            path = Path(path)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            fig.savefig(path, dpi=100)
+            plt.close(fig)
+        return fig
+
     def to_csv(self, path) -> Path:
         """Write the history as CSV (header line, one row per frame, SI units in the names)."""
         path = Path(path)

@@ -187,3 +187,15 @@ def test_fixed_points_and_loads_are_recorded_and_drawn():
     image = dd.render_frames(res, size=(300, 200), frames=[-1])[0]
     for colour in (render.LOAD, render.FIXED_POINT):
         assert np.any(np.all(image == colour, axis=-1))
+
+
+def test_history_plot(sliding, tmp_path):
+    pytest.importorskip("matplotlib", reason="plots are the optional [plot] extra (matplotlib), not installed")
+    from PIL import Image
+
+    _, block, idx, res = sliding
+    path = tmp_path / "h.png"
+    figure = res.history(measured=idx).plot(path)
+    assert len(figure.axes) == 2
+    with Image.open(path) as im:
+        assert im.size == (700, 500)
