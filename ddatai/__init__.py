@@ -26,7 +26,7 @@ __version__ = "0.1.0"
 
 # public name -> module that defines it (PEP 562 lazy attributes)
 _EXPORTS = {
-    "Material": "params", "Joint": "params", "Params": "params", "UnitWarning": "params",
+    "Material": "params", "Joint": "params", "BartonBandis": "params", "Params": "params", "UnitWarning": "params",
     "Scene": "scene",
     "Model": "model", "State": "model", "ContactState": "model", "ContactKind": "model",
     "build_model": "model",

@@ -146,7 +146,11 @@ class Contacts:
     block_b: np.ndarray
     """(m,) block of edge0."""
     tan_phi: np.ndarray
-    """(m,) tan of the friction angle."""
+    """(m,) tan of the friction angle; on a Barton–Bandis joint the secant tan φ(σn) at the
+    contact's normal stress of the last solve (`barton_tan`), updated by the open-close
+    judgement."""
+    joint: np.ndarray
+    """(m,) int32 joint-table index of each contact."""
     friction_deg: np.ndarray
     """(m,) friction angle [degrees]."""
     cohesion: np.ndarray
@@ -217,6 +221,7 @@ class Contacts:
         shear_dir = np.ones(m, np.int8)
         omega = edge_projection(vertex_xy, model.vertex_next, cint[:, V0], cint[:, E0])
         normal_force = model.penalty * np.maximum(-dn0, 0.0)
+        tan_phi = model.joint_tan_phi[joint]
         if len(memory.key) and m:
             pos = np.minimum(np.searchsorted(memory.key, key), len(memory.key) - 1)
             found = memory.key[pos] == key
@@ -228,6 +233,11 @@ class Contacts:
             closed = found.copy()
             closed[found] = memory.state[src] != ContactState.OPEN
             normal_force[closed] = memory.normal_force[pos[closed]]
+        if len(model.joint_barton) and m:
+            # Barton–Bandis joints: friction at each contact's normal stress (eq. BB1–BB2)
+            bb = np.flatnonzero(~np.isnan(model.joint_barton[joint, 0]))
+            tan_phi[bb] = barton_tan(model, joint[bb], normal_force[bb], length[bb])
+        if len(memory.key) and m:
             locked = found.copy()
             locked[found] = memory.state[src] == ContactState.LOCK
             omega[locked] = memory.omega[pos[locked]]
@@ -240,7 +250,7 @@ class Contacts:
                 # mobilised friction (Shi re-anchors at zero force).
                 joint_s = joint[sliding]
                 length_s = length[sliding]
-                strength = normal_force[sliding] * model.joint_tan_phi[joint_s] + \
+                strength = normal_force[sliding] * tan_phi[sliding] + \
                     model.joint_cohesion[joint_s] * length_s * bond[sliding]
                 edge_len = np.linalg.norm(vertex_xy[cint[sliding, E0]] -
                                           vertex_xy[model.vertex_next[cint[sliding, E0]]], axis=1)
@@ -260,11 +270,11 @@ class Contacts:
             bond[touching & ve & (length > 0)] = True
         return Contacts(
             cint=cint, length=length, key=key, block_a=a, block_b=b,
-            tan_phi=model.joint_tan_phi[joint], friction_deg=model.joint_friction[joint],
+            tan_phi=tan_phi, joint=joint.astype(np.int32), friction_deg=model.joint_friction[joint],
             cohesion=model.joint_cohesion[joint], tensile=model.joint_tensile[joint],
             state=state, line=line, omega=omega, bond=bond, shear_dir=shear_dir,
             dn=dn0, ds=np.zeros(m), normal_force=normal_force,
-            coupled=(state == ContactState.SLIDE) & ve & (model.joint_tan_phi[joint] > 0))
+            coupled=(state == ContactState.SLIDE) & ve & (tan_phi > 0))
 
     def memory(self, bond_breaks_on_slip: bool = True) -> ContactMemory:
         """What this step hands to the next. The bond survives on locked contacts, and also on
@@ -276,6 +286,20 @@ class Contacts:
                              omega=self.omega.copy(), bond=self.bond & locked,
                              shear_dir=self.shear_dir.copy(), dn=self.dn.copy(),
                              normal_force=self.normal_force.copy(), kind=self.cint[:, KIND].astype(np.int8))
+
+
+def barton_tan(model: Model, joint: np.ndarray, normal_force: np.ndarray, length: np.ndarray) -> np.ndarray:
+    """Secant friction coefficient tan φ(σn)/F of contacts on Barton–Bandis joints
+    (docs/method/barton_bandis.md): σn = N/L, the contact's normal force over its length
+    (eq. BB2; a corner contact, L = 0, has σn = ∞), φ(σn) = φr + JRC·log10(JCS/σn) bounded to
+    [φr, cap] (eq. BB1; σn ≤ 0, an unloaded contact, takes the cap)."""
+    jrc, jcs, phir, cap, red = model.joint_barton[joint].T
+    n = np.maximum(normal_force, 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        sigma = np.where(length > 0, n / np.where(length > 0, length, 1.0), np.where(n > 0, np.inf, 0.0))
+        phi = phir + jrc * np.log10(jcs / sigma)
+    phi = np.where(sigma > 0, np.clip(phi, phir, cap), cap)
+    return np.tan(np.radians(phi)) / red
 
 
 def signed_distance(xy: np.ndarray, vnext: np.ndarray, vertex: np.ndarray, edge: np.ndarray) -> np.ndarray:

@@ -144,6 +144,11 @@ class Model:
     """(nb,) tension at the initial length [N/m]."""
     bolt_capacity: np.ndarray = field(default_factory=lambda: np.zeros(0))
     """(nb,) tensile capacity [N/m] (inf: unbreakable)."""
+    joint_barton: np.ndarray = field(default_factory=lambda: np.zeros((0, 5)))
+    """(J, 5) Barton–Bandis law of every joint: JRC [-], JCS [Pa], φr [degrees], the cap of the
+    mobilised angle [degrees] and the strength reduction F [-]; JRC is NaN on a Mohr–Coulomb
+    joint. Empty (0, 5) when the model has no Barton–Bandis joint: then nothing is computed for
+    it (docs/method/barton_bandis.md)."""
 
     @property
     def n_blocks(self) -> int:
@@ -387,7 +392,21 @@ def build_model(scene: Scene, params: Optional[Params] = None) -> Model:
         fixed_point_penalty=params.fixed_point_ratio * float(penalty),
         params=params,
         **_support_arrays(scene, xy0, offset, origin),
+        **_barton_arrays(joints),
     )
+
+
+def _barton_arrays(joints) -> dict:
+    """``joint_barton`` of a model whose joint table holds a Barton–Bandis joint; none else."""
+    from .params import BartonBandis
+
+    if not any(isinstance(j, BartonBandis) for j in joints):
+        return {}
+    law = np.full((len(joints), 5), np.nan)
+    for k, j in enumerate(joints):
+        if isinstance(j, BartonBandis):
+            law[k] = (j.jrc, j.jcs, j.residual_friction, j.max_friction, j.reduction)
+    return {"joint_barton": law}
 
 
 def _support_arrays(scene: Scene, xy0: np.ndarray, offset: np.ndarray, origin: np.ndarray) -> dict:

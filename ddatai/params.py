@@ -11,7 +11,7 @@ thickness), so a contact penalty has units of N/m per m = Pa.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Literal, Optional
 
 
@@ -306,3 +306,94 @@ class Params:
     def velocity_carry(self) -> float:
         """k actually used: 0 in static mode, ``dynamic_ratio`` otherwise."""
         return 0.0 if self.static else self.dynamic_ratio
+
+
+#: Upper bound of a Barton–Bandis joint's mobilised friction angle [degrees]: Barton & Choubey
+#: (1977) advise that φr + JRC·log10(JCS/σn) be taken no higher than 70° (the law climbs
+#: without bound as σn → 0) — docs/method/barton_bandis.md.
+BB_MAX_FRICTION = 70.0
+
+
+@dataclass(frozen=True, kw_only=True)
+class BartonBandis(Joint):
+    """Barton–Bandis joint: the friction angle mobilised at normal stress σn is
+
+        φ(σn) = φr + JRC·log10(JCS/σn),  τ = σn·tan φ(σn) (+ c while bonded)
+
+    (Barton & Choubey 1977), bounded to φr ≤ φ(σn) ≤ ``max_friction``: at σn ≥ JCS the
+    asperities are sheared through and the residual angle φr acts; as σn → 0 the angle is
+    capped (70° by default). A `Joint` with a stress-dependent friction angle, accepted
+    wherever one is: DDA evaluates φ(σn) at each contact's own normal stress (its normal force
+    over its length) inside the open–close iteration; `kgm` at each face's normal stress in
+    its limit equilibrium (docs/method/barton_bandis.md). ``friction`` is the residual angle φr
+    (the least the joint mobilises), for anything that needs a single angle.
+    """
+
+    friction: float = field(init=False, default=0.0)
+    """Residual friction angle φr [degrees] (set from ``residual_friction``)."""
+    jrc: float
+    """Joint roughness coefficient JRC [-], in [0, 20] (Barton's profiles; 0 = planar)."""
+    jcs: float
+    """Joint wall compressive strength JCS [Pa], > 0 (the UCS of fresh joint walls, less when
+    weathered; typically 10–200 MPa)."""
+    residual_friction: float
+    """Residual friction angle φr [degrees], in [0, ``max_friction``)."""
+    max_friction: float = BB_MAX_FRICTION
+    """Cap of the mobilised friction angle [degrees], in (φr, 90)."""
+    reduction: float = 1.0
+    """Strength-reduction factor F [-], > 0: the mobilised tan φ(σn) is divided by F (the
+    cohesion is reduced on its own field). 1 for a real joint; `kgm` sets it when it searches a
+    factor of safety by strength reduction."""
+
+    def __post_init__(self) -> None:
+        name = type(self).__name__
+        _require(_finite(self.jrc) and 0.0 <= self.jrc <= 20.0,
+                 f"{name}.jrc (joint roughness coefficient) must be in [0, 20], got {self.jrc!r}")
+        _require(_finite(self.jcs) and self.jcs > 0,
+                 f"{name}.jcs (joint wall compressive strength) must be a finite number > 0 Pa, got {self.jcs!r}")
+        _require(_finite(self.max_friction) and 0.0 < self.max_friction < 90.0,
+                 f"{name}.max_friction (angle in degrees) must be in (0, 90), got {self.max_friction!r}")
+        _require(_finite(self.residual_friction) and 0.0 <= self.residual_friction < self.max_friction,
+                 f"{name}.residual_friction (angle in degrees) must be in [0, max_friction = "
+                 f"{self.max_friction!r}), got {self.residual_friction!r}")
+        _require(_finite(self.reduction) and self.reduction > 0,
+                 f"{name}.reduction must be a finite number > 0, got {self.reduction!r}")
+        _require(_finite(self.cohesion) and self.cohesion >= 0,
+                 f"{name}.cohesion must be a finite number >= 0 Pa, got {self.cohesion!r}")
+        _require(_finite(self.tensile) and self.tensile >= 0,
+                 f"{name}.tensile (tensile strength) must be a finite number >= 0 Pa, got {self.tensile!r}")
+        for attr in ("jrc", "jcs", "residual_friction", "max_friction", "reduction"):
+            object.__setattr__(self, attr, float(getattr(self, attr)))
+        object.__setattr__(self, "friction", self.residual_friction)
+        super().__post_init__()
+        if self.jcs < 1e5:
+            import warnings
+
+            warnings.warn(f"{name}.jcs = {self.jcs:g} Pa is implausibly small for a joint wall "
+                          f"(10–200 MPa): it looks like MPa ({self.jcs:g} MPa = {self.jcs * 1e6:g} Pa)",
+                          UnitWarning, stacklevel=3)
+
+    def mobilised_friction(self, sigma_n):
+        """φ(σn) [degrees] at normal stress ``sigma_n`` [Pa] (scalar or array; σn ≤ 0 gives
+        the cap), bounded to [φr, max_friction]; strength reduction not applied."""
+        import numpy as np
+
+        s = np.asarray(sigma_n, dtype=float)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            phi = self.residual_friction + self.jrc * np.log10(self.jcs / np.where(s > 0, s, np.nan))
+        phi = np.where(s > 0, np.clip(phi, self.residual_friction, self.max_friction), self.max_friction)
+        return float(phi) if phi.ndim == 0 else phi
+
+    def tan_friction(self, sigma_n):
+        """tan φ(σn) / F [-]: the friction coefficient mobilised at ``sigma_n`` [Pa], reduced."""
+        import numpy as np
+
+        return np.tan(np.radians(self.mobilised_friction(sigma_n))) / self.reduction
+
+    def shear_strength(self, sigma_n):
+        """τ = σn·tan φ(σn)/F + c [Pa] at normal stress ``sigma_n`` [Pa] (0 tension assumed
+        for σn ≤ 0 beyond the cohesion)."""
+        import numpy as np
+
+        s = np.asarray(sigma_n, dtype=float)
+        return np.maximum(s, 0.0) * self.tan_friction(s) + self.cohesion

@@ -81,6 +81,7 @@ class ContactLaw:
     ft_now: np.ndarray     # shear force of the current state at D [N/m]
     friction_now: np.ndarray  # friction magnitude of the current (sliding) state at D [N/m]
     energy: float          # spring energy of the contacts with the friction of the next solve [J/m]
+    tan_phi: Optional[np.ndarray] = None  # Barton–Bandis: tan φ(σn) at the law's σn (None: MC only)
 
 
 class _Timer:
@@ -477,7 +478,16 @@ class Stepper:
         # normal: closed while not pulled beyond the tensile strength of a bonded joint
         allowance = np.where(contacts.bond, contacts.tensile * contacts.length / m.penalty, 0.0)
         closed = dn <= allowance
-        strength = m.penalty * np.maximum(-dn, 0.0) * contacts.tan_phi + \
+        tan_phi = contacts.tan_phi
+        if len(m.joint_barton):
+            # Barton–Bandis joints: the friction of the law's own normal stress (eq. BB1–BB2)
+            from .contacts import barton_tan
+
+            tan_phi = tan_phi.copy()
+            bb = np.flatnonzero(~np.isnan(m.joint_barton[contacts.joint, 0]))
+            tan_phi[bb] = barton_tan(m, contacts.joint[bb], m.penalty * np.maximum(-dn[bb], 0.0),
+                                     contacts.length[bb])
+        strength = m.penalty * np.maximum(-dn, 0.0) * tan_phi + \
             contacts.cohesion * contacts.length * contacts.bond
         # the friction the next solve can apply: N of the last one (or of this one, coupled)
         used = np.where(contacts.coupled, strength, self.friction_force(contacts))
@@ -500,7 +510,8 @@ class Stepper:
         return ContactLaw(dn=dn, ds=ds, line=line, closed=closed, state=state,
                           direction=np.where(ds >= 0, 1, -1).astype(np.int8), fn=np.where(closed, -m.penalty * dn, 0.0),
                           ft=ft, strength=strength, dn_now=dn_now, fn_now=fn_now, ft_now=ft_now,
-                          friction_now=friction_now, energy=energy)
+                          friction_now=friction_now, energy=energy,
+                          tan_phi=tan_phi if len(m.joint_barton) else None)
 
     def judge(self, contacts: Contacts, law: "ContactLaw", break_bonds: bool = True,
               bad: Optional[np.ndarray] = None) -> bool:
@@ -547,6 +558,11 @@ class Stepper:
             contacts.line[bad] = law.line[bad]
         closed = law.closed
         contacts.normal_force[closed] = np.maximum(law.fn[closed], 0.0)
+        if law.tan_phi is not None:
+            # Barton–Bandis: the next solve's secant friction is that of this solve's σn (eq.
+            # BB3); a sliding contact whose friction was not it is a `violations` Coulomb
+            # mismatch, so at convergence every contact holds the law at its own stress
+            contacts.tan_phi[closed] = law.tan_phi[closed]
         contacts.dn[:] = np.where(bad, law.dn, law.dn_now)
         contacts.ds[:] = law.ds
         if not changed:

@@ -34,6 +34,10 @@ ANGLE_TOL = 1e-6
 DISTANCE_TOL = 1e-6
 #: Contacts shorter than this fraction of the model size are ignored (corner touches) [-].
 MIN_CONTACT = 1e-5
+#: Fixed-point iteration on the normal forces of Barton–Bandis faces: at most this many
+#: passes, stopped when tan φ(σn) changes by less than BARTON_TOL (docs/method/barton_bandis.md).
+BARTON_ITERATIONS = 100
+BARTON_TOL = 1e-12
 
 
 class ModeKind(str, Enum):
@@ -117,6 +121,11 @@ class BlockSystem:
     """(C,) water force ∫p ds on each contact segment [N/m], None without a water table."""
     seismic: tuple = (0.0, 0.0)
     """Seismic coefficients (kh, kv) [-] the system was built with."""
+    contact_barton: Optional[np.ndarray] = None
+    """(C, 5) Barton–Bandis law of each contact's joint: JRC [-], JCS [Pa], φr [degrees], cap
+    of the mobilised angle [degrees], strength reduction F [-]; JRC is NaN on a Mohr–Coulomb
+    contact (whose ``contact_friction`` holds). None when no contact has one
+    (docs/method/barton_bandis.md)."""
 
     # ------------------------------------------------------------------ basic queries
     @property
@@ -152,8 +161,40 @@ class BlockSystem:
         kgm-method.md §4.6)."""
         phi = self.contact_friction if friction is None else np.full(self.n_contacts, float(friction))
         tan_phi = np.tan(np.radians(phi)) / reduction
+        barton = self.contact_barton
+        if barton is not None:
+            # a set friction angle replaces every law; a reduction divides tan φ(σn) too
+            barton = None if friction is not None else barton * np.array([1, 1, 1, 1, reduction])
         return replace(self, contact_friction=np.degrees(np.arctan(tan_phi)),
-                       contact_cohesion=self.contact_cohesion / reduction)
+                       contact_cohesion=self.contact_cohesion / reduction, contact_barton=barton)
+
+    def tan_friction(self, contacts: np.ndarray, sigma_n) -> np.ndarray:
+        """Friction coefficient of each of ``contacts`` at the normal stress ``sigma_n`` [Pa]
+        (a number or one per contact): tan φ of a Mohr–Coulomb joint; tan φ(σn)/F of a
+        Barton–Bandis one, φ(σn) = φr + JRC·log10(JCS/σn) bounded to [φr, cap] (σn ≤ 0 takes
+        the cap; docs/method/barton_bandis.md, eq. BB1)."""
+        contacts = np.asarray(contacts, dtype=np.int64)
+        out = np.tan(np.radians(self.contact_friction[contacts]))
+        if self.contact_barton is None:
+            return out
+        law = self.contact_barton[contacts]
+        bb = ~np.isnan(law[:, 0])
+        if bb.any():
+            jrc, jcs, phir, cap, red = law[bb].T
+            sigma = np.broadcast_to(np.asarray(sigma_n, dtype=float), contacts.shape)[bb]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                phi = phir + jrc * np.log10(jcs / sigma)
+            phi = np.where(sigma > 0, np.clip(phi, phir, cap), cap)
+            out[bb] = np.tan(np.radians(phi)) / red
+        return out
+
+    def face_tan(self, contacts: np.ndarray, normal_force: float) -> float:
+        """Length-weighted friction coefficient of pooled contacts carrying ``normal_force``
+        [N/m] at a uniform normal stress σn = N/ΣL (eq. BB4)."""
+        length = self.contact_length[contacts]
+        total = float(length.sum())
+        sigma = max(float(normal_force), 0.0) / total if total > 0 else 0.0
+        return float((self.tan_friction(contacts, sigma) * length).sum() / max(total, 1e-300))
 
     def free_length(self, block: int, removed: frozenset = frozenset()) -> float:
         """Length of the block's boundary that touches no (remaining) block [m]."""
@@ -307,7 +348,21 @@ def build_block_system(scene, *, seismic=None) -> BlockSystem:
         contact_tensile=np.array([joints[j].tensile for j in jidx], dtype=float),
         contact_joint=jidx, contact_edge=edge, contact_span=span, gravity=g, scale=scale,
         contact_water=_contact_water(scene, start, end, jidx, g) if "block_water" in extra else None,
-        seismic=(kh, kv), **extra)
+        seismic=(kh, kv), contact_barton=_barton_law(joints, jidx), **extra)
+
+
+def _barton_law(joints, jidx: np.ndarray) -> Optional[np.ndarray]:
+    """`BlockSystem.contact_barton` of the contacts' joints, None if none is Barton–Bandis."""
+    from ddatai.params import BartonBandis
+
+    if not any(isinstance(joints[j], BartonBandis) for j in set(jidx.tolist())):
+        return None
+    law = np.full((len(jidx), 5), np.nan)
+    for k, j in enumerate(jidx.tolist()):
+        jt = joints[j]
+        if isinstance(jt, BartonBandis):
+            law[k] = (jt.jrc, jt.jcs, jt.residual_friction, jt.max_friction, jt.reduction)
+    return law
 
 
 def _check_seismic(seismic) -> tuple[float, float]:
@@ -663,8 +718,10 @@ def _sliding_fs(system: BlockSystem, contacts: np.ndarray, normal_force: float, 
     """
     length = system.contact_length[contacts]
     cl = float((system.contact_cohesion[contacts] * length).sum())
-    tan_phi = float((np.tan(np.radians(system.contact_friction[contacts])) * length).sum() / length.sum())
     normal_force = max(normal_force, 0.0)
+    # Barton–Bandis: the friction of the face's own normal stress N'/ΣL, which rigid sliding
+    # fixes whatever the strength, so FS is the force ratio at it (eq. BB4–BB5)
+    tan_phi = system.face_tan(contacts, normal_force)
     fs = (cl + normal_force * tan_phi + resisting) / shear
     # tan φc = (T − c·L − P_s)/N'  (§4.6); 0 if cohesion (and bolts) alone hold the face
     tan_c = (shear - cl - resisting) / normal_force if normal_force > 0 else math.inf
@@ -679,12 +736,20 @@ def _sliding_kc(system: BlockSystem, members: np.ndarray, contacts: np.ndarray, 
     e = np.array([1.0 if s[0] >= 0 else -1.0, 0.0])
     length = system.contact_length[contacts]
     cl = float((system.contact_cohesion[contacts] * length).sum())
-    tan_phi = float((np.tan(np.radians(system.contact_friction[contacts])) * length).sum() / length.sum())
-    a = np.column_stack([n - tan_phi * s, weight * e])
-    try:
-        sol = np.linalg.solve(a, -r + cl * s)
-    except np.linalg.LinAlgError:
-        return float("nan")
+    tan_phi = system.face_tan(contacts, -float(r @ n))
+    for _ in range(BARTON_ITERATIONS if system.contact_barton is not None else 1):
+        a = np.column_stack([n - tan_phi * s, weight * e])
+        try:
+            sol = np.linalg.solve(a, -r + cl * s)
+        except np.linalg.LinAlgError:
+            return float("nan")
+        if system.contact_barton is None:
+            break
+        # Barton–Bandis: N depends on K; iterate tan φ(N/ΣL) to its fixed point (eq. BB6)
+        new = system.face_tan(contacts, float(sol[0]))
+        if abs(new - tan_phi) <= BARTON_TOL * (1.0 + abs(tan_phi)):
+            break
+        tan_phi = new
     return float(sol[1])
 
 

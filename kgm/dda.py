@@ -149,6 +149,11 @@ def sub_scene(scene: Scene, system: BlockSystem, blocks: frozenset, *, removed: 
 
 
 def _reduced(joint: Joint, friction: Optional[float], reduction: float) -> Joint:
+    from ddatai.params import BartonBandis
+
+    if isinstance(joint, BartonBandis) and friction is None:
+        # tan φ(σn)/F at each contact's own stress, c/F (docs/method/barton_bandis.md)
+        return replace(joint, reduction=joint.reduction * reduction, cohesion=joint.cohesion / reduction)
     phi = joint.friction if friction is None else float(friction)
     tan_phi = math.tan(math.radians(phi)) / reduction
     return Joint(friction=math.degrees(math.atan(tan_phi)), cohesion=joint.cohesion / reduction,

@@ -115,6 +115,9 @@ class _Faces:
     length: np.ndarray     # (f,) Σ L [m]
     tan_phi: np.ndarray    # (f,) length-weighted tanφ (uniform normal stress on the face)
     contacts: tuple        # (f,) arrays of contact indices
+    tan_at: Optional[Callable[[np.ndarray], np.ndarray]] = None
+    # Barton–Bandis faces: (f,) normal forces [N/m] -> each face's tanφ at σn = N/L (eq. BB4);
+    # None when every face is Mohr–Coulomb
 
 
 def _merge_faces(system: BlockSystem, members: list[int], removed: frozenset) -> _Faces:
@@ -145,10 +148,15 @@ def _merge_faces(system: BlockSystem, members: list[int], removed: frozenset) ->
     cl = np.array([(system.contact_cohesion[e[2]] * system.contact_length[e[2]]).sum() for e in entries])
     tan_phi = np.array([(np.tan(np.radians(system.contact_friction[e[2]])) * system.contact_length[e[2]]).sum()
                         for e in entries]) / np.maximum(length, 1e-300)
+    tan_at = None
+    if system.contact_barton is not None:
+        def tan_at(normal, _ks=tuple(e[2] for e in entries)):
+            return np.array([system.face_tan(ks, nk) for ks, nk in zip(_ks, normal)])
     return _Faces(a=np.array([e[0] for e in entries], dtype=np.int64),
                   b=np.array([e[1] for e in entries], dtype=np.int64),
                   normal=normal, tangent=np.stack([normal[:, 1], -normal[:, 0]], axis=1) if f else normal,
-                  cl=cl, length=length, tan_phi=tan_phi, contacts=tuple(e[2] for e in entries))
+                  cl=cl, length=length, tan_phi=tan_phi, contacts=tuple(e[2] for e in entries),
+                  tan_at=tan_at)
 
 
 def _pos_of(blocks: np.ndarray, pos: dict) -> np.ndarray:
@@ -299,7 +307,9 @@ def _statics(mech: _Mechanism, faces: _Faces, force: np.ndarray, weight: np.ndar
     if np.linalg.norm(m @ sol - rhs) > 1e-7 * max(np.linalg.norm(rhs), 1.0):
         return None  # no equilibrium with these contacts (e.g. a member with no support)
     if not check:
-        return _Statics(k=float(sol[-1]), admissible=False, normal=np.zeros(0))
+        normal = np.zeros(len(faces.a))
+        normal[closed] = sol[:len(closed)]
+        return _Statics(k=float(sol[-1]), admissible=False, normal=normal)
     # K must not depend on the redundant (statically indeterminate) forces
     _, sv, vh = np.linalg.svd(m / scale)
     rank = int(np.sum(sv > 1e-10 * sv[0]))
@@ -317,6 +327,29 @@ def _statics(mech: _Mechanism, faces: _Faces, force: np.ndarray, weight: np.ndar
     normal = np.zeros(len(faces.a))
     normal[closed] = sol[:len(closed)]
     return _Statics(k=float(sol[-1]), admissible=ok, normal=normal)
+
+
+def _statics_at(mech: _Mechanism, faces: _Faces, force: np.ndarray, weight: np.ndarray,
+                reduction: float, check: bool = True) -> Optional[_Statics]:
+    """`_statics` with the faces' own friction: Mohr–Coulomb faces as they are; Barton–Bandis
+    faces take tanφ at their normal stress, which the statics give, so the forces are iterated
+    to their fixed point (eq. BB6: solve with tanφ, update tanφ(N/L), until it changes by less
+    than BARTON_TOL; docs/method/barton_bandis.md)."""
+    if faces.tan_at is None:
+        return _statics(mech, faces, force, weight, reduction, faces.tan_phi, check=check)
+    from .blocks import BARTON_ITERATIONS, BARTON_TOL
+
+    tan_phi = faces.tan_phi
+    for _ in range(BARTON_ITERATIONS):
+        st = _statics(mech, faces, force, weight, reduction, tan_phi, check=False)
+        if st is None:
+            return None
+        new = np.where(mech.closed, faces.tan_at(st.normal), tan_phi)
+        done = np.all(np.abs(new - tan_phi) <= BARTON_TOL * (1.0 + np.abs(tan_phi)))
+        tan_phi = new
+        if done:
+            break
+    return _statics(mech, faces, force, weight, reduction, tan_phi, check=check)
 
 
 def _forces_admissible(sol, closed, stuck, faces, tphi, reduction, tol) -> bool:
@@ -415,13 +448,12 @@ def sarma_modes(system: BlockSystem, blocks: frozenset, removed: frozenset = fro
     modes = []
     for mech in _mechanisms(faces, force, n):
         def k_of_u(u, _m=mech):
-            st = _statics(_m, faces, _loaded(force, passive, _m, math.exp(u)), weight, math.exp(u),
-                          faces.tan_phi, check=False)
+            st = _statics_at(_m, faces, _loaded(force, passive, _m, math.exp(u)), weight, math.exp(u),
+                             check=False)
             return math.nan if st is None else st.k
 
         def admissible_at_u(u, _m=mech):
-            st = _statics(_m, faces, _loaded(force, passive, _m, math.exp(u)), weight, math.exp(u),
-                          faces.tan_phi)
+            st = _statics_at(_m, faces, _loaded(force, passive, _m, math.exp(u)), weight, math.exp(u))
             return st is not None and st.admissible
 
         # K(F) falls as F grows where the forces are admissible; outside that range (tension
@@ -434,7 +466,7 @@ def sarma_modes(system: BlockSystem, blocks: frozenset, removed: frozenset = fro
             fs = 0.0  # fails even with a thousand times the strength
         else:
             continue
-        kc = _statics(mech, faces, _loaded(force, passive, mech, 1.0), weight, 1.0, faces.tan_phi, check=False)
+        kc = _statics_at(mech, faces, _loaded(force, passive, mech, 1.0), weight, 1.0, check=False)
         phi_c = _mechanism_critical_friction(mech, faces, _loaded(force, passive, mech, 1.0), weight)
         if phi_c is None:
             continue
