@@ -83,10 +83,12 @@ class Progress:
         self.start = time.perf_counter()
         self.last = 0.0
         self.next_line = 0.0
-        self.n = 0
+        self.n = 0      # steps taken by this call (the rate)
+        self.step = 0   # steps of the run (a resumed run starts at its checkpoint's)
 
     def __call__(self, state, record) -> None:
         self.n += 1
+        self.step = state.step
         now = time.perf_counter()
         if not self.enabled or now - self.last < 0.2:
             return
@@ -100,7 +102,7 @@ class Progress:
         if self.duration:
             frac = min(1.0, t / self.duration)
         elif self.steps:
-            frac = min(1.0, self.n / self.steps)
+            frac = min(1.0, self.step / self.steps)
         else:
             frac = 0.0
         bar = "#" * int(30 * frac) + "." * (30 - int(30 * frac))
@@ -108,7 +110,7 @@ class Progress:
         total = f"/{self.duration:g}" if self.duration else ""
         end = " " if sys.stderr.isatty() else "\n"
         start = "\r" if sys.stderr.isatty() else ""
-        sys.stderr.write(f"{start}[{bar}] t = {t:.4g}{total} s  {self.n} steps  {rate:.1f} steps/s{end}")
+        sys.stderr.write(f"{start}[{bar}] t = {t:.4g}{total} s  {self.step} steps  {rate:.1f} steps/s{end}")
         sys.stderr.flush()
 
     def close(self, t: float) -> None:
