@@ -198,7 +198,8 @@ def water_points(start: np.ndarray, end: np.ndarray, edge_joint: np.ndarray, tab
         e, p, w = edge_pressure_points(start[sel], end[sel], np.array([[0.0, h], [1.0, h]]), gamma)
         out.append((sel[e], p, w))
     if table is not None:
-        sel = np.flatnonzero(~own)
+        # edges wholly above the table's highest point carry no pressure: skip them
+        sel = np.flatnonzero(~own & (np.minimum(start[:, 1], end[:, 1]) < table[:, 1].max()))
         e, p, w = edge_pressure_points(start[sel], end[sel], table, gamma)
         out.append((sel[e], p, w))
     if not out:
