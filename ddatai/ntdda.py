@@ -497,9 +497,10 @@ def _read_original_geometry(path: Path, text: str, log: list) -> NtddaGeometry:
                                f"{n_joints} joint lines")
     if n_bolts:
         # ntdda accepts the count with a warning but never reads the bolt records, so the rest
-        # of the file is misread (docs/ntdda.md §3.8); ddatai has no bolts
-        raise NtddaFormatError(f"{path}, {bolts_where}: {n_bolts} rock bolts declared; bolts are not "
-                               "supported by ddatai (and ntdda misreads the rest of such a file)")
+        # of the file is misread (docs/ntdda.md §3.8); no bolt records to read into ddatai's bolts
+        raise NtddaFormatError(f"{path}, {bolts_where}: {n_bolts} rock bolts declared; ntdda files' bolt "
+                               "records are not read (ntdda misreads the rest of such a file): declare 0 "
+                               "and add the bolts with Scene.add_bolt")
     joints, jtype, jwhere = [], [], []
     for k in range(n_joints):
         jwhere.append(tk.where())
@@ -588,8 +589,8 @@ def _read_ddaml_geometry(path: Path, text: str, log: list) -> NtddaGeometry:
     if not joints:
         xml.fail(geo, "expected a <Jointlist> with at least 3 <Joint> elements")
     if n_bolts:
-        raise NtddaFormatError(f"{path}, {bolts_where}: {n_bolts} rock bolts; bolts are not supported "
-                               "by ddatai (remove the <Boltlist> to run the model without them)")
+        raise NtddaFormatError(f"{path}, {bolts_where}: {n_bolts} rock bolts; ntdda files' bolt records are "
+                               "not read (remove the <Boltlist> and add the bolts with Scene.add_bolt)")
     seismic = points["Seismicpointlist"]
     if seismic[0]:
         # ntdda parses the record into a local variable and never applies it (docs/ntdda.md §3.6)

@@ -317,7 +317,7 @@ MALFORMED = [
     ("circleslope.geo", lambda s: s.replace("0.984808 -0.173648 0.965926", "0.98a4808 -0.173648 0.965926", 1),
      ["circleslope.geo, line 11", "joint line 3: x1 (a number)", "'0.98a4808'"]),
     ("circleslope.geo", lambda s: s.replace("\n0\n0\n3\n", "\n0\n2\n3\n", 1),
-     ["circleslope.geo, line 4", "bolts are not supported"]),
+     ["circleslope.geo, line 4", "bolt records are not read", "Scene.add_bolt"]),
     ("circleslope.ana", lambda s: "\n".join(s.splitlines()[:12]),
      ["circleslope.ana, line 12", "ends early", "joint material 3: friction angle"]),
     ("circleslope.ana", lambda s: s.replace("\n3\n", "\n2\n", 1),
