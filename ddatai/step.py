@@ -850,7 +850,8 @@ def simulate(scene: Scene, params: Optional[Params] = None, duration: Optional[f
     checkpoint : path of a checkpoint file (`ddatai.checkpoint`), written every
         ``checkpoint_every`` steps (when given) and when the run is interrupted; each write
         replaces the last.
-    checkpoint_every : steps between two checkpoints.
+    checkpoint_every : steps between two checkpoints (each holds every frame recorded so far, so
+        one every few hundred steps or more keeps their cost small).
     resume : a checkpoint to continue from, written by a run of the same scene and ``params``.
         The run goes on to its own ``duration`` / ``steps`` (unless new ones are given) with its
         recording options, and returns the whole run's results: the same numbers as a run that
