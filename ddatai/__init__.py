@@ -36,7 +36,7 @@ _EXPORTS = {
     "simulate": "step", "Stepper": "step", "sweep": "sweep",
     "polygon_integrals": "geometry", "validate_polygon": "geometry",
     "write_gif": "render", "write_png": "render", "render_frames": "render",
-    "joint_sets": "jointsets", "JointSet": "jointsets",
+    "joint_sets": "jointsets", "JointSet": "jointsets", "fit_mapping": "jointsets", "MappingFit": "jointsets",
     "read_ntdda": "ntdda", "NtddaCase": "ntdda", "NtddaFormatError": "ntdda",
     "NtddaWarning": "ntdda", "NtddaQuirkWarning": "ntdda", "NtddaUnsupportedWarning": "ntdda",
 }
