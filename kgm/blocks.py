@@ -724,7 +724,8 @@ def _sliding_fs(system: BlockSystem, contacts: np.ndarray, normal_force: float, 
     tan_phi = system.face_tan(contacts, normal_force)
     fs = (cl + normal_force * tan_phi + resisting) / shear
     # tan φc = (T − c·L − P_s)/N'  (§4.6); 0 if cohesion (and bolts) alone hold the face
-    tan_c = (shear - cl - resisting) / normal_force if normal_force > 0 else math.inf
+    excess = shear - cl - resisting
+    tan_c = excess / normal_force if normal_force > 0 else (math.inf if excess > 0 else 0.0)
     return fs, (float(np.degrees(np.arctan(tan_c))) if tan_c > 0 else 0.0)
 
 
