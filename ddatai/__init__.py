@@ -37,6 +37,7 @@ _EXPORTS = {
     "polygon_integrals": "geometry", "validate_polygon": "geometry",
     "write_gif": "render", "write_png": "render", "render_frames": "render",
     "joint_sets": "jointsets", "JointSet": "jointsets", "fit_mapping": "jointsets", "MappingFit": "jointsets",
+    "read_dxf": "dxf", "read_dxf_section": "dxf", "DxfSection": "dxf",
     "read_ntdda": "ntdda", "NtddaCase": "ntdda", "NtddaFormatError": "ntdda",
     "NtddaWarning": "ntdda", "NtddaQuirkWarning": "ntdda", "NtddaUnsupportedWarning": "ntdda",
 }

@@ -1,0 +1,24 @@
+"""A slope section read from a CAD drawing: ``scenes/section/section.dxf`` (written by
+``scenes/section/drawing.py`` from the bedding fitted to a mapping table), its joint layers
+given Barton–Bandis bedding and Mohr–Coulomb cross joints. Run ``python scenes/dxf_section.py [--gif out/dxf_section.gif]`` or
+``kgm analyze scenes/dxf_section.py``."""
+
+from pathlib import Path
+
+import ddatai as dd
+
+DURATION = 2.0  # s
+HERE = Path(__file__).resolve().parent
+
+
+def build(drawing: str = str(HERE / "section" / "section.dxf")):
+    """Returns (scene read from ``drawing``, params)."""
+    from scenes.section.drawing import DEFAULT_JOINT, JOINTS, ROCK
+
+    return dd.read_dxf(drawing, material=ROCK, joints=JOINTS, default_joint=DEFAULT_JOINT), dd.Params()
+
+
+if __name__ == "__main__":
+    from ddatai.cli import scene_main
+
+    raise SystemExit(scene_main(build, DURATION, "dxf_section"))
