@@ -1,11 +1,16 @@
 """The paper's two examples under the three evaluators, in the paper's table layout.
 
-    python benchmarks/kgm_examples.py [--no-dda]
+    python benchmarks/kgm_examples.py [--no-dda] [--gif DIR]
 
 For each example: the critical key group found by the Sarma-KGM search, then its factor of
 safety, critical friction angle and verdict with the rigid (KGM), Sarma (SKGM) and DDA
 (developed method) evaluators, the DDA runs and their wall time, and the per-step time of the
 DDA sub-model against the whole slope. Prints Markdown (the README's tables).
+
+``--gif DIR`` also draws the DDA run of each paper example's key group at the scene's strength
+(``DIR/example_1.gif``, ``DIR/example_2.gif``; the README's are ``--gif docs/kgm``), titled
+with the factor of safety and critical friction angle of the same evaluation as the table, so
+that the README's tables and pictures come from one run of this script.
 """
 
 import argparse
@@ -23,10 +28,14 @@ from scenes import example_1, example_2, kgm_slope  # noqa: E402
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--no-dda", action="store_true", help="limit equilibrium only")
+    ap.add_argument("--gif", metavar="DIR", help="also write DIR/example_1.gif and DIR/example_2.gif")
     args = ap.parse_args()
+    if args.gif and args.no_dda:
+        ap.error("--gif draws the DDA runs: it cannot be combined with --no-dda")
     methods = ("rigid", "sarma") if args.no_dda else ("rigid", "sarma", "dda")
     settings = kgm.Settings(dda=kgm.DdaSettings(compare_whole=True))
     print(f"machine: {platform.processor() or platform.machine()}, Python {platform.python_version()}\n")
+    gifs = {"Example I": "example_1.gif", "Example II": "example_2.gif"}
     for name, mod in (("Example I", example_1), ("Example II", example_2), ("jointed slope", kgm_slope)):
         scene, params = build_scene(mod)  # the loader of ddatai run and kgm analyze
         rep = kgm.analyze(scene, method="sarma", settings=settings)
@@ -47,7 +56,32 @@ def main() -> None:
         print(kgm.format_paper_table(rows, title=f"**{name}**, key group {sorted(group)}"))
         if "dda" in methods:
             print(f"\n{dda_line}")
+            if args.gif and name in gifs:
+                path = Path(args.gif) / gifs[name]
+                write_dda_gif(path, scene, params, group, rows[-1], settings)
+                print(f"\nwrote {path}")
         print()
+
+
+def write_dda_gif(path: Path, scene, params, group, row, settings) -> None:
+    """The DDA run of ``group`` at the scene's strength, titled with ``row``'s (the DDA
+    evaluation's) factor of safety, critical friction angle and verdict."""
+    import numpy as np
+
+    from ddatai.render import write_gif
+    from kgm.blocks import build_block_system
+    from kgm.dda import judge
+
+    dt = params.dt if params is not None and params.dt is not None else 0.005
+    judgement = row.dda.judgement
+    every = max(1, int(judgement.duration / dt / 80))  # about 80 frames
+    _, res, ids = judge(scene, build_block_system(scene), frozenset(group), settings=settings.dda,
+                        params=params, record_every=every)
+    labels = np.array([0 if b in group else -1 for b in ids])
+    title = (f"KGM + DDA: group {sorted(group)}, {row.verdict}, FS {row.fs:.3f}, "
+             f"critical friction {row.critical_friction:.2f}°")  # the GIF font has no φ
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_gif(res, path, labels=labels, label_names=["critical key group"], title=title)
 
 
 if __name__ == "__main__":
