@@ -3,7 +3,7 @@
 `detect_contacts` runs the broad phase (hashed uniform grid, plus an all-against-one test for
 the few boxes larger than a cell) and Shi's narrow phase, then sorts the contacts so that runs
 are reproducible whatever the thread scheduling. `Contacts.start` attaches joint properties and
-the memory of the previous step (dda-method.md §3.7). `BlockPattern` is the CSR layout of the
+the memory of the previous step (docs/method/dda.md §3.7). `BlockPattern` is the CSR layout of the
 global matrix for one step: one dense 6×6 block per free block and per contacting pair.
 """
 
@@ -199,7 +199,7 @@ class Contacts:
         sliding contacts, anchored so that a lock would start with their friction force.
         New contacts start open, except on the first step, where contacts touching within the
         opening tolerance start closed and locked (vertex-edge), and edge-edge contacts of the
-        initial geometry are bonded (dda-method.md §3.7, §2.8.5).
+        initial geometry are bonded (docs/method/dda.md §3.7, §2.8.5).
         """
         m = len(cint)
         key = contact_keys(cint, model.n_vertices)
