@@ -7,7 +7,7 @@ Everything is flat NumPy arrays with offsets; block b owns vertices
 
 Internally all coordinates are relative to ``Model.origin`` (the centre of the model's
 bounding box), so that penetrations of ~1e-8 m stay representable on models placed far from
-the origin (dda-method.md §8.9). Results are returned in the user's coordinates.
+the origin (docs/method/dda.md §8.9). Results are returned in the user's coordinates.
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ from .scene import Scene
 
 
 class ContactState(IntEnum):
-    """State of a contact in the open-close iteration (dda-method.md §4.1)."""
+    """State of a contact in the open-close iteration (docs/method/dda.md §4.1)."""
 
     OPEN = 0
     SLIDE = 1  # normal spring + Coulomb friction loads (for vertex-vertex: normal spring only)
@@ -190,7 +190,7 @@ class Model:
 
 @dataclass(frozen=True, kw_only=True, eq=False)
 class ContactMemory:
-    """What a contact carries from one step to the next (dda-method.md §3.7).
+    """What a contact carries from one step to the next (docs/method/dda.md §3.7).
 
     Rows are sorted by ``key`` (see `contact_keys`), so a new contact finds its predecessor by
     binary search.
@@ -272,7 +272,7 @@ class State:
 
 
 def _elastic_matrix(young: float, poisson: float, plane: str) -> np.ndarray:
-    """C of dda-method.md §2.1 (plane strain = plane stress with E/(1-ν²), ν/(1-ν))."""
+    """C of docs/method/dda.md §2.1 (plane strain = plane stress with E/(1-ν²), ν/(1-ν))."""
     if plane == "strain":
         e = young / (1.0 - poisson ** 2)
         nu = poisson / (1.0 - poisson)
@@ -303,7 +303,7 @@ def build_model(scene: Scene, params: Optional[Params] = None) -> Model:
     # ntdda's w0, half the model's larger side, capped at 10 × the median size √area of the
     # free blocks. Tied to the whole model, the search distance 2.5·g2·w0 of a 160 m grid of
     # 1 m blocks is a whole block and every vertex collects contacts with far edges
-    # (dda-method.md §8.8: 9× the contacts at 25,600 blocks).
+    # (docs/method/dda.md §8.8: 9× the contacts at 25,600 blocks).
     w0 = 0.5 * float(np.max(hi - lo))
     fixed_flags = np.array([s.fixed for s in specs], dtype=bool)
     areas = polygon_integrals(xy0, offset)["area"]
