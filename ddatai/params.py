@@ -198,7 +198,7 @@ class Params:
     0 < k < 1 is kinetic damping. Ignored (taken as 0) when ``static`` is true."""
     newmark_beta: float = 0.5625
     """β of the Newmark integrator (γ = 1) [-]. DDA's constant-acceleration scheme is β = ½
-    (Shi 1988, dda-method.md §5.1): exact for constant acceleration, but its spectral radius
+    (Shi 1988, docs/method/dda.md §5.1): exact for constant acceleration, but its spectral radius
     returns to 1 for stiff modes (Ω = ωΔt ≫ 1), so the velocity of a block stopped by a stiff
     contact flips sign every step and is never damped (impacts rebound elastically and the
     stored velocity is released when the contact opens). β = (γ + ½)²/4 = 9/16 damps stiff
@@ -210,7 +210,7 @@ class Params:
     """True (Shi, ntdda): a bonded joint loses its cohesion and tensile strength for good as
     soon as it leaves the locked state (slides or opens). False: it keeps them while it slides
     and loses them only when it opens (tension cut-off) — the Mohr–Coulomb joint of
-    limit-equilibrium methods, where c acts on a sliding surface (kgm-method.md §6.1, §6.6);
+    limit-equilibrium methods, where c acts on a sliding surface (docs/kgm/method.md §6.1, §6.6);
     `kgm`'s DDA evaluator uses it to compare critical friction angles with KGM/SKGM."""
 
     oc_max_iterations: int = 20
