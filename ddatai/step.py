@@ -1,4 +1,4 @@
-"""One DDA time step, and `simulate` (dda-method.md §0 skeleton).
+"""One DDA time step, and `simulate` (docs/method/dda.md §0 skeleton).
 
 ``Stepper.step(state)`` reads like the algorithm::
 
@@ -257,7 +257,7 @@ class Stepper:
 
     # ------------------------------------------------------------------ phases
     def choose_time_step(self, state: State, geom: dict) -> float:
-        """Automatic Δt (dda-method.md §4.6): the step whose predicted largest vertex
+        """Automatic Δt (docs/method/dda.md §4.6): the step whose predicted largest vertex
         displacement, ½·a·Δt² + v·Δt, equals g2·w0; at most ``dt_max`` and at most
         ``dt_growth`` × the previous step. A fixed ``Params.dt`` is used as given, growing back
         by ``dt_growth`` per step after a cut."""
@@ -807,7 +807,7 @@ class Stepper:
 
 
 def _move_points(xy: np.ndarray, block: np.ndarray, centroid: np.ndarray, disp: np.ndarray) -> np.ndarray:
-    """Displace material points with the exact-rotation update (dda-method.md §5.3):
+    """Displace material points with the exact-rotation update (docs/method/dda.md §5.3):
     translation and strain from D, the rigid rotation r0 applied as a finite rotation, so a
     spinning block keeps its area."""
     if len(xy) == 0:
