@@ -1,4 +1,4 @@
-"""Block theory on the blocks of a `ddatai.Scene` (kgm-method.md §2).
+"""Block theory on the blocks of a `ddatai.Scene` (docs/kgm/method.md §2).
 
 `build_block_system` turns a scene into flat arrays: block areas, centroids, masses and active
 forces, the **contacts** (segments shared by two blocks, found from collinear overlapping
@@ -41,7 +41,7 @@ BARTON_TOL = 1e-12
 
 
 class ModeKind(str, Enum):
-    """How a block or group fails (kgm-method.md §2.4, §5.2)."""
+    """How a block or group fails (docs/kgm/method.md §2.4, §5.2)."""
 
     NONE = "none"            # no admissible mode: stable by geometry (type III)
     LIFTING = "lifting"      # moves away from every contact (free fall)
@@ -93,7 +93,7 @@ class BlockSystem:
     """(C,) cohesion c of the joint [Pa]."""
     contact_tensile: np.ndarray
     """(C,) tensile strength of the joint [Pa] (limit-equilibrium evaluators take it as 0,
-    kgm-method.md §1; the DDA evaluator uses it as given)."""
+    docs/kgm/method.md §1; the DDA evaluator uses it as given)."""
     contact_joint: np.ndarray
     """(C,) index of the contact's joint in the scene's joint table."""
     contact_edge: np.ndarray
@@ -158,7 +158,7 @@ class BlockSystem:
     def with_strength(self, *, friction: Optional[float] = None, reduction: float = 1.0) -> "BlockSystem":
         """The same system with every joint's friction angle set to ``friction`` [degrees]
         (cohesion held), and/or tanφ and c divided by ``reduction`` (strength reduction,
-        kgm-method.md §4.6)."""
+        docs/kgm/method.md §4.6)."""
         phi = self.contact_friction if friction is None else np.full(self.n_contacts, float(friction))
         tan_phi = np.tan(np.radians(phi)) / reduction
         barton = self.contact_barton
@@ -202,7 +202,7 @@ class BlockSystem:
 
     def free_segments(self, block: int, removed: frozenset = frozenset()) -> list[tuple[np.ndarray, np.ndarray]]:
         """Edge parts of a block exposed to air: not covered by a contact with a block that is
-        still there. Contacts with removed blocks become free faces (kgm-method.md §3.3)."""
+        still there. Contacts with removed blocks become free faces (docs/kgm/method.md §3.3)."""
         lo, hi = self.vertex_offset[block], self.vertex_offset[block + 1]
         xy = self.vertex_xy[lo:hi]
         covered: dict[int, list[tuple[float, float]]] = {}
@@ -233,7 +233,7 @@ class BlockSystem:
 # ---------------------------------------------------------------------- building
 def build_block_system(scene, *, seismic=None) -> BlockSystem:
     """Block-theory arrays of a `ddatai.Scene`: contacts from shared edges with their joint
-    properties, active forces, fixed flags (kgm-method.md §2.1, §2.5).
+    properties, active forces, fixed flags (docs/kgm/method.md §2.1, §2.5).
 
     The joint of a contact is, as in ddatai: the pair override ``scene.pair_joints[(a, b)]``,
     else the joint line the shared edges lie on (``BlockSpec.edge_joint``), else the default
@@ -540,7 +540,7 @@ def group_faces(system: BlockSystem, blocks: frozenset, removed: frozenset = fro
 
 # ---------------------------------------------------------------------- removability
 def removable_arc(normals: np.ndarray, tol: float = ANGLE_TOL) -> Optional[tuple[tuple[float, float], ...]]:
-    """Joint pyramid of a block or group in 2D (kgm-method.md §2.2, computational form).
+    """Joint pyramid of a block or group in 2D (docs/kgm/method.md §2.2, computational form).
 
     ``normals`` (m, 2) are the contact normals pointing into the block. The admissible
     translations are JP = {s : s·n_k ≥ 0 for all k}; each condition is a half-circle of
@@ -591,7 +591,7 @@ def has_free_face(system: BlockSystem, blocks: Iterable[int], removed: frozenset
 # ---------------------------------------------------------------------- rigid modes
 @dataclass(frozen=True, kw_only=True, eq=False)
 class Mode:
-    """A failure mode of a block or group and what it needs to hold (kgm-method.md §2.4, §5.2)."""
+    """A failure mode of a block or group and what it needs to hold (docs/kgm/method.md §2.4, §5.2)."""
 
     kind: ModeKind
     """Lifting, sliding, rotation, Sarma mechanism or none."""
@@ -623,7 +623,7 @@ class Mode:
 
 def rigid_modes(system: BlockSystem, blocks: frozenset, removed: frozenset = frozenset()) -> list[Mode]:
     """Admissible modes of the group glued into one rigid body under its resultant
-    (kgm-method.md §2.4 and §4; the original KGM evaluator).
+    (docs/kgm/method.md §2.4 and §4; the original KGM evaluator).
 
     * lifting: the resultant r opens every contact (r·n_k > 0): FS = 0;
     * sliding on face i (contacts sharing one normal direction, pooled): r presses on it and
@@ -791,7 +791,7 @@ BLOCK_TYPES = ("I", "II", "III", "IV", "V")
 
 def block_type(system: BlockSystem, block: int, removed: frozenset = frozenset(),
                modes: Optional[list[Mode]] = None) -> str:
-    """Goodman–Shi type of one block (kgm-method.md §2.3) from block theory (rigid modes):
+    """Goodman–Shi type of one block (docs/kgm/method.md §2.3) from block theory (rigid modes):
 
     V fixed (infinite); IV not removable (tapered or locked, or no free face); III removable
     with no failure mode under its resultant; II removable with a mode and FS ≥ 1; I key block
