@@ -1,5 +1,5 @@
 """DDA evaluator: judge a group by simulating it with ddatai on its real joint geometry (the
-seed paper's developed method; kgm-method.md §6).
+seed paper's developed method; docs/kgm/method.md §6).
 
 A judgement simulates only what it needs: the group and the blocks it touches, which are held
 fixed (KGM's "non-members stay in place"); blocks farther away are left out
@@ -248,7 +248,7 @@ def evaluate_dda(scene: Scene, system: BlockSystem, blocks: frozenset, *, settin
                  fs_guess: float = 1.0, friction_guess: Optional[float] = None,
                  with_fs: bool = True, with_friction: bool = True) -> DdaEvaluation:
     """Verdict at the scene's strength, FS by strength reduction and the critical friction
-    angle, each by bisection on DDA verdicts (kgm-method.md §6.4). The guesses (the
+    angle, each by bisection on DDA verdicts (docs/kgm/method.md §6.4). The guesses (the
     limit-equilibrium values) only place the first bracket."""
     runs: list[DdaJudgement] = []
     cache: dict[tuple, DdaJudgement] = {}
