@@ -1,7 +1,7 @@
 """Limit-equilibrium evaluators of a block group: rigid (KGM) and Sarma-type (SKGM).
 
 * `evaluate_rigid` – the group glued into one rigid body, limit equilibrium on its admissible
-  modes (kgm-method.md §2.4, §4): the original KGM.
+  modes (docs/kgm/method.md §2.4, §4): the original KGM.
 * `evaluate_sarma` – the blocks of the group translate separately: each slides on its own
   contacts with the stable rock and the shared joints between members shear, all at the same
   mobilised strength (c/F, tanφ/F), with Sarma's critical acceleration K_c (§5). The group's
@@ -82,12 +82,12 @@ def _with_toppling(system: BlockSystem, blocks: frozenset, removed: frozenset, m
 
 
 def evaluate_rigid(system: BlockSystem, blocks: frozenset, removed: frozenset = frozenset()) -> Evaluation:
-    """KGM: the group as one rigid body (kgm-method.md §4), and its block toppling."""
+    """KGM: the group as one rigid body (docs/kgm/method.md §4), and its block toppling."""
     return _governing(_with_toppling(system, blocks, removed, rigid_modes(system, blocks, removed)))
 
 
 def evaluate_sarma(system: BlockSystem, blocks: frozenset, removed: frozenset = frozenset()) -> Evaluation:
-    """SKGM: least safe of the rigid modes, the Sarma mechanisms (kgm-method.md §5.3) and
+    """SKGM: least safe of the rigid modes, the Sarma mechanisms (docs/kgm/method.md §5.3) and
     block toppling."""
     modes = rigid_modes(system, blocks, removed)
     if len(blocks) > 1 and not any(m.fs == 0.0 for m in modes):
@@ -185,7 +185,7 @@ def _mechanisms(faces: _Faces, force: np.ndarray, n: int) -> list[_Mechanism]:
     """Single-degree-of-freedom velocity fields of the group (see the module docstring): the
     extreme rays of the cone of non-penetrating member velocities {v : A v ≥ 0}, or its
     lineality if that is a single direction (every face stays closed, as in Sarma's
-    mechanism of kgm-method.md §8.3)."""
+    mechanism of docs/kgm/method.md §8.3)."""
     d = 2 * n
     nrows = _rows(faces, n, "normal")
     if len(nrows) == 0:
