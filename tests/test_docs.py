@@ -155,3 +155,10 @@ def test_section_parser():
     assert _cited_sections("§7d.") == ["7d"]
     dda = _sections(ROOT / "docs" / "method" / "dda.md")
     assert {"0", "1.2", "2.8.1", "3.7", "4.2", "5.3", "7d", "8.12", "11"} <= dda
+
+
+def test_readme_mentions_no_issue_numbers():
+    """The README describes the software, not the tracker: no "issue 12" or "#12"."""
+    problems = [f"README.md:{n}: {line.strip()[:80]}" for n, line in _lines(ROOT / "README.md")
+                if re.search(r"\bissues?\s*(?:no\.?\s*)?#?\d+|(?<![\w&])#\d+\b", line, re.IGNORECASE)]
+    assert not problems, "issue numbers in the README:\n" + "\n".join(problems)
