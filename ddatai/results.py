@@ -521,10 +521,12 @@ class Recorder:
         f["load_forces"].append(np.array([fn(t) if callable(fn) else fn for fn in self.model.load_force],
                                          dtype=float).reshape(-1, 2))
         if len(self.model.bolt_block):
-            from .support import bolt_ends
+            from .support import bolt_ends, bolt_tension
 
             self.bolts["bolt_xy"].append(bolt_ends(self.model, state.vertex_xy) + origin)
-            self.bolts["bolt_force"].append(state.bolt_force.copy())
+            # the tension of the frame's geometry (after the equilibrium stage too); 0 once broken
+            intact = state.bolt_broken_step < 0
+            self.bolts["bolt_force"].append(np.where(intact, bolt_tension(self.model, state.vertex_xy), 0.0))
             self.bolts["bolt_broken"].append(state.bolt_broken_step >= 0)
             self.bolt_state = (state.bolt_broken_step, state.bolt_broken_time, state.bolt_broken_force)
         if self.record_contacts and contact_xy is not None:

@@ -428,3 +428,32 @@ def test_water_load_vector_is_the_exact_integral():
         tm = t_rows(pts[:, 0] - c[0], pts[:, 1] - c[1])
         expected += np.einsum("gij,g,i->j", tm, pressure, n_in) * np.hypot(*t) / len(s)
     assert np.abs(load - expected).max() <= 1e-8 * np.abs(expected).max()
+
+
+def test_pretension_pulls_a_free_block_towards_the_anchor():
+    """A 1 m block on a frictionless base, bolted to a fixed wall 0.5 m away with pretension P0
+    (stiffness k): the pair of forces ±P0 pulls it towards the wall until the tension vanishes,
+    δ = P0/k. The equilibrium start puts it there at rest; under a sudden start it oscillates
+    about δ with ω = √(k/m): over whole periods its mean displacement is δ and the bolt's mean
+    tension 0 (its first swing reaches 2δ, less Newmark's damping)."""
+    rock = dd.Material(density=2500.0, young=5e9, poisson=0.25)
+    p0, k = 1000.0, 1e5
+    period = 2 * math.pi / math.sqrt(k / 2500.0)
+    for equilibrium in (True, False):
+        s = dd.Scene(gravity=G)
+        s.add_block([(0, 0), (10, 0), (10, 1), (0, 1)], material=rock, fixed=True)
+        s.add_block([(0, 1), (1, 1), (1, 3), (0, 3)], material=rock, fixed=True)      # the wall
+        blk = s.add_block([(1.5, 1), (2.5, 1), (2.5, 2), (1.5, 2)], material=rock)
+        s.set_joint(dd.Joint(friction=0.0))
+        s.add_bolt((2.0, 1.5), (0.5, 1.5), stiffness=k, pretension=p0)
+        res = dd.simulate(s, dd.Params(dt=0.005, initial_equilibrium=equilibrium),
+                          duration=3 * period if not equilibrium else 0.2)
+        moved = 2.0 - res.centroid[:, blk, 0]                                # towards the wall
+        if equilibrium:
+            assert moved[0] == pytest.approx(p0 / k, rel=1e-3)   # the elastic settlement of the base
+            assert np.ptp(moved) < 1e-9 and np.abs(res.bolt_force).max() < 1e-6 * p0
+            continue
+        t = res.time
+        assert np.trapezoid(moved, t) / t[-1] == pytest.approx(p0 / k, rel=1e-2)
+        assert abs(np.trapezoid(res.bolt_force[:, 0], t) / t[-1]) < 1e-2 * p0
+        assert moved.max() == pytest.approx(2 * p0 / k, rel=5e-2)
