@@ -3,7 +3,7 @@
 
 The drawing is generated, never edited by hand: a 30 m high, 60° slope in metres, cut by the
 bedding set fitted to the mapping table ``bedding_mapping.csv`` (`dd.JointSet.fit`, dipping 35°
-out of the face) and a steep cross set (`dd.joint_sets`, seed 3), with the fixed rock below the
+out of the face) and a steep cross set (`dd.joint_sets`, seed 7), with the fixed rock below the
 toe and behind the slope, and two measured points. Layers: DOMAIN, FIXED, POINTS, BEDDING,
 CROSS (`ddatai.dxf`). Run ``python scenes/section/drawing.py [PATH] [--units mm]``;
 `python_scene` builds the same section directly in Python.
@@ -19,7 +19,7 @@ HERE = Path(__file__).resolve().parent
 DRAWING = HERE / "section.dxf"
 ROCK = dd.Material(density=2600.0, young=10e9, poisson=0.25)
 #: the joint properties of each joint layer (the TOML of ``joints.toml`` says the same)
-JOINTS = {"BEDDING": dd.BartonBandis(jrc=6.0, jcs=40e6, residual_friction=24.0),
+JOINTS = {"BEDDING": dd.BartonBandis(jrc=4.0, jcs=30e6, residual_friction=24.0),
           "CROSS": dd.Joint(friction=35.0)}
 DEFAULT_JOINT = dd.Joint(friction=35.0)
 
@@ -42,7 +42,7 @@ def geometry() -> dict:
     # traces drawn to a box around the outline, so that those reaching it cross it cleanly
     lo, hi = outline.min(axis=0) - 1.0, outline.max(axis=0) + 1.0
     box = [(lo[0], lo[1]), (hi[0], lo[1]), (hi[0], hi[1]), (lo[0], hi[1])]
-    traces = [(xy, layer[id(j)]) for xy, j in dd.joint_sets(box, sets, seed=3)]
+    traces = [(xy, layer[id(j)]) for xy, j in dd.joint_sets(box, sets, seed=7)]
     fixed = [np.array([(-1.0, -7.0), (61.0, -7.0), (61.0, 0.0), (-1.0, 0.0)]),
              np.array([(50.0, -7.0), (61.0, -7.0), (61.0, 31.0), (50.0, 31.0)])]
     points = np.array([(crest[0] + 1.0, 29.0), (toe[0] + 6.0, 2.0)])
