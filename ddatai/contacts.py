@@ -298,7 +298,7 @@ def barton_tan(model: Model, joint: np.ndarray, normal_force: np.ndarray, length
     with np.errstate(divide="ignore", invalid="ignore"):
         sigma = np.where(length > 0, n / np.where(length > 0, length, 1.0), np.where(n > 0, np.inf, 0.0))
         phi = phir + jrc * np.log10(jcs / sigma)
-    phi = np.where(sigma > 0, np.clip(phi, phir, cap), cap)
+    phi = np.where(sigma > 0, np.clip(phi, phir, cap), np.where(jrc > 0, cap, phir))  # σn → 0: the limit
     return np.tan(np.radians(phi)) / red
 
 

@@ -381,7 +381,9 @@ class BartonBandis(Joint):
         s = np.asarray(sigma_n, dtype=float)
         with np.errstate(divide="ignore", invalid="ignore"):
             phi = self.residual_friction + self.jrc * np.log10(self.jcs / np.where(s > 0, s, np.nan))
-        phi = np.where(s > 0, np.clip(phi, self.residual_friction, self.max_friction), self.max_friction)
+        # σn → 0: the cap (the residual angle of a smooth joint, JRC = 0: its limit)
+        zero = self.max_friction if self.jrc > 0 else self.residual_friction
+        phi = np.where(s > 0, np.clip(phi, self.residual_friction, self.max_friction), zero)
         return float(phi) if phi.ndim == 0 else phi
 
     def tan_friction(self, sigma_n):

@@ -184,7 +184,7 @@ class BlockSystem:
             sigma = np.broadcast_to(np.asarray(sigma_n, dtype=float), contacts.shape)[bb]
             with np.errstate(divide="ignore", invalid="ignore"):
                 phi = phir + jrc * np.log10(jcs / sigma)
-            phi = np.where(sigma > 0, np.clip(phi, phir, cap), cap)
+            phi = np.where(sigma > 0, np.clip(phi, phir, cap), np.where(jrc > 0, cap, phir))  # σn → 0: the limit
             out[bb] = np.tan(np.radians(phi)) / red
         return out
 

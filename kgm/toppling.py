@@ -39,11 +39,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from enum import Enum
-from typing import Optional
+from typing import Callable, Optional
 
 import numpy as np
 
-from .blocks import BlockSystem, Mode, ModeKind, _cross, _parallel_sets, group_faces
+from .blocks import BARTON_ITERATIONS, BARTON_TOL, BlockSystem, Mode, ModeKind, _cross, _parallel_sets, group_faces
 
 #: Least cosine between the active force and a base face's inward normal for the face to carry
 #: the block (a base must be pressed, not a wall beside the block) [-].
@@ -76,6 +76,9 @@ class _Face:
     length: float          # Σ L [m]
     cl: float              # Σ c·L [N/m]
     tan_phi: float         # length-weighted tanφ [-]
+    tan_at: Optional[Callable[[float], float]] = None
+    # Barton–Bandis faces: normal force [N/m] -> tanφ at σn = N/ΣL (docs/method/barton_bandis.md,
+    # eq. BB4); None on Mohr–Coulomb faces
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -130,10 +133,15 @@ class BlockStep:
 def _face(system: BlockSystem, contacts: np.ndarray, normal: np.ndarray, point: np.ndarray) -> _Face:
     length = system.contact_length[contacts]
     total = float(length.sum())
-    return _Face(contacts=np.asarray(contacts, dtype=np.int64), normal=normal, point=point, length=total,
+    ks = np.asarray(contacts, dtype=np.int64)
+    tan_at = None
+    if system.contact_barton is not None and not np.all(np.isnan(system.contact_barton[ks, 0])):
+        def tan_at(normal_force: float) -> float:
+            return system.face_tan(ks, normal_force)
+    return _Face(contacts=ks, normal=normal, point=point, length=total,
                  cl=float((system.contact_cohesion[contacts] * length).sum()),
                  tan_phi=float((np.tan(np.radians(system.contact_friction[contacts])) * length).sum()
-                               / max(total, 1e-300)))
+                               / max(total, 1e-300)), tan_at=tan_at)
 
 
 def toppling_row(system: BlockSystem, blocks: frozenset, removed: frozenset = frozenset()
@@ -218,9 +226,9 @@ def toppling_row(system: BlockSystem, blocks: frozenset, removed: frozenset = fr
             front = poly[(poly - pivot) @ t >= -1e-9 * system.scale]
             point = front[int(np.argmax((front - pivot) @ n_b))] if len(front) else pivot
             up_face = rows[-1].below if rows else None
-            tan_phi = up_face.tan_phi if up_face is not None else _face(system, base_k, n_b, pivot).tan_phi
+            like = up_face if up_face is not None else _face(system, base_k, n_b, pivot)
             below = _Face(contacts=np.zeros(0, np.int64), normal=-t, point=point, length=0.0, cl=0.0,
-                          tan_phi=tan_phi)
+                          tan_phi=like.tan_phi, tan_at=like.tan_at)
         rows.append(RowBlock(block=m, force=system.block_force[m].copy(), moment=float(system.block_moment[m]),
                              base=_face(system, base_k, n_b, pivot), downslope=t, pivot=pivot, below=below,
                              height=height, base_length=float(system.contact_length[base_k].sum())))
@@ -241,8 +249,11 @@ def recursion(row: TopplingRow, *, reduction: float = 1.0, friction: Optional[fl
     on every joint (``reduction`` F), or with every joint's friction set to ``friction``
     [degrees] (cohesion held). Returns one `BlockStep` per member, top first; the last one's
     ``force_below`` is P_0, the force the toe needs from below (stable iff ≤ 0)."""
-    def tan_of(face: _Face) -> float:
-        t = math.tan(math.radians(friction)) if friction is not None else face.tan_phi
+    def tan_of(face: _Face, normal: float) -> float:
+        if friction is not None:
+            t = math.tan(math.radians(friction))
+        else:  # a Barton–Bandis face: at its own normal force (eq. BB4)
+            t = face.tan_phi if face.tan_at is None else face.tan_at(max(normal, 0.0))
         return t / reduction
 
     steps = []
@@ -258,29 +269,45 @@ def recursion(row: TopplingRow, *, reduction: float = 1.0, friction: Optional[fl
         if above is not None and p_above > 0.0:
             n_u = -above.normal  # into this block
             s_u = _shear_direction(n_u, n_b, away_from_base=False)
-            q = p_above * tan_of(above) + above.cl / reduction
+            q = p_above * tan_of(above, p_above) + above.cl / reduction
             f_above = p_above * n_u + q * s_u
             m_above = sense * _cross(above.point - o, f_above)
         lo = rb.below
         s_l = _shear_direction(lo.normal, n_b, away_from_base=True)
-        tan_l, cl_l = tan_of(lo), lo.cl / reduction
-        unit = lo.normal + tan_l * s_l          # force on the block per unit P_{n-1}
-        # toppling (Goodman & Bray eq. 11): moment about the pivot, base reaction through it
-        lever = sense * _cross(lo.point - o, unit)
-        driving = m_force + m_above + sense * _cross(lo.point - o, cl_l * s_l)
-        if lever < -1e-12 * rb.height:
-            p_t = -driving / lever
-        else:
-            p_t = math.inf if driving > 0 else -math.inf  # the force below cannot hold it
-        # sliding (Goodman & Bray eq. 13): forces along and across the base, S = c·A + R tanφ_p
-        tan_b, cl_b = tan_of(rb.base), rb.base.cl / reduction
-        k_t = float((rb.force + f_above + cl_l * s_l) @ t)
-        k_n = float((rb.force + f_above + cl_l * s_l) @ n_b)
-        denominator = float(unit @ t) + tan_b * float(unit @ n_b)
-        if denominator < -1e-12:
-            p_s = (cl_b - k_t - tan_b * k_n) / denominator
-        else:
-            p_s = -math.inf  # pushing from below only jams it on its base: it cannot slide
+        cl_l = lo.cl / reduction
+        bb = friction is None and (lo.tan_at is not None or rb.base.tan_at is not None)
+        # Barton–Bandis faces take tanφ at the normal force they carry, which the answer sets:
+        # P_{n-1} on the face below, the reaction R on the base; iterated to the fixed point
+        # (eq. BB6). Mohr–Coulomb faces: one pass.
+        p_t = p_s = 0.0
+        for _ in range(BARTON_ITERATIONS if bb else 1):
+            tan_l = tan_of(lo, p_t)
+            unit = lo.normal + tan_l * s_l          # force on the block per unit P_{n-1}
+            # toppling (Goodman & Bray eq. 11): moment about the pivot, base reaction through it
+            lever = sense * _cross(lo.point - o, unit)
+            driving = m_force + m_above + sense * _cross(lo.point - o, cl_l * s_l)
+            if lever < -1e-12 * rb.height:
+                new_t = -driving / lever
+            else:
+                new_t = math.inf if driving > 0 else -math.inf  # the force below cannot hold it
+            # sliding (Goodman & Bray eq. 13): forces along and across the base, S = c·A + R tanφ_p
+            tan_l = tan_of(lo, p_s)
+            unit = lo.normal + tan_l * s_l
+            k_t = float((rb.force + f_above + cl_l * s_l) @ t)
+            k_n = float((rb.force + f_above + cl_l * s_l) @ n_b)
+            reaction = -(k_n + max(p_s, 0.0) * float(unit @ n_b))   # R on the base
+            tan_b, cl_b = tan_of(rb.base, reaction), rb.base.cl / reduction
+            denominator = float(unit @ t) + tan_b * float(unit @ n_b)
+            if denominator < -1e-12:
+                new_s = (cl_b - k_t - tan_b * k_n) / denominator
+            else:
+                new_s = -math.inf  # pushing from below only jams it on its base: it cannot slide
+            done = all(a == b or (math.isfinite(a) and math.isfinite(b) and
+                                  abs(a - b) <= BARTON_TOL * (1.0 + abs(a)))
+                       for a, b in ((p_t, new_t), (p_s, new_s)))
+            p_t, p_s = new_t, new_s
+            if done or not (math.isfinite(p_t) and math.isfinite(p_s)):
+                break
         if p_t <= 0.0 and p_s <= 0.0:
             state, p_below = BlockState.STABLE, 0.0
         elif p_t > p_s:

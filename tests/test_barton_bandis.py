@@ -208,3 +208,50 @@ def test_dda_and_kgm_agree_either_side_of_the_limit(offset):
         assert (kgm.factor_of_safety(scene, {b}, method=method) < 1.0) is slides
     verdict = judge(scene, build_block_system(scene), frozenset([b]), settings=kgm.DdaSettings(duration=1.0))
     assert verdict.stable is not slides
+
+
+# ----------------------------------------------------------------------------- kgm toppling
+def _toppling_row(joint):
+    from kgm.toppling import toppling_row
+    from scenes import toppling_slope
+
+    scene, _ = toppling_slope.build(friction=35.0)
+    scene.set_joint(joint)
+    system = build_block_system(scene)
+    return toppling_row(system, frozenset(range(16)))
+
+
+def test_toppling_with_a_smooth_barton_bandis_joint_is_mohr_coulomb():
+    """JRC = 0: the law is φr at every stress, so Goodman & Bray's recursion (the textbook
+    16-block row) gives the factor of safety of a Mohr–Coulomb joint at φr, to round-off."""
+    from kgm.toppling import row_factor_of_safety
+
+    bb = row_factor_of_safety(_toppling_row(dd.BartonBandis(jrc=0.0, jcs=JCS, residual_friction=38.15)))
+    mc = row_factor_of_safety(_toppling_row(dd.Joint(friction=38.15)))
+    assert bb == pytest.approx(mc, rel=1e-9)
+
+
+def test_toppling_with_a_rough_joint_lies_between_its_bounds():
+    """A rough joint mobilises between φr and the cap at the row's stresses: its FS lies
+    between the Mohr–Coulomb FS at φr and at the cap, and the interface forces of its
+    recursion at that FS satisfy the law at their own stress."""
+    from kgm.toppling import recursion, row_factor_of_safety
+
+    jt = dd.BartonBandis(jrc=6.0, jcs=JCS, residual_friction=30.0)
+    row = _toppling_row(jt)
+    fs = row_factor_of_safety(row)
+    lo = row_factor_of_safety(_toppling_row(dd.Joint(friction=30.0)))
+    steps = recursion(row, reduction=fs)
+    hi = row_factor_of_safety(_toppling_row(dd.Joint(friction=70.0)))
+    assert lo < fs < hi
+    checked = 0
+    for s, rb in zip(steps, row.blocks):
+        if s.force_below > 0 and rb.below.tan_at is not None and rb.below.length > 0:
+            expected = math.tan(math.radians(law_jrc(6.0, 30.0, s.force_below / rb.below.length)))
+            assert rb.below.tan_at(s.force_below) == pytest.approx(expected, rel=1e-9)
+            checked += 1
+    assert checked > 5
+
+
+def law_jrc(jrc, phir, sigma_n):
+    return min(max(phir + jrc * math.log10(JCS / sigma_n), phir), 70.0)
