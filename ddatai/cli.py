@@ -240,6 +240,20 @@ def _simulate_and_report(scene, params, duration, steps, name, args, after=None)
     wall = time.perf_counter() - t0
     progress.close(float(results.time[-1]))
     out = _save(results, args.out, name)
+    try:
+        _write_outputs(results, out, name, args, after)
+    except KeyboardInterrupt:
+        print(f"ddatai: interrupted while writing the outputs; the results are in {out}", file=sys.stderr)
+        return 130
+    s = results.summary()
+    print(f"{name}: {s['blocks']} blocks, {s['steps']} steps to t = {s['simulated_time']:.4g} s, "
+          f"{s['dt_cuts']} dt cuts, {s['oc_iterations']} open-close iterations, "
+          f"{wall:.2f} s wall time; results in {out}")
+    return 0
+
+
+def _write_outputs(results, out: Path, name: str, args: argparse.Namespace, after) -> None:
+    """The outputs beside the results file: measured points, histories, VTK, GIF."""
     if after is not None:
         after(results)
     elif results.measured.shape[1]:
@@ -257,11 +271,6 @@ def _simulate_and_report(scene, params, duration, steps, name, args, after=None)
         write_gif(results, args.gif, size=args.size, fps=args.fps, speed=args.speed, stride=args.stride,
                   show_contacts=args.contacts, title=name)
         print(f"GIF written to {args.gif} ({_gif_speed(results, args)})")
-    s = results.summary()
-    print(f"{name}: {s['blocks']} blocks, {s['steps']} steps to t = {s['simulated_time']:.4g} s, "
-          f"{s['dt_cuts']} dt cuts, {s['oc_iterations']} open-close iterations, "
-          f"{wall:.2f} s wall time; results in {out}")
-    return 0
 
 
 def _gif_speed(results, args) -> str:
@@ -339,19 +348,21 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     parser = argparse.ArgumentParser(prog="ddatai", description="2D DDA simulator")
     sub = parser.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="run a scene script or an ntdda model")
-    run.add_argument("inputs", nargs="+", type=Path, help="SCENE.py, or MODEL.geo MODEL.ana")
+    run.add_argument("inputs", nargs="+", type=Path, help="SCENE.py, SECTION.dxf, or MODEL.geo MODEL.ana")
+    run.add_argument("--joints", type=Path, metavar="TOML",
+                     help="a SECTION.dxf's material and joint layers (ddatai.dxf.read_joints_file)")
     _add_run_options(run)
     args = parser.parse_args(argv)
     inputs = args.inputs
-    if not ((len(inputs) == 1 and inputs[0].suffix == ".py") or len(inputs) == 2):
-        parser.error("run takes SCENE.py, or MODEL.geo MODEL.ana")
+    if not ((len(inputs) == 1 and inputs[0].suffix.lower() in (".py", ".dxf")) or len(inputs) == 2):
+        parser.error("run takes SCENE.py, SECTION.dxf --joints JOINTS.toml, or MODEL.geo MODEL.ana")
 
     def go() -> int:
         check_options(args)
         if len(inputs) == 1:
             from .scenefile import load_scene_script
 
-            script = load_scene_script(inputs[0])
+            script = load_scene_script(inputs[0], joints=args.joints)
             return run_scene(script, script.duration, _output_name(args, script.name), args)
         return _run_ntdda(inputs[0], inputs[1], args)
 

@@ -139,3 +139,17 @@ def build():
     runs = [s for s in err.splitlines() if s.strip().startswith("DDA run ")]
     assert len(runs) >= 2 and "unstable" in err
     assert "DDA:" in report.getvalue()
+
+
+def test_ctrl_c_while_writing_the_gif_keeps_the_results(bare, tmp_path, capsys, monkeypatch):
+    import ddatai.render
+
+    def interrupted(*a, **k):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(ddatai.render, "write_gif", interrupted)
+    out = tmp_path / "out"
+    assert main(["run", str(bare), "--steps", "2", "--out", str(out), "--quiet", "--gif", str(tmp_path / "g.gif")]) == 130
+    line = _one_error_line(capsys)
+    assert "interrupted while writing the outputs" in line and str(out / "g.npz") in line
+    assert dd.load_results(out / "g.npz").summary()["steps"] == 2
