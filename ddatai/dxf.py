@@ -308,3 +308,99 @@ def write_dxf_section(path, *, boundary, traces, fixed=(), points=(), water=None
     if water is not None:
         msp.add_lwpolyline((np.asarray(water, float) * k).tolist(), dxfattribs={"layer": "WATER"})
     doc.saveas(str(path))
+
+
+# ---------------------------------------------------------------------- joints file (command line)
+def read_joints_file(path) -> dict:
+    """The keyword arguments of `read_dxf` (and the run's ``duration``) from a TOML joints file
+    (README "Sections from DXF")::
+
+        units = "m"              # optional: the drawing's unit when its header has none
+        duration = 2.0           # optional: simulated time of ``ddatai run`` [s]
+        [material]               # the blocks' material (SI)
+        density = 2600.0
+        young = 10e9
+        poisson = 0.25
+        [default]                # optional: the joint of contacts on no trace
+        friction = 35.0
+        [joints.BEDDING]         # one table per joint layer: a Joint ...
+        jrc = 4.0                # ... or, with jrc, a BartonBandis
+        jcs = 30e6
+        residual_friction = 24.0
+        [layers]                 # optional: other layer names of the roles
+        domain = "OUTLINE"
+
+    Every mistake is a ValueError naming the file and the key."""
+    try:
+        import tomllib
+    except ImportError:  # Python 3.10
+        import tomli as tomllib
+    from .params import BartonBandis
+
+    try:
+        with open(path, "rb") as f:
+            data = tomllib.load(f)
+    except OSError as err:
+        raise ValueError(f"{path}: cannot read the joints file ({err})") from None
+    except tomllib.TOMLDecodeError as err:
+        raise ValueError(f"{path}: not a valid TOML file ({err})") from None
+    known = {"units", "duration", "gravity", "material", "default", "joints", "layers"}
+    unknown = sorted(set(data) - known)
+    if unknown:
+        raise ValueError(f"{path}: unknown key {unknown[0]!r} (expected {', '.join(sorted(known))})")
+
+    def joint(table, where):
+        if not isinstance(table, dict):
+            raise ValueError(f"{path}: {where} must be a table of joint properties")
+        try:
+            return BartonBandis(**table) if "jrc" in table else Joint(**table)
+        except TypeError as err:
+            raise ValueError(f"{path}: {where}: {err}") from None
+        except ValueError as err:
+            raise ValueError(f"{path}: {where}: {err}") from None
+
+    if "material" not in data or not isinstance(data["material"], dict):
+        raise ValueError(f"{path}: a [material] table (density, young, poisson) is needed for the blocks")
+    try:
+        material = Material(**data["material"])
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"{path}: [material]: {err}") from None
+    joints = data.get("joints")
+    if not isinstance(joints, dict) or not joints:
+        raise ValueError(f"{path}: a [joints.LAYER] table per joint layer of the drawing is needed")
+    out = {"material": material, "joints": {name: joint(t, f"[joints.{name}]") for name, t in joints.items()}}
+    if "default" in data:
+        out["default_joint"] = joint(data["default"], "[default]")
+    for key in ("units", "gravity", "layers", "duration"):
+        if key in data:
+            out[key] = data[key]
+    return out
+
+
+def dxf_scene_script(path, joints_file):
+    """A `ddatai.scenefile.SceneScript` for a DXF section and its joints file: what ``ddatai
+    run section.dxf --joints joints.toml`` and ``kgm analyze`` run."""
+    import types
+    from pathlib import Path
+
+    from .scenefile import SceneFileError, SceneScript
+
+    path = Path(path)
+    if joints_file is None:
+        raise SceneFileError(f"{path}: a DXF section needs its joints file, --joints JOINTS.toml (the material "
+                             f"and the properties of each joint layer)")
+    try:
+        options = read_joints_file(joints_file)
+    except ValueError as err:
+        raise SceneFileError(str(err)) from None
+    duration = options.pop("duration", None)
+    if duration is not None and not (isinstance(duration, (int, float)) and np.isfinite(duration) and duration > 0):
+        raise SceneFileError(f"{joints_file}: duration must be a number of seconds > 0, got {duration!r}")
+
+    def build():
+        return read_dxf(path, **options)
+
+    module = types.ModuleType(f"_ddatai_dxf_{path.stem}")
+    module.build, module.DURATION, module.__file__ = build, duration, str(path)
+    return SceneScript(path=path, name=path.stem, build=build,
+                       duration=None if duration is None else float(duration), module=module)

@@ -60,11 +60,16 @@ def _script_paths(path: Path) -> list[str]:
     return [str(here), str(here.parent)]
 
 
-def load_scene_script(path) -> SceneScript:
-    """Execute a scene script and return its ``build`` and ``DURATION``."""
+def load_scene_script(path, joints=None) -> SceneScript:
+    """Execute a scene script and return its ``build`` and ``DURATION``. A DXF section
+    (``.dxf``) with its TOML ``joints`` file is read by `ddatai.dxf.dxf_scene_script`."""
     path = Path(path)
     if not path.is_file():
         raise SceneFileError(f"no such scene file: {path}")
+    if path.suffix.lower() == ".dxf":
+        from .dxf import dxf_scene_script
+
+        return dxf_scene_script(path, joints)
     if path.suffix != ".py":
         raise SceneFileError(f"{path}: a scene script is a Python file (.py)")
     spec = importlib.util.spec_from_file_location(f"_ddatai_scene_{path.stem}", path)

@@ -19,12 +19,13 @@ from typing import Optional, Sequence
 import numpy as np
 
 
-def load_scene(path: str):
-    """Run a scene script's ``build()`` (`ddatai.scenefile`, the loader of ``ddatai run``);
-    returns (scene, params or None). A broken script is a `ValueError` with one line."""
+def load_scene(path: str, joints: Optional[str] = None):
+    """Run a scene script's ``build()`` (`ddatai.scenefile`, the loader of ``ddatai run``), or
+    read a DXF section with its ``joints`` TOML file; returns (scene, params or None). A broken
+    script is a `ValueError` with one line."""
     from ddatai.scenefile import build_scene, load_scene_script
 
-    return build_scene(load_scene_script(path))
+    return build_scene(load_scene_script(path, joints=joints))
 
 
 def _dda_progress(err):
@@ -171,7 +172,8 @@ def main(argv: Optional[Sequence[str]] = None, out=None) -> int:
     parser = argparse.ArgumentParser(prog="kgm", description="Key Group Method analysis of a ddatai scene")
     sub = parser.add_subparsers(dest="command", required=True)
     an = sub.add_parser("analyze", help="find and judge the key groups of a scene")
-    an.add_argument("scene", help="scene script with build() -> Scene or (Scene, Params)")
+    an.add_argument("scene", help="scene script with build() -> Scene or (Scene, Params), or a SECTION.dxf")
+    an.add_argument("--joints", metavar="TOML", help="a SECTION.dxf's material and joint layers")
     an.add_argument("--method", choices=("rigid", "sarma", "dda"), default="sarma")
     an.add_argument("--progressive", action="store_true", help="remove unstable groups and repeat")
     an.add_argument("--seismic", metavar="KH[,KV]", type=_seismic,
@@ -202,7 +204,7 @@ def main(argv: Optional[Sequence[str]] = None, out=None) -> int:
     from .settings import DdaSettings, Settings
 
     try:
-        scene, params = load_scene(args.scene)
+        scene, params = load_scene(args.scene, getattr(args, "joints", None))
         settings = Settings(dda=DdaSettings(compare_whole=args.compare_whole, progress=_dda_progress(sys.stderr)))
         rep = analyze(scene, method=args.method, progressive=args.progressive, settings=settings, params=params,
                       seismic=args.seismic)

@@ -131,3 +131,44 @@ def test_trace_ends_short_of_the_outline_are_snapped(tmp_path):
     assert scene.n_blocks == 2
     np.testing.assert_allclose(sorted(areas(scene)), [22.5, 27.5], rtol=1e-6)
     assert dd.read_dxf(path, snap=0.0, **kw).n_blocks == 1
+
+
+def test_joints_file_is_the_scripts():
+    """scenes/section/joints.toml gives the drawing the material and joints of drawing.py."""
+    from ddatai.dxf import read_joints_file
+
+    opts = read_joints_file(SCENES / "section" / "joints.toml")
+    assert opts["material"] == example.ROCK and opts["joints"] == example.JOINTS
+    assert opts["default_joint"] == example.DEFAULT_JOINT and opts["duration"] == 2.0
+
+
+def test_command_lines_take_a_section_and_its_joints(tmp_path, capsys):
+    import kgm.cli
+    from ddatai import cli
+
+    dxf, joints = SCENES / "section" / "section.dxf", SCENES / "section" / "joints.toml"
+    assert kgm.cli.main(["analyze", str(dxf), "--joints", str(joints), "--method", "rigid"]) == 0
+    out = capsys.readouterr().out
+    assert "critical key group [26, 30, 32, 36]: FS 0.966" in out
+    assert cli.main(["run", str(dxf), "--joints", str(joints), "--steps", "2", "--out", str(tmp_path)]) == 0
+    assert (tmp_path / "section.npz").exists()
+    assert kgm.cli.main(["analyze", str(dxf)]) == 2
+    assert "needs its joints file, --joints" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("text, message", [
+    ("[joints.BEDDING]\nfriction = 30.0\n", r"\[material\] table"),
+    ("[material]\ndensity = 2600.0\nyoung = 1e10\npoisson = 0.25\n", r"\[joints.LAYER\]"),
+    ("[material]\ndensity = 2600.0\nyoung = 1e10\npoisson = 0.25\n[joints.B]\njrc = 40\njcs = 1e7\n"
+     "residual_friction = 25.0\n", r"\[joints.B\]: BartonBandis.jrc"),
+    ("[material]\ndensity = 2600.0\nyoung = 1e10\npoisson = 0.25\n[joints.B]\nfriciton = 30\n",
+     r"\[joints.B\]: .*friciton"),
+    ("colour = 3\n", "unknown key 'colour'"),
+])
+def test_bad_joints_files_name_the_key(tmp_path, text, message):
+    from ddatai.dxf import read_joints_file
+
+    path = tmp_path / "joints.toml"
+    path.write_text(text)
+    with pytest.raises(ValueError, match=message):
+        read_joints_file(path)
