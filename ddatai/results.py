@@ -224,6 +224,23 @@ class Results:
             raise ValueError("these results have no contact forces (recorded since contacts carry them)")
         return self.contact_normal_force[a:b], self.contact_shear_force[a:b]
 
+    def contacts_csv(self, path) -> Path:
+        """Write every recorded contact as CSV, one row per contact and frame: ``frame, time_s,
+        x_m, y_m, state`` (0 open, 1 sliding, 2 locked), ``normal_N_per_m, shear_N_per_m``."""
+        counts = np.diff(self.contact_offset)
+        if counts.sum() == 0:
+            raise ValueError("the results have no contacts (record them with record_contacts=True / --contacts)")
+        frame = np.repeat(np.arange(self.n_frames), counts)
+        forces = len(self.contact_normal_force) == len(self.contact_xy)
+        normal = self.contact_normal_force if forces else np.full(len(frame), np.nan)
+        shear = self.contact_shear_force if forces else np.full(len(frame), np.nan)
+        table = np.column_stack([frame, self.time[frame], self.contact_xy, self.contact_state, normal, shear])
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        np.savetxt(path, table, delimiter=",", header="frame,time_s,x_m,y_m,state,normal_N_per_m,shear_N_per_m",
+                   comments="", fmt=["%d", "%.10g", "%.10g", "%.10g", "%d", "%.10g", "%.10g"])
+        return path
+
     def measured_displacement(self) -> np.ndarray:
         """(F, nm, 2) displacement of each measured point from frame 0 [m]."""
         return self.measured - self.measured[:1]

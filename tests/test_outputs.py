@@ -199,3 +199,15 @@ def test_history_plot(sliding, tmp_path):
     assert len(figure.axes) == 2
     with Image.open(path) as im:
         assert im.size == (700, 500)
+
+
+def test_contacts_csv(sliding, tmp_path):
+    _, _, _, res = sliding
+    path = res.contacts_csv(tmp_path / "c.csv")
+    assert path.read_text().splitlines()[0] == "frame,time_s,x_m,y_m,state,normal_N_per_m,shear_N_per_m"
+    table = np.loadtxt(path, delimiter=",", skiprows=1)
+    assert len(table) == len(res.contact_xy)
+    last = table[table[:, 0] == res.n_frames - 1]
+    normal, shear = res.contact_forces(-1)
+    assert np.allclose(last[:, 5], normal) and np.allclose(last[:, 6], shear)
+    assert np.allclose(last[:, 1], res.time[-1]) and np.allclose(last[:, 2:4], res.contacts(-1)[0])
