@@ -240,6 +240,20 @@ def _simulate_and_report(scene, params, duration, steps, name, args, after=None)
     wall = time.perf_counter() - t0
     progress.close(float(results.time[-1]))
     out = _save(results, args.out, name)
+    try:
+        _write_outputs(results, out, name, args, after)
+    except KeyboardInterrupt:
+        print(f"ddatai: interrupted while writing the outputs; the results are in {out}", file=sys.stderr)
+        return 130
+    s = results.summary()
+    print(f"{name}: {s['blocks']} blocks, {s['steps']} steps to t = {s['simulated_time']:.4g} s, "
+          f"{s['dt_cuts']} dt cuts, {s['oc_iterations']} open-close iterations, "
+          f"{wall:.2f} s wall time; results in {out}")
+    return 0
+
+
+def _write_outputs(results, out: Path, name: str, args: argparse.Namespace, after) -> None:
+    """The outputs beside the results file: measured points, histories, VTK, GIF."""
     if after is not None:
         after(results)
     elif results.measured.shape[1]:
@@ -257,11 +271,6 @@ def _simulate_and_report(scene, params, duration, steps, name, args, after=None)
         write_gif(results, args.gif, size=args.size, fps=args.fps, speed=args.speed, stride=args.stride,
                   show_contacts=args.contacts, title=name)
         print(f"GIF written to {args.gif} ({_gif_speed(results, args)})")
-    s = results.summary()
-    print(f"{name}: {s['blocks']} blocks, {s['steps']} steps to t = {s['simulated_time']:.4g} s, "
-          f"{s['dt_cuts']} dt cuts, {s['oc_iterations']} open-close iterations, "
-          f"{wall:.2f} s wall time; results in {out}")
-    return 0
 
 
 def _gif_speed(results, args) -> str:
