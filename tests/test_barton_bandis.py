@@ -255,3 +255,19 @@ def test_toppling_with_a_rough_joint_lies_between_its_bounds():
 
 def law_jrc(jrc, phir, sigma_n):
     return min(max(phir + jrc * math.log10(JCS / sigma_n), phir), 70.0)
+
+
+def test_kgm_dda_factor_of_safety_reduces_the_law():
+    """kgm's DDA evaluator reduces tan φ(σn) by F at each contact's stress (the sub-model's
+    joints carry ``reduction``): its FS of a block at θ = 44° is the law's tan φ(σn)/tan θ
+    within the bisection tolerance plus the DDA judgement's friction resolution
+    Δtanφ ≈ a_r/(g cosθ) (tests/test_kgm_dda.py)."""
+    theta = 44.0
+    scene, (b,) = incline(theta, [LIGHT], at=(4.0,))
+    s = kgm.DdaSettings()
+    th = math.radians(theta)
+    expected = math.tan(math.radians(law(RHO * G * LIGHT * math.cos(th)))) / math.tan(th)
+    dtan = s.acceleration_resolution / (G * math.cos(th))
+    fs = kgm.factor_of_safety(scene, {b}, method="dda")
+    assert fs == pytest.approx(expected, abs=s.fs_tolerance + dtan / math.tan(th))
+    assert kgm.factor_of_safety(scene, {b}, method="rigid") == pytest.approx(expected, rel=1e-9)
