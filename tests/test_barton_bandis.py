@@ -271,3 +271,50 @@ def test_kgm_dda_factor_of_safety_reduces_the_law():
     fs = kgm.factor_of_safety(scene, {b}, method="dda")
     assert fs == pytest.approx(expected, abs=s.fs_tolerance + dtan / math.tan(th))
     assert kgm.factor_of_safety(scene, {b}, method="rigid") == pytest.approx(expected, rel=1e-9)
+
+
+def test_dda_law_holds_at_every_contact_of_every_step():
+    """The example section (Barton–Bandis bedding, Mohr–Coulomb cross joints; its key group
+    slides): after every accepted step a locked contact's shear force is at most its strength
+    N·tan φ(N/L) + c·L, and a sliding contact's friction equals it, φ(σn) written out here
+    (bounded to [φr, 70°]; a corner contact, L = 0, at φr) — relative 1e-3 plus the round-off
+    force, as for Mohr–Coulomb (tests/test_verification.py)."""
+    from ddatai.model import build_model
+    from ddatai.start import settle
+    from ddatai.step import Stepper
+    from scenes.section import drawing
+
+    scene = drawing.python_scene()
+    model = build_model(scene)
+    stepper = Stepper(model)
+    state, _ = settle(stepper, model.initial_state())
+    checked_bb = 0
+    while state.time < 0.3:
+        state, _ = stepper.step(state)
+        c = stepper.last_contacts
+        tan = np.empty(c.n)
+        for i in range(c.n):
+            jt = scene.joints[c.joint[i]]
+            if isinstance(jt, dd.BartonBandis):
+                n, length = c.normal_force[i], c.length[i]
+                if length == 0:
+                    phi = jt.residual_friction
+                elif n <= 0:
+                    phi = jt.max_friction
+                else:
+                    phi = min(max(jt.residual_friction + jt.jrc * math.log10(jt.jcs * length / n),
+                                  jt.residual_friction), jt.max_friction)
+                tan[i] = math.tan(math.radians(phi))
+            else:
+                tan[i] = math.tan(math.radians(jt.friction))
+        strength = c.normal_force * tan + c.cohesion * c.length * c.bond
+        slack = 1e-3 * strength + model.force_roundoff
+        ve = c.cint[:, 0] == dd.ContactKind.VE
+        locked = ve & (c.state == dd.ContactState.LOCK)
+        sliding = ve & (c.state == dd.ContactState.SLIDE)
+        assert np.all(model.shear_penalty * np.abs(c.ds[locked]) <= strength[locked] + slack[locked])
+        assert np.all(np.abs(stepper._friction[sliding] - strength[sliding]) <= slack[sliding])
+        bb = np.array([isinstance(scene.joints[j], dd.BartonBandis) for j in c.joint])
+        checked_bb += int(np.count_nonzero((locked | sliding) & bb & (c.normal_force > 0)))
+    assert checked_bb > 0
+    assert np.any(sliding & bb)   # the key group slides on the bedding
