@@ -117,6 +117,9 @@ class BlockSystem:
     block_passive: Optional[np.ndarray] = None
     """(B, 2) passive bolt force (capacity beyond the pretension) on each block [N/m]; a
     resistance, not in ``block_force``; None without bolts."""
+    block_passive_moment: Optional[np.ndarray] = None
+    """(B,) moment of the passive bolt forces about the origin (0, 0), counter-clockwise
+    positive [N·m/m]; None without bolts."""
     contact_water: Optional[np.ndarray] = None
     """(C,) water force ∫p ds on each contact segment [N/m], None without a water table."""
     seismic: tuple = (0.0, 0.0)
@@ -301,10 +304,10 @@ def build_block_system(scene, *, seismic=None) -> BlockSystem:
         moment += m
         extra["block_water"] = f
     if getattr(scene, "bolts", None):
-        act, act_m, pas = _bolt_forces(scene.bolts, nb)
+        act, act_m, pas, pas_m = _bolt_forces(scene.bolts, nb)
         force += act
         moment += act_m
-        extra["block_bolt"], extra["block_passive"] = act, pas
+        extra["block_bolt"], extra["block_passive"], extra["block_passive_moment"] = act, pas, pas_m
     fixed = np.array([s.fixed for s in specs], dtype=bool)
     for pt in scene.fixed_points:
         fixed[pt.block] = True
@@ -382,13 +385,14 @@ def _check_seismic(seismic) -> tuple[float, float]:
     return kh, kv
 
 
-def _bolt_forces(bolts, nb: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Active force (pretension), its moment about the origin, and passive force (capacity
-    beyond the pretension; none for an unbreakable bolt) of the bolts on every block: each end
-    is pulled towards the other (tension positive)."""
+def _bolt_forces(bolts, nb: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Active force (pretension) and its moment about the origin, passive force (capacity
+    beyond the pretension; none for an unbreakable bolt) and its moment, of the bolts on every
+    block: each end is pulled towards the other (tension positive)."""
     act = np.zeros((nb, 2))
     mom = np.zeros(nb)
     pas = np.zeros((nb, 2))
+    pas_m = np.zeros(nb)
     for b in bolts:
         p1, p2 = np.asarray(b.xy1), np.asarray(b.xy2)
         u = (p2 - p1) / np.hypot(*(p2 - p1))
@@ -397,8 +401,10 @@ def _bolt_forces(bolts, nb: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             f = sgn * b.pretension * u
             act[blk] += f
             mom[blk] += p[0] * f[1] - p[1] * f[0]
-            pas[blk] += sgn * passive * u
-    return act, mom, pas
+            fp = sgn * passive * u
+            pas[blk] += fp
+            pas_m[blk] += p[0] * fp[1] - p[1] * fp[0]
+    return act, mom, pas, pas_m
 
 
 def _contact_water(scene, start: np.ndarray, end: np.ndarray, joint: np.ndarray, g: float) -> np.ndarray:
@@ -685,9 +691,13 @@ def rigid_modes(system: BlockSystem, blocks: frozenset, removed: frozenset = fro
         kc = _sliding_kc(system, members, k, ni, s, r + passive)
         modes.append(Mode(kind=ModeKind.SLIDING, fs=fs, critical_friction=phi_c, sliding_contacts=k,
                           direction=s, critical_acceleration=kc))
-    pivot = _toppling_pivot(system, idx, n, r, m0)
-    if pivot is not None:
-        modes.append(Mode(kind=ModeKind.ROTATION, fs=0.0, critical_friction=90.0,
+    held = None
+    if system.block_passive_moment is not None:
+        held = (passive, float(system.block_passive_moment[members].sum()))
+    found = _toppling_pivot(system, idx, n, r, m0, held)
+    if found is not None:
+        pivot, fs_rot = found
+        modes.append(Mode(kind=ModeKind.ROTATION, fs=fs_rot, critical_friction=90.0 if fs_rot < 1.0 else 0.0,
                           sliding_contacts=np.zeros(0, np.int64), pivot=pivot))
     return modes
 
@@ -755,9 +765,13 @@ def _sliding_kc(system: BlockSystem, members: np.ndarray, contacts: np.ndarray, 
 
 
 def _toppling_pivot(system: BlockSystem, idx: np.ndarray, n: np.ndarray, r: np.ndarray,
-                    m0: float) -> Optional[np.ndarray]:
+                    m0: float, passive: Optional[tuple] = None) -> Optional[tuple[np.ndarray, float]]:
     """A vertex V of the contact set about which the rigid rotation is admissible (no contact
-    end point moves into its neighbour) and driven by the moment of r (§4.5), or None."""
+    end point moves into its neighbour) and driven by the moment of r (§4.5), with its factor
+    of safety FS_rot = M_resisting/|M_V|; or None. Faces that open carry nothing, so only
+    passive bolts resist (``passive`` = their resultant P and moment about the origin M_P;
+    docs/method/water_bolts.md, B2): M_resisting = −sign(ω)·(M_P − V × P). Without them every
+    admissible pivot has FS 0 and the first is returned; with them, the least safe."""
     if len(idx) == 0:
         return None
     ends = np.concatenate([system.contact_start[idx], system.contact_end[idx]])
@@ -765,6 +779,7 @@ def _toppling_pivot(system: BlockSystem, idx: np.ndarray, n: np.ndarray, r: np.n
     tol = DISTANCE_TOL * system.scale
     rnorm = float(np.hypot(*r))
     candidates = _unique_points(ends, tol)
+    best = None
     for v in candidates:
         moment = m0 - (v[0] * r[1] - v[1] * r[0])  # moment of r about V
         if abs(moment) <= 1e-9 * rnorm * system.scale:
@@ -773,8 +788,15 @@ def _toppling_pivot(system: BlockSystem, idx: np.ndarray, n: np.ndarray, r: np.n
         d = ends - v
         vel = omega * np.stack([-d[:, 1], d[:, 0]], axis=1)
         if np.all((vel * normals).sum(axis=1) >= -tol):
-            return v
-    return None
+            fs = 0.0
+            if passive is not None:
+                p, mp = passive
+                fs = max(-omega * (mp - (v[0] * p[1] - v[1] * p[0])), 0.0) / abs(moment)
+            if best is None or fs < best[1]:
+                best = (v, fs)
+            if fs == 0.0:
+                break
+    return best
 
 
 def _unique_points(p: np.ndarray, tol: float) -> np.ndarray:

@@ -259,3 +259,31 @@ def test_sarma_biplanar_pair_under_a_level_water_table(level):
     dry = kgm.critical_friction(biplanar_scene(20.0)[0], [a, b], method="sarma")
     assert abs(expected - dry) > 0.05            # the water changes the answer
     assert kgm.critical_friction(scene, [a, b], method="sarma") == pytest.approx(expected, abs=0.01)
+
+
+def test_passive_bolt_resists_toppling():
+    """A 1 × 4 m column on a flat base pushed over its toe by F at its top (sliding held by
+    φ = 45°), bolted at height h_b to a wall behind it (passive capacity C): about the toe the
+    load overturns with M = F·h − W·b/2 and the bolt resists with C·h_b, so FS_rot = C·h_b/M;
+    unbolted the column topples (FS 0)."""
+    rock = dd.Material(density=2500.0, young=5e9, poisson=0.25)
+    b, h, force, h_b, cap = 1.0, 4.0, 20e3, 3.0, 15e3
+
+    def column(bolted: bool):
+        s = dd.Scene(gravity=G)
+        s.add_block([(-4, -1), (4, -1), (4, 0), (-4, 0)], material=rock, fixed=True)
+        s.add_block([(-3, 0), (-2, 0), (-2, 5), (-3, 5)], material=rock, fixed=True)     # the wall
+        col = s.add_block([(0, 0), (b, 0), (b, h), (0, h)], material=rock)
+        s.set_joint(dd.Joint(friction=45.0))
+        s.add_point_load(col, (0.5 * b, h), (force, 0.0))
+        if bolted:
+            s.add_bolt((0.1, h_b), (-2.5, h_b), stiffness=1e8, capacity=cap)
+        return s, col
+
+    weight = 2500.0 * G * b * h
+    s, col = column(False)
+    assert kgm.factor_of_safety(s, [col], method="rigid") == 0.0
+    s, col = column(True)
+    res = kgm.evaluate(s, [col], method="rigid")
+    assert res.mode.kind.value == "rotation"
+    assert res.fs == pytest.approx(cap * h_b / (force * h - weight * b / 2), rel=1e-9)
