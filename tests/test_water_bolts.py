@@ -457,3 +457,30 @@ def test_pretension_pulls_a_free_block_towards_the_anchor():
         assert np.trapezoid(moved, t) / t[-1] == pytest.approx(p0 / k, rel=1e-2)
         assert abs(np.trapezoid(res.bolt_force[:, 0], t) / t[-1]) < 1e-2 * p0
         assert moved.max() == pytest.approx(2 * p0 / k, rel=5e-2)
+
+
+@pytest.mark.parametrize("capacity", [15e3, 8e3])
+def test_bolted_column_against_overturning(capacity):
+    """A 1 × 4 m column pushed over its toe by F = 20 kN/m at its top, bolted at 3 m to a wall
+    behind it: the bolt must carry the overturning moment about the toe, T = (F·h − W·b/2)/h_b
+    (the heel lifts: the bolt is far softer than the contact). kgm's FS_rot = C/T: with
+    C = 15 kN/m (FS 1.45) DDA holds it and the bolt carries T within 1 %; with C = 8 kN/m
+    (FS 0.78) the bolt breaks and the column topples."""
+    import kgm
+
+    rock = dd.Material(density=RHO, young=5e9, poisson=0.25)
+    s = dd.Scene(gravity=G)
+    s.add_block([(-4, -1), (4, -1), (4, 0), (-4, 0)], material=rock, fixed=True)
+    s.add_block([(-3, 0), (-2, 0), (-2, 5), (-3, 5)], material=rock, fixed=True)       # the wall
+    col = s.add_block([(0, 0), (1, 0), (1, 4), (0, 4)], material=rock)
+    s.set_joint(dd.Joint(friction=45.0))
+    s.add_point_load(col, (0.5, 4.0), (20e3, 0.0))
+    s.add_bolt((0.1, 3.0), (-2.5, 3.0), stiffness=1e8, capacity=capacity)
+    demand = (20e3 * 4.0 - RHO * G * 4.0 * 0.5) / 3.0
+    assert kgm.factor_of_safety(s, [col], method="rigid") == pytest.approx(capacity / demand, rel=1e-9)
+    res = dd.simulate(s, duration=1.0)
+    if capacity > demand:
+        assert res.bolt_force[-1, 0] == pytest.approx(demand, rel=1e-2)
+        assert abs(res.rotation[-1, col]) < 1e-3 and len(res.bolt_events) == 0
+    else:
+        assert len(res.bolt_events) == 1 and abs(res.rotation[-1, col]) > 0.1
