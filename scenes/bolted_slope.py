@@ -12,7 +12,12 @@ With one row of half the capacity (``build(bolts="weak")``, FS ≈ 0.94) the bol
 wedge slides.
 
 Run ``python scenes/bolted_slope.py --gif out/bolted_slope.gif`` (the design) or
-``kgm analyze scenes/bolted_slope.py``.
+``kgm analyze scenes/bolted_slope.py``. The README's pictures::
+
+    for case in ("weak", "design"):
+        res = dd.simulate(*build(case), duration=2.0, record_every=2)
+        dd.write_gif(res, f"docs/gallery/bolted_slope{'_weak' if case == 'weak' else ''}.gif",
+                     title=f"bolted_slope: {case}", size=(480, 300))
 """
 
 import math
