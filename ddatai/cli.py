@@ -246,7 +246,8 @@ def _simulate_and_report(scene, params, duration, steps, name, args, after=None)
         print(f"ddatai: interrupted while writing the outputs; the results are in {out}", file=sys.stderr)
         return 130
     s = results.summary()
-    print(f"{name}: {s['blocks']} blocks, {s['steps']} steps to t = {s['simulated_time']:.4g} s, "
+    print(f"{getattr(args, 'title', None) or name}: {s['blocks']} blocks, {s['steps']} steps to "
+          f"t = {s['simulated_time']:.4g} s, "
           f"{s['dt_cuts']} dt cuts, {s['oc_iterations']} open-close iterations, "
           f"{wall:.2f} s wall time; results in {out}")
     return 0
@@ -269,7 +270,7 @@ def _write_outputs(results, out: Path, name: str, args: argparse.Namespace, afte
         from .render import write_gif
 
         write_gif(results, args.gif, size=args.size, fps=args.fps, speed=args.speed, stride=args.stride,
-                  show_contacts=args.contacts, title=name)
+                  show_contacts=args.contacts, title=getattr(args, "title", None) or name)
         print(f"GIF written to {args.gif} ({_gif_speed(results, args)})")
 
 
@@ -363,7 +364,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             from .scenefile import load_scene_script
 
             script = load_scene_script(inputs[0], joints=args.joints)
+            args.title = script.name  # the GIF's title: the scene, whatever the files are called
             return run_scene(script, script.duration, _output_name(args, script.name), args)
+        args.title = inputs[0].stem
         return _run_ntdda(inputs[0], inputs[1], args)
 
     return _guarded(args, go)
@@ -377,6 +380,7 @@ def scene_main(build: Callable, duration: Optional[float], name: str, argv: Opti
 
     def go() -> int:
         check_options(args)
+        args.title = name
         return run_scene(build, duration, _output_name(args, name), args)
 
     return _guarded(args, go, prog=name)

@@ -76,8 +76,11 @@ class View:
 def _view(results: Results, frames: Sequence[int], size: tuple[int, int]) -> View:
     width, height = size
     top, bottom, side = 26, 30, 12  # room for the time (top) and the scale bar (bottom)
-    xy = results.vertices[list(frames)].reshape(-1, 2)
-    lo, hi = xy.min(axis=0), xy.max(axis=0)
+    # frame by frame: no copy of every drawn frame's vertices at once
+    lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
+    for f in frames:
+        xy = results.vertices[f]
+        lo, hi = np.minimum(lo, xy.min(axis=0)), np.maximum(hi, xy.max(axis=0))
     span = np.maximum(hi - lo, 1e-9)
     pad = 0.03 * span.max()
     lo, span = lo - pad, span + 2 * pad
@@ -98,26 +101,26 @@ def _nice_length(target: float) -> float:
     return 10 ** k
 
 
-def _speed(results: Results) -> np.ndarray:
-    """(F, B) block speed: centroid speed plus |ω| × block radius [m/s]."""
-    v = np.hypot(results.velocity[..., 0], results.velocity[..., 1])
+def _block_radius(results: Results) -> np.ndarray:
+    """(B,) largest distance of a block's vertices from its centroid at frame 0 [m]."""
     off = results.vertex_offset
     centroid = results.centroid[0]
     block = np.repeat(np.arange(results.n_blocks), np.diff(off))
     r = np.hypot(*(results.vertices[0] - centroid[block]).T)
-    radius = np.maximum.reduceat(r, off[:-1])
-    return v + np.abs(results.angular_velocity) * radius
+    return np.maximum.reduceat(r, off[:-1])
 
 
-def _moved(results: Results) -> np.ndarray:
-    """(F, B) how far each block has moved since frame 0: centroid displacement plus
+def _speed(results: Results, frame: int, radius: np.ndarray) -> np.ndarray:
+    """(B,) block speed at a frame: centroid speed plus |ω| × block radius [m/s]."""
+    v = results.velocity[frame]
+    return np.hypot(v[:, 0], v[:, 1]) + np.abs(results.angular_velocity[frame]) * radius
+
+
+def _moved(results: Results, frame: int, radius: np.ndarray) -> np.ndarray:
+    """(B,) how far each block has moved since frame 0: centroid displacement plus
     |rotation| × block radius [m]."""
-    off = results.vertex_offset
-    centroid = results.centroid[0]
-    block = np.repeat(np.arange(results.n_blocks), np.diff(off))
-    radius = np.maximum.reduceat(np.hypot(*(results.vertices[0] - centroid[block]).T), off[:-1])
-    u = results.centroid - results.centroid[:1]
-    return np.hypot(u[..., 0], u[..., 1]) + np.abs(results.rotation - results.rotation[:1]) * radius
+    u = results.centroid[frame] - results.centroid[0]
+    return np.hypot(u[:, 0], u[:, 1]) + np.abs(results.rotation[frame] - results.rotation[0]) * radius
 
 
 def _draw_points_and_loads(d, view: View, results: Results, frame: int) -> None:
@@ -167,20 +170,26 @@ class _Painter:
                 raise ValueError(f"label_names has {len(names)} names but labels use {max(used) + 1}")
             self.legend = [(LABEL_COLOURS[k % len(LABEL_COLOURS)], names[k]) for k in used]
         else:
-            speed = _speed(results)
+            # the colour scale's top over the drawn frames, one frame at a time (no (F, B) array)
+            self.radius = _block_radius(results)
             free = ~results.block_fixed
-            top = float(speed[list(frames)][:, free].max(initial=0.0)) if free.any() else 0.0
+
+            def top(measure) -> float:
+                if not free.any():
+                    return 0.0
+                return max((float(measure(results, f, self.radius)[free].max()) for f in frames), default=0.0)
+
+            fastest = top(_speed)
             # 1 mm/s floor: a model at rest shows round-off speeds, which are not motion
-            self.max_speed = float(max_speed) if max_speed is not None else max(top, MIN_SPEED_SCALE)
-            self.speed = speed
+            self.max_speed = float(max_speed) if max_speed is not None else max(fastest, MIN_SPEED_SCALE)
+            self.measure = _speed
             self.quantity, self.unit = "speed", "m/s"
-            if max_speed is None and top < MIN_SPEED_SCALE:
+            if max_speed is None and fastest < MIN_SPEED_SCALE:
                 # no block moves faster than the floor (a static or settled run): the colours
                 # show how far the blocks have moved instead, or a uniform scale shows nothing
-                moved = _moved(results)
-                far = float(moved[list(frames)][:, free].max(initial=0.0)) if free.any() else 0.0
+                far = top(_moved)
                 if far > 0.0:
-                    self.speed, self.max_speed = moved, far
+                    self.measure, self.max_speed = _moved, far
                     self.quantity, self.unit = "displacement", "m"
         off = results.vertex_offset
         self.offsets = off
@@ -198,7 +207,8 @@ class _Painter:
                     out.append(DEFAULT_FREE)
             return out
         n = len(SPEED_COLOURS)
-        level = np.clip((self.speed[frame] / self.max_speed * n).astype(int), 0, n - 1)
+        value = self.measure(r, frame, self.radius)
+        level = np.clip((value / self.max_speed * n).astype(int), 0, n - 1)
         return [FIXED if r.block_fixed[b] else SPEED_COLOURS[level[b]] for b in range(r.n_blocks)]
 
     def image(self, frame: int) -> np.ndarray:

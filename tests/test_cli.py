@@ -153,3 +153,14 @@ def test_ctrl_c_while_writing_the_gif_keeps_the_results(bare, tmp_path, capsys, 
     line = _one_error_line(capsys)
     assert "interrupted while writing the outputs" in line and str(out / "g.npz") in line
     assert dd.load_results(out / "g.npz").summary()["steps"] == 2
+
+
+def test_gif_title_and_summary_name_the_scene(bare, tmp_path, capsys):
+    """The files are named after the GIF; the GIF's title and the summary name the scene."""
+    out = tmp_path / "out"
+    assert main(["run", str(bare), "--steps", "1", "--out", str(out), "--quiet", "--size", "200x150",
+                 "--gif", str(tmp_path / "fast.gif")]) == 0
+    assert capsys.readouterr().out.splitlines()[-1].startswith("bare: 2 blocks, 1 steps")
+    res = dd.load_results(out / "fast.npz")
+    titled = dd.write_gif(res, tmp_path / "again.gif", size=(200, 150), title="bare")
+    assert titled.read_bytes() == (tmp_path / "fast.gif").read_bytes()
