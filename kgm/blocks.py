@@ -199,6 +199,32 @@ class BlockSystem:
         sigma = max(float(normal_force), 0.0) / total if total > 0 else 0.0
         return float((self.tan_friction(contacts, sigma) * length).sum() / max(total, 1e-300))
 
+    def face_tan_function(self, contacts: np.ndarray):
+        """`face_tan` of these contacts as a function of the normal force [N/m], for the
+        fixed-point iterations that call it many times (plain floats, the law of eq. BB1)."""
+        contacts = np.asarray(contacts, dtype=np.int64)
+        length = self.contact_length[contacts]
+        total = float(length.sum())
+        weight = (length / max(total, 1e-300)).tolist()
+        tan_mc = np.tan(np.radians(self.contact_friction[contacts])).tolist()
+        rows = (self.contact_barton[contacts].tolist() if self.contact_barton is not None
+                else [[math.nan] * 5] * len(weight))
+        # the Mohr–Coulomb contacts' share is constant; the Barton–Bandis ones follow σn
+        fixed = sum(w * t for w, t, row in zip(weight, tan_mc, rows) if math.isnan(row[0]))
+        law = [(w, *row) for w, row in zip(weight, rows) if not math.isnan(row[0])]
+
+        def tan_at(normal_force: float) -> float:
+            sigma = max(float(normal_force), 0.0) / total if total > 0 else 0.0
+            out = fixed
+            for w, jrc, jcs, phir, cap, red in law:
+                if sigma > 0:
+                    phi = min(max(phir + jrc * math.log10(jcs / sigma), phir), cap)
+                else:
+                    phi = cap if jrc > 0 else phir
+                out += w * math.tan(math.radians(phi)) / red
+            return out
+        return tan_at
+
     def free_length(self, block: int, removed: frozenset = frozenset()) -> float:
         """Length of the block's boundary that touches no (remaining) block [m]."""
         return float(sum(np.linalg.norm(e - s) for s, e in self.free_segments(block, removed)))

@@ -136,8 +136,7 @@ def _face(system: BlockSystem, contacts: np.ndarray, normal: np.ndarray, point: 
     ks = np.asarray(contacts, dtype=np.int64)
     tan_at = None
     if system.contact_barton is not None and not np.all(np.isnan(system.contact_barton[ks, 0])):
-        def tan_at(normal_force: float) -> float:
-            return system.face_tan(ks, normal_force)
+        tan_at = system.face_tan_function(ks)
     return _Face(contacts=ks, normal=normal, point=point, length=total,
                  cl=float((system.contact_cohesion[contacts] * length).sum()),
                  tan_phi=float((np.tan(np.radians(system.contact_friction[contacts])) * length).sum()

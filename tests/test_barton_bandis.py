@@ -318,3 +318,16 @@ def test_dda_law_holds_at_every_contact_of_every_step():
         checked_bb += int(np.count_nonzero((locked | sliding) & bb & (c.normal_force > 0)))
     assert checked_bb > 0
     assert np.any(sliding & bb)   # the key group slides on the bedding
+
+
+def test_kgm_face_friction_scalar_and_array_forms_agree():
+    """`BlockSystem.face_tan_function` (the iterations' scalar form) is `face_tan` (the
+    array form) on faces of mixed joints, loaded and unloaded, to round-off."""
+    from scenes.section import drawing
+
+    system = build_block_system(drawing.python_scene())
+    rng = np.random.default_rng(0)
+    for _ in range(100):
+        ks = rng.choice(system.n_contacts, size=int(rng.integers(1, 4)), replace=False)
+        n = float(rng.choice([0.0, rng.uniform(1.0, 1e7)]))
+        assert system.face_tan_function(ks)(n) == pytest.approx(system.face_tan(ks, n), rel=1e-12)
