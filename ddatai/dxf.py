@@ -101,6 +101,11 @@ def _polyline(entity, where: str) -> tuple[np.ndarray, bool]:
         s, e = entity.dxf.start, entity.dxf.end
         return np.array([[s[0], s[1]], [e[0], e[1]]], dtype=float), False
     if kind == "LWPOLYLINE":
+        ez = tuple(entity.dxf.get("extrusion", (0.0, 0.0, 1.0)))
+        if not np.allclose(ez, (0.0, 0.0, 1.0)):
+            # its points are in an object coordinate system (a mirrored drawing): explode it
+            raise ValueError(f"{where}: a polyline drawn in a mirrored or tilted plane (extrusion "
+                             f"{ez}); explode it to lines or redraw it in the world plane")
         pts = np.array(entity.get_points("xyb"), dtype=float).reshape(-1, 3)
         if np.any(pts[:-1, 2] != 0) or (entity.closed and pts[-1, 2] != 0):
             raise ValueError(f"{where}: a polyline with arc segments (bulges); replace the arcs by "

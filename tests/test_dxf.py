@@ -95,6 +95,8 @@ def test_water_layer_and_other_layers(tmp_path):
      "arc segments"),
     (lambda msp: msp.add_lwpolyline([(0, 0), (1, 1), (2, 0)], dxfattribs={"layer": "DOMAIN"}),
      "closed polylines"),
+    (lambda msp: msp.add_lwpolyline([(0, 0), (1, 1)], dxfattribs={"layer": "CROSS", "extrusion": (0, 0, -1)}),
+     "mirrored or tilted plane"),
     (lambda msp: msp.add_lwpolyline([(0, 0), (1, 1), (2, 0)], close=True, dxfattribs={"layer": "DOMAIN"}),
      "exactly one closed polyline"),
 ])
