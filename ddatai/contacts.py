@@ -151,6 +151,9 @@ class Contacts:
     judgement."""
     joint: np.ndarray
     """(m,) int32 joint-table index of each contact."""
+    slip: np.ndarray
+    """(m,) shear displacement slid so far [m], for softening Barton–Bandis joints (zeros
+    otherwise, and never updated)."""
     friction_deg: np.ndarray
     """(m,) friction angle [degrees]."""
     cohesion: np.ndarray
@@ -233,10 +236,13 @@ class Contacts:
             closed = found.copy()
             closed[found] = memory.state[src] != ContactState.OPEN
             normal_force[closed] = memory.normal_force[pos[closed]]
+        slip = np.zeros(m)
+        if len(memory.slip) and m:
+            slip[found] = memory.slip[src]
         if len(model.joint_barton) and m:
             # Barton–Bandis joints: friction at each contact's normal stress (eq. BB1–BB2)
             bb = np.flatnonzero(~np.isnan(model.joint_barton[joint, 0]))
-            tan_phi[bb] = barton_tan(model, joint[bb], normal_force[bb], length[bb])
+            tan_phi[bb] = barton_tan(model, joint[bb], normal_force[bb], length[bb], slip[bb])
         if len(memory.key) and m:
             locked = found.copy()
             locked[found] = memory.state[src] == ContactState.LOCK
@@ -270,7 +276,7 @@ class Contacts:
             bond[touching & ve & (length > 0)] = True
         return Contacts(
             cint=cint, length=length, key=key, block_a=a, block_b=b,
-            tan_phi=tan_phi, joint=joint.astype(np.int32), friction_deg=model.joint_friction[joint],
+            tan_phi=tan_phi, joint=joint.astype(np.int32), slip=slip, friction_deg=model.joint_friction[joint],
             cohesion=model.joint_cohesion[joint], tensile=model.joint_tensile[joint],
             state=state, line=line, omega=omega, bond=bond, shear_dir=shear_dir,
             dn=dn0, ds=np.zeros(m), normal_force=normal_force,
@@ -285,15 +291,24 @@ class Contacts:
         return ContactMemory(key=self.key.copy(), state=self.state.copy(), line=self.line.copy(),
                              omega=self.omega.copy(), bond=self.bond & locked,
                              shear_dir=self.shear_dir.copy(), dn=self.dn.copy(),
-                             normal_force=self.normal_force.copy(), kind=self.cint[:, KIND].astype(np.int8))
+                             normal_force=self.normal_force.copy(), kind=self.cint[:, KIND].astype(np.int8),
+                             slip=self.slip.copy() if self.slip.any() else np.zeros(0))
 
 
-def barton_tan(model: Model, joint: np.ndarray, normal_force: np.ndarray, length: np.ndarray) -> np.ndarray:
+def barton_tan(model: Model, joint: np.ndarray, normal_force: np.ndarray, length: np.ndarray,
+               slip: Optional[np.ndarray] = None) -> np.ndarray:
     """Secant friction coefficient tan φ(σn)/F of contacts on Barton–Bandis joints
     (docs/method/barton_bandis.md): σn = N/L, the contact's normal force over its length
     (eq. BB2; a corner contact, L = 0, has σn = ∞), φ(σn) = φr + JRC·log10(JCS/σn) bounded to
-    [φr, cap] (eq. BB1; σn ≤ 0, an unloaded contact, takes the cap)."""
-    jrc, jcs, phir, cap, red = model.joint_barton[joint].T
+    [φr, cap] (eq. BB1; σn ≤ 0, an unloaded contact, takes the cap). A softening joint's JRC
+    is that mobilised after the contact's ``slip`` (eq. BB7)."""
+    jrc, jcs, phir, cap, red, peak = model.joint_barton[joint].T
+    soft = ~np.isnan(peak)
+    if slip is not None and soft.any():
+        from .params import jrc_mobilised
+
+        jrc = jrc.copy()
+        jrc[soft] *= jrc_mobilised(slip[soft], peak[soft])
     n = np.maximum(normal_force, 0.0)
     with np.errstate(divide="ignore", invalid="ignore"):
         sigma = np.where(length > 0, n / np.where(length > 0, length, 1.0), np.where(n > 0, np.inf, 0.0))

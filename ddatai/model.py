@@ -144,11 +144,11 @@ class Model:
     """(nb,) tension at the initial length [N/m]."""
     bolt_capacity: np.ndarray = field(default_factory=lambda: np.zeros(0))
     """(nb,) tensile capacity [N/m] (inf: unbreakable)."""
-    joint_barton: np.ndarray = field(default_factory=lambda: np.zeros((0, 5)))
-    """(J, 5) Barton–Bandis law of every joint: JRC [-], JCS [Pa], φr [degrees], the cap of the
-    mobilised angle [degrees] and the strength reduction F [-]; JRC is NaN on a Mohr–Coulomb
-    joint. Empty (0, 5) when the model has no Barton–Bandis joint: then nothing is computed for
-    it (docs/method/barton_bandis.md)."""
+    joint_barton: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
+    """(J, 6) Barton–Bandis law of every joint: JRC [-], JCS [Pa], φr [degrees], the cap of the
+    mobilised angle [degrees], the strength reduction F [-] and the peak displacement δp of
+    softening [m] (NaN: none); JRC is NaN on a Mohr–Coulomb joint. Empty (0, 6) when the model
+    has no Barton–Bandis joint: then nothing is computed for it (docs/method/barton_bandis.md)."""
 
     @property
     def n_blocks(self) -> int:
@@ -214,6 +214,9 @@ class ContactMemory:
     """(m,) compressive normal force at the end of the step [N/m]."""
     kind: np.ndarray
     """(m,) int8 `ContactKind` at the end of the step."""
+    slip: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    """(m,) shear displacement slid so far [m] (softening Barton–Bandis joints; empty when
+    the model has none)."""
 
     @staticmethod
     def empty() -> "ContactMemory":
@@ -402,10 +405,11 @@ def _barton_arrays(joints) -> dict:
 
     if not any(isinstance(j, BartonBandis) for j in joints):
         return {}
-    law = np.full((len(joints), 5), np.nan)
+    law = np.full((len(joints), 6), np.nan)
     for k, j in enumerate(joints):
         if isinstance(j, BartonBandis):
-            law[k] = (j.jrc, j.jcs, j.residual_friction, j.max_friction, j.reduction)
+            law[k] = (j.jrc, j.jcs, j.residual_friction, j.max_friction, j.reduction,
+                      np.nan if j.peak_displacement is None else j.peak_displacement)
     return {"joint_barton": law}
 
 

@@ -344,6 +344,12 @@ class BartonBandis(Joint):
     """Strength-reduction factor F [-], > 0: the mobilised tan φ(σn) is divided by F (the
     cohesion is reduced on its own field). 1 for a real joint; `kgm` sets it when it searches a
     factor of safety by strength reduction."""
+    peak_displacement: Optional[float] = None
+    """Softening switch: δp [m], > 0, the shear displacement at peak strength. In DDA a contact
+    that has slid δ beyond it mobilises JRC·m(δ/δp), m falling from 1 at δp to 0 at 100·δp
+    (Barton's mobilisation table, `jrc_mobilised`; `barton_peak_displacement` estimates δp).
+    None (default): no softening, the peak JRC throughout. Limit equilibrium (`kgm`) takes
+    the peak."""
 
     def __post_init__(self) -> None:
         name = type(self).__name__
@@ -358,6 +364,9 @@ class BartonBandis(Joint):
                  f"{self.max_friction!r}), got {self.residual_friction!r}")
         _require(_finite(self.reduction) and self.reduction > 0,
                  f"{name}.reduction must be a finite number > 0, got {self.reduction!r}")
+        _require(self.peak_displacement is None or (_finite(self.peak_displacement) and self.peak_displacement > 0),
+                 f"{name}.peak_displacement (softening) must be None or a finite number > 0 m, "
+                 f"got {self.peak_displacement!r}")
         _require(_finite(self.cohesion) and self.cohesion >= 0,
                  f"{name}.cohesion must be a finite number >= 0 Pa, got {self.cohesion!r}")
         _require(_finite(self.tensile) and self.tensile >= 0,
@@ -399,3 +408,27 @@ class BartonBandis(Joint):
 
         s = np.asarray(sigma_n, dtype=float)
         return np.maximum(s, 0.0) * self.tan_friction(s) + self.cohesion
+
+
+#: Barton's JRC mobilisation beyond the peak: (δ/δp, JRC_mob/JRC_peak) (Barton 1982; Barton,
+#: Bandis & Bakhtar 1985), interpolated linearly in log10(δ/δp); 0 beyond 100·δp
+#: (docs/method/barton_bandis.md, eq. BB7)
+JRC_MOBILISATION = ((1.0, 1.0), (2.0, 0.85), (4.0, 0.70), (10.0, 0.50), (100.0, 0.0))
+
+
+def jrc_mobilised(slip, peak_displacement):
+    """JRC_mob/JRC_peak [-] after a slip δ [m] with peak displacement δp [m] (arrays
+    broadcast; eq. BB7): 1 up to δp, Barton's table beyond, 0 from 100·δp on."""
+    import numpy as np
+
+    ratio = np.maximum(np.asarray(slip, dtype=float) / np.asarray(peak_displacement, dtype=float), 1.0)
+    x, y = np.log10([r for r, _ in JRC_MOBILISATION]), [m for _, m in JRC_MOBILISATION]
+    return np.interp(np.log10(ratio), x, y)
+
+
+def barton_peak_displacement(length: float, jrc: float) -> float:
+    """Barton and Bandis' estimate of the peak shear displacement δp = (L/500)·(JRC/L)^0.33 [m]
+    of a joint of length L [m] (the block size along it) and roughness JRC [-] (eq. BB8)."""
+    _require(_finite(length) and length > 0, f"barton_peak_displacement: length must be > 0 m, got {length!r}")
+    _require(_finite(jrc) and jrc > 0, f"barton_peak_displacement: jrc must be > 0, got {jrc!r}")
+    return (length / 500.0) * (jrc / length) ** 0.33

@@ -119,6 +119,8 @@ class Stepper:
         self._block_load = model.block_density * model.block_geometry(model.vertex_xy0)["area"] * \
             float(np.hypot(*model.gravity))
         self._load_stiff = np.zeros(len(model.load_block))
+        # softening Barton–Bandis joints: contacts remember how far they have slid
+        self._softening = bool(len(model.joint_barton)) and bool(np.any(~np.isnan(model.joint_barton[:, 5])))
 
     # ------------------------------------------------------------------ public
     def step(self, state: State, t_end: Optional[float] = None) -> tuple[State, tuple]:
@@ -166,6 +168,8 @@ class Stepper:
             dt = new_dt
 
         t0 = _time.perf_counter()
+        if self._softening:
+            self._accumulate_slip(attempt)
         new_state = self.update(state, geom, attempt.displacement, attempt.contacts, dt)
         if state.energy is None:
             state = state.replace(energy=sum(self.energies(state, geom, contacts0)))
@@ -182,6 +186,17 @@ class Stepper:
                   *energy, work[0], work[1], dissipated, attempt.coulomb)
         self.last_contacts = attempt.contacts
         return new_state, record
+
+    def _accumulate_slip(self, attempt: "_Attempt") -> None:
+        """Add the step's slip |e_sᵀ·D_a + g_sᵀ·D_b| (the vertex's displacement along the edge,
+        §2.8.4) to every sliding vertex-edge contact on a softening joint (eq. BB7)."""
+        c, vec, d = attempt.contacts, attempt.vec, attempt.displacement
+        soft = (c.state == SLIDE) & (c.cint[:, KIND] != VV) & ~np.isnan(self.model.joint_barton[c.joint, 5])
+        if soft.any():
+            k = np.flatnonzero(soft)
+            step = np.einsum("ij,ij->i", vec[k, S_ES], d[c.block_a[k]]) + \
+                np.einsum("ij,ij->i", vec[k, S_GS], d[c.block_b[k]])
+            c.slip[k] += np.abs(step)
 
     def energies(self, state: State, geom: dict, contacts: Optional[Contacts]) -> tuple:
         """(kinetic, gravitational, strain, contact) energy of a state [J/m] (ddatai.energy)."""
@@ -486,7 +501,7 @@ class Stepper:
             tan_phi = tan_phi.copy()
             bb = np.flatnonzero(~np.isnan(m.joint_barton[contacts.joint, 0]))
             tan_phi[bb] = barton_tan(m, contacts.joint[bb], m.penalty * np.maximum(-dn[bb], 0.0),
-                                     contacts.length[bb])
+                                     contacts.length[bb], contacts.slip[bb])
         strength = m.penalty * np.maximum(-dn, 0.0) * tan_phi + \
             contacts.cohesion * contacts.length * contacts.bond
         # the friction the next solve can apply: N of the last one (or of this one, coupled)

@@ -105,9 +105,9 @@ def test_accepted_wherever_a_joint_is():
     traces = dd.joint_sets([(0, 0), (4, 0), (4, 4), (0, 4)], [dd.JointSet(dip=30.0, spacing=1.0, joint=j)])
     assert traces and all(t[1] is j for t in traces)
     model = dd.build_model(scene)
-    assert model.joint_barton.shape == (len(scene.joints), 5)
+    assert model.joint_barton.shape == (len(scene.joints), 6)
     mc = dd.build_model(_mc_scene())
-    assert mc.joint_barton.shape == (0, 5)   # Mohr–Coulomb models carry nothing for it
+    assert mc.joint_barton.shape == (0, 6)   # Mohr–Coulomb models carry nothing for it
 
 
 def _mc_scene():
@@ -331,3 +331,55 @@ def test_kgm_face_friction_scalar_and_array_forms_agree():
         ks = rng.choice(system.n_contacts, size=int(rng.integers(1, 4)), replace=False)
         n = float(rng.choice([0.0, rng.uniform(1.0, 1e7)]))
         assert system.face_tan_function(ks)(n) == pytest.approx(system.face_tan(ks, n), rel=1e-12)
+
+
+# ----------------------------------------------------------------------------- softening
+def test_jrc_mobilisation_table_and_peak_displacement():
+    """Barton's table beyond the peak, interpolated in log10(δ/δp) (eq. BB7), and Barton and
+    Bandis' δp = (L/500)·(JRC/L)^0.33 (eq. BB8)."""
+    from ddatai.params import barton_peak_displacement, jrc_mobilised
+
+    peak = 2e-3
+    ratios = np.array([0.1, 1.0, 2.0, 4.0, 10.0, 100.0, 1e4])
+    np.testing.assert_allclose(jrc_mobilised(ratios * peak, peak), [1.0, 1.0, 0.85, 0.70, 0.50, 0.0, 0.0])
+    mid = math.sqrt(4.0 * 10.0)  # halfway between 4 and 10 in log
+    assert jrc_mobilised(mid * peak, peak) == pytest.approx(0.60, rel=1e-12)
+    assert barton_peak_displacement(1.0, 10.0) == pytest.approx(1.0 / 500.0 * 10.0 ** 0.33, rel=1e-12)
+    with pytest.raises(ValueError, match="BartonBandis.peak_displacement"):
+        dd.BartonBandis(jrc=JRC, jcs=JCS, residual_friction=PHI_R, peak_displacement=0.0)
+
+
+def test_dda_softening_slides_down_to_the_residual_friction():
+    """δp = 0.5 mm: once the block has slid 100·δp (5 cm) its joint mobilises φr alone, and it
+    accelerates at g(sinθ − cosθ·tanφr), as DDA slides on a Mohr–Coulomb joint (within 1e-3,
+    tests/test_verification.py); without softening it keeps the peak and slides far slower.
+    A run resumed from a checkpoint goes on bit for bit (the slid distance is carried)."""
+    theta, duration = 50.0, 1.2
+    th = math.radians(theta)
+    soft = dd.BartonBandis(jrc=JRC, jcs=JCS, residual_friction=PHI_R, peak_displacement=5e-4)
+    scene, (b,) = incline(theta, [LIGHT], at=(6.0,))
+    scene.set_joint(soft)
+    res = dd.simulate(scene, duration=duration)
+    d = np.array([downslope_displacement(res, b, theta, k) for k in range(res.n_frames)])
+    late = d > 0.2   # far beyond 100·δp
+    acc = 2.0 * np.polyfit(res.time[late], d[late], 2)[0]
+    assert acc == pytest.approx(G * (math.sin(th) - math.cos(th) * math.tan(math.radians(PHI_R))), rel=1e-3)
+    peak_scene, _ = incline(theta, [LIGHT], at=(6.0,))
+    peak = downslope_displacement(dd.simulate(peak_scene, duration=duration, record_every=1000), b, theta)
+    assert d[-1] > 3.0 * peak
+
+
+def test_softening_resumes_bit_for_bit(tmp_path):
+    theta = 50.0
+    soft = dd.BartonBandis(jrc=JRC, jcs=JCS, residual_friction=PHI_R, peak_displacement=5e-4)
+
+    def scene():
+        s, _ = incline(theta, [LIGHT], at=(6.0,))
+        s.set_joint(soft)
+        return s
+
+    whole = dd.simulate(scene(), steps=40, checkpoint=tmp_path / "w.npz", checkpoint_every=20)
+    path = tmp_path / "c.npz"
+    dd.simulate(scene(), steps=20, checkpoint=path, checkpoint_every=20)
+    resumed = dd.simulate(scene(), steps=40, resume=path)
+    assert np.array_equal(whole.vertices, resumed.vertices)
