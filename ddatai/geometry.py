@@ -241,3 +241,35 @@ def cut(boundary, joints: Sequence, *, snap: float | None = None) -> list[tuple[
 def _centroid(xy: np.ndarray) -> np.ndarray:
     ints = polygon_integrals(xy, np.array([0, len(xy)]))
     return ints["centroid"][0]
+
+
+#: Two blocks overlap when their common area exceeds this fraction of the smaller one's [-]
+#: (cut blocks share edges to round-off, ~1e-16 of their area).
+OVERLAP_AREA = 1e-9
+
+
+def check_overlaps(scene, *, what: str = "") -> None:
+    """Raise ValueError naming the first pair of blocks whose interiors overlap (common area
+    above `OVERLAP_AREA` of the smaller), with the overlap's area and its depth (area over
+    half its perimeter: the thickness of a thin overlap) [m]; ``what`` is added to the
+    message."""
+    import shapely
+
+    polys = np.array([shapely.Polygon(s.vertices) for s in scene.blocks], dtype=object)
+    if len(polys) < 2:
+        return
+    tree = shapely.STRtree(polys)
+    a, b = tree.query(polys, predicate="intersects")
+    keep = a < b
+    a, b = a[keep], b[keep]
+    if not len(a):
+        return
+    common = shapely.intersection(polys[a], polys[b])
+    inter = shapely.area(common)
+    areas = shapely.area(polys)
+    bad = inter > OVERLAP_AREA * np.minimum(areas[a], areas[b])
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        depth = 2.0 * inter[k] / max(float(shapely.length(common[k])), 1e-300)
+        raise ValueError(f"blocks {a[k]} and {b[k]} overlap at the start (overlap area {inter[k]:.3g} m², "
+                         f"about {depth:.3g} m deep)" + (f": {what}" if what else ""))

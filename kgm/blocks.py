@@ -34,6 +34,11 @@ ANGLE_TOL = 1e-6
 DISTANCE_TOL = 1e-6
 #: Contacts shorter than this fraction of the model size are ignored (corner touches) [-].
 MIN_CONTACT = 1e-5
+#: Two anti-parallel edges whose lines are at most this fraction of the model size apart are in
+#: contact (a gap of that size is drawing precision, not a separation): 1 mm in a 10 m model.
+#: A block further from its neighbours is free of them; blocks that overlap are refused. ``build_block_system(scene, contact_gap=...)`` / ``Settings.contact_gap`` set
+#: it in metres [-].
+CONTACT_GAP = 1e-4
 #: Fixed-point iteration on the normal forces of Barton–Bandis faces: at most this many
 #: passes, stopped when tan φ(σn) changes by less than BARTON_TOL (docs/method/barton_bandis.md).
 BARTON_ITERATIONS = 100
@@ -260,7 +265,7 @@ class BlockSystem:
 
 
 # ---------------------------------------------------------------------- building
-def build_block_system(scene, *, seismic=None) -> BlockSystem:
+def build_block_system(scene, *, seismic=None, contact_gap: Optional[float] = None) -> BlockSystem:
     """Block-theory arrays of a `ddatai.Scene`: contacts from shared edges with their joint
     properties, active forces, fixed flags (docs/kgm/method.md §2.1, §2.5).
 
@@ -280,6 +285,11 @@ def build_block_system(scene, *, seismic=None) -> BlockSystem:
     each block's boundary, the active bolt forces (pretension) and the seismic force
     (kh·W, kv·W) — kh positive towards +x, kv positive upwards — join the active force and its
     moment; the passive bolt forces (capacity − pretension) are kept apart as a resistance.
+
+    Contacts: anti-parallel edges of two blocks whose lines are at most ``contact_gap`` [m]
+    apart (None: `CONTACT_GAP` × the model size) and that overlap along them by more than
+    `MIN_CONTACT` × the model size. Blocks whose interiors overlap are refused (ValueError
+    naming them), as ddatai refuses them.
     """
     specs = scene.blocks
     if not specs:
@@ -298,6 +308,14 @@ def build_block_system(scene, *, seismic=None) -> BlockSystem:
     offset = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
     xy = np.concatenate([s.vertices for s in specs]).astype(float)
     scale = float(np.max(np.ptp(xy, axis=0)))
+    if contact_gap is None:
+        contact_gap = CONTACT_GAP * scale
+    elif isinstance(contact_gap, bool) or not isinstance(contact_gap, (int, float)) or \
+            not np.isfinite(contact_gap) or contact_gap < 0:
+        raise ValueError(f"contact_gap must be a finite distance >= 0 m, got {contact_gap!r}")
+    from ddatai.geometry import check_overlaps
+
+    check_overlaps(scene, what="kgm analyses blocks that touch, never overlap")
     nb = len(specs)
     area = np.zeros(nb)
     centroid = np.zeros((nb, 2))
@@ -338,7 +356,7 @@ def build_block_system(scene, *, seismic=None) -> BlockSystem:
     for pt in scene.fixed_points:
         fixed[pt.block] = True
 
-    contacts = _find_contacts(specs, offset, xy, scale)
+    contacts = _find_contacts(specs, offset, xy, scale, max(float(contact_gap), DISTANCE_TOL * scale))
     joints = scene.joints
     rows = []
     for (a, b, ea, eb, s0, s1, sb0, sb1) in contacts:
@@ -451,8 +469,9 @@ def _area_centroid(p: np.ndarray) -> tuple[float, np.ndarray]:
     return float(a), c
 
 
-def _find_contacts(specs, offset, xy, scale) -> list[tuple]:
-    """Collinear, oppositely directed, overlapping edge pairs of different blocks.
+def _find_contacts(specs, offset, xy, scale, gap) -> list[tuple]:
+    """Collinear (within ``gap`` [m]), oppositely directed, overlapping edge pairs of different
+    blocks.
 
     Two CCW polygons that share a boundary traverse it in opposite directions. Returns rows
     (a, b, edge_a, edge_b, s0, s1, sb0, sb1): the overlap is [s0, s1] along a's edge and
@@ -460,7 +479,7 @@ def _find_contacts(specs, offset, xy, scale) -> list[tuple]:
     """
     import shapely
 
-    tol = DISTANCE_TOL * scale
+    tol = gap
     lmin = MIN_CONTACT * scale
     polys = [shapely.Polygon(s.vertices) for s in specs]
     tree = shapely.STRtree(polys)

@@ -273,7 +273,8 @@ def _evaluate(job: _Job, item: tuple) -> tuple:
         from .blocks import build_block_system
         from .dda import evaluate_dda
 
-        dres = evaluate_dda(scene, build_block_system(scene), frozenset(result.blocks), settings=settings.dda,
+        dres = evaluate_dda(scene, build_block_system(scene, contact_gap=settings.contact_gap),
+                            frozenset(result.blocks), settings=settings.dda,
                             params=params, fs_guess=result.fs, with_fs=job.dda_fs, with_friction=False)
         return float(dres.fs), not bool(dres.judgement.stable), critical
     except Exception as exc:

@@ -175,7 +175,7 @@ def exhaustive(scene, method: str = "sarma", *, max_size: int = 4, settings: Opt
         raise ValueError("exhaustive: method must be 'rigid' or 'sarma' (a DDA run per group is "
                          "too slow for an enumeration)")
     settings = settings or Settings()
-    system = build_block_system(_check_scene(scene), seismic=seismic)
+    system = build_block_system(_check_scene(scene), seismic=seismic, contact_gap=settings.contact_gap)
     evaluate = _Evaluator(system, method, settings, frozenset(removed))
     seeds = key_blocks(system, frozenset(removed))
     out = []
@@ -275,7 +275,7 @@ def analyze(scene, method: str = "sarma", progressive: bool = False, *, settings
     settings = settings or Settings()
     if not isinstance(settings, Settings):
         raise ValueError(f"settings must be a kgm.Settings, got {type(settings).__name__}")
-    system = build_block_system(_check_scene(scene), seismic=seismic)
+    system = build_block_system(_check_scene(scene), seismic=seismic, contact_gap=settings.contact_gap)
     removed: frozenset = frozenset()
     history, removal, first = [], [], None
     for it in range(settings.max_iterations):
@@ -309,7 +309,7 @@ def evaluate(scene, blocks, method: str = "sarma", *, settings: Optional[Setting
     friction angle, governing mode, failure surface, verdict (``seismic`` as in `analyze`)."""
     method = _check_method(method, seismic)
     settings = settings or Settings()
-    system = build_block_system(_check_scene(scene), seismic=seismic)
+    system = build_block_system(_check_scene(scene), seismic=seismic, contact_gap=settings.contact_gap)
     group = check_group(system, blocks)
     if not is_connected(system, group):
         raise ValueError(f"group {sorted(group)} is not connected: its blocks must share contacts")
@@ -343,7 +343,7 @@ def _judge_with_dda(scene, blocks, settings: Optional[Settings], params, fs: boo
     """DDA evaluation of one group for either the factor of safety (``fs``) or the critical
     friction, bracketed from the screening method's answer."""
     settings = settings or Settings()
-    system = build_block_system(_check_scene(scene))
+    system = build_block_system(_check_scene(scene), contact_gap=settings.contact_gap)
     group = check_group(system, blocks)
     le = evaluate(scene, group, settings.screening, settings=settings)
     from .dda import evaluate_dda

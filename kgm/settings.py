@@ -114,6 +114,9 @@ class Settings:
     """Limit-equilibrium evaluator that proposes the candidate groups DDA judges."""
     dda: DdaSettings = field(default_factory=DdaSettings)
     """How the DDA evaluator runs."""
+    contact_gap: Optional[float] = None
+    """Blocks whose facing edges are at most this far apart are in contact [m]; None:
+    `kgm.blocks.CONTACT_GAP` × the model size (1 mm in a 10 m model)."""
 
     def __post_init__(self) -> None:
         _positive(self, "fs_target")
@@ -125,5 +128,9 @@ class Settings:
                      f"Settings.{name} must be an integer >= 1, got {v!r}")
         _require(self.screening in ("rigid", "sarma"),
                  f"Settings.screening must be 'rigid' or 'sarma', got {self.screening!r}")
+        _require(self.contact_gap is None or (isinstance(self.contact_gap, (int, float))
+                                              and not isinstance(self.contact_gap, bool)
+                                              and 0 <= self.contact_gap < float("inf")),
+                 f"Settings.contact_gap must be None or a distance >= 0 m, got {self.contact_gap!r}")
         _require(isinstance(self.dda, DdaSettings),
                  f"Settings.dda must be a kgm.DdaSettings, got {type(self.dda).__name__}")
