@@ -538,21 +538,6 @@ def _automatic_penalty(params, young, fixed, column, vel, density, areas, xy0, o
 
 def _check_overlaps(scene: Scene) -> None:
     """Raise ValueError naming the first pair of blocks whose interiors overlap."""
-    import shapely
+    from .geometry import check_overlaps
 
-    polys = np.array([shapely.Polygon(s.vertices) for s in scene.blocks], dtype=object)
-    if len(polys) < 2:
-        return
-    tree = shapely.STRtree(polys)
-    a, b = tree.query(polys, predicate="intersects")
-    keep = a < b
-    a, b = a[keep], b[keep]
-    if not len(a):
-        return
-    inter = shapely.area(shapely.intersection(polys[a], polys[b]))
-    areas = shapely.area(polys)
-    bad = inter > 1e-9 * np.minimum(areas[a], areas[b])
-    if bad.any():
-        k = int(np.flatnonzero(bad)[0])
-        raise ValueError(f"blocks {a[k]} and {b[k]} overlap at the start "
-                         f"(overlap area {inter[k]:.3g} m²)")
+    check_overlaps(scene)
