@@ -62,6 +62,8 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
                    help="Taichi backend (default: the scene's Params)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument("--debug", action="store_true", help="show the traceback of an error")
+    p.add_argument("--force", action="store_true",
+                   help="build a model even when it looks larger than this machine can simulate")
     p.add_argument("--vtk", type=Path, metavar="DIR",
                    help="also write the frames as VTK files for ParaView (needs the [vtk] extra, meshio)")
     p.add_argument("--history", type=_point, action="append", metavar="X,Y",
@@ -345,6 +347,17 @@ def _guarded(args: argparse.Namespace, run: Callable[[], int], prog: str = "ddat
         return 130
 
 
+def _allow_any_size(args) -> None:
+    """``--force``: the scene's cuts build any number of blocks (`ddatai.geometry.MAX_BLOCKS_ENV`;
+    the scene script's ``build`` cannot be given an argument it does not take)."""
+    if getattr(args, "force", False):
+        import os
+
+        from .geometry import MAX_BLOCKS_ENV
+
+        os.environ[MAX_BLOCKS_ENV] = "inf"
+
+
 def main(argv: Optional[Sequence[str]] = None) -> int:
     parser = argparse.ArgumentParser(prog="ddatai", description="2D DDA simulator")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -360,6 +373,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
 
     def go() -> int:
         check_options(args)
+        _allow_any_size(args)
         if len(inputs) == 1:
             from .scenefile import load_scene_script
 
@@ -380,6 +394,7 @@ def scene_main(build: Callable, duration: Optional[float], name: str, argv: Opti
 
     def go() -> int:
         check_options(args)
+        _allow_any_size(args)
         args.title = name
         return run_scene(build, duration, _output_name(args, name), args)
 

@@ -169,7 +169,76 @@ def displacement_matrix(point: np.ndarray, centroid: np.ndarray) -> np.ndarray:
     return t
 
 
-def cut(boundary, joints: Sequence, *, snap: float | None = None) -> list[tuple[np.ndarray, np.ndarray]]:
+#: peak memory of a simulation per block [bytes] (benchmarks/results/scaling.md: 4.8 GB for
+#: 102,400 blocks with ~6 contacts each, ~47 kB a block over a ~170 MB base)
+MEMORY_PER_BLOCK = 48e3
+#: the base memory of a run (Python, NumPy, Taichi, SciPy) [bytes]
+MEMORY_BASE = 200e6
+#: environment variable that overrides the largest model `cut` builds (a number of blocks, or
+#: "inf"); ``ddatai run --force`` sets it to "inf"
+MAX_BLOCKS_ENV = "DDATAI_MAX_BLOCKS"
+
+
+class ModelSizeError(ValueError):
+    """A cut would make a model far larger than this machine can simulate (the message gives the
+    estimate, the joints that make it and how to go on)."""
+
+
+def available_memory() -> float:
+    """Memory this machine can still give a process [bytes] (Linux MemAvailable; else the
+    physical memory; inf where neither is known)."""
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return float(line.split()[1]) * 1024.0
+    except OSError:
+        pass
+    try:
+        import os
+
+        return float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+    except (AttributeError, ValueError, OSError):
+        return float("inf")
+
+
+def max_blocks_here() -> float:
+    """The largest model `cut` builds without being asked: what fits in 80 % of the available
+    memory at `MEMORY_PER_BLOCK`, unless the `MAX_BLOCKS_ENV` variable says otherwise."""
+    import os
+
+    env = os.environ.get(MAX_BLOCKS_ENV)
+    if env:
+        try:
+            return float(env)
+        except ValueError:
+            raise ValueError(f"{MAX_BLOCKS_ENV}={env!r} must be a number of blocks or 'inf'") from None
+    return max(0.0, (0.8 * available_memory() - MEMORY_BASE) / MEMORY_PER_BLOCK)
+
+
+def estimate_blocks(domain, lines) -> tuple[int, int, int]:
+    """Upper bound on the blocks that cutting ``domain`` (a shapely Polygon) by ``lines``
+    (shapely LineStrings) makes, without cutting: Euler's count for an arrangement of chords,
+    1 + (trace pieces inside the domain) + (their crossings inside it) — exact for persistent
+    joints, an upper bound for traces that end inside blocks. Returns (blocks, pieces,
+    crossings)."""
+    import shapely
+
+    if not lines:
+        return 1, 0, 0
+    clipped = shapely.intersection(np.asarray(lines, dtype=object), domain)
+    parts = shapely.get_parts(clipped)
+    parts = parts[shapely.length(parts) > 0] if len(parts) else parts
+    if not len(parts):
+        return 1, 0, 0
+    tree = shapely.STRtree(parts)
+    i, j = tree.query(parts, predicate="intersects")
+    crossings = int(np.count_nonzero(i < j))
+    return 1 + len(parts) + crossings, len(parts), crossings
+
+
+def cut(boundary, joints: Sequence, *, snap: float | None = None,
+        max_blocks: float | None = None) -> list[tuple[np.ndarray, np.ndarray]]:
     """Cut a domain polygon by joint traces into blocks.
 
     Parameters
@@ -181,6 +250,9 @@ def cut(boundary, joints: Sequence, *, snap: float | None = None) -> list[tuple[
         cutting.
     snap : distance [m] below which an edge counts as lying on a joint trace; default 1e-9 ×
         the domain size.
+    max_blocks : refuse (`ModelSizeError`, before cutting) when `estimate_blocks` exceeds this;
+        None: `max_blocks_here` (what the machine's memory can simulate; a joint spacing typed
+        10× too small makes 100× the blocks), inf: never.
 
     Returns
     -------
@@ -202,6 +274,17 @@ def cut(boundary, joints: Sequence, *, snap: float | None = None) -> list[tuple[
         if np.ptp(arr, axis=0).max() <= 0:
             raise ValueError(f"joint {k}: trace has zero length")
         lines.append(shapely.LineString(arr))
+    limit = max_blocks_here() if max_blocks is None else float(max_blocks)
+    if np.isfinite(limit):
+        estimate, pieces, crossings = estimate_blocks(domain, lines)
+        if estimate > limit:
+            need = (MEMORY_BASE + MEMORY_PER_BLOCK * estimate) / 1e9
+            raise ModelSizeError(
+                f"cut: {len(lines)} joint traces ({pieces} pieces inside the boundary, {crossings} crossings) "
+                f"would make up to {estimate:,} blocks, about {need:.1f} GB to simulate, beyond the "
+                f"{limit:,.0f} blocks this machine can hold ({available_memory() / 1e9:.1f} GB available): "
+                f"check the joint spacings (a spacing in the wrong unit makes 100× the blocks); to go on "
+                f"anyway pass max_blocks=float('inf') (ddatai run --force)")
     noded = shapely.union_all([domain.exterior, *lines])
     faces = shapely.get_parts(shapely.polygonize(shapely.get_parts(noded)))
     inside = [f for f in faces if f.area > 1e-12 * scale * scale

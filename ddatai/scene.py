@@ -126,14 +126,17 @@ class Scene:
         if s.shape != (3,) or not np.all(np.isfinite(s)):
             raise ValueError(f"{name}: stress must be a finite (σx, σy, τxy) triple, got {stress!r}")
 
-    def cut(self, boundary, joints: Sequence, material: Material, *, fixed: bool = False) -> list[int]:
+    def cut(self, boundary, joints: Sequence, material: Material, *, fixed: bool = False,
+            max_blocks: Optional[float] = None) -> list[int]:
         """Cut the domain polygon ``boundary`` by joint traces and add the resulting blocks.
 
         ``joints`` is a list of ``(polyline, Joint)``: each polyline (k >= 2 points) is a
         persistent or finite trace. Traces, or parts of them, that do not close a block are
         dropped. Every block edge remembers the joint it lies on, and contacts along that edge
         use that joint's properties. Returns the ids of the new blocks (ordered by centroid,
-        bottom to top, then left to right).
+        bottom to top, then left to right). A cut that would make more blocks than the machine
+        can simulate is refused before cutting (`ddatai.geometry.ModelSizeError`, with the
+        estimate; ``max_blocks`` sets the limit, inf: none; `ddatai.geometry.cut`).
         """
         if not isinstance(material, Material):
             raise ValueError(f"cut: material must be a ddatai.Material, got {type(material).__name__}")
@@ -147,7 +150,7 @@ class Scene:
                 raise ValueError(f"joint {k}: expected a ddatai.Joint, got {type(jt).__name__}")
             traces.append(trace)
             jts.append(jt)
-        pieces = _cut_domain(boundary, traces)
+        pieces = _cut_domain(boundary, traces, max_blocks=max_blocks)
         # one joint-table entry per distinct Joint value
         table_index = {}
         for jt in jts:

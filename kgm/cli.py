@@ -183,6 +183,8 @@ def main(argv: Optional[Sequence[str]] = None, out=None) -> int:
     an.add_argument("--compare-whole", action="store_true",
                     help="dda: time the sub-model against the whole slope")
     an.add_argument("--gif", metavar="PATH", help="write a GIF of the result")
+    an.add_argument("--force", action="store_true",
+                    help="build the scene even when it looks larger than this machine can simulate")
     pr = sub.add_parser("probabilistic", help="probability of failure with uncertain inputs (Monte Carlo)")
     pr.add_argument("scene", help="scene script whose build(**sample) takes the variables as keyword arguments")
     pr.add_argument("--vars", required=True, metavar="TOML", help="variables file (distributions, correlation)")
@@ -196,6 +198,10 @@ def main(argv: Optional[Sequence[str]] = None, out=None) -> int:
     pr.add_argument("--out", metavar="CSV", help="append samples to this file as they finish (and resume it)")
     pr.add_argument("--png", metavar="PATH", help="draw how often each block is in the critical group")
     args = parser.parse_args(argv)
+    if getattr(args, "force", False):
+        from ddatai.cli import _allow_any_size
+
+        _allow_any_size(args)
     if args.command == "probabilistic":
         return _probabilistic(args, out)
 
