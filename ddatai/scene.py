@@ -127,7 +127,7 @@ class Scene:
             raise ValueError(f"{name}: stress must be a finite (σx, σy, τxy) triple, got {stress!r}")
 
     def cut(self, boundary, joints: Sequence, material: Material, *, fixed: bool = False,
-            max_blocks: Optional[float] = None) -> list[int]:
+            max_blocks: Optional[float] = None, slivers: str = "warn") -> list[int]:
         """Cut the domain polygon ``boundary`` by joint traces and add the resulting blocks.
 
         ``joints`` is a list of ``(polyline, Joint)``: each polyline (k >= 2 points) is a
@@ -136,7 +136,9 @@ class Scene:
         use that joint's properties. Returns the ids of the new blocks (ordered by centroid,
         bottom to top, then left to right). A cut that would make more blocks than the machine
         can simulate is refused before cutting (`ddatai.geometry.ModelSizeError`, with the
-        estimate; ``max_blocks`` sets the limit, inf: none; `ddatai.geometry.cut`).
+        estimate; ``max_blocks`` sets the limit, inf: none; `ddatai.geometry.cut`). Sliver
+        blocks (≥ 50:1, or < 1e-4 of the median block) are reported (``slivers="warn"``, a
+        `ddatai.geometry.SliverWarning`) or merged into a neighbour (``slivers="merge"``).
         """
         if not isinstance(material, Material):
             raise ValueError(f"cut: material must be a ddatai.Material, got {type(material).__name__}")
@@ -150,7 +152,7 @@ class Scene:
                 raise ValueError(f"joint {k}: expected a ddatai.Joint, got {type(jt).__name__}")
             traces.append(trace)
             jts.append(jt)
-        pieces = _cut_domain(boundary, traces, max_blocks=max_blocks)
+        pieces = _cut_domain(boundary, traces, max_blocks=max_blocks, slivers=slivers)
         # one joint-table entry per distinct Joint value
         table_index = {}
         for jt in jts:

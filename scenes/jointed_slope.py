@@ -24,7 +24,7 @@ def build(seed: int = 7, bedding_spacing: float = 3.0, cross_spacing: float = 4.
                         joint=dd.Joint(friction=22.0)),
             dd.JointSet(dip=105.0, spacing=cross_spacing, trace_length=14.0, gap=1.0, spacing_spread=0.8,
                         dip_spread=4.0, joint=dd.Joint(friction=35.0))]
-    ids = scene.cut(outline, dd.joint_sets(outline, sets, seed=seed), material=rock)
+    ids = scene.cut(outline, dd.joint_sets(outline, sets, seed=seed), material=rock, slivers="merge")
     for b in ids:
         c = scene.polygon(b).mean(axis=0)
         if c[1] < 0.0 or c[0] > 50.0:

@@ -31,7 +31,7 @@ def build(friction: float = 30.0, cohesion: float = 20e3, spacing1: float = 7.0,
             p = np.array([shift, 0.0]) + k * spacing * n
             traces.append(([p - 150 * d, p + 150 * d], joint))
     scene = dd.Scene(gravity=9.81)
-    for b in scene.cut(domain, traces, material=rock):
+    for b in scene.cut(domain, traces, material=rock, slivers="merge"):
         v = scene.blocks[b].vertices
         if v[:, 1].min() < BOTTOM + 1e-6 or v[:, 0].min() < LEFT + 1e-6 or v[:, 0].max() > RIGHT - 1e-6:
             scene.set_fixed(b)

@@ -25,7 +25,7 @@ def build(seed: int = 3, friction: float = 35.0):
             dd.JointSet(dip=115.0, spacing=3.0, trace_length=6.0, gap=1.5, spacing_spread=0.5,
                         joint=dd.Joint(friction=friction))]
     traces = dd.joint_sets(outline, sets, seed=seed)
-    ids = scene.cut(outline, traces, material=rock, fixed=True)
+    ids = scene.cut(outline, traces, material=rock, fixed=True, slivers="merge")
     angles = np.radians(15.0 + 30.0 * np.arange(12))
     radius = 0.6
     boulder = radius * np.stack([np.cos(angles), np.sin(angles)], axis=1) + (11.0, 17.5 + radius + 0.01)

@@ -83,3 +83,52 @@ def test_cli_refuses_in_one_line_and_force_goes_on(tmp_path, monkeypatch, capsys
     err = capsys.readouterr().err
     assert "up to 4 blocks" in err and "--force" in err and "Traceback" not in err
     assert main(["run", str(script), "--steps", "1", "--quiet", "--force", "--out", str(tmp_path)]) == 0
+
+
+def _sliver_scene_traces():
+    """A 10 × 5 box cut by two vertical joints 2 cm apart (a 125:1 sliver on each side of a
+    horizontal joint)."""
+    return [([(5.0, -1.0), (5.0, 6.0)], dd.Joint(friction=30.0)),
+            ([(5.02, -1.0), (5.02, 6.0)], dd.Joint(friction=30.0)),
+            ([(-1.0, 2.5), (11.0, 2.5)], dd.Joint(friction=25.0))]
+
+
+def test_slivers_are_reported_and_merged_into_a_neighbour():
+    import shapely
+
+    from ddatai.geometry import SLIVER_ASPECT, SliverWarning
+
+    box = [(0, 0), (10, 0), (10, 5), (0, 5)]
+    with pytest.warns(SliverWarning, match=r"2 sliver block\(s\).*thinnest is 125:1.*slivers='merge'"):
+        kept = dd.Scene().cut(box, _sliver_scene_traces(), material=ROCK)
+    assert len(kept) == 6
+    scene = dd.Scene()
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", SliverWarning)  # merged: nothing left to warn about
+        ids = scene.cut(box, _sliver_scene_traces(), material=ROCK, slivers="merge")
+    assert len(ids) == 4
+    polys = [shapely.Polygon(scene.polygon(b)) for b in ids]
+    assert sum(p.area for p in polys) == pytest.approx(50.0, rel=1e-12)
+    assert shapely.union_all(polys).equals(shapely.Polygon(box))
+    for b in ids:  # the 2 cm pieces joined a neighbour: no block is thin any more
+        xy = np.asarray(shapely.oriented_envelope(shapely.Polygon(scene.polygon(b))).exterior.coords)
+        sides = np.linalg.norm(np.diff(xy[:3], axis=0), axis=1)
+        assert sides.max() / sides.min() < SLIVER_ASPECT
+        assert len(scene.blocks[b].edge_joint) == len(scene.polygon(b))
+    # each quarter keeps two joint edges (the horizontal joint and the surviving vertical one)
+    assert sorted(int((scene.blocks[b].edge_joint >= 0).sum()) for b in ids) == [2, 2, 2, 2]
+    with pytest.raises(ValueError, match="slivers must be"):
+        dd.Scene().cut(box, _sliver_scene_traces(), material=ROCK, slivers="drop")
+
+
+@pytest.mark.slow
+def test_the_close_spaced_jointed_slope_runs_once_its_slivers_are_merged():
+    """scenes/jointed_slope.py with 0.3 m / 0.4 m spacings (~4,000 blocks, ~40 s): its blocks of
+    1e-7 m² and 52:1 stopped the run at step 1; merged (the scene's default), it steps."""
+    from scenes import jointed_slope
+
+    scene, params = jointed_slope.build(bedding_spacing=0.3, cross_spacing=0.4)
+    res = dd.simulate(scene, params, steps=2)
+    assert len(res.steps) == 2
