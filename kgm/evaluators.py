@@ -150,8 +150,8 @@ def _merge_faces(system: BlockSystem, members: list[int], removed: frozenset) ->
                         for e in entries]) / np.maximum(length, 1e-300)
     tan_at = None
     if system.contact_barton is not None:
-        def tan_at(normal, _fs=tuple(system.face_tan_function(e[2]) for e in entries)):
-            return np.array([f(nk) for f, nk in zip(_fs, normal)])
+        face_fns = tuple(system.face_tan_function(e[2]) for e in entries)
+        tan_at = lambda normal: np.array([f(nk) for f, nk in zip(face_fns, normal)])  # noqa: E731
     return _Faces(a=np.array([e[0] for e in entries], dtype=np.int64),
                   b=np.array([e[1] for e in entries], dtype=np.int64),
                   normal=normal, tangent=np.stack([normal[:, 1], -normal[:, 0]], axis=1) if f else normal,
