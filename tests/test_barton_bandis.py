@@ -383,3 +383,21 @@ def test_softening_resumes_bit_for_bit(tmp_path):
     dd.simulate(scene(), steps=20, checkpoint=path, checkpoint_every=20)
     resumed = dd.simulate(scene(), steps=40, resume=path)
     assert np.array_equal(whole.vertices, resumed.vertices)
+
+
+def test_mohr_coulomb_models_carry_nothing_for_it():
+    """No Barton–Bandis joint: no law table, no slid distance in the contact memory; a
+    Barton–Bandis joint without softening stores no slid distance either."""
+    from ddatai.model import build_model
+    from ddatai.step import Stepper
+
+    for joint_, table in ((dd.Joint(friction=35.0), (0, 6)), (joint(), (1, 6))):
+        scene = _mc_scene()
+        scene.set_joint(joint_)
+        model = build_model(scene)
+        assert model.joint_barton.shape == table
+        stepper = Stepper(model)
+        state = model.initial_state()
+        for _ in range(3):
+            state, _ = stepper.step(state)
+        assert len(state.memory.key) > 0 and len(state.memory.slip) == 0
