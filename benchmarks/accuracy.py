@@ -656,6 +656,26 @@ def newmark_convergence() -> str:
     return "\n".join(rows)
 
 
+def redraw_chart(csv_path: Path, png_path: Path) -> None:
+    """Draw the chart again from an earlier sweep's ``accuracy.csv`` (no simulation)."""
+    from types import SimpleNamespace
+
+    known = {c.key: c for c in all_cases()}
+    with open(csv_path, newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    keys = list(dict.fromkeys(r["case"] for r in rows))
+    cases, runs, summaries = [], {}, []
+    for key in keys:
+        mine = [r for r in rows if r["case"] == key]
+        as_runs = [SimpleNamespace(case=key, error=float(r["error"]), wall=float(r["wall_s"])) for r in mine]
+        for r, run in zip(mine, as_runs):
+            runs[(key, r["parameters"])] = run
+        default = next((run for r, run in zip(mine, as_runs) if r["parameters"] == DEFAULT_LABEL), as_runs[0])
+        cases.append(known[key])
+        summaries.append(SimpleNamespace(default=default))
+    draw_chart(png_path, cases, runs, summaries)
+
+
 def draw_chart(path: Path, cases: list[Case], runs: dict, summaries: list[CaseSummary]) -> None:
     series = []
     for i, (case, summary) in enumerate(zip(cases, summaries)):
@@ -687,7 +707,12 @@ def main(argv: Optional[list[str]] = None) -> int:
                     help="passes over the sweep; each setting keeps its shortest wall time (default 1)")
     ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results",
                     help="folder for accuracy.md and accuracy.png")
+    ap.add_argument("--chart-from", type=Path, metavar="CSV",
+                    help="only draw OUT/accuracy.png again from an earlier sweep's accuracy.csv")
     a = ap.parse_args(argv)
+    if a.chart_from:
+        redraw_chart(a.chart_from, a.out / "accuracy.png")
+        return 0
     cases = all_cases()
     if a.cases:
         wanted = a.cases.split(",")

@@ -11,9 +11,11 @@ import math
 from dataclasses import dataclass
 from typing import Optional, Sequence
 
-# colour-blind-safe palette (Okabe–Ito), then greys
+# colour-blind-safe palette (Okabe–Ito), then darker and lighter companions: twelve distinct
+# colours, so that no two series of a chart share one
 PALETTE = ((0, 114, 178), (213, 94, 0), (0, 158, 115), (204, 121, 167), (230, 159, 0),
-           (86, 180, 233), (120, 80, 40), (0, 0, 0), (150, 150, 150))
+           (86, 180, 233), (120, 80, 40), (0, 0, 0), (150, 150, 150), (128, 0, 128),
+           (0, 90, 60), (190, 30, 45))
 
 
 @dataclass
@@ -40,6 +42,13 @@ def _font(size: int):
         return ImageFont.load_default()
 
 
+def _wrap(text: str, width: int) -> list[str]:
+    """``text`` in lines of at most ``width`` characters, broken at spaces."""
+    import textwrap
+
+    return textwrap.wrap(text, width) or [""]
+
+
 def _decades(lo: float, hi: float) -> tuple[int, int]:
     return math.floor(math.log10(lo)), math.ceil(math.log10(hi))
 
@@ -59,10 +68,14 @@ def draw_loglog_chart(path, series: Sequence[Series], *, title: str, x_label: st
     from PIL import Image, ImageDraw
 
     width, height = size
-    left, right, top, bottom = 110, 330, 60, 90
     img = Image.new("RGB", size, "white")
     d = ImageDraw.Draw(img)
     f_title, f_axis, f_tick, f_small = _font(22), _font(17), _font(14), _font(13)
+    # the legend column is as wide as its longest line (labels wrap at 34 characters)
+    legend_lines = [_wrap(s.label, 34) for s in series]
+    longest = max([d.textlength(t, font=f_tick) for lines in legend_lines for t in lines] +
+                  [d.textlength(t, font=f_small) for t in notes] + [200.0])
+    left, right, top, bottom = 110, int(longest) + 80, 60, 90
 
     def finite(p):
         return math.isfinite(p[0]) and math.isfinite(p[1]) and p[0] > 0
@@ -117,21 +130,26 @@ def draw_loglog_chart(path, series: Sequence[Series], *, title: str, x_label: st
     img.paste(lbl, (12, int(top + ph / 2 - lbl_w / 2)))
     d.text((left, 18), title, fill=ink, font=f_title)
 
-    # data; highlight labels go to the first of four places around the marker that does not
-    # cover an earlier label
-    placed: list[tuple[float, float, float, float]] = []
+    # highlight labels: each at the nearest free place on rings around its marker (free of the
+    # labels placed before and of every highlight marker), joined to it by a thin leader line
+    markers = [to_px(*s.highlight) for s in series if s.highlight and finite(s.highlight)]
+    placed: list[tuple[float, float, float, float]] = [(mx - 11, my - 11, mx + 11, my + 11) for mx, my in markers]
 
-    def free_spot(px: float, py: float, text: str, r: float) -> tuple[float, float]:
+    def free_spot(px: float, py: float, text: str, r: float) -> tuple[float, float, bool]:
         w, h = d.textlength(text, font=f_small), 15
-        spots = [(px + r + 4, py - h - 2), (px + r + 4, py + 2), (px - r - 4 - w, py - h - 2),
-                 (px - r - 4 - w, py + 2)]
-        for x, y in spots:
-            box = (x, y, x + w, y + h)
-            if all(box[2] < b[0] or box[0] > b[2] or box[3] < b[1] or box[1] > b[3] for b in placed):
-                placed.append(box)
-                return x, y
-        placed.append((*spots[0], spots[0][0] + w, spots[0][1] + h))
-        return spots[0]
+        for radius in (r + 4, r + 22, r + 44, r + 70, r + 100):
+            for angle in (-30, 30, -150, 150, -90, 90, 0, 180, -60, 60, -120, 120):
+                ax, ay = math.cos(math.radians(angle)), math.sin(math.radians(angle))
+                x = px + radius * ax - (w if ax < -1e-9 else 0 if ax > 1e-9 else w / 2)
+                y = py + radius * ay - (h if ay < -1e-9 else 0 if ay > 1e-9 else h / 2)
+                box = (x - 1, y - 1, x + w + 1, y + h + 1)
+                inside = left <= box[0] and box[2] <= left + pw and top <= box[1] and box[3] <= top + ph
+                if inside and all(box[2] < b[0] or box[0] > b[2] or box[3] < b[1] or box[1] > b[3] for b in placed):
+                    placed.append(box)
+                    return x, y, radius > r + 4
+        x, y = px + r + 4, py - h - 2
+        placed.append((x, y, x + w, y + h))
+        return x, y, False
 
     for i, s in enumerate(series):
         color = s.color or PALETTE[i % len(PALETTE)]
@@ -159,8 +177,12 @@ def draw_loglog_chart(path, series: Sequence[Series], *, title: str, x_label: st
         color = s.color or PALETTE[i % len(PALETTE)]
         if s.highlight and finite(s.highlight) and s.highlight_text:
             px, py = to_px(*s.highlight)
-            x, y = free_spot(px, py, s.highlight_text, 10)
+            x, y, far = free_spot(px, py, s.highlight_text, 10)
             w = d.textlength(s.highlight_text, font=f_small)
+            if far:  # leader line from the marker's edge to the nearest point of the label
+                qx, qy = min(max(px, x), x + w), min(max(py, y), y + 15)
+                dist = math.hypot(qx - px, qy - py) or 1.0
+                d.line([(px + 11 * (qx - px) / dist, py + 11 * (qy - py) / dist), (qx, qy)], fill=color, width=1)
             d.rectangle([x - 1, y + 1, x + w + 1, y + 15], fill="white")
             d.text((x, y), s.highlight_text, fill=color, font=f_small)
 
@@ -170,8 +192,9 @@ def draw_loglog_chart(path, series: Sequence[Series], *, title: str, x_label: st
         color = s.color or PALETTE[i % len(PALETTE)]
         d.line([(lx, ly + 9), (lx + 30, ly + 9)], fill=color, width=3)
         d.ellipse([lx + 11, ly + 5, lx + 19, ly + 13], fill=color)
-        d.text((lx + 40, ly), s.label, fill=ink, font=f_tick)
-        ly += 26
+        for k, text in enumerate(legend_lines[i]):
+            d.text((lx + 40, ly + 18 * k), text, fill=ink, font=f_tick)
+        ly += 26 + 18 * (len(legend_lines[i]) - 1)
     if highlight_legend:
         ly += 6
         px, py, r = lx + 15, ly + 9, 9
