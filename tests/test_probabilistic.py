@@ -4,7 +4,6 @@ probabilities and closed forms; reproducibility over workers and resuming."""
 import csv
 import importlib.util
 import math
-import os
 import subprocess
 import sys
 import time
