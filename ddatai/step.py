@@ -30,7 +30,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from .contacts import E0, KIND, V0, BlockPattern, Contacts, _Buffers, detect_contacts, N_SLOTS
+from .contacts import KIND, V0, BlockPattern, Contacts, _Buffers, detect_contacts, N_SLOTS
 from .geometry import mass_matrix
 from .model import ContactKind, ContactState, Model, State, build_model
 from .params import Params
@@ -543,7 +543,7 @@ class Stepper:
         iterates again. When none must change, every contact obeys no-tension and Coulomb's
         law at the solution.
         """
-        m, p = self.model, self.params
+        p = self.params
         vv = contacts.cint[:, KIND] == VV
         if bad is None:  # `violations` of this law, unless the caller has them
             bad = self.violations(contacts, law)
