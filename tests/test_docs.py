@@ -40,8 +40,9 @@ def _files() -> list[Path]:
     out = []
     for path in ROOT.rglob("*"):
         rel = path.relative_to(ROOT)
-        if any(part in SKIP_DIRS or part.endswith(".egg-info") or part.startswith(".venv")
-               for part in rel.parts[:-1]):
+        # hidden folders (.git, .venv, CI's .ci-venv, caches) and anything installed
+        if any(part in SKIP_DIRS or part.endswith(".egg-info") or part.startswith(".")
+               or part == "site-packages" for part in rel.parts[:-1]):
             continue
         if path.suffix in SUFFIXES and path.is_file():
             out.append(path)
