@@ -158,11 +158,7 @@ def read_checkpoint(path, model) -> Checkpoint:
     from .results import load_results
 
     path = Path(path)
-    if not path.is_file():
-        raise ValueError(f"no such checkpoint: {path}")
-    with np.load(path, allow_pickle=False) as data:
-        if "checkpoint.meta" not in data.files:
-            raise ValueError(f"{path} is not a checkpoint (results files cannot be resumed)")
+    with _open_checkpoint(path) as data:
         meta = json.loads(str(data["checkpoint.meta"]))
         if meta.get("format") != FORMAT:
             raise ValueError(f"{path}: checkpoint format {meta.get('format')}, this ddatai reads {FORMAT}")
@@ -176,12 +172,20 @@ def read_checkpoint(path, model) -> Checkpoint:
 def checkpoint_targets(path) -> RunTargets:
     """The targets and recording options stored in a checkpoint (without reading its state)."""
     path = Path(path)
+    with _open_checkpoint(path) as data:
+        return RunTargets(**json.loads(str(data["checkpoint.meta"]))["targets"])
+
+
+def _open_checkpoint(path: Path):
+    """The checkpoint's arrays (an open `np.load`); `ValueError` for a missing file or a file
+    that is not a checkpoint."""
     if not path.is_file():
         raise ValueError(f"no such checkpoint: {path}")
-    with np.load(path, allow_pickle=False) as data:
-        if "checkpoint.meta" not in data.files:
-            raise ValueError(f"{path} is not a checkpoint (results files cannot be resumed)")
-        return RunTargets(**json.loads(str(data["checkpoint.meta"]))["targets"])
+    data = np.load(path, allow_pickle=False)
+    if "checkpoint.meta" not in data.files:
+        data.close()
+        raise ValueError(f"{path} is not a checkpoint (results files cannot be resumed)")
+    return data
 
 
 class DeferInterrupt:
