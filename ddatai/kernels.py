@@ -325,14 +325,22 @@ def narrow_phase(pairs: I32_2, xy: F64_2, voff: I32_1, vnext: I32_1, vprev: I32_
                 if _nearest(xy, _pt(xy, ib), a0, a1, d0) == ia:
                     _vertex_vertex(xy, vnext, vprev, ia, ib, d0, d9, sin_h1, h1, out_int, out_len, count)
         # 2. vertices of A against edges of B, and 3. vertices of B against edges of A,
-        # skipping vertices close to an end of the edge (handled above)
+        # skipping a vertex whose mutual-nearest partner is an end of the edge (that pair was
+        # handled above). A vertex near an edge's end that is not that end's mutual nearest
+        # (the end pairs with another vertex) is tested here: skipping it by distance alone
+        # lost the contact of a wedge's tip sliding along a joint next to the other block's
+        # corner while the tip sank into it
         for s in ti.static(range(2)):
             v_lo, v_hi = (a0, a1) if s == 0 else (b0, b1)
             e_lo, e_hi = (b0, b1) if s == 0 else (a0, a1)
             for iv in range(v_lo, v_hi):
                 P = _pt(xy, iv)
+                partner = _nearest(xy, P, e_lo, e_hi, d0)
+                if partner >= 0:
+                    if _nearest(xy, _pt(xy, partner), v_lo, v_hi, d0) != iv:
+                        partner = -1
                 for ie in range(e_lo, e_hi):
-                    if (P - _pt(xy, ie)).norm() > d0 and (P - _pt(xy, vnext[ie])).norm() > d0:
+                    if partner != ie and partner != vnext[ie]:
                         ok, length = _ve_test(xy, vnext, vprev, iv, ie, d0, d9, sin_h1, 1)
                         if ok == 1:
                             _emit(out_int, out_len, count, KIND_VE, iv, ie, -1, -1, length)

@@ -147,10 +147,15 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray) -> tupl
                     emit(VV, ia, ib, ib, prv[ia])
                 else:
                     emit(VV, ia, prv[ib], ib, ia)
+        # vertex against edge, unless the vertex's mutual-nearest partner is an end of the edge
+        # (that pair was handled above; kernels.narrow_phase)
         for (v_lo, v_hi), (e_lo, e_hi) in (((a0, a1), (b0, b1)), ((b0, b1), (a0, a1))):
             for iv in range(v_lo, v_hi):
+                partner = nearest(xy[iv], e_lo, e_hi)
+                if partner >= 0 and nearest(xy[partner], v_lo, v_hi) != iv:
+                    partner = -1
                 for ie in range(e_lo, e_hi):
-                    if np.linalg.norm(xy[iv] - xy[ie]) > d0 and np.linalg.norm(xy[iv] - xy[nxt[ie]]) > d0:
+                    if partner not in (ie, nxt[ie]):
                         ok, L = ve_test(iv, ie, True)
                         if ok:
                             emit(VE, iv, ie, length=L)

@@ -252,3 +252,33 @@ def test_collapsed_edge_gets_no_contact_in_kernel_and_reference():
     assert np.all(np.isfinite(length_k))
     collapsed = first + 2
     assert not np.any(cint_k[:, 2] == collapsed)  # no contact against the collapsed edge
+
+
+def test_vertex_near_a_corner_that_pairs_elsewhere_is_still_tested_against_the_edge():
+    """A wedge's tip T lies on the other block's edge, 1.26 cm from that edge's end corner C
+    (within the search distance), but C's nearest vertex of the wedge is the top of the wedge's
+    1.22 cm end edge, not T. T's contact with the edge must be found (it was skipped as "near a
+    corner" while the pair (C, T) was not handled as a vertex pair either)."""
+    t = np.array([np.cos(np.radians(33.0)), np.sin(np.radians(33.0))])
+    left = np.array([0.0, 0.3887])
+    corner = left + 4.0 / t[0] * t            # C, end of the lower block's joint edge
+    tip = corner - 0.0126 * t                  # T, on that edge
+    scene = dd.Scene(gravity=9.81)
+    scene.add_block([(0, 0), (corner[0], 0), corner, left], material=ROCK)                 # lower
+    scene.add_block([left, tip, tip + (0.0, 0.0122), left + (0.0, 0.05)], material=ROCK)   # wedge
+    scene.add_block([(-1, -1), (6, -1), (6, 0), (-1, 0)], material=ROCK, fixed=True)
+    model = build_model(scene)
+    xy = model.initial_state().vertex_xy
+    # the model works about the domain's centre: move C and T with it
+    shift = xy.mean(axis=0) - np.concatenate([b.vertices for b in scene.blocks]).mean(axis=0)
+    corner, tip = corner + shift, tip + shift
+    assert model.search_distance > 0.0126
+    c_idx = int(np.argmin(np.linalg.norm(xy - corner, axis=1)))
+    t_idx = int(np.argmin(np.linalg.norm(xy - tip, axis=1)))
+    d_top = np.linalg.norm(xy - corner, axis=1)
+    d_top[model.vertex_block != model.vertex_block[t_idx]] = np.inf
+    assert int(np.argmin(d_top)) != t_idx  # the corner's nearest wedge vertex is not the tip
+    edge = c_idx  # the lower block's joint edge starts at C (CCW: ..., C, left)
+    for cint, _ in (detect_contacts(model, xy, _Buffers()), reference.detect_contacts(model, xy)):
+        rows = {(int(r[1]), int(r[2])) for r in cint if r[0] == 0}
+        assert (t_idx, edge) in rows
