@@ -399,11 +399,15 @@ def _check_build(build, variables: Mapping, geometry_seed: Optional[bool]) -> bo
     return takes_seed and "seed" in params if geometry_seed is None else bool(geometry_seed)
 
 
-def _table(n: int, names: tuple, samples: dict, seeds: np.ndarray, done: dict) -> np.ndarray:
-    width = max([len(done[i][2]) for i in done] + [1])
-    dtype = [("index", np.int64), ("seed", np.int64)] + [(k, np.float64) for k in names] + \
+def _table_dtype(names: tuple, width: int) -> list:
+    """Columns of a study table (`Study.table`); ``width``: characters of the longest
+    ``critical`` entry."""
+    return [("index", np.int64), ("seed", np.int64)] + [(k, np.float64) for k in names] + \
         [("fs", np.float64), ("failed", bool), ("critical", f"U{width}")]
-    table = np.zeros(n, dtype=dtype)
+
+
+def _table(n: int, names: tuple, samples: dict, seeds: np.ndarray, done: dict) -> np.ndarray:
+    table = np.zeros(n, dtype=_table_dtype(names, max([len(done[i][2]) for i in done] + [1])))
     table["index"] = np.arange(n)
     table["seed"] = seeds
     for k in names:
@@ -480,10 +484,7 @@ def read_study(path) -> Study:
         rows = list(csv.DictReader(fh))
     names = tuple(identity["variables"])
     rows = sorted((r for r in rows if r.get("critical") is not None), key=lambda r: int(r["index"]))
-    width = max([len(r["critical"]) for r in rows] + [1])
-    dtype = [("index", np.int64), ("seed", np.int64)] + [(k, np.float64) for k in names] + \
-        [("fs", np.float64), ("failed", bool), ("critical", f"U{width}")]
-    table = np.zeros(len(rows), dtype=dtype)
+    table = np.zeros(len(rows), dtype=_table_dtype(names, max([len(r["critical"]) for r in rows] + [1])))
     for j, r in enumerate(rows):
         table[j] = (int(r["index"]), int(r["seed"]), *[float(r[k]) for k in names], float(r["fs"]),
                     bool(int(r["failed"])), r["critical"])
