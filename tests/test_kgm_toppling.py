@@ -5,7 +5,9 @@ The textbook case is Goodman & Bray's 16-block example (Hoek & Bray 1981, Rock S
 Engineering, ch. 10; Wyllie & Mah 2004, §10.3): φ = 38.15° for limit equilibrium, blocks
 16–14 stable, 13–4 toppling, 3–1 sliding (scenes/toppling_slope.py). Independent checks: the
 single-block limits (toppling iff b/h < tanψ, sliding iff φ < ψ) and a two-block row solved by
-hand. Fast: no DDA.
+hand. A second published case: Alejano & Alonso's block toppling (Problem 2 of Rocscience's
+RS2 joint verification manual; `benchmarks/toppling.py` builds it and compares with DDA).
+Fast: no DDA.
 """
 
 import math
@@ -19,6 +21,8 @@ from kgm.blocks import ModeKind, build_block_system
 from kgm.evaluators import evaluate_rigid, evaluate_sarma
 from kgm.toppling import (BlockState, recursion, row_critical_friction, row_factor_of_safety, toe_force,
                           toppling_mode, toppling_row)
+from benchmarks.toppling import (AA_FRICTION, AA_PUBLISHED_LE, AA_RECOMPUTED_LE, AA_UDEC,
+                                 alejano_alonso_section)
 from scenes import toppling_slope
 
 PUBLISHED_PHI = 38.15  # degrees (Hoek & Bray 1981; Wyllie & Mah 2004)
@@ -82,6 +86,58 @@ def test_analyze_finds_the_toppling_group(method):
     table = rep.table()
     assert "toppling" in table and "toppling {3-12}; sliding {0-2}" in table
     assert "P_n-1,t" in kgm.format_toppling(crit.mode)
+
+
+# ---------------------------------------------------------------------- Alejano & Alonso
+AA_COLUMNS = list(range(1, 14))  # column n from the toe (n = 1) is scene block n; block 0 is fixed
+#: kgm's per-column modes at the limit (neither the manual nor XSLOPE lists them)
+AA_MODES = {n: ("stable" if n >= 10 else "toppling" if n >= 3 else "sliding") for n in AA_COLUMNS}
+
+
+@pytest.mark.parametrize("method", ["rigid", "sarma"])
+def test_published_case_alejano_alonso_rs2(method):
+    """Alejano & Alonso's block toppling, Problem 2 of Rocscience's RS2 (formerly Phase2) joint
+    verification manual (Alejano, L.R. & Alonso, E., as the manual cites them), section as
+    transcribed by XSLOPE (github.com/njones61/xslope: `benchmarks/rocscience/build_joint_problems.py`
+    `rj002`, and its RS2 joint verification page, row RJ-2): a 9.85 m face at 58.65° from the toe
+    (20, 10) to (14, 19.85); a basal joint at 30° from the toe to the crest line at
+    (2.9393, 19.85); columns at 64°, 1.6 m apart, through the toe; φ = 31°, c = 0 on both sets;
+    γ = 25 kN/m³. The two sets cut 13 columns out of the 54.47 m² triangle above the basal
+    joint (1361.8 kN/m).
+
+    Referees: Goodman & Bray's limit equilibrium, published at FS = 0.76, and UDEC at 0.87 (RS2
+    0.86 / 0.82): all judge the slope unstable. The recursion on the real 13 columns gives
+    0.7734 (XSLOPE's independent recomputation, "against the 0.76 Alejano & Alonso publish for
+    the same method on the same problem"), and so does kgm: φc = 37.84°, blocks 13–10 stable,
+    9–3 toppling, 2–1 sliding. The manual does not give the block geometry behind the published
+    0.76; the method's usual form idealises the section as rectangular blocks on a stepped base
+    (as in Goodman & Bray's example), whereas these columns meet the base at 94° and end at the
+    real face and crest, the likely reason for the 1.8 % difference.
+
+    The ground in front of the toe follows the basal plane down (the toe is free, as the
+    recursion assumes); the manual's model has a horizontal ground at the toe's level, which
+    limit equilibrium sees only as a point contact (DDA on both: `benchmarks/toppling.py`).
+    """
+    scene, _ = alejano_alonso_section()
+    assert [b.fixed for b in scene.blocks] == [True] + [False] * 13
+    area = sum(float(dd.polygon_integrals(b.vertices, np.array([0, len(b.vertices)]))["area"][0])
+               for b in scene.blocks[1:])
+    assert area == pytest.approx(0.5 * (14.0 - 2.9393) * 9.85, rel=1e-9)  # 54.47 m²
+    fs = kgm.factor_of_safety(scene, AA_COLUMNS, method=method)
+    assert fs == pytest.approx(AA_RECOMPUTED_LE, abs=5e-4)
+    assert fs < 1.0 and AA_PUBLISHED_LE < 1.0 and AA_UDEC < 1.0  # unstable, as published
+    assert abs(fs - AA_PUBLISHED_LE) / AA_PUBLISHED_LE < 0.02
+    phi_c = kgm.critical_friction(scene, AA_COLUMNS, method=method)
+    assert phi_c == pytest.approx(37.84, abs=0.01)
+    assert fs == pytest.approx(math.tan(math.radians(AA_FRICTION)) / math.tan(math.radians(phi_c)), rel=1e-6)
+    ev = kgm.evaluate(scene, AA_COLUMNS, method)
+    assert ev.mode.kind == ModeKind.TOPPLING and not ev.stable
+    assert ev.block_modes == AA_MODES
+    crit = kgm.analyze(scene, method=method).critical
+    assert crit.mode.kind == ModeKind.TOPPLING and not crit.stable
+    assert set(range(1, 10)) <= set(crit.blocks)  # every block that needs support from below
+    assert crit.fs == pytest.approx(AA_RECOMPUTED_LE, abs=5e-4)
+    assert crit.block_modes == {b: AA_MODES[b] for b in crit.blocks}
 
 
 # ---------------------------------------------------------------------- independent checks
