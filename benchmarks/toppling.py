@@ -123,7 +123,8 @@ def alejano_alonso(args) -> None:
     print(f"| Goodman & Bray, published (Alejano & Alonso) | free | {AA_PUBLISHED_LE:.2f} | - | - |")
     print(f"| Goodman & Bray on the 13 columns (XSLOPE) | free | {AA_RECOMPUTED_LE:.4f} | - | - |")
     print(f"| UDEC (Alejano & Alonso) | not stated | {AA_UDEC:.2f} | - | - |")
-    print(f"| RS2 without / with joint improvement | bench (the manual's model) | {AA_RS2[0]:.2f} / {AA_RS2[1]:.2f} | - | - |")
+    print(f"| RS2 without / with joint improvement | bench (the manual's model) "
+          f"| {AA_RS2[0]:.2f} / {AA_RS2[1]:.2f} | - | - |")
     columns = list(range(1, 14))
     for m in ("rigid", "sarma"):
         scene, _ = alejano_alonso_section()
