@@ -48,6 +48,7 @@ START_DTYPE = np.dtype([
     ("settlement", "f8"),       # largest vertex displacement of a held block [m]
     ("at_strength", "i4"),      # contacts of held blocks at their strength at t = 0
     ("wall_time", "f8"),        # wall time of the stage [s]
+    ("welded", "?"),            # started from the welded equilibrium (no frictional one found)
 ])
 
 #: a rock bolt that broke (docs/method/water_bolts.md), one record per broken bolt
@@ -576,7 +577,10 @@ class Recorder:
         self.metadata = results.metadata
         self.block_material = results.block_material
         self.steps.extend(r.item() for r in results.steps)
-        self.start.extend(r.item() for r in results.start)
+        # a record written before a field was added gets the field's zero
+        have = results.start.dtype.names or ()
+        self.start.extend(tuple(r[k] if k in have else START_DTYPE[k].type(0) for k in START_DTYPE.names)
+                          for r in results.start)
         # per-frame records of optional model parts (bolts), kept by name like the Results field
         for name, frames in getattr(self, "bolts", {}).items():
             if len(getattr(results, name, ())) == results.n_frames:

@@ -32,7 +32,19 @@ solve of the model under its weight, the point loads at t = 0 and its initial st
    inertia: Δt from the run's step, doubling up to the static pseudo time step, each starting
    from the contact states of the last; a pseudo-step that does not converge is retried with a
    shorter Δt while the ladder climbs past the Δt of its last failure. Each solve then stays close to the last, as in a
-   dynamic step. If the ladder fails too, the model starts under sudden gravity.
+   dynamic step.
+6. If the ladder fails too (a stiff, fitted mass of blocks whose joints slip by microns under
+   the Poisson effect of their own weight: thousands of contacts near the Coulomb limit, whose
+   frictional equilibrium semismooth Newton does not find from the all-locked start), the
+   model starts from its *welded* equilibrium: the same static solve with every touching
+   contact held as it is (normal and shear springs, no open-close judgement), repeated at the
+   settled geometry until the increment is round-off; blocks that move as mechanisms even so
+   are released. Then each contact takes the joint law at t = 0: one pulled beyond its tensile
+   strength opens, one sheared beyond its Coulomb strength is handed over locked at it
+   (`StartRecord.at_strength`). The first steps release only the difference between the welded
+   and the real joint forces instead of the whole weight (sudden gravity rings a stiff grid
+   for its whole run and doubles the solves per step; docs/method/dda.md §8.12).
+   `StartRecord.welded` says that a run started so.
 
 So a model that limit equilibrium calls stable moves no more than its elastic settlement, and
 one that it calls unstable starts failing at once: its released blocks start under sudden
@@ -48,8 +60,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .contacts import BlockPattern, Contacts, detect_contacts
-from .model import ContactMemory, ContactState, State
+from .contacts import KIND, BlockPattern, Contacts, detect_contacts
+from .model import ContactKind, ContactMemory, ContactState, State
 
 OPEN, SLIDE, LOCK = int(ContactState.OPEN), int(ContactState.SLIDE), int(ContactState.LOCK)
 
@@ -92,6 +104,9 @@ class StartRecord:
     it, bonds intact) [-]."""
     wall_time: float
     """Wall time of the stage [s]."""
+    welded: bool = False
+    """The Mohr–Coulomb stage did not converge, and the model started from its welded
+    equilibrium with each contact then at most at its strength (module docstring, 6.)."""
 
 
 #: the record of a model with nothing to settle
@@ -106,9 +121,10 @@ def needs_settling(model) -> bool:
     return loaded or bool(np.any(model.initial_stress[~model.block_fixed] != 0.0))
 
 
-def settle(stepper, state: State) -> tuple[State, StartRecord]:
+def settle(stepper, state: State, welded: bool = False) -> tuple[State, StartRecord]:
     """The model's equilibrium at t = 0 (module docstring). Returns the settled state, whose
-    contact memory carries the held contacts into the first step, and the stage's record."""
+    contact memory carries the held contacts into the first step, and the stage's record.
+    ``welded``: go straight to the welded equilibrium (6.), without the frictional stage."""
     t0 = _time.perf_counter()
     model = stepper.model
     if not needs_settling(model):
@@ -116,6 +132,8 @@ def settle(stepper, state: State) -> tuple[State, StartRecord]:
     geom = model.block_geometry(state.vertex_xy)
     size = np.sqrt(geom["area"])
     dt_static = _pseudo_time_step(stepper, geom, size)
+    if welded:
+        return _stage(stepper, state, size, dt_static, None, t0, welded=True)[:2]
     settled, record, converged = _stage(stepper, state, size, dt_static, None, t0)
     if not converged:
         # the static solve did not converge (contacts near zero force in a fitted mass of
@@ -124,18 +142,25 @@ def settle(stepper, state: State) -> tuple[State, StartRecord]:
         # the contact states of the last, until the increments are round-off
         p = stepper.params
         dt = min(p.dt if p.dt is not None else p.dt_max, dt_static)
-        settled, again, _ = _stage(stepper, state, size, dt_static, dt, t0)
+        settled, again, converged = _stage(stepper, state, size, dt_static, dt, t0)
+        record = StartRecord(**{**vars(again), "solves": record.solves + again.solves})
+    if not converged:
+        # no frictional equilibrium found: start from the welded one, each contact then at most
+        # at its strength (module docstring, 6.), rather than under sudden gravity
+        settled, again, _ = _stage(stepper, state, size, dt_static, None, t0, welded=True)
         record = StartRecord(**{**vars(again), "solves": record.solves + again.solves})
     return settled, record
 
 
-def _stage(stepper, state: State, size: np.ndarray, dt_static: float, dt_ladder, t0: float
-           ) -> tuple[State, StartRecord, bool]:
+def _stage(stepper, state: State, size: np.ndarray, dt_static: float, dt_ladder, t0: float,
+           welded: bool = False) -> tuple[State, StartRecord, bool]:
     """Pseudo-steps: with Δt = ``dt_static`` until the increment is round-off, or (the ladder)
     from ``dt_ladder`` doubling up to ``dt_static`` — a pseudo-step that does not converge is
     tried again with a smaller Δt (a quarter at the start, then half-way in log to the last
     that converged), and once an increment is round-off the ladder goes to ``dt_static``.
-    Returns (state, record, whether the open-close iterations converged)."""
+    ``welded``: every pseudo-step is one solve with the touching contacts held, and the
+    contacts then take the joint law (`_unweld`). Returns (state, record, whether the
+    open-close iterations converged)."""
     model = stepper.model
     free = ~model.block_fixed
     initial = state
@@ -157,7 +182,7 @@ def _stage(stepper, state: State, size: np.ndarray, dt_static: float, dt_ladder,
         if not np.any(contacts.state != OPEN):
             break  # nothing (left) touches: nothing to hold
         disp, n, found, contacts = _static_solve(stepper, state, geom, contacts, dt, released, size,
-                                                 at_strength)
+                                                 welded)
         solves += n
         # a pseudo-step of the ladder that fails is retried shorter, as long as the ladder has
         # climbed past the Δt of its last failure (else it is cycling there: give up)
@@ -195,6 +220,8 @@ def _stage(stepper, state: State, size: np.ndarray, dt_static: float, dt_ladder,
             dt = dt_static if step <= LADDER_DONE * float(np.median(size)) else min(2.0 * dt, dt_static)
     if solves == 0:
         return initial, NOTHING, True
+    if last is not None and welded:
+        _unweld(stepper, last)
     if last is not None:
         # contacts sliding at their strength are handed over locked at it (force-continuous):
         # the stage ends in an equilibrium of springs, and they keep their bonds
@@ -207,7 +234,7 @@ def _stage(stepper, state: State, size: np.ndarray, dt_static: float, dt_ladder,
     record = StartRecord(solves=solves, held=int(np.count_nonzero(held)),
                          released=int(np.count_nonzero(free & released)), settlement=settlement,
                          at_strength=len(at_strength & set(memory.key.tolist())),
-                         wall_time=_time.perf_counter() - t0)
+                         wall_time=_time.perf_counter() - t0, welded=welded)
     return state.replace(memory=memory), record, True
 
 
@@ -242,12 +269,53 @@ def _pseudo_time_step(stepper, geom, size) -> float:
     return float(np.sqrt(2.0 * FALL_IN_SIZES * np.median(size[~model.block_fixed]) / accel))
 
 
+def _unweld(stepper, contacts: Contacts) -> None:
+    """The joint law at the end of a welded stage, in place: a contact pulled beyond its
+    tensile strength (T·L while bonded, else the round-off force) opens; a locked vertex-edge
+    contact whose shear spring carries more than its Coulomb strength N·tanφ + c·L is marked
+    sliding, to be handed over locked at that strength (`_lock_at_strength`)."""
+    m = stepper.model
+    closed = contacts.state != OPEN
+    tensile = np.where(contacts.bond, contacts.tensile * contacts.length, 0.0)
+    pulled = closed & (m.penalty * contacts.dn > tensile + m.force_roundoff)
+    contacts.state[pulled] = OPEN
+    contacts.normal_force[pulled] = 0.0
+    ve = contacts.cint[:, KIND] == int(ContactKind.VE)
+    over = ve & (contacts.state == LOCK) & \
+        (m.shear_penalty * np.abs(contacts.ds) > stepper.friction_force(contacts) + m.force_roundoff)
+    contacts.state[over] = SLIDE
+    contacts.shear_dir[over] = np.where(contacts.ds[over] >= 0, 1, -1)
+
+
+def _welded_solve(stepper, state: State, geom: dict, contacts: Contacts, vec: np.ndarray,
+                  sca: np.ndarray, pattern: BlockPattern, dt: float):
+    """One static solve with every contact in the state it has (the touching ones locked),
+    without open-close judgement; the contacts' distances and normal forces are updated to
+    the solution in place. Returns D, or None if the solve is not finite."""
+    m = stepper.model
+    data, rhs = stepper.assemble_blocks(state, geom, pattern, dt, static_start=True)
+    stepper.assemble_contacts(contacts, pattern, vec, sca, data, rhs)
+    sliding = contacts.coupled & (contacts.state == SLIDE) & (contacts.tan_phi > 0)
+    disp = stepper.solve(pattern, data, rhs, symmetric=not bool(np.any(sliding)))
+    if not np.all(np.isfinite(disp)):
+        return None
+    law = stepper.contact_law(contacts, vec, sca, disp)
+    closed = contacts.state != OPEN
+    contacts.normal_force[:] = np.where(closed, np.maximum(-m.penalty * law.dn_now, 0.0), 0.0)
+    if law.tan_phi is not None:  # Barton–Bandis: the friction of this normal stress
+        contacts.tan_phi[closed] = law.tan_phi[closed]
+    contacts.dn[:] = law.dn_now
+    contacts.ds[:] = law.ds
+    return disp
+
+
 def _static_solve(stepper, state: State, geom: dict, contacts: Contacts, dt: float,
-                  released: np.ndarray, size: np.ndarray, at_strength: set):
+                  released: np.ndarray, size: np.ndarray, welded: bool = False):
     """One pseudo-step: the open-close iteration of the static system at this geometry, with
-    Mohr–Coulomb joints; blocks that turn out to be mechanisms are released and the rest solved
-    again. Returns (D or None when it does not converge, solves, newly released blocks, the
-    contacts left); sliding contacts end locked at their strength."""
+    Mohr–Coulomb joints (``welded``: one solve with the contacts held as they are); blocks that
+    turn out to be mechanisms are released and the rest solved again. Returns (D or None when
+    it does not converge, solves, newly released blocks, the contacts left); sliding contacts
+    end locked at their strength."""
     from .step import _Timer
 
     model = stepper.model
@@ -258,10 +326,14 @@ def _static_solve(stepper, state: State, geom: dict, contacts: Contacts, dt: flo
         contacts = _subset(contacts, ~(out[contacts.block_a] | out[contacts.block_b]))
         vec, sca = stepper.contact_vectors(state.vertex_xy, geom, contacts)
         pattern = BlockPattern.build(model, contacts)
-        data0, rhs0 = stepper.assemble_blocks(state, geom, pattern, dt, static_start=True)
-        disp, n, converged = stepper.open_close(state, geom, contacts, pattern, vec, sca, data0, rhs0,
-                                                np.zeros(model.n_blocks), _Timer(), MAX_SOLVES,
-                                                break_bonds=False)
+        if welded:
+            disp = _welded_solve(stepper, state, geom, contacts, vec, sca, pattern, dt)
+            n, converged = 1, True
+        else:
+            data0, rhs0 = stepper.assemble_blocks(state, geom, pattern, dt, static_start=True)
+            disp, n, converged = stepper.open_close(state, geom, contacts, pattern, vec, sca, data0, rhs0,
+                                                    np.zeros(model.n_blocks), _Timer(), MAX_SOLVES,
+                                                    break_bonds=False)
         solves += n
         if disp is None or not converged:
             return None, solves, out & ~released, contacts
