@@ -486,7 +486,13 @@ class Stepper:
             dnl = np.stack([dn0[vv], dn1], axis=1)
             rows = np.arange(len(dn1))
             dn_now[vv] = dnl[rows, contacts.line[vv]]
-            line[vv] = (dn1 > dn0[vv]).astype(np.int8)
+            # the entrance line: the less penetrated one (Shi), but never a line the vertex was
+            # already behind at the step start by more than any contact may penetrate — it
+            # passed that line's extension outside the other block and can only enter through
+            # the other line (a corner thrown past a corner would otherwise be pushed out
+            # sideways through a face it never crossed, gaining energy; docs/method/dda.md §2.8.7)
+            behind = sca[vv, :2] < -m.penetration_limit
+            line[vv] = np.where(behind[:, 0] != behind[:, 1], behind[:, 0], dn1 > dn0[vv]).astype(np.int8)
             dn[vv] = dnl[rows, line[vv]]
         ds = np.where(ve, sca[:, 2] + shift[:, 2] + np.einsum("ij,ij->i", vec[:, S_ES], da) +
                       np.einsum("ij,ij->i", vec[:, S_GS], db), 0.0)
