@@ -64,7 +64,10 @@ def slope_scene(n_blocks: int):
     spacing = math.sqrt(0.63 * area * math.sin(math.radians(70.0)) / n_blocks)
     sets = [dd.JointSet(dip=35.0, spacing=spacing, joint=dd.Joint(friction=28.0)),
             dd.JointSet(dip=105.0, spacing=spacing, joint=dd.Joint(friction=35.0))]
-    ids = scene.cut(outline, dd.joint_sets(outline, sets, seed=1), material=rock)
+    # slivers (a few mm² where three joints nearly meet) merged into a neighbour, as the scenes
+    # do: left in, one of them holds the sudden start of the 1,600-block slope in an
+    # open-close cycle at Δt = 3e-7 s
+    ids = scene.cut(outline, dd.joint_sets(outline, sets, seed=1), material=rock, slivers="merge")
     centroid = np.array([scene.polygon(b).mean(axis=0) for b in ids])
     for b, c in zip(ids, centroid):
         if c[1] < 0.0 or c[0] > 50.0:
