@@ -126,8 +126,8 @@ def alejano_alonso(args) -> None:
     print(f"| RS2 without / with joint improvement | bench (the manual's model) "
           f"| {AA_RS2[0]:.2f} / {AA_RS2[1]:.2f} | - | - |")
     columns = list(range(1, 14))
+    scene, _ = alejano_alonso_section()
     for m in ("rigid", "sarma"):
-        scene, _ = alejano_alonso_section()
         t0 = time.perf_counter()
         fs = kgm.factor_of_safety(scene, columns, method=m)
         print(f"| kgm {m} | free | {fs:.4f} | - | {time.perf_counter() - t0:.1f} s |", flush=True)

@@ -295,8 +295,9 @@ def _welded_solve(stepper, state: State, geom: dict, contacts: Contacts, vec: np
     m = stepper.model
     data, rhs = stepper.assemble_blocks(state, geom, pattern, dt, static_start=True)
     stepper.assemble_contacts(contacts, pattern, vec, sca, data, rhs)
-    sliding = contacts.coupled & (contacts.state == SLIDE) & (contacts.tan_phi > 0)
-    disp = stepper.solve(pattern, data, rhs, symmetric=not bool(np.any(sliding)))
+    # K is symmetric: a welded stage changes no state, so its vertex-edge contacts stay locked
+    # (only vertex-vertex ones are "sliding", with no friction) and none is coupled
+    disp = stepper.solve(pattern, data, rhs)
     if not np.all(np.isfinite(disp)):
         return None
     law = stepper.contact_law(contacts, vec, sca, disp)
