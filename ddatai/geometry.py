@@ -267,6 +267,13 @@ def _sliver_measures(faces) -> tuple[np.ndarray, np.ndarray]:
     return aspect, shapely.area(faces)
 
 
+def _slivers(faces) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(which faces are slivers, their aspect ratios, their areas): `SLIVER_ASPECT` and more,
+    or smaller than `SLIVER_AREA` × the median face."""
+    aspect, area = _sliver_measures(faces)
+    return (aspect >= SLIVER_ASPECT) | (area < SLIVER_AREA * np.median(area)), aspect, area
+
+
 def _merge_slivers(faces: list, scale: float) -> tuple[list, int]:
     """Merge every sliver (`SLIVER_ASPECT`, `SLIVER_AREA`) into the neighbour with which it
     shares the longest boundary (the joint piece between them disappears), thinnest first,
@@ -276,8 +283,7 @@ def _merge_slivers(faces: list, scale: float) -> tuple[list, int]:
     faces = list(faces)
     merged = 0
     while True:
-        aspect, area = _sliver_measures(faces)
-        sliver = (aspect >= SLIVER_ASPECT) | (area < SLIVER_AREA * np.median(area))
+        sliver, aspect, _ = _slivers(faces)
         if not sliver.any() or len(faces) < 2:
             return faces, merged
         order = np.argsort(-aspect)
@@ -367,8 +373,8 @@ def cut(boundary, joints: Sequence, *, snap: float | None = None,
     if slivers == "merge":
         inside, _ = _merge_slivers(inside, scale)
     if slivers != "keep" and len(inside) > 1:
-        aspect, area = _sliver_measures(inside)
-        thin = np.flatnonzero((aspect >= SLIVER_ASPECT) | (area < SLIVER_AREA * np.median(area)))
+        sliver, aspect, area = _slivers(inside)
+        thin = np.flatnonzero(sliver)
         if len(thin):
             import warnings
 
