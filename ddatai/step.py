@@ -82,6 +82,7 @@ class ContactLaw:
     friction_now: np.ndarray  # friction magnitude of the current (sliding) state at D [N/m]
     energy: float          # spring energy of the contacts with the friction of the next solve [J/m]
     tan_phi: Optional[np.ndarray] = None  # Barton–Bandis: tan φ(σn) at the law's σn (None: MC only)
+    packed: Optional[tuple] = None  # the kernel's (float rows, int rows) the fields are views of
 
 
 class _Timer:
@@ -459,7 +460,46 @@ class Stepper:
     def contact_law(self, contacts: Contacts, vec: np.ndarray, sca: np.ndarray, disp: np.ndarray,
                     shift: Optional[np.ndarray] = None) -> "ContactLaw":
         """The contact law at the displacements ``disp`` (§2.8, §4.3), without changing
-        ``contacts``.
+        ``contacts`` (`contact_law_numpy` states it). A Taichi kernel evaluates it
+        (`kernels.contact_law`); models with Barton–Bandis joints, whose friction follows the
+        law's own normal stress, take the NumPy path, which is also the kernel's reference."""
+        if contacts.n == 0 or len(self.model.joint_barton):
+            return self.contact_law_numpy(contacts, vec, sca, disp, shift)
+        from . import kernels as K
+
+        m = self.model
+        cstate, cvalue = self._law_inputs(contacts)
+        constant = sca if shift is None else sca + shift
+        out_f = np.empty((10, contacts.n))
+        out_i = np.empty((4, contacts.n), np.int8)
+        K.contact_law(contacts.cint, cstate, cvalue, contacts.block_a, contacts.block_b, vec,
+                      np.ascontiguousarray(constant), np.ascontiguousarray(disp), m.penalty,
+                      m.shear_penalty, m.penetration_limit, out_f, out_i)
+        return ContactLaw(dn=out_f[K.LAW_DN], ds=out_f[K.LAW_DS], line=out_i[K.LAW_LINE],
+                          closed=out_i[K.LAW_CLOSED].view(bool), state=out_i[K.LAW_STATE],
+                          direction=out_i[K.LAW_DIRECTION], fn=out_f[K.LAW_FN], ft=out_f[K.LAW_FT],
+                          strength=out_f[K.LAW_STRENGTH], dn_now=out_f[K.LAW_DN_NOW],
+                          fn_now=out_f[K.LAW_FN_NOW], ft_now=out_f[K.LAW_FT_NOW],
+                          friction_now=out_f[K.LAW_FRICTION_NOW],
+                          energy=float(np.sum(out_f[K.LAW_ENERGY])), packed=(out_f, out_i))
+
+    @staticmethod
+    def _law_inputs(contacts: Contacts) -> tuple[np.ndarray, np.ndarray]:
+        """The per-contact inputs of the judgement kernels, field-major: (state, line, coupled,
+        bond, shear direction) as int8 and (tan φ, cohesion, tensile strength, length, normal
+        force) as float64 (`kernels.IN_*`)."""
+        cstate = np.empty((5, contacts.n), np.int8)
+        cstate[0], cstate[1], cstate[2] = contacts.state, contacts.line, contacts.coupled
+        cstate[3], cstate[4] = contacts.bond, contacts.shear_dir
+        cvalue = np.empty((5, contacts.n))
+        cvalue[0], cvalue[1], cvalue[2] = contacts.tan_phi, contacts.cohesion, contacts.tensile
+        cvalue[3], cvalue[4] = contacts.length, contacts.normal_force
+        return cstate, cvalue
+
+    def contact_law_numpy(self, contacts: Contacts, vec: np.ndarray, sca: np.ndarray, disp: np.ndarray,
+                          shift: Optional[np.ndarray] = None) -> "ContactLaw":
+        """The contact law at the displacements ``disp`` (§2.8, §4.3), without changing
+        ``contacts``: the NumPy path of `contact_law`.
 
         A contact is closed while its normal distance dn ≤ T·L/p (bonded) or 0, with normal
         force −p·dn; a closed vertex-edge contact sticks while its shear spring force k_s·ds ≤
@@ -596,6 +636,22 @@ class Stepper:
         return changed
 
     def violations(self, contacts: Contacts, law: "ContactLaw") -> np.ndarray:
+        """Contacts whose assumed state must change, given the law at the solution
+        (`violations_numpy` states the rules): a Taichi kernel (`kernels.violations`) for a
+        law the kernel evaluated, the NumPy path otherwise."""
+        if law.packed is None:
+            return self.violations_numpy(contacts, law)
+        from . import kernels as K
+
+        m, p = self.model, self.params
+        cstate, cvalue = self._law_inputs(contacts)
+        bad = np.empty(contacts.n, np.int8)
+        K.violations(contacts.cint, cstate, cvalue, contacts.block_a, contacts.block_b, law.packed[0],
+                     law.packed[1], self._block_load.copy(), m.penalty, p.oc_force_tolerance,
+                     p.oc_state_tolerance, m.force_roundoff, bad)
+        return bad.view(bool)
+
+    def violations_numpy(self, contacts: Contacts, law: "ContactLaw") -> np.ndarray:
         """Contacts whose assumed state must change, given the law at the solution.
 
         Strict, within ``oc_force_tolerance`` of the contact's own strength (plus the round-off
@@ -636,7 +692,19 @@ class Stepper:
 
     def internal_force(self, contacts: Contacts, vec: np.ndarray, law: "ContactLaw") -> np.ndarray:
         """Generalised forces (6 per free block) of the contact forces of ``law``: the gradient
-        of the spring energies, p·dn·∇dn of a closed contact and f_t·∇ds of its shear force."""
+        of the spring energies, p·dn·∇dn of a closed contact and f_t·∇ds of its shear force
+        (`kernels.internal_force` for a law the kernel evaluated)."""
+        if law.packed is None or contacts.n == 0:
+            return self.internal_force_numpy(contacts, vec, law)
+        from . import kernels as K
+
+        out = np.zeros(6 * self.model.n_free)
+        K.internal_force(contacts.block_a, contacts.block_b, self.dof, vec, law.packed[0], law.packed[1],
+                         out, self._serial_scatter)
+        return out
+
+    def internal_force_numpy(self, contacts: Contacts, vec: np.ndarray, law: "ContactLaw") -> np.ndarray:
+        """`internal_force` in NumPy (the path of a NumPy law, and the kernel's reference)."""
         rows = self.model.n_free
         out = np.zeros(6 * rows)
         if contacts.n == 0:
