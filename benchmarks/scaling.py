@@ -133,10 +133,12 @@ def run_one(family: str, size: int, steps: int, warmup: int, arch: str, solver: 
         state, rec = settle(stepper, state)
         start = dict(start_s=rec.wall_time, start_solves=rec.solves, start_held=rec.held,
                      start_released=rec.released)
-    records = []
+    records, factorised = [], []
     for k in range(warmup + steps):
+        before = stepper.solver.factorisations
         state, record = stepper.step(state)
         records.append(record)
+        factorised.append(stepper.solver.factorisations - before)
         if k + 1 == FROM_REST_STEPS and protocol == "settled":
             start["from_rest_ms_per_step"] = (time.perf_counter() - t_run) / FROM_REST_STEPS * 1e3
     all_steps = np.array(records, dtype=dd.STEP_DTYPE)
@@ -150,6 +152,8 @@ def run_one(family: str, size: int, steps: int, warmup: int, arch: str, solver: 
                protocol=protocol, solves_per_step=float(np.mean(s["oc_total"])),
                median_solves=float(np.median(s["oc_total"])), max_solves=int(s["oc_total"].max()),
                capped_steps=int(np.count_nonzero(s["oc_total"] > s["oc_iterations"])), **start,
+               factorisations_per_step=float(np.mean(factorised[warmup:])),
+               median_factorisations=float(np.median(factorised[warmup:])),
                contacts=int(np.median(s["contacts"])), **{f"ms_{k}": v for k, v in phases.items()})
     # ntdda's "s per 1-OC step": the cost of a step whose first solve already has the right states
     one = s["oc_total"] == 1
@@ -254,17 +258,20 @@ def table(rows: list[dict]) -> str:
 
 
 def solves_table(rows: list[dict]) -> str:
-    """Open-close solves (factorisations) per step and, for the settled protocol, the start-up."""
-    lines = ["| family | blocks | solves/step: median (mean, max) | steps with a cut attempt | stage: s (solves, held/released) | stage + first 10 steps: ms/step |",
-             "|---|---|---|---|---|---|"]
+    """Open-close solves per step, the factorisations among them (a step's first solve may reuse
+    the last factor, `ddatai.solver`), and, for the settled protocol, the start-up."""
+    lines = ["| family | blocks | solves/step: median (mean, max) | factorisations/step: median (mean) | steps with a cut attempt | stage: s (solves, held/released) | stage + first 10 steps: ms/step |",
+             "|---|---|---|---|---|---|---|"]
     for r in rows:
         if "median_solves" not in r:
             continue
         stage = (f"{r['start_s']:.2f} ({r['start_solves']}, {r['start_held']:,}/{r['start_released']:,})"
                  if "start_s" in r else "–")
         rest = f"{r['from_rest_ms_per_step']:.0f}" if "from_rest_ms_per_step" in r else "–"
+        fact = (f"{r['median_factorisations']:.0f} ({r['factorisations_per_step']:.1f})"
+                if "median_factorisations" in r else "–")
         lines.append(f"| {r['family']} | {r['blocks']:,} | {r['median_solves']:.0f} ({r['solves_per_step']:.1f}, "
-                     f"{r['max_solves']}) | {r['capped_steps']} | {stage} | {rest} |")
+                     f"{r['max_solves']}) | {fact} | {r['capped_steps']} | {stage} | {rest} |")
     return "\n".join(lines)
 
 
@@ -342,8 +349,8 @@ def main() -> None:
              "not converge leaves the model to sudden gravity, as the held/released column shows)")
     text = [f"# Block-count scaling, {a.protocol} protocol ({time.strftime('%Y-%m-%d')})", "", f"Machine: {machine()}; "
             f"Taichi arch {a.arch}; median of the timed steps after the warm-up steps, {start}; steps per size "
-            f"in scaling{suffix}.json.", "", table(rows), "", "Solves (factorisations) per step, cut attempts "
-            "included:", "", solves_table(rows), ""]
+            f"in scaling{suffix}.json.", "", table(rows), "", "Open-close solves per step, cut attempts "
+            "included, and the factorisations among them:", "", solves_table(rows), ""]
     for family in sorted({r["family"] for r in rows}):
         own = [r for r in rows if r["family"] == family]
         step, oc = growth_exponent(own), growth_exponent(own, key="ms_per_oc")

@@ -297,7 +297,7 @@ def _welded_solve(stepper, state: State, geom: dict, contacts: Contacts, vec: np
     stepper.assemble_contacts(contacts, pattern, vec, sca, data, rhs)
     # K is symmetric: a welded stage changes no state, so its vertex-edge contacts stay locked
     # (only vertex-vertex ones are "sliding", with no friction) and none is coupled
-    disp = stepper.solve(pattern, data, rhs)
+    disp = stepper.solve(pattern, data, rhs, reuse=True)  # repeated at a settled geometry
     if not np.all(np.isfinite(disp)):
         return None
     law = stepper.contact_law(contacts, vec, sca, disp)

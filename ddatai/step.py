@@ -445,15 +445,17 @@ class Stepper:
         b = np.where(contacts.coupled, self.model.penalty * contacts.tan_phi, 0.0)
         return a, b
 
-    def solve(self, pattern: BlockPattern, data: np.ndarray, rhs: np.ndarray, symmetric: bool = True
-              ) -> np.ndarray:
+    def solve(self, pattern: BlockPattern, data: np.ndarray, rhs: np.ndarray, symmetric: bool = True,
+              reuse: bool = False) -> np.ndarray:
         """Solve K D = F (`ddatai.solver`); returns D as (B, 6) with zeros for fixed blocks.
-        ``symmetric=False`` when coupled friction made K non-symmetric."""
+        ``symmetric=False`` when coupled friction made K non-symmetric; ``reuse`` when K should
+        be close to the matrix last factorised (a step's first solve: the same contact states
+        at a slightly moved geometry), which the solver then tries to solve with that factor."""
         d = np.zeros((self.model.n_blocks, 6))
         if pattern.n_rows == 0:
             return d
         x = self.solver.solve(data, pattern.indices, pattern.indptr, rhs, pattern=pattern,
-                              symmetric=symmetric)
+                              symmetric=symmetric, reuse=reuse)
         d[self.free_idx] = x.reshape(-1, 6)
         return d
 
@@ -751,7 +753,9 @@ class Stepper:
             self.assemble_contacts(contacts, pattern, vec, sca + shift, data, rhs)
             t0 = timer.add("assembly", t0)
             symmetric = not bool(np.any(contacts.coupled & (contacts.state == SLIDE) & (contacts.tan_phi > 0)))
-            solution = self.solve(pattern, data, rhs, symmetric=symmetric)
+            # the first solve has the states the last one ended with: K has moved only with
+            # the blocks, and the last factor may still solve it (`ddatai.solver`, reuse)
+            solution = self.solve(pattern, data, rhs, symmetric=symmetric, reuse=it == 1)
             t0 = timer.add("solve", t0)
             if not np.all(np.isfinite(solution)):
                 return None, it, False

@@ -122,3 +122,77 @@ def test_pardiso_takes_its_parameters():
     solver.solve(data, pattern.indices, pattern.indptr, rhs, symmetric=False)
     h = solver._handles[11]
     assert h.iparm[0] == 1 and h.iparm[7] == 0 and h.refinement_steps == 0
+
+
+BACKENDS = ["scipy", pytest.param("pardiso", marks=pytest.mark.skipif(
+    not HAS_PARDISO, reason="pypardiso is not installed (optional accelerator)"))]
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_reused_factor_solves_a_nearby_matrix_to_round_off(backend):
+    """A step's first solve (``reuse``): K a little moved from the matrix last factorised is
+    solved by refinement with the old factor, to the direct solution's accuracy and without a
+    factorisation; a matrix that moved far, or a different matrix type, is factorised."""
+    pattern, data, rhs = _system(3)
+    n = len(rhs)
+    solver = SparseSolver(backend)
+    solver.solve(data, pattern.indices, pattern.indptr, rhs, pattern=pattern)
+    assert (solver.factorisations, solver.reused) == (1, 0)
+    rng = np.random.default_rng(0)
+    # a settled step's change: the blocks moved by ~1e-6 of their size (symmetric)
+    near = data * (1.0 + 1e-6 * rng.standard_normal(len(data)))
+    near = 0.5 * (near + csr_matrix((near, pattern.indices, pattern.indptr), shape=(n, n)).T.tocsr()
+                  .sorted_indices().data)
+    rhs2 = rhs * (1.0 + 0.1 * rng.standard_normal(n))
+    x = solver.solve(near, pattern.indices, pattern.indptr, rhs2, pattern=pattern, reuse=True)
+    assert (solver.factorisations, solver.reused) == (1, 1)
+    direct = SparseSolver(backend).solve(near, pattern.indices, pattern.indptr, rhs2)
+    K = csr_matrix((near, pattern.indices, pattern.indptr), shape=(n, n))
+    assert np.abs(K @ x - rhs2).max() <= 1e-12 * np.abs(rhs2).max()
+    assert np.abs(x - direct).max() < 1e-10 * np.abs(direct).max()
+    # the time step cut to a third: the inertia on the diagonal triples, refinement stalls
+    far = near.copy()
+    diag = np.flatnonzero(pattern.indices == np.repeat(np.arange(n), np.diff(pattern.indptr)))
+    far[diag] *= 3.0
+    x = solver.solve(far, pattern.indices, pattern.indptr, rhs2, pattern=pattern, reuse=True)
+    assert (solver.factorisations, solver.reused) == (2, 1)
+    K = csr_matrix((far, pattern.indices, pattern.indptr), shape=(n, n))
+    assert np.abs(K @ x - rhs2).max() <= 1e-10 * np.abs(rhs2).max()
+    # a non-symmetric solve never refines with a symmetric factor (or the reverse)
+    solver.solve(far, pattern.indices, pattern.indptr, rhs2, pattern=pattern, symmetric=False, reuse=True)
+    assert (solver.factorisations, solver.reused) == (3, 1)
+
+
+def test_a_settled_run_reuses_its_factor_and_follows_the_factorised_run():
+    """A 3 × 3 stack of stiff blocks resting on its base from the equilibrium start: its steps'
+    first solves (the only ones) reuse the factor, and the run is the same as one that
+    factorises every solve."""
+    from ddatai.start import settle
+
+    scene = dd.Scene(gravity=9.81)
+    rock = dd.Material(density=2500.0, young=5e9, poisson=0.25)
+    scene.add_block([(-1, -1), (4, -1), (4, 0), (-1, 0)], material=rock, fixed=True)
+    for j in range(3):
+        for i in range(3):
+            scene.add_block([(i, j), (i + 1, j), (i + 1, j + 1), (i, j + 1)], material=rock)
+    scene.set_joint(dd.Joint(friction=35.0))
+    runs = []
+    for reuse in (True, False):
+        model = build_model(scene, dd.Params(dt=1e-3, solver="scipy"))
+        stepper = Stepper(model)
+        if not reuse:
+            solve = stepper.solver.solve
+            stepper.solver.solve = lambda *a, reuse=False, **k: solve(*a, **k)
+        state, _ = settle(stepper, model.initial_state())
+        before = stepper.solver.factorisations
+        solves = []
+        for _ in range(40):
+            state, record = stepper.step(state)
+            solves.append(record[3])
+        runs.append((state.vertex_xy, solves, stepper.solver.factorisations - before, stepper.solver.reused))
+    (xy_r, solves_r, fact_r, reused_r), (xy_f, solves_f, fact_f, reused_f) = runs
+    assert solves_r == solves_f and reused_f == 0
+    assert reused_r >= 35 and fact_r <= sum(solves_r) - 35 and fact_f == sum(solves_f)
+    assert np.abs(xy_r - xy_f).max() < 1e-12
+    # it rests: the stack moved by its elastic settlement only
+    assert np.abs(xy_r - model.vertex_xy0).max() < 1e-4
