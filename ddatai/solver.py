@@ -25,9 +25,9 @@ factorised only through the blocks' small motion (relative changes of 1e-15 in a
 1e-6 in a stiff ringing one). Such a solve (``reuse=True``) is done by iterative refinement
 with the factor in hand — x ← x + K_old⁻¹(b − K x) — while the residual falls at least 20-fold
 per pass, to a relative residual of `REUSE_RESIDUAL` or its round-off floor below `REUSE_FLOOR`;
-if it falls slower (the time step or the states changed) the matrix is factorised as usual. One or a few triangular solves and
-products with K cost 1.5–6 ms at 1,600 blocks, a factorisation 11–21 ms (docs/method/dda.md
-§9).
+if it falls slower (the states changed, the blocks moved far) the matrix is factorised as
+usual (the stepper does not ask when Δt changed). One or a few triangular solves and products
+with K cost 1.5–6 ms at 1,600 blocks, a factorisation 11–21 ms (docs/method/dda.md §9).
 """
 
 from __future__ import annotations

@@ -8,7 +8,8 @@
         K, F = block terms           (§2.1–2.6)
         repeat                       (open-close iteration, §4: semismooth Newton)
             add contact springs and friction for the assumed states
-            solve K D = F            (sparse Cholesky; LU where friction is implicit)
+            solve K D = F            (sparse Cholesky; LU where friction is implicit; the first
+                                      solve refines with the last factor while it can)
             evaluate the contact law at D; shorten the step by a line search if it overshoots
             judge: contacts whose state breaks the law (or mismatches the motion) change
         until no contact has to change   else: dt *= 0.3, restart
@@ -122,6 +123,7 @@ class Stepper:
         self._load_stiff = np.zeros(len(model.load_block))
         # softening Barton–Bandis joints: contacts remember how far they have slid
         self._softening = bool(len(model.joint_barton)) and bool(np.any(~np.isnan(model.joint_barton[:, 5])))
+        self._factored_at = None  # (Δt, β) of the last attempt: its factor may serve the next
 
     # ------------------------------------------------------------------ public
     def step(self, state: State, t_end: Optional[float] = None) -> tuple[State, tuple]:
@@ -727,10 +729,11 @@ class Stepper:
 
     def open_close(self, state: State, geom: dict, contacts: Contacts, pattern: BlockPattern,
                    vec: np.ndarray, sca: np.ndarray, data0: np.ndarray, rhs0: np.ndarray,
-                   rotation: np.ndarray, timer: "_Timer", max_iterations: int, break_bonds: bool = True
-                   ) -> tuple[Optional[np.ndarray], int, bool]:
+                   rotation: np.ndarray, timer: "_Timer", max_iterations: int, break_bonds: bool = True,
+                   reuse_first: bool = True) -> tuple[Optional[np.ndarray], int, bool]:
         """The open-close iteration (§4) in place on ``contacts``: (D, iterations, converged);
-        D is None when a solve is not finite.
+        D is None when a solve is not finite. ``reuse_first``: the first solve may try the last
+        factor (the states are the ones it was made with; `solve`).
 
         Semismooth Newton on the contact law: each solve takes the contact states (and the
         Jacobian of their forces) at the last iterate, so when no state has to change the
@@ -755,7 +758,7 @@ class Stepper:
             symmetric = not bool(np.any(contacts.coupled & (contacts.state == SLIDE) & (contacts.tan_phi > 0)))
             # the first solve has the states the last one ended with: K has moved only with
             # the blocks, and the last factor may still solve it (`ddatai.solver`, reuse)
-            solution = self.solve(pattern, data, rhs, symmetric=symmetric, reuse=it == 1)
+            solution = self.solve(pattern, data, rhs, symmetric=symmetric, reuse=reuse_first and it == 1)
             t0 = timer.add("solve", t0)
             if not np.all(np.isfinite(solution)):
                 return None, it, False
@@ -822,8 +825,12 @@ class Stepper:
         # latest iterate's (for the second-order terms of the constraints)
         rotation = dt * p.velocity_carry * state.block_velocity[:, 2] + 0.5 * dt * dt * state.block_accel[:, 2]
         rotation[m.block_fixed] = 0.0
+        # the last factor can solve the first solve only at the Δt (and β) it was made with:
+        # the inertia 2M/Δt² is a large part of K (`ddatai.solver`, reuse)
+        reuse = (dt, self.newmark_beta(state)) == self._factored_at
+        self._factored_at = (dt, self.newmark_beta(state))
         disp, it, converged = self.open_close(state, geom, contacts, pattern, vec, sca, data0, rhs0,
-                                              rotation, timer, p.oc_max_iterations)
+                                              rotation, timer, p.oc_max_iterations, reuse_first=reuse)
         if disp is None:
             return _Attempt(ok=False, cause="nan", iterations=it)
         if not converged:
