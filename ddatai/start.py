@@ -16,12 +16,15 @@ solve of the model under its weight, the point loads at t = 0 and its initial st
    inertia of a very long pseudo time step, over which free fall would cover 1e4 block sizes:
    it keeps K regular for a block that nothing holds and does not change a held block's
    displacement measurably.
-3. A block that moves more than a quarter of its size, or whose contacts sink deeper than the
-   penetration limit, is a mechanism that the contacts cannot hold:
-   a free block, one balanced on a corner, a column that topples, a group that limit
-   equilibrium calls unstable. It is *released*: its contacts leave the stage and it starts at
-   t = 0 from its initial position under sudden gravity (as without the stage), and the others
-   are solved again.
+3. A block that moves more than a quarter of its size away from what holds it, or whose
+   contacts sink deeper than the penetration limit, is a mechanism that the contacts cannot
+   hold: a free block, one balanced on a corner, a column that topples, a group that limit
+   equilibrium calls unstable. "Away from what holds it": the block is not tied to the ground
+   (fixed blocks, fixed points) through a chain of closed contacts across which the two blocks
+   move alike — a tall, soft column settles by more than a quarter of a block at its top, every
+   block with its neighbours, and is held. A mechanism is *released*: its contacts leave the
+   stage and it starts at t = 0 from its initial position under sudden gravity (as without the
+   stage), and the others are solved again.
 4. The held blocks move by the solution (their elastic settlement), their stresses and contact
    springs carry the equilibrium forces, and their velocities are the scene's initial ones. A
    contact that reached its strength in the stage starts locked at its strength with its bond
@@ -67,11 +70,12 @@ OPEN, SLIDE, LOCK = int(ContactState.OPEN), int(ContactState.SLIDE), int(Contact
 
 #: the pseudo time step: free fall over it covers this many median block sizes
 FALL_IN_SIZES = 1e4
-#: a block that moves more than this fraction of its size √area in the stage is a mechanism.
-#: Over the pseudo time step a block that its contacts cannot hold moves about FALL_IN_SIZES ×
-#: (its net acceleration / g) sizes, so this catches every mechanism whose net acceleration
-#: exceeds 2.5e-5 g; a held block moves by its elastic settlement, which in a soft, tall model
-#: reaches several % of a block size (a 40-block column with E = 100 MPa: ~16 %)
+#: a block that moves more than this fraction of its size √area in the stage, away from the
+#: ground (`_anchored`), is a mechanism. Over the pseudo time step a block that its contacts
+#: cannot hold moves about FALL_IN_SIZES × (its net acceleration / g) sizes away from what
+#: held it, so this catches every mechanism whose net acceleration exceeds 2.5e-5 g; a held
+#: block moves with its neighbours, by its elastic settlement, which in a soft, tall model
+#: exceeds a block size's quarter (a 60-block column with E = 100 MPa: 37 % at its top)
 MECHANISM_SIZE = 0.25
 #: at most this many solves in a pseudo-step (each adds contacts that open, close or slide, or
 #: releases mechanisms)
@@ -339,7 +343,10 @@ def _static_solve(stepper, state: State, geom: dict, contacts: Contacts, dt: flo
         if disp is None or not converged:
             return None, solves, out & ~released, contacts
         moved = _block_displacement(stepper, state.vertex_xy, geom, disp)
-        mechanism = free & ~out & (moved > MECHANISM_SIZE * size)
+        # a block that moved far is a mechanism unless it moved with the ground: a tall, soft
+        # column settles by more than MECHANISM_SIZE at its top, every block with its neighbours
+        far = free & ~out & (moved > MECHANISM_SIZE * size)
+        mechanism = far & ~_anchored(stepper, state.vertex_xy, geom, contacts, disp, size) if far.any() else far
         # a block held only by contacts deeper than the penetration limit is not held (the
         # penalty is too soft for its load): it starts as a mechanism, and the run reports it
         deep = (contacts.state != OPEN) & (-contacts.dn > model.penetration_limit)
@@ -352,6 +359,46 @@ def _static_solve(stepper, state: State, geom: dict, contacts: Contacts, dt: flo
             break
         out |= mechanism  # release them and solve the rest again without their contacts
     return disp, solves, out & ~released, contacts
+
+
+def _anchored(stepper, vertex_xy, geom, contacts: Contacts, disp: np.ndarray, size: np.ndarray) -> np.ndarray:
+    """Blocks tied to the ground — fixed blocks and blocks with fixed points — through chains of
+    closed contacts across which the two blocks move alike: each block's vertices, moved by its
+    own displacement field and by its neighbour's (T·D of docs/method/dda.md §1.1), differ by
+    less than MECHANISM_SIZE × the smaller block's size. A held block differs from its
+    neighbour by its strain and the contact springs' give; a mechanism slides, opens or turns
+    away from what holds it by about FALL_IN_SIZES × its net acceleration / g sizes."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    from .geometry import displacement_matrix
+
+    model = stepper.model
+    closed = contacts.state != OPEN
+    pa = np.minimum(contacts.block_a[closed], contacts.block_b[closed]).astype(np.int64)
+    pb = np.maximum(contacts.block_a[closed], contacts.block_b[closed]).astype(np.int64)
+    pairs = np.unique(np.stack([pa, pb], axis=1), axis=0) if len(pa) else np.zeros((0, 2), np.int64)
+    alike = np.ones(len(pairs), bool)
+    centroid = geom["centroid"]
+    off = model.vertex_offset
+    for own, other in ((pairs[:, 0], pairs[:, 1]), (pairs[:, 1], pairs[:, 0])):
+        # the vertices of `own`, pair by pair
+        count = off[own + 1] - off[own]
+        row = np.repeat(np.arange(len(pairs)), count)
+        start = np.repeat(off[own] - np.cumsum(count) + count, count)
+        vertex = start + np.arange(int(count.sum()))
+        xy = vertex_xy[vertex]
+        u_own = np.einsum("nij,nj->ni", displacement_matrix(xy, centroid[own[row]]), disp[own[row]])
+        u_other = np.einsum("nij,nj->ni", displacement_matrix(xy, centroid[other[row]]), disp[other[row]])
+        gap = np.zeros(len(pairs))
+        np.maximum.at(gap, row, np.hypot(*(u_own - u_other).T))
+        alike &= gap < MECHANISM_SIZE * np.minimum(size[pairs[:, 0]], size[pairs[:, 1]])
+    n = model.n_blocks
+    graph = coo_matrix((np.ones(int(alike.sum())), (pairs[alike, 0], pairs[alike, 1])), shape=(n, n))
+    _, label = connected_components(graph, directed=False)
+    ground = model.block_fixed.copy()
+    ground[model.fixed_point_block] = True
+    return np.isin(label, label[ground])
 
 
 def _block_displacement(stepper, vertex_xy, geom, disp) -> np.ndarray:
