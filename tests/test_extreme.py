@@ -104,6 +104,22 @@ def test_extreme_scenes_long(spec):
 
 # ---------------------------------------------------------------- named regressions
 
+@pytest.mark.xfail(strict=True, reason="known: the integrator creates O(Δt) energy here (1.76 J/m by "
+                   "step 22 at Δt = 10 ms, 0.22 J/m at 2.5 ms) beyond the allowance of the penalty "
+                   "springs; the source is not found yet")
+def test_frictionless_wedge_under_a_tilting_block_creates_no_energy():
+    """Found by Hypothesis: a 4 × 3 m frictionless block cut by a horizontal joint and a 22°
+    joint slides apart under gravity — the wedge under the 22° joint and the small triangle it
+    cuts off the upper block slide right at ~1 m/s while the other two blocks tilt together —
+    and the balance's rest falls to −1.76 J/m (kinetic energy 1,780 J/m), below the 1.4 J/m the
+    penalty springs and tolerances allow. Strict: it fails the day the cause is fixed."""
+    spec = CaseSpec(kind="cut", size=1.0, density=800.0, young=float(np.exp(22.0)), poisson=0.0,
+                    friction=0.0, cohesion=0.0, tensile=0.0, gravity=9.81, shapes=(), aspects=(),
+                    gaps=(), shifts=(), velocities=(), spins=(), joints=((0.5, 0.5, 0.0), (0.5, 0.25, 22.0)),
+                    load=0.0, shaking=0.0, steps=25)
+    _holds(spec, refuse_ok=False)
+
+
 def _drop(speed: tuple, gravity: float, height: float = 0.5):
     scene = dd.Scene(gravity=gravity)
     rock = dd.Material(density=2600.0, young=10e9, poisson=0.25)
