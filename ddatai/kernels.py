@@ -27,6 +27,7 @@ F64_3 = ti.types.ndarray(dtype=ti.f64, ndim=3)
 I32_1 = ti.types.ndarray(dtype=ti.i32, ndim=1)
 I32_2 = ti.types.ndarray(dtype=ti.i32, ndim=2)
 I8_1 = ti.types.ndarray(dtype=ti.i8, ndim=1)
+I8_2 = ti.types.ndarray(dtype=ti.i8, ndim=2)
 
 KIND_VE = 0
 KIND_VV = 1
@@ -574,7 +575,6 @@ def assemble_contacts(cint: I32_2, state: I8_1, line: I8_1, vblock: I32_1, dof: 
 
 
 # --------------------------------------------------------------------------- open-close judgement
-I8_2 = ti.types.ndarray(dtype=ti.i8, ndim=2)
 # columns of the contact-law kernel's outputs (`ddatai.step.ContactLaw` fields)
 LAW_DN, LAW_DS, LAW_FN, LAW_FT, LAW_STRENGTH, LAW_DN_NOW, LAW_FN_NOW, LAW_FT_NOW, LAW_FRICTION_NOW, \
     LAW_ENERGY = range(10)

@@ -72,8 +72,38 @@ REUSE_FLOOR = 1e-12
 #: ... and gives up (and factorises) when a pass reduces the residual by less than this factor
 #: above REUSE_FLOOR
 REUSE_RATE = 0.05
-#: ... or after this many passes
-REUSE_PASSES = 6
+#: ... or after this many corrections
+REUSE_PASSES = 5
+#: refinement where MKL perturbed a pivot makes at most this many corrections
+REFINE_PASSES = 3
+
+
+def _refinement(k, b: np.ndarray, x: np.ndarray, solve, target: float, passes: int,
+                rate: "float | None" = None) -> tuple[np.ndarray, float, bool]:
+    """Iterative refinement x ← x + solve(b − K x), ``solve`` applying the factor of a matrix
+    at or near K, with at most ``passes`` corrections. Returns (x, its relative residual
+    |b − K x|max / |b|max, whether it reached ``target``). With a ``rate``, it stops as soon
+    as a pass reduces the residual by less than that factor: done (the better of the last two
+    x) if both residuals are below `REUSE_FLOOR` — the residual's own round-off —, not done
+    otherwise."""
+    scale = max(float(np.abs(b).max()), 1e-300)
+    best, last = x, 1.0
+    for done in range(passes + 1):
+        if not np.all(np.isfinite(x)):
+            return best, last, False
+        r = b - k @ x
+        residual = float(np.abs(r).max()) / scale
+        if residual <= target:
+            return x, residual, True
+        if rate is not None and residual > rate * last:
+            if residual <= REUSE_FLOOR and last <= REUSE_FLOOR:
+                return (x, residual, True) if residual < last else (best, last, True)
+            return x, residual, False
+        if done == passes:
+            break
+        best, last = x, residual
+        x = x + solve(np.ascontiguousarray(r))
+    return x, residual, False
 
 
 class PardisoError(RuntimeError):
@@ -222,29 +252,14 @@ class SparseSolver:
         from scipy.sparse import csr_matrix
 
         b = np.ascontiguousarray(rhs, dtype=np.float64)
-        scale = float(np.abs(b).max())
-        if scale == 0.0:
+        if not np.any(b):
             return np.zeros(n)
         k = csr_matrix((data, indices, indptr), shape=(n, n))
-        x = best = solve(b)
-        last = 1.0
-        for _ in range(REUSE_PASSES):
-            if not np.all(np.isfinite(x)):
-                return None
-            r = b - k @ x
-            residual = float(np.abs(r).max()) / scale
-            if residual > REUSE_RATE * last:
-                if residual <= REUSE_FLOOR and last <= REUSE_FLOOR:
-                    # the residual's own round-off: the last pass gained nothing
-                    self.last_residual = min(residual, last)
-                    return x if residual < last else best
-                return None  # K has moved too far from the factor: factorise
-            if residual <= REUSE_RESIDUAL:
-                self.last_residual = residual
-                return x
-            best, last = x, residual
-            x = x + solve(np.ascontiguousarray(r))
-        return None
+        x, residual, done = _refinement(k, b, solve(b), solve, REUSE_RESIDUAL, REUSE_PASSES, REUSE_RATE)
+        if not done:
+            return None  # K has moved too far from the factor: factorise
+        self.last_residual = residual
+        return x
 
     def _handle(self, mtype: int) -> _Pardiso:
         h = self._handles.get(mtype)
@@ -308,11 +323,6 @@ class SparseSolver:
         from scipy.sparse import csr_matrix
 
         k = csr_matrix((data, indices, indptr), shape=(n, n))
-        scale = max(float(np.abs(b).max()), 1e-300)
-        for _ in range(3):
-            r = b - k @ x
-            self.last_residual = float(np.abs(r).max()) / scale
-            if self.last_residual <= REFINE_ABOVE:
-                break
-            x = x + h.call(33, a_data, a_ptr, a_idx, np.ascontiguousarray(r))
+        x, self.last_residual, _ = _refinement(k, b, x, lambda r: h.call(33, a_data, a_ptr, a_idx, r),
+                                               REFINE_ABOVE, REFINE_PASSES)
         return x

@@ -827,8 +827,8 @@ class Stepper:
         rotation[m.block_fixed] = 0.0
         # the last factor can solve the first solve only at the Δt (and β) it was made with:
         # the inertia 2M/Δt² is a large part of K (`ddatai.solver`, reuse)
-        reuse = (dt, self.newmark_beta(state)) == self._factored_at
-        self._factored_at = (dt, self.newmark_beta(state))
+        factored_at = (dt, self.newmark_beta(state))
+        reuse, self._factored_at = factored_at == self._factored_at, factored_at
         disp, it, converged = self.open_close(state, geom, contacts, pattern, vec, sca, data0, rhs0,
                                               rotation, timer, p.oc_max_iterations, reuse_first=reuse)
         if disp is None:
