@@ -3,7 +3,7 @@
 K is symmetric positive definite while every closed contact is locked or carries a friction
 load that does not depend on the solution. A sliding contact whose friction is taken
 implicitly (the friction force μ·p·(−dn) follows the normal penetration of the same solve,
-``ddatai.step``) adds a non-symmetric term, and the solve then uses an LU factorisation.
+``ddatai.contact_law``) adds a non-symmetric term, and the solve then uses an LU factorisation.
 
 Two backends behind one class:
 
@@ -34,6 +34,11 @@ with K cost 1.5–6 ms at 1,600 blocks, a factorisation 11–21 ms (docs/method/
 from __future__ import annotations
 
 import ctypes
+import functools
+import glob
+import os
+import site
+import sys
 
 import numpy as np
 
@@ -43,6 +48,7 @@ def available(name: str) -> bool:
     if name == "scipy":
         return True
     if name == "pardiso":
+        _locate_mkl()
         try:
             import pypardiso  # noqa: F401
         except Exception:  # noqa: BLE001 - any import failure means "not available"
@@ -106,6 +112,33 @@ def _refinement(k, b: np.ndarray, x: np.ndarray, solve, target: float, passes: i
     return x, residual, False
 
 
+def _locate_mkl() -> None:
+    """Tell pypardiso where MKL's runtime is (``PYPARDISO_MKL_RT``) when it sits in this
+    environment's own library folder, as pip installs it. pypardiso looks it up by name, which
+    fails inside a virtual environment, and then globs the whole environment: 0.6–1.4 s on
+    importing pypardiso and again for every solver object it makes. The variable is inherited
+    by worker processes started from this one."""
+    if os.environ.get("PYPARDISO_MKL_RT"):
+        return
+    for folder in (os.path.join(sys.prefix, "lib"), os.path.join(site.USER_BASE or "", "lib")):
+        found = sorted(glob.glob(os.path.join(folder, "libmkl_rt.so*")) +
+                       glob.glob(os.path.join(folder, "libmkl_rt*.dylib")), key=len)
+        if found:
+            os.environ["PYPARDISO_MKL_RT"] = found[0]
+            return
+
+
+@functools.lru_cache(maxsize=None)
+def _mkl_runtime():
+    """MKL's runtime library, loaded once per process (through pypardiso, whose call wrapper
+    copies the index arrays to one-based ones on every call, so ddatai calls the library
+    itself)."""
+    _locate_mkl()
+    import pypardiso
+
+    return pypardiso.PyPardisoSolver().libmkl
+
+
 class PardisoError(RuntimeError):
     """MKL PARDISO reported an error (its error code is in the message)."""
 
@@ -120,12 +153,8 @@ class _Pardiso:
     """
 
     def __init__(self, mtype: int):
-        import pypardiso
-
-        # pypardiso finds and loads MKL's runtime; its call wrapper copies the index arrays
-        # to one-based ones on every call, so ddatai calls the library itself
-        wrapper = pypardiso.PyPardisoSolver(mtype=mtype)
-        self._lib = wrapper._mkl_pardiso
+        mkl = _mkl_runtime()
+        self._lib = mkl.pardiso
         self.mtype = mtype
         self.pt = np.zeros(64, dtype=np.int64)
         self.iparm = np.zeros(64, dtype=np.int32)
@@ -141,7 +170,7 @@ class _Pardiso:
         # this many threads (MKL's threads otherwise sum in varying order: two runs of a
         # 400-block slope differed by 5e-13 m after 30 steps, and a chaotic scene then takes
         # another path); it costs nothing measurable at 1,600 blocks
-        ip[33] = max(1, int(wrapper.libmkl.MKL_Get_Max_Threads()))
+        ip[33] = max(1, int(mkl.MKL_Get_Max_Threads()))
         self.perm = np.zeros(0, dtype=np.int32)
         self.key = None  # (indptr, indices) the current analysis belongs to
         self.n = 0
