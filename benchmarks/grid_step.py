@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 import ddatai as dd
+from ddatai.results import STEP_PHASES, step_wall_time
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository root: scenes/
 from scenes.stacked_grid import build  # noqa: E402
@@ -34,14 +35,14 @@ def main() -> None:
     res = dd.simulate(scene, params=params, steps=a.warmup + a.steps, record_every=10 ** 9)
     wall = time.perf_counter() - t0
     s = res.steps[a.warmup:]
-    total = s["t_contacts"] + s["t_assembly"] + s["t_solve"] + s["t_update"]
+    total = step_wall_time(s)
     print(f"machine: {platform.machine()} {platform.processor() or ''} python {platform.python_version()}")
     print(f"{a.n}x{a.n} grid ({'dynamic' if a.dynamic else 'static'}): {scene.n_blocks - 1} free blocks, dt = {a.dt} s, "
           f"{a.steps} timed steps after {a.warmup} warm-up (run wall {wall:.1f} s)")
     print(f"contacts/step {np.median(s['contacts']):.0f}, open-close iterations/step "
           f"{np.median(s['oc_iterations']):.1f}, dt cuts {int(s['dt_cuts'].sum())}")
     print("| phase | median ms/step |\n|---|---|")
-    for name in ("t_contacts", "t_assembly", "t_solve", "t_update"):
+    for name in (f"t_{phase}" for phase in STEP_PHASES):
         print(f"| {name[2:]} | {1e3 * np.median(s[name]):.2f} |")
     print(f"| total | {1e3 * np.median(total):.2f} |")
 

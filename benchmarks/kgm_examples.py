@@ -21,7 +21,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository root: scenes/
 import kgm  # noqa: E402
-from ddatai.scenefile import build_scene  # noqa: E402
+from ddatai.io.scenefile import build_scene  # noqa: E402
 from scenes import example_1, example_2, kgm_slope  # noqa: E402
 
 

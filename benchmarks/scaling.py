@@ -115,6 +115,7 @@ def run_one(family: str, size: int, steps: int, warmup: int, arch: str, solver: 
     import dataclasses
 
     import ddatai as dd
+    from ddatai.results import step_wall_time
     from ddatai.start import settle
     from ddatai.step import Stepper
 
@@ -137,14 +138,18 @@ def run_one(family: str, size: int, steps: int, warmup: int, arch: str, solver: 
     for k in range(warmup + steps):
         before = stepper.solver.factorisations
         state, record = stepper.step(state)
-        records.append(record)
+        records.append(record.row())
         factorised.append(stepper.solver.factorisations - before)
         if k + 1 == FROM_REST_STEPS and protocol == "settled":
             start["from_rest_ms_per_step"] = (time.perf_counter() - t_run) / FROM_REST_STEPS * 1e3
     all_steps = np.array(records, dtype=dd.STEP_DTYPE)
     s = all_steps[warmup:]
-    phases = {name: float(np.median(s[f"t_{name}"])) * 1e3 for name in ("contacts", "assembly", "solve", "update")}
-    total = s["t_contacts"] + s["t_assembly"] + s["t_solve"] + s["t_update"]
+    # "update": the open-close judgement, the update and the rest of the step (Δt, acceptance,
+    # energy), as one column beside detection, assembly and solve
+    rest = s["t_judge"] + s["t_update"] + s["t_time_step"] + s["t_accept"] + s["t_energy"]
+    phases = {name: float(np.median(s[f"t_{name}"])) * 1e3 for name in ("contacts", "assembly", "solve")}
+    phases["update"] = float(np.median(rest)) * 1e3
+    total = step_wall_time(s)
     out = dict(family=family, blocks=int(model.n_free), all_blocks=int(model.n_blocks), arch=arch,
                solver=stepper.solver.backend, build_s=build_s, ms_per_step=float(np.median(total)) * 1e3,
                ms_per_oc=float(np.median(total / np.maximum(s["oc_iterations"], 1))) * 1e3,
@@ -169,7 +174,10 @@ def reference_timings(model, stepper, state) -> dict:
     """NumPy reference path on the current state: detection, and one dense assembly, against
     the Taichi kernels' detection and one sparse assembly."""
     from ddatai import reference
-    from ddatai.contacts import BlockPattern, Contacts, detect_contacts
+    from ddatai.assembly import BlockPattern, assemble_blocks, assemble_contacts, contact_vectors
+    from ddatai.contact_law import friction_force
+    from ddatai.contacts import Contacts, detect_contacts
+    from ddatai.kinematics import newmark_beta
 
     geom = model.block_geometry(state.vertex_xy)
     t = time.perf_counter()
@@ -179,17 +187,18 @@ def reference_timings(model, stepper, state) -> dict:
     cint_k, length_k = detect_contacts(model, state.vertex_xy, stepper.buffers)
     ti_detect = time.perf_counter() - t
     contacts = Contacts.start(model, state.vertex_xy, cint_k, length_k, state.memory, False)
-    vec, sca = stepper.contact_vectors(state.vertex_xy, geom, contacts)
+    vec, sca = contact_vectors(model, state.vertex_xy, geom, contacts)
     pattern = BlockPattern.build(model, contacts)
+    beta = newmark_beta(model.params, state)
     t = time.perf_counter()
-    data, rhs = stepper.assemble_blocks(state, geom, pattern, 1e-3)
-    stepper.assemble_contacts(contacts, pattern, vec, sca, data, rhs)
+    data, rhs = assemble_blocks(model, state, geom, pattern, 1e-3, beta)
+    assemble_contacts(model, contacts, pattern, vec, sca, data, rhs, stepper.serial_scatter)
     ti_assemble = time.perf_counter() - t
     t = time.perf_counter()
     reference.assemble_dense(model, state.vertex_xy, state.block_velocity, state.block_stress,
                              state.fixed_point_xy, state.load_xy, np.zeros((len(model.load_block), 2)),
-                             1e-3, model.gravity, contacts, vec, sca, stepper.friction_force(contacts),
-                             accel=state.block_accel, beta=stepper.newmark_beta(state))
+                             1e-3, model.gravity, contacts, vec, sca, friction_force(contacts),
+                             accel=state.block_accel, beta=beta)
     ref_assemble = time.perf_counter() - t
     return dict(ref_detect_ms=ref_detect * 1e3, ti_detect_ms=ti_detect * 1e3,
                 ref_assemble_ms=ref_assemble * 1e3, ti_assemble_ms=ti_assemble * 1e3,
@@ -226,7 +235,7 @@ def machine() -> str:
 
 
 def table(rows: list[dict]) -> str:
-    lines = ["| family | blocks | contacts | ms/step | ms per OC iteration | OC it./step | ms per 1-OC step (steps) | contacts ms | assembly ms | solve ms | update ms | peak MB | solver |",
+    lines = ["| family | blocks | contacts | ms/step | ms per OC iteration | OC it./step | ms per 1-OC step (steps) | contacts ms | assembly ms | solve ms | judge + update ms | peak MB | solver |",
              "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         one = f"{r['ms_one_oc']:.1f} ({r['one_oc_steps']})" if r.get("ms_one_oc") else "–"

@@ -46,7 +46,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository root: scenes/
 import ddatai as dd  # noqa: E402
 import kgm  # noqa: E402
-from ddatai.scenefile import build_scene  # noqa: E402
+from ddatai.io.scenefile import build_scene  # noqa: E402
 from scenes import toppling_slope  # noqa: E402
 
 #: Alejano & Alonso's case (RS2 joint verification manual, Problem 2)

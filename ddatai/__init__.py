@@ -4,8 +4,18 @@ Data flows one way::
 
     Scene (blocks, joints, points, loads, shaking)      ddatai.scene
       -> Model (static arrays) + State                  ddatai.model
-      -> step: contacts -> assembly -> open-close solve -> update     ddatai.step
+      -> equilibrium at t = 0                           ddatai.start
+      -> step, phase by phase                           ddatai.step
+           Δt                                           ddatai.time_step
+           contacts (detection, memory)                 ddatai.contacts, ddatai.layout
+           block and contact terms                      ddatai.assembly
+           open-close iteration                         ddatai.open_close
+           contact law and judgement                    ddatai.contact_law
+           update of points, stresses, velocities       ddatai.kinematics
+           energy and work                              ddatai.energy
       -> Results (frames, per-step records, .npz)       ddatai.results
+    simulate: the run from a scene to its results       ddatai.run
+    readers and writers (scene scripts, DXF, ntdda, VTK, checkpoints)   ddatai.io
 
 Importing ``ddatai`` is cheap: it loads neither Taichi nor any imaging library. Taichi is
 initialised (CPU by default, ``Params(arch=...)``) by the first simulation.
@@ -28,18 +38,18 @@ __version__ = "0.1.0"
 _EXPORTS = {
     "Material": "params", "Joint": "params", "BartonBandis": "params", "Params": "params", "UnitWarning": "params",
     "Scene": "scene",
-    "Model": "model", "State": "model", "ContactState": "model", "ContactKind": "model",
+    "Model": "model", "State": "model", "ContactState": "layout", "ContactKind": "layout",
     "build_model": "model",
     "Results": "results", "load_results": "results", "SimulationError": "results",
     "SimulationInterrupted": "results",
-    "STEP_DTYPE": "results",
-    "simulate": "step", "Stepper": "step", "sweep": "sweep",
+    "STEP_DTYPE": "records", "StepRecord": "records",
+    "simulate": "run", "Stepper": "step", "sweep": "sweep",
     "polygon_integrals": "geometry", "validate_polygon": "geometry",
     "write_gif": "render", "write_png": "render", "render_frames": "render",
     "joint_sets": "jointsets", "JointSet": "jointsets", "fit_mapping": "jointsets", "MappingFit": "jointsets",
-    "read_dxf": "dxf", "read_dxf_section": "dxf", "DxfSection": "dxf",
-    "read_ntdda": "ntdda", "NtddaCase": "ntdda", "NtddaFormatError": "ntdda",
-    "NtddaWarning": "ntdda", "NtddaQuirkWarning": "ntdda", "NtddaUnsupportedWarning": "ntdda",
+    "read_dxf": "io.dxf", "read_dxf_section": "io.dxf", "DxfSection": "io.dxf",
+    "read_ntdda": "io.ntdda", "NtddaCase": "io.ntdda", "NtddaFormatError": "io.ntdda",
+    "NtddaWarning": "io.ntdda", "NtddaQuirkWarning": "io.ntdda", "NtddaUnsupportedWarning": "io.ntdda",
 }
 
 __all__ = sorted(_EXPORTS)

@@ -7,7 +7,7 @@
 
 A scene script is a Python file defining ``build(**options)`` returning a Scene or
 ``(scene, params)``, and optionally ``DURATION`` (seconds; ``--duration`` or ``--steps``
-replaces it), loaded by `ddatai.scenefile` like ``kgm`` loads it; ``python scenes/NAME.py
+replaces it), loaded by `ddatai.io.scenefile` like ``kgm`` loads it; ``python scenes/NAME.py
 [options]`` runs the same way through `scene_main`. The options are checked before anything
 is built; a user error (a bad option, a broken scene) prints one line and exits with status 2
 (``--debug`` shows the traceback). The run shows a progress bar (simulated time, steps per
@@ -123,8 +123,8 @@ class Progress:
 
 
 def load_scene_module(path: Path) -> ModuleType:
-    """Import a scene script by path (`ddatai.scenefile.load_scene_script`)."""
-    from .scenefile import load_scene_script
+    """Import a scene script by path (`ddatai.io.scenefile.load_scene_script`)."""
+    from .io.scenefile import load_scene_script
 
     return load_scene_script(path).module
 
@@ -136,7 +136,7 @@ def run_scene(build: Callable, duration: Optional[float], name: str, args: argpa
     import dataclasses
 
     from .params import Params
-    from .scenefile import SceneFileError, build_scene
+    from .io.scenefile import SceneFileError, build_scene
 
     if args.resume is None and args.duration is None and args.steps is None and duration is None:
         raise SceneFileError(f"{name} defines no DURATION: give --duration SECONDS or --steps N")
@@ -214,7 +214,7 @@ def _simulate_and_report(scene, params, duration, steps, name, args, after=None)
     checkpoint = args.out / f"{name}.checkpoint.npz"
     resume = None
     if args.resume is not None:
-        from .checkpoint import checkpoint_targets
+        from .io.checkpoint import checkpoint_targets
 
         resume = checkpoint if args.resume is True else args.resume
         if args.duration is None and args.steps is None:  # the checkpoint's own targets
@@ -299,7 +299,7 @@ def _save(results, out_dir: Path, name: str) -> Path:
 
 def _run_ntdda(geo: Path, ana: Path, args: argparse.Namespace) -> int:
     try:
-        from .ntdda import read_ntdda, write_measured_csv
+        from .io.ntdda import read_ntdda, write_measured_csv
     except ImportError:
         raise ValueError("this installation has no ntdda reader") from None
     import dataclasses
@@ -332,7 +332,7 @@ def _output_name(args: argparse.Namespace, stem: str) -> str:
 
 def _guarded(args: argparse.Namespace, run: Callable[[], int], prog: str = "ddatai") -> int:
     """Run ``run()``; a user error prints one line (``--debug``: the traceback) and returns 2."""
-    from .scenefile import SceneFileError
+    from .io.scenefile import SceneFileError
 
     try:
         return run()
@@ -364,7 +364,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     run = sub.add_parser("run", help="run a scene script or an ntdda model")
     run.add_argument("inputs", nargs="+", type=Path, help="SCENE.py, SECTION.dxf, or MODEL.geo MODEL.ana")
     run.add_argument("--joints", type=Path, metavar="TOML",
-                     help="a SECTION.dxf's material and joint layers (ddatai.dxf.read_joints_file)")
+                     help="a SECTION.dxf's material and joint layers (ddatai.io.dxf.read_joints_file)")
     _add_run_options(run)
     args = parser.parse_args(argv)
     inputs = args.inputs
@@ -375,7 +375,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         check_options(args)
         _allow_any_size(args)
         if len(inputs) == 1:
-            from .scenefile import load_scene_script
+            from .io.scenefile import load_scene_script
 
             script = load_scene_script(inputs[0], joints=args.joints)
             args.title = script.name  # the GIF's title: the scene, whatever the files are called

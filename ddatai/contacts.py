@@ -9,17 +9,13 @@ global matrix for one step: one dense 6×6 block per free block and per contacti
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np
 
-from .model import ContactKind, ContactMemory, ContactState, Model
-
-#: columns of the integer contact table ``cint``
-KIND, V0, E0, V1, E1 = range(5)
-N_SLOTS = 6  # contact vector slots, see ddatai.kernels
+from .layout import E0, E1, KIND, V0, V1, ContactKind, ContactState
+from .model import ContactMemory, Model
 
 
 def box_bounds(model: Model, vertex_xy: np.ndarray, margin: float) -> tuple[np.ndarray, np.ndarray]:
@@ -330,98 +326,3 @@ def edge_projection(xy: np.ndarray, vnext: np.ndarray, vertex: np.ndarray, edge:
     p2 = xy[vnext[edge]]
     d = xy[edge] - p2
     return ((xy[vertex] - p2) * d).sum(axis=1) / (d * d).sum(axis=1)
-
-
-@dataclass(kw_only=True, eq=False)
-class BlockPattern:
-    """CSR layout of the global stiffness matrix for one step (full symmetric storage).
-
-    Entry (a, b) of the 6×6 block (r, c) lives at ``data[slot + a*stride[r] + b]``, where
-    ``slot`` is the block's slot and ``stride[r] = 6 × (blocks in block-row r)``.
-    """
-
-    n_rows: int
-    """Number of block-rows (free blocks)."""
-    indptr: np.ndarray
-    indices: np.ndarray
-    diag_slot: np.ndarray
-    """(n_rows,) slot of each diagonal block."""
-    stride: np.ndarray
-    """(n_rows,) scalar row length of each block-row."""
-    slot_ab: np.ndarray
-    """(m,) slot of block (row of block_a, column of block_b) for each contact, -1 if none."""
-    slot_ba: np.ndarray
-    """(m,) slot of block (row of block_b, column of block_a), -1 if none."""
-    pair_key: np.ndarray
-    """(pairs,) sorted keys lo·n_rows + hi of the coupled block pairs (lo < hi)."""
-    block_key: np.ndarray
-    """(6×6 blocks,) sorted keys row·n_rows + col of every stored 6×6 block."""
-    block_slot: np.ndarray
-    """(6×6 blocks,) slot of each stored block, in the order of ``block_key``."""
-
-    @property
-    def nnz(self) -> int:
-        return len(self.indices)
-
-    @staticmethod
-    def build(model: Model, contacts: Contacts, previous: Optional["BlockPattern"] = None
-              ) -> "BlockPattern":
-        """The pattern for ``contacts``. When the coupled block pairs are those of ``previous``
-        (a settled model keeps them for many steps), its layout is reused and only the
-        contacts' slots are looked up (saves ~5 ms per step at 1,600 blocks; the solver then
-        also keeps its ordering)."""
-        nr = model.n_free
-        dof = model.block_dof
-        ra = dof[contacts.block_a].astype(np.int64)
-        rb = dof[contacts.block_b].astype(np.int64)
-        coupled = (ra >= 0) & (rb >= 0) & (ra != rb)
-        lo = np.minimum(ra[coupled], rb[coupled])
-        hi = np.maximum(ra[coupled], rb[coupled])
-        if len(model.bolt_block):
-            # a bolt couples its two blocks even where they do not touch (docs/method/water_bolts.md, B1)
-            from .support import bolt_pairs
-
-            bi, bj = bolt_pairs(model)
-            lo, hi = np.concatenate([lo, np.minimum(bi, bj)]), np.concatenate([hi, np.maximum(bi, bj)])
-        pair = np.unique(lo * nr + hi)
-        if (previous is not None and previous.n_rows == nr and len(previous.pair_key) == len(pair)
-                and np.array_equal(previous.pair_key, pair)):
-            key, at = previous.block_key, previous.block_slot
-            return dataclasses.replace(previous, slot_ab=_block_slots(key, at, nr, ra, rb),
-                                       slot_ba=_block_slots(key, at, nr, rb, ra))
-        lo, hi = pair // nr, pair % nr
-        diag = np.arange(nr, dtype=np.int64)
-        rows = np.concatenate([diag, lo, hi])
-        cols = np.concatenate([diag, hi, lo])
-        bkey = rows * nr + cols
-        order = np.argsort(bkey)
-        bkey, rows, cols = bkey[order], rows[order], cols[order]
-        ncols = np.bincount(rows, minlength=nr)
-        first = np.concatenate([[0], np.cumsum(ncols)[:-1]])
-        pos = np.arange(len(rows)) - first[rows]
-        base = 36 * first
-        stride = 6 * ncols
-        slot = base[rows] + 6 * pos
-        a = np.arange(6)
-        # scalar row 6r+a starts at base[r] + a*stride[r]
-        indptr = np.empty(6 * nr + 1, np.int64)
-        indptr[:-1] = (base[:, None] + a[None, :] * stride[:, None]).ravel()
-        indptr[-1] = 36 * len(rows)
-        idx = slot[:, None, None] + a[None, :, None] * stride[rows][:, None, None] + a[None, None, :]
-        indices = np.empty(36 * len(rows), np.int32)
-        indices[idx.ravel()] = np.broadcast_to(6 * cols[:, None, None] + a[None, None, :],
-                                               idx.shape).ravel()
-        return BlockPattern(
-            n_rows=nr, indptr=indptr.astype(np.int32), indices=indices,
-            diag_slot=slot[np.searchsorted(bkey, diag * nr + diag)].astype(np.int32),
-            stride=stride.astype(np.int32), slot_ab=_block_slots(bkey, slot, nr, ra, rb),
-            slot_ba=_block_slots(bkey, slot, nr, rb, ra), pair_key=pair, block_key=bkey, block_slot=slot)
-
-
-def _block_slots(block_key: np.ndarray, block_slot: np.ndarray, n_rows: int, r: np.ndarray,
-                 c: np.ndarray) -> np.ndarray:
-    """Slot of the 6×6 block (r, c) for each entry, -1 where r or c is fixed or r == c."""
-    out = np.full(len(r), -1, np.int32)
-    ok = (r >= 0) & (c >= 0) & (r != c)
-    out[ok] = block_slot[np.searchsorted(block_key, r[ok] * n_rows + c[ok])]
-    return out

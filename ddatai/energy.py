@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from .geometry import displacement_matrix, mass_matrix
+from .layout import KIND, LOCK, OPEN, S_ES, S_GS, SLIDE, VE
 
 
 def mechanical_energy(model, geom: dict, velocity: np.ndarray, stress: np.ndarray,
@@ -45,8 +46,8 @@ def contact_energy(model, contacts) -> float:
     """½ p dn² of closed contacts (active line) plus ½ ks ds² of locked ones [J/m]."""
     if contacts is None or contacts.n == 0:
         return 0.0
-    closed = contacts.state != 0
-    locked = contacts.state == 2
+    closed = contacts.state != OPEN
+    locked = contacts.state == LOCK
     return 0.5 * (model.penalty * float(np.sum(contacts.dn[closed] ** 2)) +
                   model.shear_penalty * float(np.sum(contacts.ds[locked] ** 2)))
 
@@ -55,11 +56,11 @@ def friction_work(contacts, vec: np.ndarray, friction: np.ndarray, disp: np.ndar
     """Work dissipated by the friction of sliding vertex-edge contacts in a step [J/m]:
     S·dir·(e_sᵀ Di + g_sᵀ Dj), the friction force times the slip of the vertex along the edge
     (§2.8.4); ``friction`` is each contact's S in the accepted solve."""
-    sliding = (contacts.state == 1) & (contacts.cint[:, 0] == 0)
+    sliding = (contacts.state == SLIDE) & (contacts.cint[:, KIND] == VE)
     if not sliding.any():
         return 0.0
     a, b = contacts.block_a[sliding], contacts.block_b[sliding]
-    slip = np.einsum("ij,ij->i", vec[sliding, 4], disp[a]) + np.einsum("ij,ij->i", vec[sliding, 5], disp[b])
+    slip = np.einsum("ij,ij->i", vec[sliding, S_ES], disp[a]) + np.einsum("ij,ij->i", vec[sliding, S_GS], disp[b])
     return float(np.sum(friction[sliding] * contacts.shear_dir[sliding] * slip))
 
 
@@ -78,3 +79,31 @@ def external_work(model, geom: dict, disp: np.ndarray, load_xy: np.ndarray, load
         mass = model.block_density[free] * geom["area"][free]
         work -= float(np.sum(mass[:, None] * ground[None, :] * disp[free, :2]))
     return work
+
+
+def state_energy(model, state, geom: dict, contacts) -> tuple[float, float, float, float]:
+    """(kinetic, gravitational, strain, contact) energy of a state [J/m]: the contact term holds
+    the contact springs, the fixed-point springs and the bolts."""
+    kinetic, gravitational, strain, springs = mechanical_energy(
+        model, geom, state.block_velocity, state.block_stress, state.fixed_point_xy)
+    if len(model.bolt_block):
+        from .support import bolt_energy  # loaded only by models with bolts
+
+        springs += bolt_energy(model, state)
+    return kinetic, gravitational, strain, springs + contact_energy(model, contacts)
+
+
+def step_work(model, state, geom: dict, disp: np.ndarray, contacts, vec: np.ndarray,
+              friction: np.ndarray, load_force: np.ndarray, dt: float) -> tuple[float, float]:
+    """(external work, friction dissipation) of an accepted step from ``state`` with solution
+    ``disp`` [J/m]; ``load_force``: the point loads at mid-step [N/m]."""
+    t_mid = state.time + 0.5 * dt
+    ground = np.asarray(model.ground_acceleration(t_mid), float) if model.ground_acceleration is not None else None
+    external = external_work(model, geom, disp, state.load_xy, load_force, ground)
+    if model.water_unit_weight > 0:
+        from .support import support_work  # loaded only by models with water
+
+        external += support_work(model, state.vertex_xy, geom["centroid"], disp)
+    dissipated = friction_work(contacts, vec, friction, disp) if contacts.n else 0.0
+    return external, dissipated
+

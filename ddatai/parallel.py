@@ -28,7 +28,7 @@ from typing import Any, Callable, Iterator, Optional, Sequence
 class ScriptFunction:
     """A scene script's ``build``, by the script's path: picklable, loaded again in each worker
     (a script loaded from a path is not importable by module name there). Calling it returns
-    ``(scene, params)`` (`ddatai.scenefile.build_scene`)."""
+    ``(scene, params)`` (`ddatai.io.scenefile.build_scene`)."""
 
     path: str
     """Path of the scene script [-]."""
@@ -38,7 +38,7 @@ class ScriptFunction:
         return self._script().build
 
     def _script(self):
-        from .scenefile import load_scene_script
+        from .io.scenefile import load_scene_script
 
         script = _SCRIPT_CACHE.get(self.path)
         if script is None:
@@ -46,7 +46,7 @@ class ScriptFunction:
         return script
 
     def __call__(self, **kwargs):
-        from .scenefile import build_scene
+        from .io.scenefile import build_scene
 
         return build_scene(self._script(), **kwargs)
 

@@ -13,13 +13,13 @@ import math
 import numpy as np
 
 from .geometry import displacement_matrix, mass_matrix
-from .model import ContactKind, ContactState, Model
+from .layout import KIND, VE, VV, ContactState
+from .model import Model
 
 #: as `kernels.EDGE_FLOOR` (kept here so the reference does not import Taichi)
 EDGE_FLOOR = 1e-150
 EDGE_FLOOR2 = EDGE_FLOOR * EDGE_FLOOR
 
-VE, VV = int(ContactKind.VE), int(ContactKind.VV)
 TIE = 1e-3  # same as ddatai.kernels.TIE
 
 
@@ -211,7 +211,7 @@ def second_order_shift(model: Model, vertex_xy: np.ndarray, q: np.ndarray, cint:
     nxt = model.vertex_next
     shift = np.zeros((len(cint), 3))
     for line in (0, 1):
-        rows = np.arange(len(cint)) if line == 0 else np.flatnonzero(cint[:, 0] == VV)
+        rows = np.arange(len(cint)) if line == 0 else np.flatnonzero(cint[:, KIND] == VV)
         if not len(rows):
             continue
         p1, k = cint[rows, 1 + 2 * line], cint[rows, 2 + 2 * line]

@@ -7,7 +7,8 @@ names the offending block, joint or parameter before any simulation work. `build
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import copy
+from dataclasses import dataclass, replace
 from typing import Callable, Optional, Sequence, Union
 
 import numpy as np
@@ -48,6 +49,10 @@ class PointSpec:
     """Initial position [m]."""
     force: Optional[Force] = None
     """Point load: (fx, fy) [N per m thickness] or a function t [s] -> (fx, fy)."""
+
+
+#: the attributes of a `Scene` that refer to its blocks by id (`Scene.subset` renumbers them)
+BLOCK_REFERENCES = ("blocks", "pair_joints", "fixed_points", "point_loads", "measured_points", "bolts")
 
 
 class Scene:
@@ -168,6 +173,38 @@ class Scene:
                                          stress=(0.0, 0.0, 0.0), edge_joint=edge_joint))
             ids.append(bid)
         return ids
+
+    def subset(self, keep: Sequence[int], *, held: Sequence[int] = ()) -> tuple["Scene", list[int]]:
+        """A scene of the blocks ``keep`` (in that order), the blocks in ``held`` fixed.
+
+        Everything that refers to blocks (`BLOCK_REFERENCES`: joint overrides between block
+        pairs, fixed points, point loads, measured points, bolts) is renumbered, and kept where
+        all its blocks are kept; every other attribute (gravity, the joint table, the water
+        table, the shaking, and any added later) is the scene's own. The one place that cuts a
+        scene down (kgm judges a key group on such a sub-scene).
+
+        Returns the sub-scene and, for each of its blocks, its id in this scene.
+        """
+        ids = [self._block_id(b) for b in keep]
+        if len(set(ids)) != len(ids):
+            raise ValueError("Scene.subset: a block is kept twice")
+        new_id = {b: i for i, b in enumerate(ids)}
+        hold = {self._block_id(b) for b in held}
+        if not hold <= set(new_id):
+            raise ValueError(f"Scene.subset: held blocks {sorted(hold - set(new_id))} are not kept")
+        sub = copy.copy(self)
+        sub.joints = list(self.joints)
+        sub.blocks = [replace(self.blocks[b], fixed=True) if b in hold and not self.blocks[b].fixed
+                      else self.blocks[b] for b in ids]
+        sub.pair_joints = {(new_id[i], new_id[j]): k for (i, j), k in self.pair_joints.items()
+                           if i in new_id and j in new_id}
+        sub.fixed_points = [replace(p, block=new_id[p.block]) for p in self.fixed_points if p.block in new_id]
+        sub.point_loads = [replace(p, block=new_id[p.block]) for p in self.point_loads if p.block in new_id]
+        sub.measured_points = [replace(p, block=new_id[p.block]) for p in self.measured_points
+                               if p.block in new_id]
+        sub.bolts = [replace(b, block1=new_id[b.block1], block2=new_id[b.block2]) for b in self.bolts
+                     if b.block1 in new_id and b.block2 in new_id]
+        return sub, ids
 
     def set_fixed(self, block: int, fixed: bool = True) -> None:
         """Mark a block fixed (or free)."""

@@ -63,10 +63,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .contacts import KIND, BlockPattern, Contacts, detect_contacts
-from .model import ContactKind, ContactMemory, ContactState, State
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 
-OPEN, SLIDE, LOCK = int(ContactState.OPEN), int(ContactState.SLIDE), int(ContactState.LOCK)
+from .assembly import BlockPattern, assemble_blocks, assemble_contacts, contact_vectors, load_forces
+from .contact_law import contact_law, friction_force
+from .contacts import Contacts, detect_contacts
+from .geometry import displacement_matrix
+from .kinematics import block_displacement, settle_points
+from .layout import E0, KIND, LOCK, OPEN, SLIDE, VE
+from .model import ContactMemory, State
+from .open_close import open_close, solve
+from .records import StepTimer
 
 #: the pseudo time step: free fall over it covers this many median block sizes
 FALL_IN_SIZES = 1e4
@@ -77,6 +85,9 @@ FALL_IN_SIZES = 1e4
 #: block moves with its neighbours, by its elastic settlement, which in a soft, tall model
 #: exceeds a block size's quarter (a 60-block column with E = 100 MPa: 37 % at its top)
 MECHANISM_SIZE = 0.25
+#: a block of an iterate that did not converge moving more than this many times the free fall
+#: of the pseudo-step (FALL_IN_SIZES sizes) is not moving as a mechanism: the iterate went astray
+FREE_FALL_BOUND = 2.0
 #: at most this many solves in a pseudo-step (each adds contacts that open, close or slide, or
 #: releases mechanisms)
 MAX_SOLVES = 30
@@ -86,6 +97,9 @@ LADDER_DONE = 1e-8
 #: a pseudo-step of the ladder that does not converge is tried again with a smaller Δt at most
 #: this many times in all, and only while the ladder climbs past its last failure
 MAX_LADDER_RETRIES = 8
+#: Newmark's β of the stage's system: that of a first step (the stage's pseudo-steps have no
+#: acceleration history; `kinematics.newmark_beta`)
+STAGE_BETA = 0.5
 #: at most this many pseudo-steps (each re-solves the increment at the settled geometry; the
 #: second is ~strain × the first, the third round-off)
 MAX_PSEUDO_STEPS = 8
@@ -208,8 +222,8 @@ def _stage(stepper, state: State, size: np.ndarray, dt_static: float, dt_ladder,
             geom = state.geometry
         held = free & ~released
         disp[~held] = 0.0
-        step = float(_block_displacement(stepper, state.vertex_xy, geom, disp).max(initial=0.0))
-        state = _apply(stepper, state, geom, disp)
+        step = float(block_displacement(model, state.vertex_xy, geom, disp).max(initial=0.0))
+        state = settle_points(model, state, geom, disp)
         last = contacts
         # the contact states go on into the next pseudo-step (sliding ones keep sliding: locked
         # at their strength, an O(strain) increment would tip them over again and the next
@@ -265,7 +279,7 @@ def _pseudo_time_step(stepper, geom, size) -> float:
     model = stepper.model
     accel = float(np.hypot(*model.gravity))
     if len(model.load_block):
-        loads = stepper._load_forces(0.0)
+        loads = load_forces(model, 0.0)
         mass = model.block_density * geom["area"]
         accel = max(accel, float(np.max(np.hypot(loads[:, 0], loads[:, 1]) / mass[model.load_block])))
     if accel == 0.0:  # initial stresses only: any acceleration scale will do
@@ -284,9 +298,9 @@ def _unweld(stepper, contacts: Contacts) -> None:
     pulled = closed & (m.penalty * contacts.dn > tensile + m.force_roundoff)
     contacts.state[pulled] = OPEN
     contacts.normal_force[pulled] = 0.0
-    ve = contacts.cint[:, KIND] == int(ContactKind.VE)
+    ve = contacts.cint[:, KIND] == VE
     over = ve & (contacts.state == LOCK) & \
-        (m.shear_penalty * np.abs(contacts.ds) > stepper.friction_force(contacts) + m.force_roundoff)
+        (m.shear_penalty * np.abs(contacts.ds) > friction_force(contacts) + m.force_roundoff)
     contacts.state[over] = SLIDE
     contacts.shear_dir[over] = np.where(contacts.ds[over] >= 0, 1, -1)
 
@@ -297,14 +311,14 @@ def _welded_solve(stepper, state: State, geom: dict, contacts: Contacts, vec: np
     without open-close judgement; the contacts' distances and normal forces are updated to
     the solution in place. Returns D, or None if the solve is not finite."""
     m = stepper.model
-    data, rhs = stepper.assemble_blocks(state, geom, pattern, dt, static_start=True)
-    stepper.assemble_contacts(contacts, pattern, vec, sca, data, rhs)
+    data, rhs = assemble_blocks(m, state, geom, pattern, dt, STAGE_BETA, static_start=True)
+    assemble_contacts(m, contacts, pattern, vec, sca, data, rhs, stepper.serial_scatter)
     # K is symmetric: a welded stage changes no state, so its vertex-edge contacts stay locked
     # (only vertex-vertex ones are "sliding", with no friction) and none is coupled
-    disp = stepper.solve(pattern, data, rhs, reuse=True)  # repeated at a settled geometry
+    disp = solve(stepper, pattern, data, rhs, reuse=True)  # repeated at a settled geometry
     if not np.all(np.isfinite(disp)):
         return None
-    law = stepper.contact_law(contacts, vec, sca, disp)
+    law = contact_law(m, contacts, vec, sca, disp)
     closed = contacts.state != OPEN
     contacts.normal_force[:] = np.where(closed, np.maximum(-m.penalty * law.dn_now, 0.0), 0.0)
     if law.tan_phi is not None:  # Barton–Bandis: the friction of this normal stress
@@ -321,28 +335,30 @@ def _static_solve(stepper, state: State, geom: dict, contacts: Contacts, dt: flo
     turn out to be mechanisms are released and the rest solved again. Returns (D or None when
     it does not converge, solves, newly released blocks, the contacts left); sliding contacts
     end locked at their strength."""
-    from .step import _Timer
-
     model = stepper.model
     free = ~model.block_fixed
     out = released.copy()
     solves = 0
     while True:
         contacts = _subset(contacts, ~(out[contacts.block_a] | out[contacts.block_b]))
-        vec, sca = stepper.contact_vectors(state.vertex_xy, geom, contacts)
+        vec, sca = contact_vectors(model, state.vertex_xy, geom, contacts)
         pattern = BlockPattern.build(model, contacts)
         if welded:
             disp = _welded_solve(stepper, state, geom, contacts, vec, sca, pattern, dt)
             n, converged = 1, True
         else:
-            data0, rhs0 = stepper.assemble_blocks(state, geom, pattern, dt, static_start=True)
-            disp, n, converged = stepper.open_close(state, geom, contacts, pattern, vec, sca, data0, rhs0,
-                                                    np.zeros(model.n_blocks), _Timer(), MAX_SOLVES,
-                                                    break_bonds=False)
+            data0, rhs0 = assemble_blocks(model, state, geom, pattern, dt, STAGE_BETA, static_start=True)
+            oc = open_close(stepper, state, geom, contacts, pattern, vec, sca, data0, rhs0,
+                            np.zeros(model.n_blocks), StepTimer(), MAX_SOLVES, break_bonds=False)
+            disp, n, converged = oc.displacement, oc.iterations, oc.converged
         solves += n
         if disp is None:
             return None, solves, out & ~released, contacts
-        moved = _block_displacement(stepper, state.vertex_xy, geom, disp)
+        moved = block_displacement(model, state.vertex_xy, geom, disp)
+        if not converged and np.any((moved > FREE_FALL_BOUND * FALL_IN_SIZES * size)[free & ~out]):
+            # a motion beyond free fall over the pseudo-step is no mechanism but an iterate that
+            # went astray (contacts near zero force flipping in a stiff, fitted mass of blocks)
+            return None, solves, out & ~released, contacts
         # a block that moved far is a mechanism unless it moved with the ground: a tall, soft
         # column settles by more than MECHANISM_SIZE at its top, every block with its neighbours
         far = free & ~out & (moved > MECHANISM_SIZE * size)
@@ -360,9 +376,10 @@ def _static_solve(stepper, state: State, geom: dict, contacts: Contacts, dt: flo
                 return None, solves, out & ~released, contacts
             break
         # release them and solve the rest again without their contacts. The iteration need not
-        # have converged: a mechanism moves ~FALL_IN_SIZES sizes in the pseudo-step, its
+        # have converged: a mechanism moves up to ~FALL_IN_SIZES sizes in the pseudo-step, its
         # contacts slide off their edges and their states cycle, so its open-close iteration
-        # has no answer to converge to — its last iterate already shows it moving away
+        # has no answer to converge to — its last iterate already shows it moving away (no
+        # faster than free fall: checked above)
         out |= mechanism
     return disp, solves, out & ~released, contacts
 
@@ -374,11 +391,6 @@ def _anchored(stepper, vertex_xy, geom, contacts: Contacts, disp: np.ndarray, si
     less than MECHANISM_SIZE × the smaller block's size. A held block differs from its
     neighbour by its strain and the contact springs' give; a mechanism slides, opens or turns
     away from what holds it by about FALL_IN_SIZES × its net acceleration / g sizes."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    from .geometry import displacement_matrix
-
     model = stepper.model
     closed = contacts.state != OPEN
     pa = np.minimum(contacts.block_a[closed], contacts.block_b[closed]).astype(np.int64)
@@ -407,15 +419,6 @@ def _anchored(stepper, vertex_xy, geom, contacts: Contacts, disp: np.ndarray, si
     return np.isin(label, label[ground])
 
 
-def _block_displacement(stepper, vertex_xy, geom, disp) -> np.ndarray:
-    """Largest vertex displacement of each block [m]."""
-    from .step import _move_points
-
-    model = stepper.model
-    moved = _move_points(vertex_xy, model.vertex_block, geom["centroid"], disp) - vertex_xy
-    return np.maximum.reduceat(np.hypot(moved[:, 0], moved[:, 1]), model.vertex_offset[:-1])
-
-
 def _keys(contacts: Contacts, sel: np.ndarray) -> set:
     return set(contacts.key[sel].tolist())
 
@@ -425,10 +428,10 @@ def _lock_at_strength(stepper, contacts: Contacts, vertex_xy: np.ndarray) -> np.
     carries their friction (force-continuous, as between steps): they keep their bonds.
     Returns which contacts were sliding."""
     m = stepper.model
-    sliding = (contacts.state == SLIDE) & (contacts.cint[:, 0] == 0)
+    sliding = (contacts.state == SLIDE) & (contacts.cint[:, KIND] == VE)
     if sliding.any():
-        strength = stepper.friction_force(contacts)[sliding]
-        edge = contacts.cint[sliding, 2]
+        strength = friction_force(contacts)[sliding]
+        edge = contacts.cint[sliding, E0]
         length = np.hypot(*(vertex_xy[edge] - vertex_xy[m.vertex_next[edge]]).T)
         # ds = (P1 − P0)·t falls by l·Δω when the lock point P0 moves by Δω along the edge
         target = contacts.shear_dir[sliding] * strength / m.shear_penalty
@@ -441,21 +444,3 @@ def _lock_at_strength(stepper, contacts: Contacts, vertex_xy: np.ndarray) -> np.
 
 def _subset(contacts: Contacts, keep: np.ndarray) -> Contacts:
     return Contacts(**{k: v[keep] for k, v in vars(contacts).items()})
-
-
-def _apply(stepper, state: State, geom: dict, disp: np.ndarray) -> State:
-    """Move the held blocks by their settlement and add its stress (velocities untouched)."""
-    from .step import _move_points, _rotate_stress
-
-    m = stepper.model
-    centroid = geom["centroid"]
-    xy = _move_points(state.vertex_xy, m.vertex_block, centroid, disp)
-    stress = state.block_stress + np.einsum("bij,bj->bi", m.block_elastic, disp[:, 3:6])
-    stress = _rotate_stress(stress, disp[:, 2])
-    stress[m.block_fixed] = state.block_stress[m.block_fixed]
-    return state.replace(
-        vertex_xy=xy, block_stress=stress, block_rotation=state.block_rotation + disp[:, 2],
-        fixed_point_xy=_move_points(state.fixed_point_xy, m.fixed_point_block, centroid, disp),
-        load_xy=_move_points(state.load_xy, m.load_block, centroid, disp),
-        measured_xy=_move_points(state.measured_xy, m.measured_block, centroid, disp),
-        geometry=m.block_geometry(xy))

@@ -1,6 +1,6 @@
 """DDA terms of water pressure and rock bolts (docs/method/water_bolts.md), NumPy only.
 
-Imported by `ddatai.model` and `ddatai.step` only when a scene has a water table or bolts; a
+Imported by `ddatai.model`, `ddatai.assembly`, `ddatai.kinematics` and `ddatai.energy` only when a scene has a water table or bolts; a
 scene without them builds empty arrays and never loads this module.
 
 * `water_arrays`, `assemble_water`: the hydrostatic pressure (W1) on every edge of every free
@@ -146,8 +146,6 @@ def bolt_tension(model, vertex_xy: np.ndarray) -> np.ndarray:
 def assemble_bolts(model, vertex_xy: np.ndarray, centroid: np.ndarray, intact: np.ndarray,
                    pattern, data: np.ndarray, rhs: np.ndarray) -> None:
     """Shi's bolt springs (B1) of the intact bolts, in place on the CSR ``data`` and ``rhs``."""
-    from .contacts import _block_slots
-
     k = np.flatnonzero(intact)
     if len(k) == 0:
         return
@@ -173,7 +171,7 @@ def assemble_bolts(model, vertex_xy: np.ndarray, centroid: np.ndarray, intact: n
         r, c, blocks = r[ok], c[ok], blocks[ok]
         off = r != c
         slot = pattern.diag_slot[r].astype(np.int64)
-        slot[off] = _block_slots(pattern.block_key, pattern.block_slot, pattern.n_rows, r[off], c[off])
+        slot[off] = pattern.slots(r[off], c[off])
         stride = pattern.stride[r].astype(np.int64)
         idx = slot[:, None, None] + a[None, :, None] * stride[:, None, None] + a[None, None, :]
         np.add.at(data, idx, blocks)

@@ -38,9 +38,9 @@ class _Run:
 
 def _run_one(job: _Run, values: dict) -> dict:
     from .results import SimulationError
-    from .step import simulate
+    from .run import simulate
 
-    from .scenefile import build_scene
+    from .io.scenefile import build_scene
 
     t0 = time.perf_counter()
     scene, params = build_scene(job.build, **values)

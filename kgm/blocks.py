@@ -26,6 +26,8 @@ from typing import Iterable, Optional
 
 import numpy as np
 
+from ddatai.geometry import check_overlaps, polygon_integrals
+
 #: Two directions closer than this are the same face direction [rad]. Cut blocks have edges
 #: parallel to ~1e-12 rad; hand-built scenes to the precision of their coordinates.
 ANGLE_TOL = 1e-6
@@ -313,14 +315,10 @@ def build_block_system(scene, *, seismic=None, contact_gap: Optional[float] = No
     elif isinstance(contact_gap, bool) or not isinstance(contact_gap, (int, float)) or \
             not np.isfinite(contact_gap) or contact_gap < 0:
         raise ValueError(f"contact_gap must be a finite distance >= 0 m, got {contact_gap!r}")
-    from ddatai.geometry import check_overlaps
-
     check_overlaps(scene, what="kgm analyses blocks that touch, never overlap")
     nb = len(specs)
-    area = np.zeros(nb)
-    centroid = np.zeros((nb, 2))
-    for b in range(nb):
-        area[b], centroid[b] = _area_centroid(xy[offset[b]:offset[b + 1]])
+    integrals = polygon_integrals(xy, offset)
+    area, centroid = integrals["area"], integrals["centroid"]
     density = np.array([s.material.density for s in specs])
     mass = density * area
     g = float(scene.gravity)
@@ -459,14 +457,6 @@ def _contact_water(scene, start: np.ndarray, end: np.ndarray, joint: np.ndarray,
     edge, _, w = water_points(start, end, joint, table.xy, np.array(table.heads, float).reshape(-1, 2),
                               table.density * g)
     return np.bincount(edge, weights=w, minlength=len(start)).astype(float)
-
-
-def _area_centroid(p: np.ndarray) -> tuple[float, np.ndarray]:
-    q = np.roll(p, -1, axis=0)
-    cross = p[:, 0] * q[:, 1] - q[:, 0] * p[:, 1]
-    a = 0.5 * cross.sum()
-    c = ((p + q) * cross[:, None]).sum(axis=0) / (6.0 * a)
-    return float(a), c
 
 
 def _find_contacts(specs, offset, xy, scale, gap) -> list[tuple]:

@@ -20,10 +20,10 @@ import numpy as np
 
 
 def load_scene(path: str, joints: Optional[str] = None):
-    """Run a scene script's ``build()`` (`ddatai.scenefile`, the loader of ``ddatai run``), or
+    """Run a scene script's ``build()`` (`ddatai.io.scenefile`, the loader of ``ddatai run``), or
     read a DXF section with its ``joints`` TOML file; returns (scene, params or None). A broken
     script is a `ValueError` with one line."""
-    from ddatai.scenefile import build_scene, load_scene_script
+    from ddatai.io.scenefile import build_scene, load_scene_script
 
     return build_scene(load_scene_script(path, joints=joints))
 

@@ -23,7 +23,7 @@ from typing import Optional
 import numpy as np
 
 from ddatai.params import Joint, Params
-from ddatai.scene import PointSpec, Scene
+from ddatai.scene import Scene
 
 from .blocks import BlockSystem
 from .settings import DdaSettings
@@ -129,22 +129,11 @@ def sub_scene(scene: Scene, system: BlockSystem, blocks: frozenset, *, removed: 
         held = system.neighbours(moving, removed) | {b for b in ring1 if system.block_fixed[b]}
     bolts = [b for b in scene.bolts if b.block1 in moving or b.block2 in moving]
     held |= {blk for b in bolts for blk in (b.block1, b.block2) if blk not in moving}
-    ids = sorted(moving | held)
-    new_id = {b: i for i, b in enumerate(ids)}
-    sub = Scene(gravity=scene.gravity)
+    sub, ids = scene.subset(sorted(moving | held), held=sorted(held))
     sub.joints = [_reduced(j, friction, reduction) for j in scene.joints]
-    for b in ids:
-        spec = scene.blocks[b]
-        sub.blocks.append(replace(spec, fixed=bool(spec.fixed or b not in moving)))
-    sub.pair_joints = {(new_id[i], new_id[j]): k for (i, j), k in scene.pair_joints.items()
-                       if i in new_id and j in new_id}
-    sub.fixed_points = [replace(p, block=new_id[p.block]) for p in scene.fixed_points if p.block in new_id]
-    sub.point_loads = [PointSpec(block=new_id[p.block], xy=p.xy, force=p.force)
-                       for p in scene.point_loads if p.block in new_id]
-    sub.ground_acceleration = scene.ground_acceleration
-    sub.water = scene.water
-    sub.bolts = [replace(b, block1=new_id[b.block1], block2=new_id[b.block2],
-                         capacity=b.capacity / reduction) for b in bolts]
+    # only the bolts that hold a moving block act; their capacity is reduced like the joints
+    sub.bolts = [replace(b, capacity=b.capacity / reduction) for b in sub.bolts
+                 if ids[b.block1] in moving or ids[b.block2] in moving]
     return sub, ids
 
 
@@ -186,14 +175,15 @@ def judge(scene: Scene, system: BlockSystem, blocks: frozenset, *, settings: Dda
     """
     from ddatai.model import build_model
     from ddatai.results import SimulationError
-    from ddatai.step import simulate  # starts Taichi
+    from ddatai.run import simulate  # starts Taichi
 
     sub, ids = sub_scene(scene, system, blocks, removed=removed, free_neighbours=settings.free_neighbours,
                          friction=friction, reduction=reduction)
     prm = run_params(params, settings)
     delta = settings.displacement_ratio * group_size(system, blocks)
     duration = settings.duration or math.sqrt(2.0 * delta / settings.acceleration_resolution)
-    origin = build_model(sub, prm).origin
+    model = build_model(sub, prm)  # built once: its origin maps the positions, simulate runs it
+    origin = model.origin
     pos = [ids.index(b) for b in sorted(blocks)]
     counts = np.array([len(s.vertices) for s in sub.blocks])
     offset = np.concatenate([[0], np.cumsum(counts)])
@@ -217,7 +207,7 @@ def judge(scene: Scene, system: BlockSystem, blocks: frozenset, *, settings: Dda
     results = None
     try:
         results = simulate(sub, prm, duration=duration, progress=progress,
-                           record_every=record_every or 10 ** 9)
+                           record_every=record_every or 10 ** 9, model=model)
     except _StopRun:
         note = "stopped early"
     except SimulationError as err:
@@ -334,14 +324,14 @@ def time_sub_and_whole(scene: Scene, system: BlockSystem, blocks: frozenset, *, 
     """Mean wall time per step of the judgement's sub-model and of the whole slope (all
     remaining blocks free as in the scene), over ``settings.whole_steps`` steps each."""
     from ddatai.results import SimulationError
-    from ddatai.step import simulate
+    from ddatai.run import simulate
 
     prm = run_params(params, settings)
     sub, ids = sub_scene(scene, system, blocks, removed=removed, free_neighbours=settings.free_neighbours)
     whole = scene
     if removed:
         keep = [b for b in range(scene.n_blocks) if b not in removed]
-        whole, _ = _subset(scene, keep)
+        whole, _ = scene.subset(keep)
 
     def per_step(sc) -> float:
         t0 = time.perf_counter()
@@ -355,19 +345,3 @@ def time_sub_and_whole(scene: Scene, system: BlockSystem, blocks: frozenset, *, 
     per_step(sub)  # warm-up: kernel compilation is not part of either cost
     return DdaTiming(steps=settings.whole_steps, sub_step_time=per_step(sub), whole_step_time=per_step(whole),
                      sub_blocks=len(ids), whole_blocks=whole.n_blocks)
-
-
-def _subset(scene: Scene, keep: list[int]) -> tuple[Scene, list[int]]:
-    new_id = {b: i for i, b in enumerate(keep)}
-    sub = Scene(gravity=scene.gravity)
-    sub.joints = list(scene.joints)
-    sub.blocks = [scene.blocks[b] for b in keep]
-    sub.pair_joints = {(new_id[i], new_id[j]): k for (i, j), k in scene.pair_joints.items()
-                       if i in new_id and j in new_id}
-    sub.fixed_points = [replace(p, block=new_id[p.block]) for p in scene.fixed_points if p.block in new_id]
-    sub.point_loads = [replace(p, block=new_id[p.block]) for p in scene.point_loads if p.block in new_id]
-    sub.ground_acceleration = scene.ground_acceleration
-    sub.water = scene.water
-    sub.bolts = [replace(b, block1=new_id[b.block1], block2=new_id[b.block2]) for b in scene.bolts
-                 if b.block1 in new_id and b.block2 in new_id]
-    return sub, keep

@@ -250,7 +250,7 @@ def _evaluate(job: _Job, item: tuple) -> tuple:
     if job.pass_seed:
         kwargs["seed"] = int(seed)
     try:
-        from ddatai.scenefile import build_scene
+        from ddatai.io.scenefile import build_scene
 
         scene, params = build_scene(job.build, **kwargs)
         from . import search

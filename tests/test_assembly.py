@@ -8,9 +8,12 @@ from scipy.sparse import csr_matrix
 import ddatai as dd
 from cases import perturbed_vertices, random_jointed_scene
 from ddatai import reference
-from ddatai.contacts import BlockPattern, Contacts, detect_contacts
+from ddatai import backend
+from ddatai.assembly import BlockPattern, assemble_blocks, assemble_contacts, contact_vectors
+from ddatai.contact_law import friction_force
+from ddatai.contacts import Contacts, detect_contacts
+from ddatai.kinematics import newmark_beta
 from ddatai.model import ContactMemory, build_model
-from ddatai.step import Stepper
 
 
 def _random_case(seed, static=False, plane="strain"):
@@ -50,17 +53,16 @@ def test_taichi_assembly_equals_dense_reference(seed, static, plane, serial):
     """Both loop modes of the contact kernel (serial on small CPUs, parallel with atomic adds
     elsewhere: `ddatai.backend.serial_scatter`)."""
     model, state, c = _random_case(seed, static, plane)
-    stepper = Stepper(model)
-    stepper._serial_scatter = serial
+    backend.ensure("cpu")
     geom = model.block_geometry(state.vertex_xy)
     pattern = BlockPattern.build(model, c)
-    vec, sca = stepper.contact_vectors(state.vertex_xy, geom, c)
+    vec, sca = contact_vectors(model, state.vertex_xy, geom, c)
     dt = 0.003
-    data, rhs = stepper.assemble_blocks(state, geom, pattern, dt)
-    stepper.assemble_contacts(c, pattern, vec, sca, data, rhs)
+    data, rhs = assemble_blocks(model, state, geom, pattern, dt, newmark_beta(model.params, state))
+    assemble_contacts(model, c, pattern, vec, sca, data, rhs, serial)
     n = 6 * pattern.n_rows
     K = csr_matrix((data, pattern.indices, pattern.indptr), shape=(n, n)).toarray()
-    friction = stepper.friction_force(c)
+    friction = friction_force(c)
     Kr, Fr = reference.assemble_dense(
         model, state.vertex_xy, state.block_velocity, state.block_stress, state.fixed_point_xy,
         state.load_xy, np.array([f for f in model.load_force]), dt, model.gravity, c, vec, sca, friction,

@@ -290,8 +290,8 @@ def test_dda_law_holds_at_every_contact_of_every_step():
     state, _ = settle(stepper, model.initial_state())
     checked_bb = 0
     while state.time < 0.3:
-        state, _ = stepper.step(state)
-        c = stepper.last_contacts
+        outcome = stepper.advance(state)
+        state, c = outcome.state, outcome.contacts
         tan = np.empty(c.n)
         for i in range(c.n):
             jt = scene.joints[c.joint[i]]
@@ -313,7 +313,7 @@ def test_dda_law_holds_at_every_contact_of_every_step():
         locked = ve & (c.state == dd.ContactState.LOCK)
         sliding = ve & (c.state == dd.ContactState.SLIDE)
         assert np.all(model.shear_penalty * np.abs(c.ds[locked]) <= strength[locked] + slack[locked])
-        assert np.all(np.abs(stepper._friction[sliding] - strength[sliding]) <= slack[sliding])
+        assert np.all(np.abs(outcome.friction[sliding] - strength[sliding]) <= slack[sliding])
         bb = np.array([isinstance(scene.joints[j], dd.BartonBandis) for j in c.joint])
         checked_bb += int(np.count_nonzero((locked | sliding) & bb & (c.normal_force > 0)))
     assert checked_bb > 0

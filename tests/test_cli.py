@@ -9,7 +9,7 @@ import pytest
 
 import ddatai as dd
 from ddatai.cli import main
-from ddatai.scenefile import SceneFileError, build_scene, load_scene_script
+from ddatai.io.scenefile import SceneFileError, build_scene, load_scene_script
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -7,6 +7,7 @@ import pytest
 import ddatai as dd
 from cases import ROCK, perturbed_vertices, random_jointed_scene
 from ddatai import reference
+from ddatai.assembly import contact_vectors
 from ddatai.contacts import Contacts, _Buffers, broad_phase, detect_contacts
 from ddatai.geometry import displacement_matrix
 from ddatai.model import ContactMemory, ContactState, build_model
@@ -91,14 +92,14 @@ def test_concave_corner_gives_vertex_against_both_edges():
 def test_normal_distance_sign():
     """A vertex 1 m above a horizontal edge has dn = +1; 0.1 m inside it, dn = −0.1 (§7j)."""
     m = _model([(-2, -1), (3, -1), (3, 0), (-2, 0)], [(0, 1), (1, 1.5), (0.5, 2.5)])
-    stepper = Stepper(m)
+    Stepper(m)  # starts Taichi on the model's arch
     # vertex 0 of block 1 against the top edge of the base (edge from vertex 2 to vertex 3)
     cint = np.array([[0, m.vertex_offset[1], 2, -1, -1]], np.int32)
     for drop, expect in ((0.0, 1.0), (1.1, -0.1)):
         xy = m.vertex_xy0.copy()
         xy[m.vertex_offset[1]:, 1] -= drop
         c = Contacts.start(m, xy, cint, np.zeros(1), ContactMemory.empty(), False)
-        _, sca = stepper.contact_vectors(xy, m.block_geometry(xy), c)
+        _, sca = contact_vectors(m, xy, m.block_geometry(xy), c)
         assert sca[0, 0] == pytest.approx(expect, abs=1e-14)
         assert c.dn[0] == pytest.approx(expect, abs=1e-14)
 
@@ -129,7 +130,7 @@ def test_contact_vectors_are_derivatives(seed):
     Taichi kernel equals the reference."""
     model, xy, cint, c, rng = _random_contacts(seed)
     geom = model.block_geometry(xy)
-    vec, sca = Stepper(model).contact_vectors(xy, geom, c)
+    vec, sca = contact_vectors(model, xy, geom, c)
     vec_r, sca_r = reference.contact_vectors(model, xy, geom["centroid"], cint, c.omega)
     assert np.allclose(vec, vec_r, rtol=1e-11, atol=1e-11 * np.abs(vec_r).max())
     assert np.allclose(sca, sca_r, rtol=1e-11, atol=1e-12)
@@ -165,7 +166,7 @@ def test_common_translation_leaves_contacts_unchanged():
     xy = perturbed_vertices(model, 1, shift=0.1 * model.search_distance)
     cint, length = detect_contacts(model, xy)
     c = Contacts.start(model, xy, cint, length, ContactMemory.empty(), False)
-    vec, _ = Stepper(model).contact_vectors(xy, model.block_geometry(xy), c)
+    vec, _ = contact_vectors(model, xy, model.block_geometry(xy), c)
     for D in (np.array([1.0, 0, 0, 0, 0, 0]), np.array([0, 1.0, 0, 0, 0, 0])):
         assert np.allclose(vec[:, 0] @ D + vec[:, 1] @ D, 0, atol=1e-12)
         ve = cint[:, 0] == dd.ContactKind.VE

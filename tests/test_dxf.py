@@ -1,4 +1,4 @@
-"""Sections from DXF (ddatai.dxf, optional ezdxf): the example drawing reads back to the blocks
+"""Sections from DXF (ddatai.io.dxf, optional ezdxf): the example drawing reads back to the blocks
 of the same section built in Python, in metres or millimetres; a unitless drawing is refused
 without units=; bad drawings name what is wrong."""
 
@@ -11,7 +11,7 @@ import shapely
 ezdxf = pytest.importorskip("ezdxf", reason="the optional [dxf] extra (ezdxf) is not installed")
 
 import ddatai as dd  # noqa: E402
-from ddatai.dxf import read_dxf_section, write_dxf_section  # noqa: E402
+from ddatai.io.dxf import read_dxf_section, write_dxf_section  # noqa: E402
 
 from scenes.section import drawing as example  # noqa: E402
 
@@ -49,7 +49,7 @@ def test_round_trip_is_the_python_section(tmp_path, units):
 def test_the_committed_drawing_is_the_scripts():
     """scenes/section/section.dxf is what scenes/section/drawing.py writes (regenerate it if not)."""
     same_scene(read(example.DRAWING), example.python_scene())
-    from ddatai.scenefile import load_scene_script
+    from ddatai.io.scenefile import load_scene_script
 
     built, _ = load_scene_script(SCENES / "dxf_section.py").build()
     assert built.n_blocks == example.python_scene().n_blocks
@@ -137,7 +137,7 @@ def test_trace_ends_short_of_the_outline_are_snapped(tmp_path):
 
 def test_joints_file_is_the_scripts():
     """scenes/section/joints.toml gives the drawing the material and joints of drawing.py."""
-    from ddatai.dxf import read_joints_file
+    from ddatai.io.dxf import read_joints_file
 
     opts = read_joints_file(SCENES / "section" / "joints.toml")
     assert opts["material"] == example.ROCK and opts["joints"] == example.JOINTS
@@ -168,7 +168,7 @@ def test_command_lines_take_a_section_and_its_joints(tmp_path, capsys):
     ("colour = 3\n", "unknown key 'colour'"),
 ])
 def test_bad_joints_files_name_the_key(tmp_path, text, message):
-    from ddatai.dxf import read_joints_file
+    from ddatai.io.dxf import read_joints_file
 
     path = tmp_path / "joints.toml"
     path.write_text(text)

@@ -1,5 +1,5 @@
 """Open-close judgement: the Taichi kernels (contact law, violations, internal forces) against
-their NumPy twins in `ddatai.step` (docs/method/dda.md §2.8, §4), on random contact states and
+their NumPy twins in `ddatai.contact_law` (docs/method/dda.md §2.8, §4), on random contact states and
 displacements, and a run judged by either path."""
 
 import numpy as np
@@ -7,6 +7,10 @@ import pytest
 
 import ddatai as dd
 from cases import perturbed_vertices, random_jointed_scene
+from ddatai import backend, open_close
+from ddatai.assembly import contact_vectors
+from ddatai.contact_law import (contact_law, contact_law_numpy, internal_force, internal_force_numpy,
+                                violations, violations_numpy)
 from ddatai.contacts import Contacts, detect_contacts
 from ddatai.model import ContactMemory, build_model
 from ddatai.step import Stepper
@@ -34,19 +38,20 @@ def _case(seed):
     c.cohesion[:] = rng.uniform(0, 1e5, c.n)
     c.normal_force[:] = rng.uniform(0, 1e5, c.n)
     c.tan_phi[:] = rng.uniform(0, 1.2, c.n)
-    stepper = Stepper(model)
+    backend.ensure("cpu")
     geom = model.block_geometry(xy)
-    vec, sca = stepper.contact_vectors(xy, geom, c)
+    vec, sca = contact_vectors(model, xy, geom, c)
     behind = rng.random((c.n, 2)) < 0.2
     sca[:, :2] -= np.where(behind, 3.0 * model.penetration_limit, 0.0)
-    return model, stepper, c, vec, sca, rng
+    # a block's weight, the smallest load the judgement measures it by (as `Stepper` has it)
+    load = model.block_density * model.block_geometry(model.vertex_xy0)["area"] * float(np.hypot(*model.gravity))
+    return model, load, c, vec, sca, rng
 
 
 @pytest.mark.parametrize("seed", range(6))
 @pytest.mark.parametrize("serial", [True, False], ids=["serial-loop", "parallel-loop"])
 def test_judgement_kernels_equal_numpy(seed, serial):
-    model, stepper, c, vec, sca, rng = _case(seed)
-    stepper._serial_scatter = serial
+    model, load, c, vec, sca, rng = _case(seed)
     assert c.n > 20
     scale = model.search_distance
     for trial in range(4):
@@ -56,8 +61,8 @@ def test_judgement_kernels_equal_numpy(seed, serial):
         disp[free, 2] = rng.normal(0, 0.1 * scale, int(free.sum()))
         disp[free, 3:] = rng.normal(0, 1e-5, (int(free.sum()), 3))
         shift = rng.normal(0, 1e-3 * scale, sca.shape) if trial % 2 else None
-        law = stepper.contact_law(c, vec, sca, disp, shift)
-        ref = stepper.contact_law_numpy(c, vec, sca, disp, shift)
+        law = contact_law(model, c, vec, sca, disp, shift)
+        ref = contact_law_numpy(model, c, vec, sca, disp, shift)
         assert law.packed is not None and ref.packed is None
         for f in FLOAT_FIELDS:
             a, b = getattr(law, f), getattr(ref, f)
@@ -67,15 +72,15 @@ def test_judgement_kernels_equal_numpy(seed, serial):
             np.testing.assert_array_equal(getattr(law, f), getattr(ref, f), err_msg=f)
         assert law.energy == pytest.approx(ref.energy, rel=1e-12)
         # the random states break the law in many ways: each rule is exercised
-        bad = stepper.violations(c, law)
+        bad = violations(model, c, law, load)
         assert 0 < bad.sum() < c.n
-        np.testing.assert_array_equal(bad, stepper.violations_numpy(c, ref))
-        force = stepper.internal_force(c, vec, law)
-        np.testing.assert_allclose(force, stepper.internal_force_numpy(c, vec, ref), rtol=1e-12,
+        np.testing.assert_array_equal(bad, violations_numpy(model, c, ref, load))
+        force = internal_force(model, c, vec, law, serial)
+        np.testing.assert_allclose(force, internal_force_numpy(model, c, vec, ref), rtol=1e-12,
                                    atol=1e-12 * float(np.abs(force).max()))
 
 
-def test_a_run_judged_by_the_kernels_follows_the_numpy_path():
+def test_a_run_judged_by_the_kernels_follows_the_numpy_path(monkeypatch):
     """A 4 × 4 stiff grid dropped 5 mm onto its base (impacts, sliding, lock-slide changes):
     50 steps judged by the kernels and by the NumPy path give the same solves and positions."""
     def scene():
@@ -94,12 +99,12 @@ def test_a_run_judged_by_the_kernels_follows_the_numpy_path():
     for numpy_path in (False, True):
         model = build_model(scene(), params)
         stepper = Stepper(model)
-        if numpy_path:
-            stepper.contact_law = stepper.contact_law_numpy
+        # the open-close iteration's law (and line search): the kernel or the NumPy twin
+        monkeypatch.setattr(open_close, "contact_law", contact_law_numpy if numpy_path else contact_law)
         state, solves = model.initial_state(), []
         for _ in range(50):
             state, record = stepper.step(state)
-            solves.append(record[3])
+            solves.append(record.oc_total)
         runs.append((state.vertex_xy.copy(), solves))
     (xy_k, solves_k), (xy_n, solves_n) = runs
     assert solves_k == solves_n

@@ -20,10 +20,10 @@ import numpy as np
 import pytest
 
 import ddatai as dd
-from ddatai.ntdda import (NtddaFormatError, NtddaQuirkWarning, NtddaUnsupportedWarning, NtddaWarning,
-                          cut_ntdda_geometry, main, read_ntdda_analysis, read_ntdda_geometry,
+from ddatai.io.ntdda import (NtddaFormatError, NtddaQuirkWarning, NtddaUnsupportedWarning, NtddaWarning,
+                          cut_ntdda_geometry, read_ntdda_analysis, read_ntdda_geometry,
                           write_measured_csv)
-from ddatai.ntdda_geometry import ntdda_fixed_points
+from ddatai.io.ntdda_geometry import ntdda_fixed_points
 
 def _shared_data() -> Path:
     """The data folder: in a ``shared`` folder beside the checkout, or the workplace's
@@ -282,9 +282,12 @@ def test_circleslope_runs_its_20_steps():
 
 
 def test_command_line_end_to_end(tmp_path, capsys):
-    """``python -m ddatai.ntdda`` path (in-process): summary, run, CSV and results file."""
-    rc = main([str(data("pushblock.geo")), str(data("pushblock.ana")), "--out", str(tmp_path),
-               "--duration", "0.5"])
+    """``ddatai run MODEL.geo MODEL.ana`` (in-process): summary, run, CSV and results file;
+    a missing file is a one-line error with exit status 2."""
+    from ddatai.cli import main
+
+    rc = main(["run", str(data("pushblock.geo")), str(data("pushblock.ana")), "--out", str(tmp_path),
+               "--duration", "0.5", "--quiet"])
     assert rc == 0
     assert "blocks: 2" in capsys.readouterr().out
     rows = list(csv.reader(open(tmp_path / "pushblock_measured.csv")))
@@ -293,7 +296,7 @@ def test_command_line_end_to_end(tmp_path, capsys):
     assert dx == pytest.approx(0.5 * (5000 / 450) * 0.25, rel=3e-4)   # bound as in the 5 s test
     assert dd.load_results(tmp_path / "pushblock.npz").n_frames == 51
     bad = tmp_path / "missing.ana"
-    assert main([str(data("pushblock.geo")), str(bad)]) == 2
+    assert main(["run", str(data("pushblock.geo")), str(bad), "--quiet"]) == 2
     assert "missing.ana" in capsys.readouterr().err
 
 

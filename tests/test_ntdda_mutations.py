@@ -16,7 +16,7 @@ from hypothesis import HealthCheck, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
 import ddatai as dd  # noqa: E402
-from ddatai.ntdda import NtddaFormatError  # noqa: E402
+from ddatai.io.ntdda import NtddaFormatError  # noqa: E402
 from test_ntdda import DATA  # noqa: E402
 
 PAIRS = [("circleslope.geo", "circleslope.ana"), ("pushblock.geo", "pushblock.ana")]

@@ -10,7 +10,8 @@ from scipy.sparse import csr_matrix
 
 import ddatai as dd
 from cases import perturbed_vertices, random_jointed_scene, sliding_scene
-from ddatai.contacts import BlockPattern, Contacts, detect_contacts
+from ddatai.assembly import BlockPattern, assemble_blocks, assemble_contacts, contact_vectors
+from ddatai.contacts import Contacts, detect_contacts
 from ddatai.model import ContactMemory, build_model
 from ddatai.solver import SparseSolver, available, resolve
 from ddatai.step import Stepper
@@ -27,9 +28,9 @@ def _system(seed):
     stepper = Stepper(model)
     geom = model.block_geometry(xy)
     pattern = BlockPattern.build(model, c)
-    vec, sca = stepper.contact_vectors(xy, geom, c)
-    data, rhs = stepper.assemble_blocks(state, geom, pattern, 0.005)
-    stepper.assemble_contacts(c, pattern, vec, sca, data, rhs)
+    vec, sca = contact_vectors(model, xy, geom, c)
+    data, rhs = assemble_blocks(model, state, geom, pattern, 0.005, beta=0.5)
+    assemble_contacts(model, c, pattern, vec, sca, data, rhs, stepper.serial_scatter)
     return pattern, data, rhs
 
 
@@ -189,7 +190,7 @@ def test_a_settled_run_reuses_its_factor_and_follows_the_factorised_run():
         solves = []
         for _ in range(40):
             state, record = stepper.step(state)
-            solves.append(record[3])
+            solves.append(record.oc_total)
         runs.append((state.vertex_xy, solves, stepper.solver.factorisations - before, stepper.solver.reused))
     (xy_r, solves_r, fact_r, reused_r), (xy_f, solves_f, fact_f, reused_f) = runs
     assert solves_r == solves_f and reused_f == 0

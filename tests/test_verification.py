@@ -481,15 +481,15 @@ def test_coulomb_holds_at_every_contact_of_every_step(case):
     state, _ = settle(stepper, model.initial_state())
     checked = 0
     while state.time < 0.5:
-        state, _ = stepper.step(state)
-        c = stepper.last_contacts
+        outcome = stepper.advance(state)
+        state, c = outcome.state, outcome.contacts
         strength = c.normal_force * c.tan_phi + c.cohesion * c.length * c.bond
         slack = 1e-3 * strength + model.force_roundoff
         ve = c.cint[:, 0] == dd.ContactKind.VE
         locked = ve & (c.state == dd.ContactState.LOCK)
         sliding = ve & (c.state == dd.ContactState.SLIDE)
         assert np.all(model.shear_penalty * np.abs(c.ds[locked]) <= strength[locked] + slack[locked])
-        used = stepper._friction[sliding]
+        used = outcome.friction[sliding]
         assert np.all(np.abs(used - strength[sliding]) <= slack[sliding])
         checked += int(np.count_nonzero(locked | sliding))
     assert checked > 0

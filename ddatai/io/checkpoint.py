@@ -155,7 +155,7 @@ class Checkpoint:
 def read_checkpoint(path, model) -> Checkpoint:
     """Read a checkpoint for ``model``; `ValueError` if it belongs to another model or is not a
     checkpoint."""
-    from .results import load_results
+    from ..results import load_results
 
     path = Path(path)
     with _open_checkpoint(path) as data:

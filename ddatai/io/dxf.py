@@ -33,7 +33,7 @@ from typing import Mapping, Optional
 
 import numpy as np
 
-from .params import Joint, Material
+from ..params import Joint, Material
 
 #: metres per drawing unit of the $INSUNITS codes a section can use
 INSUNITS = {1: ("in", 0.0254), 2: ("ft", 0.3048), 4: ("mm", 1e-3), 5: ("cm", 1e-2), 6: ("m", 1.0),
@@ -240,7 +240,7 @@ def read_dxf(path, *, material: Material, joints: Mapping[str, Joint], default_j
     """
     import shapely
 
-    from .scene import Scene
+    from ..scene import Scene
 
     if not isinstance(material, Material):
         raise ValueError(f"read_dxf: material must be a ddatai.Material, got {type(material).__name__}")
@@ -340,7 +340,7 @@ def read_joints_file(path) -> dict:
         import tomllib
     except ImportError:  # Python 3.10
         import tomli as tomllib
-    from .params import BartonBandis
+    from ..params import BartonBandis
 
     try:
         with open(path, "rb") as f:
@@ -380,32 +380,3 @@ def read_joints_file(path) -> dict:
         if key in data:
             out[key] = data[key]
     return out
-
-
-def dxf_scene_script(path, joints_file):
-    """A `ddatai.scenefile.SceneScript` for a DXF section and its joints file: what ``ddatai
-    run section.dxf --joints joints.toml`` and ``kgm analyze`` run."""
-    import types
-    from pathlib import Path
-
-    from .scenefile import SceneFileError, SceneScript
-
-    path = Path(path)
-    if joints_file is None:
-        raise SceneFileError(f"{path}: a DXF section needs its joints file, --joints JOINTS.toml (the material "
-                             f"and the properties of each joint layer)")
-    try:
-        options = read_joints_file(joints_file)
-    except ValueError as err:
-        raise SceneFileError(str(err)) from None
-    duration = options.pop("duration", None)
-    if duration is not None and not (isinstance(duration, (int, float)) and np.isfinite(duration) and duration > 0):
-        raise SceneFileError(f"{joints_file}: duration must be a number of seconds > 0, got {duration!r}")
-
-    def build():
-        return read_dxf(path, **options)
-
-    module = types.ModuleType(f"_ddatai_dxf_{path.stem}")
-    module.build, module.DURATION, module.__file__ = build, duration, str(path)
-    return SceneScript(path=path, name=path.stem, build=build,
-                       duration=None if duration is None else float(duration), module=module)

@@ -10,7 +10,7 @@ each file is detected from its first characters.
 >>> case = dd.read_ntdda("pushblock.geo", "pushblock.ana")     # doctest: +SKIP
 >>> print(case.summary())                                       # doctest: +SKIP
 >>> res = case.simulate()                                       # doctest: +SKIP
->>> from ddatai.ntdda import write_measured_csv
+>>> from ddatai.io.ntdda import write_measured_csv
 >>> write_measured_csv(res, case, "pushblock.csv")               # doctest: +SKIP
 
 Where ntdda behaves oddly (docs/ntdda.md §3) the reader makes an
@@ -24,7 +24,7 @@ Units: ntdda files use whatever consistent units their author chose; ddatai's SI
 Pa) then stand for those units. Unit mass ρ enters inertia and unit weight γ the body force,
 so the effective gravity is γ/ρ (docs/method/dda.md §6.3).
 
-Run from the command line: ``python -m ddatai.ntdda MODEL.geo MODEL.ana --out DIR``.
+Run from the command line: ``ddatai run MODEL.geo MODEL.ana --out DIR`` (`ddatai.cli`).
 No Taichi at import: the solver is loaded only by `NtddaCase.simulate`.
 """
 
@@ -35,14 +35,14 @@ import re
 import warnings
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Literal, Optional, Sequence
+from typing import Literal, Optional
 
 import numpy as np
 
 from .ntdda_geometry import (BlockLocator, block_materials, blocks_inside_other_blocks,
                              clip_fixed_line, cut_segments, ntdda_fixed_points)
-from .params import Joint, Material, Params, UnitWarning
-from .scene import Scene
+from ..params import Joint, Material, Params, UnitWarning
+from ..scene import Scene
 
 Format = Literal["ddaml", "original"]
 
@@ -1138,7 +1138,7 @@ class NtddaCase:
     def simulate(self, **kwargs):
         """Run the case with `ddatai.simulate`; keyword arguments override ``duration``,
         ``steps``, ``record_every`` or pass others (``progress``, ``record_contacts``)."""
-        from .step import simulate
+        from ..run import simulate
 
         run = dict(duration=self.duration, steps=self.steps, record_every=self.record_every)
         run.update(kwargs)
@@ -1318,7 +1318,7 @@ def _initial_state(poly: np.ndarray, mat: NtddaBlockMaterial) -> tuple[tuple, tu
     """Initial stress s + y_centroid·t (original format) and velocity (vx, vy, ω)."""
     if not (any(mat.stress) or any(mat.stress_gradient) or any(mat.velocity)):
         return (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)
-    from .geometry import polygon_integrals
+    from ..geometry import polygon_integrals
 
     yc = float(polygon_integrals(poly, np.array([0, len(poly)]))["centroid"][0, 1])
     stress = tuple(float(s + yc * t) for s, t in zip(mat.stress, mat.stress_gradient))
@@ -1358,47 +1358,3 @@ def write_measured_csv(results, case: NtddaCase, path) -> None:
         fh.write(",".join(header) + "\n")
         for row in table:
             fh.write(",".join(repr(float(v)) for v in row) + "\n")
-
-
-def main(argv: Optional[Sequence[str]] = None) -> int:
-    """``python -m ddatai.ntdda MODEL.geo MODEL.ana [--out DIR] [--duration S | --steps N]``:
-    read, print a summary, run, write ``DIR/<model>_measured.csv`` and ``DIR/<model>.npz``."""
-    import argparse
-    import sys
-    import time
-
-    ap = argparse.ArgumentParser(prog="python -m ddatai.ntdda", description=main.__doc__)
-    ap.add_argument("geo", help="ntdda geometry file (.geo, text or DDAML)")
-    ap.add_argument("ana", help="ntdda analysis file (.ana, text or DDAML)")
-    ap.add_argument("--out", default=".", help="output folder (default: current folder)")
-    ap.add_argument("--duration", type=float, default=None, help="override the simulated time")
-    ap.add_argument("--steps", type=int, default=None, help="override the number of steps")
-    args = ap.parse_args(argv)
-    try:
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always", NtddaWarning)
-            case = read_ntdda(args.geo, args.ana)
-    except NtddaFormatError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    for w in caught:
-        print(f"warning ({w.category.__name__}): {w.message}", file=sys.stderr)
-    print(case.summary())
-    over = {}
-    if args.duration is not None or args.steps is not None:
-        over = dict(duration=args.duration, steps=args.steps)
-    t0 = time.perf_counter()
-    res = case.simulate(**over)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    stem = Path(args.ana).stem
-    csv_path, npz_path = out / f"{stem}_measured.csv", out / f"{stem}.npz"
-    write_measured_csv(res, case, csv_path)
-    res.save(npz_path)
-    print(f"ran {len(res.steps)} steps to t = {res.time[-1]:g} in {time.perf_counter() - t0:.1f} s; "
-          f"wrote {csv_path} and {npz_path}")
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

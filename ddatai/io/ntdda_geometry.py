@@ -21,7 +21,7 @@ The steps, in ntdda's order (function names of `blocks.c` in brackets):
 6. vertices on the straight line of their neighbours are removed [dc09].
 
 What ntdda does after cutting (hole points, blocks inside blocks, material lines, fixed lines,
-points in blocks) is here too, as separate functions, so that ``ddatai.ntdda`` can apply its
+points in blocks) is here too, as separate functions, so that ``ddatai.io.ntdda`` can apply its
 documented choices between them. NumPy and shapely only; no Taichi.
 """
 

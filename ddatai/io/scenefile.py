@@ -17,10 +17,15 @@ import importlib.util
 import math
 import sys
 import traceback
+import types
 from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
 from typing import Any, Callable, Optional
+
+from ..params import Params
+from ..scene import Scene
+from .dxf import read_dxf, read_joints_file
 
 
 class SceneFileError(ValueError):
@@ -62,13 +67,11 @@ def _script_paths(path: Path) -> list[str]:
 
 def load_scene_script(path, joints=None) -> SceneScript:
     """Execute a scene script and return its ``build`` and ``DURATION``. A DXF section
-    (``.dxf``) with its TOML ``joints`` file is read by `ddatai.dxf.dxf_scene_script`."""
+    (``.dxf``) with its TOML ``joints`` file is read by `dxf_scene_script`."""
     path = Path(path)
     if not path.is_file():
         raise SceneFileError(f"no such scene file: {path}")
     if path.suffix.lower() == ".dxf":
-        from .dxf import dxf_scene_script
-
         return dxf_scene_script(path, joints)
     if path.suffix != ".py":
         raise SceneFileError(f"{path}: a scene script is a Python file (.py)")
@@ -99,9 +102,6 @@ def load_scene_script(path, joints=None) -> SceneScript:
 def build_scene(build, **options) -> tuple:
     """Call a scene's ``build(**options)`` (a `SceneScript`, a module or the function) and return
     ``(scene, params)``, params None when ``build`` returns only the scene."""
-    from .params import Params
-    from .scene import Scene
-
     path = None
     if isinstance(build, SceneScript):
         path, build = build.path, build.build
@@ -128,3 +128,27 @@ def build_scene(build, **options) -> tuple:
                                  f"expected a ddatai.Params or None")
         return built[0], params
     raise SceneFileError(f"{where}: build() returned {type(built).__name__}; expected a Scene or (scene, params)")
+
+
+def dxf_scene_script(path, joints_file) -> SceneScript:
+    """A `SceneScript` for a DXF section and its joints file: what ``ddatai
+    run section.dxf --joints joints.toml`` and ``kgm analyze`` run."""
+    path = Path(path)
+    if joints_file is None:
+        raise SceneFileError(f"{path}: a DXF section needs its joints file, --joints JOINTS.toml (the material "
+                             f"and the properties of each joint layer)")
+    try:
+        options = read_joints_file(joints_file)
+    except ValueError as err:
+        raise SceneFileError(str(err)) from None
+    duration = options.pop("duration", None)
+    if duration is not None and not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration > 0):
+        raise SceneFileError(f"{joints_file}: duration must be a number of seconds > 0, got {duration!r}")
+
+    def build():
+        return read_dxf(path, **options)
+
+    module = types.ModuleType(f"_ddatai_dxf_{path.stem}")
+    module.build, module.DURATION, module.__file__ = build, duration, str(path)
+    return SceneScript(path=path, name=path.stem, build=build,
+                       duration=None if duration is None else float(duration), module=module)

@@ -5,7 +5,7 @@ The drawing is generated, never edited by hand: a 30 m high, 60° slope in metre
 bedding set fitted to the mapping table ``bedding_mapping.csv`` (`dd.JointSet.fit`, dipping 35°
 out of the face) and a steep cross set (`dd.joint_sets`, seed 7), with the fixed rock below the
 toe and behind the slope, and two measured points. Layers: DOMAIN, FIXED, POINTS, BEDDING,
-CROSS (`ddatai.dxf`). Run ``python scenes/section/drawing.py [PATH] [--units mm]``;
+CROSS (`ddatai.io.dxf`). Run ``python scenes/section/drawing.py [PATH] [--units mm]``;
 `python_scene` builds the same section directly in Python.
 """
 
@@ -66,7 +66,7 @@ def python_scene() -> dd.Scene:
 
 def write(path=DRAWING, units: str = "m") -> Path:
     """Write the drawing (in ``units``, as its header says)."""
-    from ddatai.dxf import write_dxf_section
+    from ddatai.io.dxf import write_dxf_section
 
     write_dxf_section(path, units=units, **geometry())
     return Path(path)

@@ -1,0 +1,152 @@
+"""The open-close iteration of one step (docs/method/dda.md §4): semismooth Newton on the
+contact law.
+
+Each solve takes the contact states (and the Jacobian of their forces) at the last iterate, so
+when no state has to change the solution satisfies the law at every contact. A step of
+Newton's method can overshoot into a state that sends the next one back (a contact that carries
+almost no normal force, flipping between sticking and sliding); from the second solve on it is
+shortened by a backtracking line search on the energy (`line_search`). The iteration returns
+its outcome as an `OpenClose` value.
+
+The iteration reads what steps reuse from the `ddatai.step.Stepper` it is given (``stepper``):
+the model, the solver with its last factor, each block's weight and the scatter mode.
+"""
+
+from __future__ import annotations
+
+import time as _time
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+from scipy.sparse import csr_matrix
+
+from .assembly import BlockPattern, assemble_contacts, second_order
+from .contact_law import ContactLaw, contact_law, internal_force, judge, violations
+from .contacts import Contacts
+from .layout import SLIDE
+from .model import State
+from .records import StepTimer
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class OpenClose:
+    """The outcome of one open-close iteration (`open_close`)."""
+
+    displacement: Optional[np.ndarray]
+    """(B, 6) the last solution D, zero for fixed blocks; None when a solve was not finite."""
+    iterations: int
+    """Solves taken [-]."""
+    converged: bool
+    """No contact had to change its state after the last solve."""
+    changing: np.ndarray
+    """(m,) the contacts whose state still had to change after the last solve (none when
+    converged)."""
+    friction: Optional[np.ndarray] = None
+    """(m,) friction magnitude S of each contact in the last solve [N/m] (when converged)."""
+    coulomb: float = 0.0
+    """Largest |shear force| − Coulomb strength N·tanφ + c·L of a closed contact in the last
+    solve [N/m] (when converged)."""
+
+
+def solve(stepper, pattern: BlockPattern, data: np.ndarray, rhs: np.ndarray,
+          symmetric: bool = True, reuse: bool = False) -> np.ndarray:
+    """Solve K D = F (`ddatai.solver`); returns D as (B, 6) with zeros for fixed blocks.
+    ``symmetric=False`` when coupled friction made K non-symmetric; ``reuse`` when K should
+    be close to the matrix last factorised (a step's first solve: the same contact states
+    at a slightly moved geometry), which the solver then tries to solve with that factor."""
+    d = np.zeros((stepper.model.n_blocks, 6))
+    if pattern.n_rows == 0:
+        return d
+    x = stepper.solver.solve(data, pattern.indices, pattern.indptr, rhs, pattern=pattern,
+                             symmetric=symmetric, reuse=reuse)
+    d[stepper.free_idx] = x.reshape(-1, 6)
+    return d
+
+
+def open_close(stepper, state: State, geom: dict, contacts: Contacts, pattern: BlockPattern,
+               vec: np.ndarray, sca: np.ndarray, data0: np.ndarray, rhs0: np.ndarray,
+               rotation: np.ndarray, timer: "StepTimer", max_iterations: int, break_bonds: bool = True,
+               reuse_first: bool = True) -> OpenClose:
+    """The open-close iteration (§4) in place on ``contacts``, from the block terms ``data0``,
+    ``rhs0`` (`assembly.assemble_blocks`) and the rotation predicted for the step (for the
+    second-order terms). ``reuse_first``: the first solve may try the last factor (the states
+    are the ones it was made with; `solve`). ``break_bonds``: bonds fail by the joint law
+    (off in the equilibrium stage, whose joints are Mohr–Coulomb)."""
+    model = stepper.model
+    n = 6 * pattern.n_rows
+    block_k = None   # K of the block terms, for the line search (built when first needed)
+    previous = None  # last iterate D
+    disp = None
+    verdict = None
+    for it in range(1, max_iterations + 1):
+        t0 = _time.perf_counter()
+        data, rhs = data0.copy(), rhs0.copy()
+        shift = second_order(model, contacts, state, geom, rotation, rhs)
+        block_rhs = rhs.copy()
+        assemble_contacts(model, contacts, pattern, vec, sca + shift, data, rhs, stepper.serial_scatter)
+        t0 = timer.add("assembly", t0)
+        symmetric = not bool(np.any(contacts.coupled & (contacts.state == SLIDE) & (contacts.tan_phi > 0)))
+        # the first solve has the states the last one ended with: K has moved only with
+        # the blocks, and the last factor may still solve it (`ddatai.solver`, reuse)
+        solution = solve(stepper, pattern, data, rhs, symmetric=symmetric, reuse=reuse_first and it == 1)
+        t0 = timer.add("solve", t0)
+        if not np.all(np.isfinite(solution)):
+            return OpenClose(displacement=None, iterations=it, converged=False,
+                             changing=np.zeros(contacts.n, bool))
+        law = contact_law(model, contacts, vec, sca, solution, shift)
+        bad = violations(model, contacts, law, stepper.block_load)
+        disp = solution
+        if previous is not None and bad.any():
+            if block_k is None:
+                block_k = csr_matrix((data0, pattern.indices, pattern.indptr), shape=(n, n))
+            damped, damped_law = line_search(stepper, contacts, vec, sca, shift, previous, solution, law,
+                                             block_k, block_rhs)
+            # the shortened step stops before the contacts that change state on the way to
+            # the solution; if none has changed there yet, the states change as the
+            # solution asks (the step then continues in the next piece)
+            if damped is not solution:
+                damped_bad = violations(model, contacts, damped_law, stepper.block_load)
+                if damped_bad.any():
+                    disp, law, bad = damped, damped_law, damped_bad
+        rotation = disp[:, 2].copy()
+        verdict = judge(model, contacts, law, bad, break_bonds)
+        timer.add("judge", t0)
+        if not verdict.changed and disp is solution:
+            return OpenClose(displacement=disp, iterations=it, converged=True, changing=verdict.bad,
+                             friction=verdict.friction, coulomb=verdict.coulomb)
+        previous = disp
+    return OpenClose(displacement=disp, iterations=max_iterations, converged=False,
+                     changing=verdict.bad if verdict is not None else np.zeros(contacts.n, bool))
+
+
+def line_search(stepper, contacts: Contacts, vec: np.ndarray, sca: np.ndarray, shift: np.ndarray,
+                previous: np.ndarray, solution: np.ndarray, law: ContactLaw, block_k, block_rhs: np.ndarray
+                ) -> tuple[np.ndarray, ContactLaw]:
+    """Backtracking (Armijo) from the last iterate towards the new solution on the energy
+    Π(D) = ½·Dᵀ·K_blocks·D − F_blocksᵀ·D + the contact springs' energy (penalty springs, and
+    the Huber potential of each shear spring at its friction): with the friction held, Π is
+    convex and the solution of the solve minimises its quadratic piece at the last iterate,
+    so the step is a descent direction and Π falls at every iterate."""
+    model = stepper.model
+    rows = stepper.free_idx
+
+    def energy(d, lw):
+        x = d[rows].ravel()
+        return 0.5 * float(x @ (block_k @ x)) - float(block_rhs @ x) + lw.energy
+
+    law_prev = contact_law(model, contacts, vec, sca, previous, shift)
+    base = energy(previous, law_prev)
+    grad = block_k @ previous[rows].ravel() - block_rhs + \
+        internal_force(model, contacts, vec, law_prev, stepper.serial_scatter)
+    slope = float(grad @ (solution - previous)[rows].ravel())
+    if slope >= 0:  # not a descent direction (coupled friction): take the step
+        return solution, law
+    alpha, d, lw = 1.0, solution, law
+    while alpha > 1.0 / 256:
+        if energy(d, lw) <= base + 1e-4 * alpha * slope:
+            break
+        alpha *= 0.5
+        d = previous + alpha * (solution - previous)
+        lw = contact_law(model, contacts, vec, sca, d, shift)
+    return d, lw

@@ -1,0 +1,136 @@
+"""The package layout tells the architecture (ddatai/__init__.py draws it): the import graph of
+ddatai and kgm has no cycle, the engine never imports a reader/writer (`ddatai.io`) or kgm, and
+the contact layout has one definition (`ddatai.layout`) that the Taichi kernels share.
+
+Every import is counted, also those inside functions (they hide a cycle as well as any other)."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+#: the engine: what a simulation runs through
+CORE = ("assembly", "backend", "contact_law", "contacts", "diagnosis", "energy", "geometry", "kernels",
+        "recorder", "records",
+        "kinematics", "layout", "model", "model_checks", "open_close", "params", "reference", "results", "scene",
+        "solver", "start", "step", "support", "time_step", "water")
+#: engine modules that reach an adapter only inside one public convenience method, by design
+ALLOWED = {("results", "io.vtk")}  # Results.to_vtk
+
+
+def _module(path: Path) -> str:
+    rel = path.relative_to(ROOT).with_suffix("")
+    parts = list(rel.parts)
+    if parts[-1] == "__init__":
+        parts = parts[:-1]
+    return ".".join(parts)
+
+
+def _imports(path: Path) -> set[str]:
+    """The ddatai / kgm modules ``path`` imports (absolute names)."""
+    here = _module(path)
+    package = here.split(".") if path.name == "__init__.py" else here.split(".")[:-1]
+    out = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package[:len(package) - node.level + 1]
+                name = ".".join(base + ([node.module] if node.module else []))
+            else:
+                name = node.module or ""
+            targets = [name] + [f"{name}.{a.name}" for a in node.names]
+        elif isinstance(node, ast.Import):
+            targets = [a.name for a in node.names]
+        else:
+            continue
+        out |= {t for t in targets if t.split(".")[0] in ("ddatai", "kgm")}
+    return out
+
+
+def _graph() -> dict[str, set[str]]:
+    files = sorted(ROOT.glob("ddatai/**/*.py")) + sorted(ROOT.glob("kgm/**/*.py"))
+    modules = {_module(f): f for f in files}
+    graph = {}
+    for name, path in modules.items():
+        # an imported name resolves to the deepest module that exists (from .x import y: x.y or x)
+        edges = set()
+        for t in _imports(path):
+            while t and t not in modules:
+                t = t.rpartition(".")[0]
+            if t and t != name and t not in ("ddatai", "kgm"):
+                edges.add(t)
+        graph[name] = edges
+    return graph
+
+
+def test_no_import_cycle():
+    graph = _graph()
+    state: dict[str, int] = {}
+    cycles = []
+
+    def visit(node, stack):
+        state[node] = 1
+        for nxt in sorted(graph.get(node, ())):
+            if state.get(nxt) == 1:
+                cycles.append(stack[stack.index(nxt):] + [nxt])
+            elif nxt not in state:
+                visit(nxt, stack + [nxt])
+        state[node] = 2
+
+    for node in sorted(graph):
+        if node not in state:
+            visit(node, [node])
+    assert not cycles, "import cycles:\n" + "\n".join(" -> ".join(c) for c in cycles)
+
+
+def test_the_engine_imports_no_adapter_and_no_kgm():
+    graph = _graph()
+    assert set(graph) >= {f"ddatai.{m}" for m in CORE}, "a core module is missing from the layout list"
+    bad = [(m, t) for m in CORE for t in graph[f"ddatai.{m}"]
+           if (t.startswith("ddatai.io") or t.startswith("kgm") or t in ("ddatai.cli", "ddatai.run",
+                                                                       "ddatai.render", "ddatai.sweep"))
+           and (m, t.removeprefix("ddatai.")) not in ALLOWED]
+    assert not bad, "engine modules importing adapters, tools or kgm: " + ", ".join(f"{m} -> {t}" for m, t in bad)
+
+
+def test_ddatai_never_imports_kgm():
+    graph = _graph()
+    bad = [(m, t) for m, ts in graph.items() if m.startswith("ddatai") for t in ts if t.startswith("kgm")]
+    assert not bad, bad
+
+
+def test_kernels_share_the_contact_layout():
+    """The Taichi kernels spell the layout as plain integers (a @ti.func cannot read an enum):
+    they must equal `ddatai.layout`'s."""
+    from ddatai import layout
+
+    text = (ROOT / "ddatai" / "kernels.py").read_text(encoding="utf-8")
+    tree = ast.parse(text)
+    values = {}
+    for node in tree.body:
+        if isinstance(node, ast.Assign):
+            try:
+                value = ast.literal_eval(node.value)
+            except ValueError:
+                continue
+            names = [t.id for t in node.targets if isinstance(t, ast.Name)]
+            tuples = [t for t in node.targets if isinstance(t, ast.Tuple)]
+            for name in names:
+                values[name] = value
+            for t in tuples:
+                for el, v in zip(t.elts, value):
+                    values[el.id] = v
+    assert values["KIND_VE"] == layout.VE and values["KIND_VV"] == layout.VV
+    assert (values["STATE_OPEN"], values["STATE_SLIDE"], values["STATE_LOCK"]) == (layout.OPEN, layout.SLIDE, layout.LOCK)
+    assert [values[k] for k in ("E0", "G0", "E1", "G1", "ES", "GS")] == [layout.S_E0, layout.S_G0, layout.S_E1,
+                                                                      layout.S_G1, layout.S_ES, layout.S_GS]
+    assert values["N_SLOTS"] == layout.N_SLOTS
+
+
+def test_core_modules_stay_short():
+    """One concern a module: no engine module over ~450 lines (the Taichi kernels, one file of
+    kernels, and the NumPy reference of them excepted)."""
+    long = {m: n for m in CORE if m not in ("kernels", "reference")
+            and (n := len((ROOT / "ddatai" / f"{m}.py").read_text(encoding="utf-8").splitlines())) > 470}
+    assert not long, long
