@@ -105,7 +105,7 @@ SCENES = {"grid": grid_scene, "stiffgrid": stiffgrid_scene, "slope": slope_scene
 
 
 def run_one(family: str, size: int, steps: int, warmup: int, arch: str, solver: str,
-            reference_max: int, protocol: str = "ntdda") -> dict:
+            reference_max: int, protocol: str = "ntdda", kernels: str = "auto") -> dict:
     """Measure one (family, size) in this process; returns a JSON-able record.
 
     ``protocol``: ``ntdda`` starts at rest under sudden gravity (ntdda's scaling runs);
@@ -121,7 +121,7 @@ def run_one(family: str, size: int, steps: int, warmup: int, arch: str, solver: 
 
     t0 = time.perf_counter()
     scene, params = SCENES[family](size)
-    params = dataclasses.replace(params, arch=arch, solver=solver)
+    params = dataclasses.replace(params, arch=arch, solver=solver, kernels=kernels)
     build_s = time.perf_counter() - t0
     model = dd.build_model(scene, params)
     if family == "grid" and abs(model.max_step - GRID_STEP) > 1e-12:
@@ -151,7 +151,8 @@ def run_one(family: str, size: int, steps: int, warmup: int, arch: str, solver: 
     phases["update"] = float(np.median(rest)) * 1e3
     total = step_wall_time(s)
     out = dict(family=family, blocks=int(model.n_free), all_blocks=int(model.n_blocks), arch=arch,
-               solver=stepper.solver.backend, build_s=build_s, ms_per_step=float(np.median(total)) * 1e3,
+               solver=stepper.solver.backend + (" numpy" if model.numpy_path else ""), build_s=build_s,
+               ms_per_step=float(np.median(total)) * 1e3,
                ms_per_oc=float(np.median(total / np.maximum(s["oc_iterations"], 1))) * 1e3,
                oc_per_step=float(np.mean(s["oc_iterations"])), dt_cuts=int(s["dt_cuts"].sum()),
                protocol=protocol, solves_per_step=float(np.mean(s["oc_total"])),
@@ -306,7 +307,7 @@ def chart(rows: list[dict], path: Path) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--sizes", default="100,400,1024,1600,4096,6400,16384,25600")
+    ap.add_argument("--sizes", default="1,4,16,64,100,256,400,1024,1600,4096,6400,16384,25600")
     ap.add_argument("--family", default="grid,stiffgrid,slope")
     ap.add_argument("--steps", type=int, default=None,
                     help="timed steps per size; default ntdda's protocol (docs/ntdda.md §5): "
@@ -314,7 +315,9 @@ def main() -> None:
     ap.add_argument("--warmup", type=int, default=1,
                     help="untimed first steps (compilation, the first factorisation); ntdda: 1")
     ap.add_argument("--arch", default="cpu", choices=("cpu", "gpu", "cuda"))
-    ap.add_argument("--solver", default="auto", choices=("auto", "scipy", "pardiso"))
+    ap.add_argument("--solver", default="auto", choices=("auto", "scipy", "pardiso", "dense"))
+    ap.add_argument("--kernels", default="auto", choices=("auto", "taichi", "numpy"),
+                    help="Params.kernels: the small-model NumPy path or the Taichi kernels")
     ap.add_argument("--reference-max", type=int, default=450)
     ap.add_argument("--protocol", default="ntdda", choices=("ntdda", "settled"),
                     help="ntdda: from rest under sudden gravity (ntdda's scaling runs, the comparison "
@@ -328,7 +331,7 @@ def main() -> None:
     a = ap.parse_args()
     if a.one:
         print(json.dumps(run_one(a.one[0], int(a.one[1]), a.steps, a.warmup, a.arch, a.solver, a.reference_max,
-                                 a.protocol)))
+                                 a.protocol, a.kernels)))
         return
     rows = []
     suffix = ("" if a.arch == "cpu" else f"_{a.arch}") + ("" if a.protocol == "ntdda" else f"_{a.protocol}")
@@ -339,7 +342,7 @@ def main() -> None:
             steps = a.steps if a.steps is not None else protocol_steps(size)
             cmd = [sys.executable, __file__, "--one", family, str(size), "--steps", str(steps),
                    "--warmup", str(a.warmup), "--arch", a.arch, "--solver", a.solver,
-                   "--reference-max", str(a.reference_max), "--protocol", a.protocol]
+                   "--reference-max", str(a.reference_max), "--protocol", a.protocol, "--kernels", a.kernels]
             t = time.perf_counter()
             proc = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
             if proc.returncode != 0:

@@ -23,7 +23,7 @@ import numpy as np
 from .contact_law import friction_terms
 from .contacts import Contacts
 from .geometry import displacement_matrix, mass_matrix
-from .layout import N_SLOTS
+from .layout import KIND, LOCK, N_SLOTS, OPEN, S_E0, S_ES, S_G0, S_GS, SLIDE, VE
 from .model import Model, State
 
 
@@ -160,8 +160,6 @@ def assemble_blocks(model: Model, state: State, geom: dict, pattern: BlockPatter
     rhs = np.zeros(6 * pattern.n_rows)
     if pattern.n_rows == 0:
         return data, rhs
-    from . import kernels as K
-
     dof = model.block_dof
     t_mid = state.time if static_start else state.time + 0.5 * dt
     body = model.gravity.copy()
@@ -172,21 +170,27 @@ def assemble_blocks(model: Model, state: State, geom: dict, pattern: BlockPatter
     velocity, accel = state.block_velocity, state.block_accel
     if static_start:
         velocity, accel = np.zeros_like(velocity), np.zeros_like(accel)
-    K.assemble_blocks(dof, model.block_density, model.block_elastic, geom["area"], mass,
-                      velocity, accel, state.block_stress, float(body[0]),
-                      float(body[1]), dt, model.params.velocity_carry, beta,
-                      pattern.diag_slot, pattern.stride, data, rhs)
+    if model.numpy_path:
+        block_terms, point_terms = block_terms_numpy, point_terms_numpy
+    else:
+        from . import kernels as K
+
+        block_terms, point_terms = K.assemble_blocks, K.assemble_points
+    block_terms(dof, model.block_density, model.block_elastic, geom["area"], mass,
+                velocity, accel, state.block_stress, float(body[0]),
+                float(body[1]), dt, model.params.velocity_carry, beta,
+                pattern.diag_slot, pattern.stride, data, rhs)
     centroid = np.ascontiguousarray(geom["centroid"])
     if len(model.fixed_point_block):
         # restoring spring towards the original position (§2.6)
         force = model.fixed_point_penalty * (model.fixed_point_xy0 - state.fixed_point_xy)
         stiff = np.full(len(model.fixed_point_block), model.fixed_point_penalty)
-        K.assemble_points(model.fixed_point_block, state.fixed_point_xy, force, stiff,
-                          dof, centroid, pattern.diag_slot, pattern.stride, data, rhs)
+        point_terms(model.fixed_point_block, state.fixed_point_xy, force, stiff,
+                    dof, centroid, pattern.diag_slot, pattern.stride, data, rhs)
     if len(model.load_block):
-        K.assemble_points(model.load_block, state.load_xy, load_forces(model, t_mid),
-                          np.zeros(len(model.load_block)), dof, centroid, pattern.diag_slot,
-                          pattern.stride, data, rhs)
+        point_terms(model.load_block, state.load_xy, load_forces(model, t_mid),
+                    np.zeros(len(model.load_block)), dof, centroid, pattern.diag_slot,
+                    pattern.stride, data, rhs)
     if model.water_unit_weight > 0 or len(model.bolt_block):
         # water pressure (W2) and bolt springs (B1), docs/method/water_bolts.md; ddatai.support is
         # loaded only by models that have them
@@ -204,9 +208,14 @@ def assemble_contacts(model: Model, contacts: Contacts, pattern: BlockPattern, v
     """Add springs of closed contacts and friction loads of sliding ones, in place (§2.8)."""
     if contacts.n == 0:
         return
+    const, slope = friction_terms(model, contacts)
+    if model.numpy_path:
+        contact_terms_numpy(contacts.cint, contacts.state, contacts.line, model.vertex_block, model.block_dof,
+                            vec, sca, const, slope, contacts.shear_dir, pattern, model.penalty,
+                            model.shear_penalty, data, rhs)
+        return
     from . import kernels as K
 
-    const, slope = friction_terms(model, contacts)
     K.assemble_contacts(contacts.cint, contacts.state, contacts.line, model.vertex_block, model.block_dof,
                         vec, sca, const, slope, contacts.shear_dir,
                         pattern.slot_ab, pattern.slot_ba, pattern.diag_slot, pattern.stride,
@@ -239,11 +248,16 @@ def second_order(model: Model, contacts: Contacts, state: State, geom: dict, rot
         return (np.cos(r) - 1.0)[:, None] * X + (np.sin(r) - r)[:, None] * jx
 
     if contacts.n:
-        from . import kernels as K
-
         # q of every vertex once (a vertex appears in several contacts), then ∂Δ/∂P·q and
         # ∂s/∂P·q per contact line
-        K.second_order_shift(xy, nxt, q(xy, vb), contacts.cint, contacts.omega, shift)
+        if model.numpy_path:
+            from .reference import second_order_shift
+
+            shift[:] = second_order_shift(model, xy, q(xy, vb), contacts.cint, contacts.omega)
+        else:
+            from . import kernels as K
+
+            K.second_order_shift(xy, nxt, q(xy, vb), contacts.cint, contacts.omega, shift)
     if len(m.fixed_point_block):
         fb = m.fixed_point_block
         rows = m.block_dof[fb]
@@ -253,3 +267,121 @@ def second_order(model: Model, contacts: Contacts, state: State, geom: dict, rot
         load = -m.fixed_point_penalty * np.einsum("nij,ni->nj", t, q(pts, fb[use]))
         np.add.at(rhs, (6 * rows[use])[:, None] + np.arange(6)[None, :], load)
     return shift
+
+
+# ------------------------------------------------------------------ NumPy twins of the kernels
+# The small-model path (`Model.numpy_path`): the same terms, vectorised over blocks and
+# contacts, with no kernel launch (a launch costs ~0.3–0.5 ms of Python-side argument passing,
+# more than a small model's whole work). The Taichi kernels `assemble_blocks`,
+# `assemble_points` and `assemble_contacts` document the terms; tests compare the paths.
+_SIX = np.arange(6)
+
+
+def _diagonal_positions(diag_slot: np.ndarray, stride: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """(n, 6, 6) positions in the CSR data of the diagonal 6×6 blocks of block-rows ``rows``."""
+    return (diag_slot[rows].astype(np.int64)[:, None, None] + _SIX[None, :, None] *
+            stride[rows].astype(np.int64)[:, None, None] + _SIX[None, None, :])
+
+
+def block_terms_numpy(dof, density, elastic, area, mass, velocity, accel, stress, body_x, body_y, dt,
+                      carry, beta, diag_slot, stride, data, rhs) -> None:
+    """`kernels.assemble_blocks` in NumPy: inertia with Newmark's carry-over, elasticity,
+    initial stress and body force of every free block, in place."""
+    free = np.flatnonzero(dof >= 0)
+    r = dof[free].astype(np.int64)
+    rho, s = density[free], area[free]
+    k = (rho / (beta * dt * dt))[:, None, None] * mass[free]
+    k[:, 3:, 3:] += s[:, None, None] * elastic[free]
+    data[_diagonal_positions(diag_slot, stride, r)] += k  # one diagonal block per free block
+    carried = (rho / (beta * dt) * carry)[:, None] * velocity[free] + (rho * (0.5 / beta - 1.0))[:, None] * accel[free]
+    f = np.einsum("nac,nc->na", mass[free], carried)
+    f[:, 3:] -= s[:, None] * stress[free]
+    f[:, 0] += rho * s * body_x
+    f[:, 1] += rho * s * body_y
+    rhs[(6 * r)[:, None] + _SIX] += f
+
+
+def point_terms_numpy(point_block, point_xy, point_force, stiffness, dof, centroid, diag_slot, stride,
+                      data, rhs) -> None:
+    """`kernels.assemble_points` in NumPy: K += k·TᵀT, F += Tᵀf of every point on a free block."""
+    on = dof[point_block] >= 0
+    if not on.any():
+        return
+    b = point_block[on]
+    r = dof[b].astype(np.int64)
+    t = displacement_matrix(point_xy[on], centroid[b])              # (n, 2, 6)
+    k = stiffness[on]
+    if np.any(k != 0.0):
+        np.add.at(data, _diagonal_positions(diag_slot, stride, r), k[:, None, None] * np.einsum("nia,nib->nab", t, t))
+    np.add.at(rhs, (6 * r)[:, None] + _SIX, np.einsum("nia,ni->na", t, point_force[on]))
+
+
+def _add_outer(pattern: BlockPattern, rows_i, rows_j, slot_ij, slot_ji, k, u, w, u2, w2, data) -> None:
+    """Add k·[u; w][u2; w2]ᵀ of each contact (u, u2 on block-row/column i, w, w2 on j) to the
+    CSR data: the diagonal blocks of free i and j, and the off-diagonal ones where both are free."""
+    for r, r_other, slot, a, own, other in ((rows_i, rows_j, slot_ij, u, u2, w2),
+                                            (rows_j, rows_i, slot_ji, w, w2, u2)):
+        on = r >= 0
+        if not on.any():
+            continue
+        ka = k[on, None] * a[on]
+        np.add.at(data, _diagonal_positions(pattern.diag_slot, pattern.stride, r[on]),
+                  ka[:, :, None] * own[on][:, None, :])
+        both = on & (r_other >= 0)
+        if both.any():
+            kb = k[both, None] * a[both]
+            idx = (slot[both].astype(np.int64)[:, None, None] + _SIX[None, :, None] *
+                   pattern.stride[r[both]].astype(np.int64)[:, None, None] + _SIX[None, None, :])
+            np.add.at(data, idx, kb[:, :, None] * other[both][:, None, :])
+
+
+def _add_force(rows_i, rows_j, f_i, f_j, rhs) -> None:
+    for r, f in ((rows_i, f_i), (rows_j, f_j)):
+        on = r >= 0
+        if on.any():
+            np.add.at(rhs, (6 * r[on].astype(np.int64))[:, None] + _SIX, f[on])
+
+
+def contact_terms_numpy(cint, state, line, vblock, dof, vec, sca, friction_const, friction_slope, shear_dir,
+                        pattern: BlockPattern, penalty: float, shear_penalty: float, data, rhs) -> None:
+    """`kernels.assemble_contacts` in NumPy: the normal spring of every closed contact (on its
+    active line), the shear spring of a locked vertex-edge one, the friction of a sliding one
+    (with its non-symmetric term when the friction is coupled to this solve's normal force)."""
+    closed = np.flatnonzero(state != OPEN)
+    if not len(closed):
+        return
+    q = line[closed].astype(np.int64)
+    kinds = cint[closed, KIND]
+    i = vblock[cint[closed, 1 + 2 * q]]
+    j = vblock[cint[closed, 2 + 2 * q]]
+    ri, rj = dof[i].astype(np.int64), dof[j].astype(np.int64)
+    sij = np.where(q == 1, pattern.slot_ba[closed], pattern.slot_ab[closed])
+    sji = np.where(q == 1, pattern.slot_ab[closed], pattern.slot_ba[closed])
+    u, w = vec[closed, S_E0 + 2 * q], vec[closed, S_G0 + 2 * q]   # the active line's gradients
+    d0 = sca[closed, q]
+    k = np.full(len(closed), penalty)
+    _add_outer(pattern, ri, rj, sij, sji, k, u, w, u, w, data)
+    _add_force(ri, rj, (-penalty * d0)[:, None] * u, (-penalty * d0)[:, None] * w, rhs)
+    ve = kinds == VE
+    locked = ve & (state[closed] == LOCK)
+    sliding = ve & (state[closed] == SLIDE)
+    if locked.any():
+        c = closed[locked]
+        es, gs = vec[c, S_ES], vec[c, S_GS]
+        _add_outer(pattern, ri[locked], rj[locked], sij[locked], sji[locked],
+                   np.full(len(c), shear_penalty), es, gs, es, gs, data)
+        f = (-shear_penalty * sca[c, 2])[:, None]
+        _add_force(ri[locked], rj[locked], f * es, f * gs, rhs)
+    if sliding.any():
+        c = closed[sliding]
+        sgn = shear_dir[c].astype(np.float64)
+        # internal force sgn·S(D)·∇ds with S = a − b·(dn0 + ∇dnᵀD)
+        f = (sgn * (friction_const[c] - friction_slope[c] * sca[c, 0]))[:, None]
+        es, gs = vec[c, S_ES], vec[c, S_GS]
+        _add_force(ri[sliding], rj[sliding], -f * es, -f * gs, rhs)
+        coupled = friction_slope[c] != 0.0
+        if coupled.any():
+            cc = c[coupled]
+            sel = np.flatnonzero(sliding)[coupled]
+            _add_outer(pattern, ri[sel], rj[sel], sij[sel], sji[sel], -sgn[coupled] * friction_slope[cc],
+                       vec[cc, S_ES], vec[cc, S_GS], vec[cc, S_E0], vec[cc, S_G0], data)

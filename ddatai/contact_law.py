@@ -104,8 +104,9 @@ def contact_law(model: Model, contacts: Contacts, vec: np.ndarray, sca: np.ndarr
     """The contact law at the displacements ``disp`` (§2.8, §4.3), without changing
     ``contacts`` (`contact_law_numpy` states it). A Taichi kernel evaluates it
     (`kernels.contact_law`); models with Barton–Bandis joints, whose friction follows the
-    law's own normal stress, take the NumPy path, which is also the kernel's reference."""
-    if contacts.n == 0 or len(model.joint_barton):
+    law's own normal stress, and small models (`Model.numpy_path`) take the NumPy path, which is
+    also the kernel's reference."""
+    if contacts.n == 0 or len(model.joint_barton) or model.numpy_path:
         return contact_law_numpy(model, contacts, vec, sca, disp, shift)
     from . import kernels as K
 

@@ -25,6 +25,12 @@ from .params import Params
 from .scene import Scene
 
 
+#: the largest model (free blocks) that `Params(kernels="auto")` runs in NumPy: below it a Taichi
+#: kernel launch (~0.3–0.5 ms of Python-side argument passing, ~11 a step) costs more than the
+#: vectorised work (benchmarks/small_models.py)
+SMALL_MODEL_BLOCKS = 64
+
+
 @dataclass(frozen=True, kw_only=True, eq=False)
 class Model:
     """Static description of a DDA model: never changes during a run."""
@@ -110,6 +116,9 @@ class Model:
     """Fixed-point spring [N/m per m]."""
     params: Params
     """The parameters the model was built with."""
+    numpy_path: bool = False
+    """A step's per-block and per-contact work runs in NumPy, not in Taichi kernels
+    (`Params.kernels`: forced, or a small model on the CPU)."""
     water_xy: Optional[np.ndarray] = None
     """(k, 2) water table h(x) [m, internal coordinates], None: no water
     (docs/method/water_bolts.md)."""
@@ -382,6 +391,8 @@ def build_model(scene: Scene, params: Optional[Params] = None) -> Model:
         penalty=float(penalty), shear_penalty=float(penalty) / params.shear_ratio,
         fixed_point_penalty=params.fixed_point_ratio * float(penalty),
         params=params,
+        numpy_path=params.kernels == "numpy" or (
+            params.kernels == "auto" and params.arch == "cpu" and int(np.count_nonzero(~fixed)) <= SMALL_MODEL_BLOCKS),
         **_support_arrays(scene, xy0, offset, origin),
         **_barton_arrays(joints),
     )

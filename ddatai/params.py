@@ -244,12 +244,20 @@ class Params:
     """h1: angle tolerance of the contact entrance test and of edge parallelism [degrees]."""
 
     solver: str = "auto"
-    """Sparse direct solver of each open-close iteration: "scipy" (SuperLU, always available),
+    """Direct solver of each open-close iteration: "scipy" (SuperLU, always available),
     "pardiso" (Intel MKL PARDISO through the optional ``pypardiso`` package, ~5× faster at
-    1,600 blocks) or "auto" (PARDISO when installed). See `ddatai.solver`."""
+    1,600 blocks), "dense" (LAPACK on the dense matrix: the fastest for small models) or
+    "auto" (dense up to `ddatai.solver.DENSE_UNKNOWNS` unknowns, then PARDISO when installed,
+    else SuperLU). See `ddatai.solver`."""
     arch: str = "cpu"
     """Taichi backend for contact detection and assembly: "cpu", "gpu" (CUDA/Vulkan/Metal,
     whichever is present) or "cuda"."""
+    kernels: str = "auto"
+    """Where a step's per-block and per-contact work runs: "taichi" (the Taichi kernels, on
+    ``arch``), "numpy" (their vectorised NumPy twins: no kernel launch, no Taichi at all) or
+    "auto" (NumPy for a model of at most `ddatai.model.SMALL_MODEL_BLOCKS` free blocks on the
+    CPU, where a kernel launch costs more than the work; Taichi otherwise). Both give the same
+    results to round-off (tests compare them)."""
 
     def __post_init__(self) -> None:
         def pos(name: str, allow_none: bool = False) -> None:
@@ -293,8 +301,10 @@ class Params:
                  f"Params.oc_force_tolerance must be < 0.1 (a fraction of each contact force), "
                  f"got {self.oc_force_tolerance!r}")
         _require(self.dt_min_ratio < 1.0, f"Params.dt_min_ratio must be < 1, got {self.dt_min_ratio!r}")
-        _require(self.solver in ("auto", "scipy", "pardiso"),
-                 f"Params.solver must be 'auto', 'scipy' or 'pardiso', got {self.solver!r}")
+        _require(self.solver in ("auto", "scipy", "pardiso", "dense"),
+                 f"Params.solver must be 'auto', 'scipy', 'pardiso' or 'dense', got {self.solver!r}")
+        _require(self.kernels in ("auto", "taichi", "numpy"),
+                 f"Params.kernels must be 'auto', 'taichi' or 'numpy', got {self.kernels!r}")
         _require(isinstance(self.arch, str) and self.arch in ("cpu", "gpu", "cuda", "vulkan", "metal"),
                  f"Params.arch must be one of 'cpu', 'gpu', 'cuda', 'vulkan', 'metal', got {self.arch!r}")
         _require(isinstance(self.initial_equilibrium, bool),

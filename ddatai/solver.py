@@ -39,13 +39,15 @@ import glob
 import os
 import site
 import sys
+import warnings
+from typing import Optional
 
 import numpy as np
 
 
 def available(name: str) -> bool:
     """Whether a backend can be used here."""
-    if name == "scipy":
+    if name in ("scipy", "dense"):
         return True
     if name == "pardiso":
         _locate_mkl()
@@ -57,9 +59,17 @@ def available(name: str) -> bool:
     raise ValueError(f"unknown solver {name!r}")
 
 
-def resolve(name: str) -> str:
-    """The backend a ``Params.solver`` value selects."""
+#: "auto" solves a system of at most this many unknowns (6 per free block) densely: LAPACK's
+#: Cholesky of a dense 600 × 600 matrix takes ~2 ms, and below ~300 unknowns it beats any
+#: sparse factorisation with its ordering and symbolic set-up (benchmarks/small_models.py)
+DENSE_UNKNOWNS = 600
+
+
+def resolve(name: str, unknowns: Optional[int] = None) -> str:
+    """The backend a ``Params.solver`` value selects (for a system of ``unknowns``, if known)."""
     if name == "auto":
+        if unknowns is not None and unknowns <= DENSE_UNKNOWNS:
+            return "dense"
         return "pardiso" if available("pardiso") else "scipy"
     if not available(name):
         raise ValueError(f"Params.solver = {name!r} is not available here (pip install pypardiso)")
@@ -224,8 +234,9 @@ class SparseSolver:
     refactorises; SuperLU cannot reuse one and orders every time.
     """
 
-    def __init__(self, backend: str):
-        self.backend = resolve(backend)
+    def __init__(self, backend: str, unknowns: Optional[int] = None):
+        self.backend = resolve(backend, unknowns)
+        self._dense_rows = None  # (structure key, row of each CSR entry) of the dense backend
         self._handles: dict[int, _Pardiso] = {}
         self._upper = None       # (structure key, positions of the upper triangle, indptr, indices)
         self.last_residual = 0.0  # relative residual of the last PARDISO solve, when it was checked
@@ -254,6 +265,8 @@ class SparseSolver:
         self.factorisations += 1
         if self.backend == "pardiso":
             return self._solve_pardiso(data, indices, indptr, rhs, n, symmetric)
+        if self.backend == "dense":
+            return self._solve_dense(data, indices, indptr, rhs, n, symmetric)
         from scipy.sparse import csc_matrix, csr_matrix
         from scipy.sparse.linalg import splu
 
@@ -283,12 +296,49 @@ class SparseSolver:
         b = np.ascontiguousarray(rhs, dtype=np.float64)
         if not np.any(b):
             return np.zeros(n)
-        k = csr_matrix((data, indices, indptr), shape=(n, n))
+        k = self._dense(data, indices, indptr, n) if self.backend == "dense" else \
+            csr_matrix((data, indices, indptr), shape=(n, n))
         x, residual, done = _refinement(k, b, solve(b), solve, REUSE_RESIDUAL, REUSE_PASSES, REUSE_RATE)
         if not done:
             return None  # K has moved too far from the factor: factorise
         self.last_residual = residual
         return x
+
+    def _dense(self, data, indices, indptr, n) -> np.ndarray:
+        """K as a dense (n, n) array (the row of each CSR entry kept per structure)."""
+        if self._dense_rows is None or not self._same(self._dense_rows[0], indptr, indices):
+            self._dense_rows = ((indptr, indices), np.repeat(np.arange(n), np.diff(indptr)))
+        k = np.zeros((n, n))
+        k[self._dense_rows[1], indices] = data
+        return k
+
+    def _solve_dense(self, data, indices, indptr, rhs, n, symmetric) -> np.ndarray:
+        """LAPACK on the dense K: Cholesky when K is symmetric (LU if it turns out not positive
+        definite), LU with partial pivoting otherwise."""
+        from scipy.linalg import LinAlgError, LinAlgWarning, cho_factor, cho_solve, lu_factor, lu_solve
+
+        k = self._dense(data, indices, indptr, n)
+        b = np.ascontiguousarray(rhs, dtype=np.float64)
+        solve = None
+        if symmetric:
+            try:
+                c = cho_factor(k, lower=False, overwrite_a=False, check_finite=False)
+                solve = lambda r: cho_solve(c, r, check_finite=False)  # noqa: E731
+            except LinAlgError:
+                solve = None
+        if solve is None:
+            if not np.all(np.isfinite(k)):
+                self._factor = None
+                return np.full(n, np.nan)
+            with warnings.catch_warnings():  # a singular K is reported below, as a NaN solution
+                warnings.simplefilter("ignore", LinAlgWarning)
+                lu = lu_factor(k, check_finite=False)
+            if np.any(np.diag(lu[0]) == 0.0):  # singular: reported as a non-finite solution
+                self._factor = None
+                return np.full(n, np.nan)
+            solve = lambda r: lu_solve(lu, r, check_finite=False)  # noqa: E731
+        self._factor = (symmetric, (indptr, indices), solve)
+        return solve(b)
 
     def _handle(self, mtype: int) -> _Pardiso:
         h = self._handles.get(mtype)

@@ -107,7 +107,7 @@ class Stepper:
         self.params = model.params
         self.buffers = _Buffers()
         self.free_idx = np.flatnonzero(~model.block_fixed)
-        self.solver = SparseSolver(model.params.solver)
+        self.solver = SparseSolver(model.params.solver, unknowns=6 * model.n_free)
         # a block's weight, the smallest load the open-close judgement measures it by [N/m]
         self.block_load = model.block_density * model.block_geometry(model.vertex_xy0)["area"] * \
             float(np.hypot(*model.gravity))
@@ -118,7 +118,7 @@ class Stepper:
 
     def new_solver(self) -> None:
         """Start a fresh solver (no analysis or factor of an earlier matrix kept)."""
-        self.solver = SparseSolver(self.params.solver)
+        self.solver = SparseSolver(self.params.solver, unknowns=6 * self.model.n_free)
 
     def step(self, state: State, t_end: Optional[float] = None) -> tuple[State, StepRecord]:
         """Advance one step (ending at most at ``t_end``). Returns (new state, step record)."""

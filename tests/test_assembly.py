@@ -23,7 +23,7 @@ def _random_case(seed, static=False, plane="strain"):
         xy = scene.polygon(int(b)).mean(axis=0)
         scene.add_fixed_point(int(b), xy)
         scene.add_point_load(int(b), xy, (float(rng.normal(0, 1e4)), float(rng.normal(0, 1e4))))
-    model = build_model(scene, dd.Params(static=static, plane=plane))
+    model = build_model(scene, dd.Params(static=static, plane=plane, kernels="taichi"))
     xy = perturbed_vertices(model, seed, shift=0.2 * model.search_distance)
     nb = model.n_blocks
     state = model.initial_state().replace(
@@ -122,3 +122,28 @@ def test_pattern_reused_while_the_block_pairs_stay():
     assert smaller.indices is not first.indices
     assert smaller.nnz == first.nnz - 72
     assert np.array_equal(smaller.indices, BlockPattern.build(model, fewer).indices)
+
+
+@pytest.mark.parametrize("seed, static, plane", [(0, False, "strain"), (1, True, "stress"), (2, False, "stress")])
+def test_numpy_assembly_equals_the_kernels(seed, static, plane):
+    """The small-model path's NumPy twins of the assembly kernels (`Model.numpy_path`) give the
+    same K and F as the Taichi kernels, with random states (locked, sliding, open, vertex-vertex
+    on either line), coupled and explicit friction, fixed points and point loads."""
+    import dataclasses
+
+    model, state, c = _random_case(seed, static, plane)
+    rng = np.random.default_rng(seed + 10)
+    c.coupled[:] = (rng.random(c.n) < 0.5) & (c.cint[:, 0] == 0)
+    backend.ensure("cpu")
+    geom = model.block_geometry(state.vertex_xy)
+    pattern = BlockPattern.build(model, c)
+    vec, sca = contact_vectors(model, state.vertex_xy, geom, c)
+    out = []
+    for numpy_path in (False, True):
+        m = dataclasses.replace(model, numpy_path=numpy_path)
+        data, rhs = assemble_blocks(m, state, geom, pattern, 0.003, newmark_beta(m.params, state))
+        assemble_contacts(m, c, pattern, vec, sca, data, rhs, False)
+        out.append((data, rhs))
+    (dk, rk), (dn, rn) = out
+    assert np.allclose(dn, dk, rtol=1e-12, atol=1e-13 * np.abs(dk).max())
+    assert np.allclose(rn, rk, rtol=1e-12, atol=1e-13 * np.abs(rk).max())

@@ -23,7 +23,7 @@ def _case(seed):
     """A random jointed scene with random contact states, bonds, strengths, coupling, normal
     forces, and lines that a vertex was already behind at the step start."""
     scene = random_jointed_scene(seed)
-    model = build_model(scene, dd.Params(dt=1e-3))
+    model = build_model(scene, dd.Params(dt=1e-3, kernels="taichi"))
     rng = np.random.default_rng(seed)
     xy = perturbed_vertices(model, seed, shift=0.2 * model.search_distance)
     cint, length = detect_contacts(model, xy)
@@ -94,7 +94,7 @@ def test_a_run_judged_by_the_kernels_follows_the_numpy_path(monkeypatch):
         s.set_joint(dd.Joint(friction=30.0))
         return s
 
-    params = dd.Params(dt=1e-3, initial_equilibrium=False)
+    params = dd.Params(dt=1e-3, initial_equilibrium=False, kernels="taichi")
     runs = []
     for numpy_path in (False, True):
         model = build_model(scene(), params)
