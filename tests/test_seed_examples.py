@@ -102,3 +102,26 @@ def test_example_2_section_8_3_reconstruction_holds_at_22_degrees():
     start = res.start[0]
     assert start["held"] == 2 and start["released"] == 0 and not start["welded"]
     assert moved(res)[example_2.P] < 1e-3 and moved(res)[example_2.A] < 1e-3
+
+
+@pytest.mark.parametrize("friction, stable", [(14.0, True), (8.0, False)])
+def test_kgm_dda_verdict_agrees_with_dd_simulate(friction, stable):
+    """The two entry points agree on Example I. kgm judges a key group by DDA with the joint law
+    of limit equilibrium, cohesion kept while a joint slides (`kgm.DdaSettings.cohesion_held`);
+    `dd.simulate` runs the same law with ``Params(bond_breaks_on_slip=False)`` (its default is
+    Shi's rule, a bond lost on the first slip, which gives the same verdicts here: the tests
+    above). Same verdict: the toe block moves beyond kgm's displacement criterion δ within the
+    judgement's time exactly when kgm calls the group unstable."""
+    import dataclasses
+
+    import kgm
+    from kgm.blocks import build_block_system
+    from kgm.dda import judge
+
+    scene, params = example_1.build(friction=friction)
+    verdict = judge(scene, build_block_system(scene), frozenset([B1, B2]), settings=kgm.DdaSettings(),
+                    params=params)
+    assert verdict.stable is stable
+    same_law = dataclasses.replace(params, bond_breaks_on_slip=False)
+    res = dd.simulate(scene, same_law, duration=verdict.duration, record_every=10 ** 9)
+    assert bool(moved(res)[B1] < verdict.threshold) is stable
