@@ -366,12 +366,12 @@ def build_model(scene: Scene, params: Optional[Params] = None) -> Model:
     d0 = 2.5 * max_step
     d9 = max(0.3 * d0, 3.0 * params.penetration_ratio * w0)
     d0 = max(d0, d9)
-    free_young = np.array([s.material.young for s in specs], dtype=float)
+    young = np.array([s.material.young for s in specs], dtype=float)
     loads = _loads_at_start(scene)
     column = _column_load(xy0, offset, fixed, density, areas, scene.gravity, loads)
-    _check_strain(specs, fixed, column, vel, density, free_young)
+    _check_strain(specs, fixed, column, vel, density, young)
     penalty = params.penalty if params.penalty is not None else \
-        _automatic_penalty(params, free_young, fixed, column, vel, density, areas, xy0, offset,
+        _automatic_penalty(params, young, fixed, column, vel, density, areas, xy0, offset,
                            2.5 * params.penetration_ratio * w0)
 
     return Model(
@@ -518,14 +518,19 @@ def _check_strain(specs, fixed, column, vel, density, young) -> None:
 
 def _automatic_penalty(params, young, fixed, column, vel, density, areas, xy0, offset, limit) -> float:
     """The automatic contact penalty (docs/method/limits.md): ``penalty_ratio`` × the largest
-    Young's modulus, raised where the model's loads would push the contacts too deep for it —
-    the static penetration σ·size/p of the most loaded block within STATIC_PENETRATION_SHARE of
-    the penetration limit, and the penetration v·√(m/p) of an impact at a block's initial speed
-    within IMPACT_PENETRATION_SHARE of it."""
+    Young's modulus of the free blocks, raised where the model's loads would push the contacts
+    too deep for it — the static penetration σ·size/p of the most loaded block within
+    STATIC_PENETRATION_SHARE of the penetration limit, and the penetration v·√(m/p) of an
+    impact at a block's initial speed within IMPACT_PENETRATION_SHARE of it.
+
+    Fixed blocks do not set it: their deformation is not modelled (no degrees of freedom), so
+    their modulus says nothing about the stiffness the contacts must match. Soft blocks
+    (0.3 GPa) on a steel plate (200 GPa) would otherwise get springs 670× stiffer than their
+    own, and a falling pile of them cut its time step to 1e-4 s and below."""
     free = ~fixed
-    p = params.penalty_ratio * float(np.max(young))
     if not free.any():
-        return p
+        return params.penalty_ratio * float(np.max(young))
+    p = params.penalty_ratio * float(np.max(young[free]))
     size = np.sqrt(areas)
     static = float(np.max((column * size)[free])) / (STATIC_PENETRATION_SHARE * limit)
     centroid = np.add.reduceat(xy0, offset[:-1]) / np.diff(offset)[:, None]
