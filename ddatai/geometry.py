@@ -309,8 +309,114 @@ def _merge_slivers(faces: list, scale: float) -> tuple[list, int]:
             return faces, merged
 
 
+#: Trace ends that stop this close to another trace or the domain's outline (× the domain's
+#: size) are extended onto it (`cut`, ``snap_ends``): coordinates typed to six decimals, or a
+#: drawing's round-off, leave a joint ~1 µm short of the one it meets, and a trace that does
+#: not reach closes no block and is dropped. The DXF reader's default (`ddatai.dxf`).
+SNAP_ENDS = 1e-6
+#: Ends that stop short by more than the snap distance but less than this (× the domain's
+#: size) are warned about (`TraceGapWarning`): a joint meant to end 0.1 mm from another in a
+#: 10 m model is rare, a drawing error common; random finite traces end that close to another
+#: one seldom (at 1e-4, the finite traces of tests/test_model_size.py's 100 m box had one end
+#: 7.5 mm from another).
+NEAR_MISS = 1e-5
+
+
+class TraceGapWarning(UserWarning):
+    """`cut` found joint traces that stop just short of another trace or of the outline
+    (beyond ``snap_ends``) and so close no block there: the message names the traces, the
+    gaps and how to close them."""
+
+
+def _trace_ends(traces: list, boundary: np.ndarray, reach: float) -> list[tuple]:
+    """The ends of the traces that stop short of another trace or the outline within
+    ``reach`` [m]: (trace k, which end 0/-1, gap [m], target index: 0 the outline, j + 1
+    trace j, the end point (2,), unit direction (2,) of the trace at that end, pointing out)."""
+    import shapely
+
+    lines = [shapely.LineString(t) for t in traces]
+    others = [shapely.LinearRing(boundary)] + lines
+    domain = shapely.Polygon(boundary)
+    tree = shapely.STRtree(others)
+    out = []
+    for k, t in enumerate(traces):
+        for end, prev in ((-1, -2), (0, 1)):
+            p = shapely.Point(t[end])
+            if not domain.covers(p):
+                continue  # the trace leaves the domain: the outline cuts it
+            last = shapely.LineString([t[prev], t[end]])
+            # a target the end's segment reaches (touches or crosses) near the end is met, not
+            # missed (an end a hair past a trace it crossed)
+            near = [int(i) for i in tree.query(p, predicate="dwithin", distance=reach)
+                    if i != k + 1 and not _reaches(last, others[int(i)], p, reach)]
+            if not near:
+                continue
+            gap, target = min((others[i].distance(p), i) for i in near)
+            d = t[end] - t[prev]
+            out.append((k, end, float(gap), target, t[end].copy(), d / np.hypot(*d)))
+    return out
+
+
+def _reaches(segment, target, end, reach: float) -> bool:
+    """Whether ``segment`` meets ``target`` within ``reach`` of its ``end`` point."""
+    import shapely
+
+    hit = shapely.intersection(segment, target)
+    return not hit.is_empty and hit.distance(end) <= reach
+
+
+def snap_trace_ends(boundary, traces, snap: float) -> tuple[list[np.ndarray], list[tuple]]:
+    """The traces with every end that stops within ``snap`` [m] of the outline or of another
+    trace extended along its last segment to where that line meets it, and a hair (1e-9 × the
+    outline's size) across, so that noding joins them; and the ends moved, as (trace k, gap
+    [m], target: 0 the outline, j + 1 trace j). An end whose line runs beside the target
+    (meets it only more than 1000 gaps further on) is left as it is (`cut` warns about it)."""
+    import shapely
+
+    outline = np.asarray(boundary, dtype=float)
+    traces = [np.array(t, dtype=float) for t in traces]
+    if snap <= 0 or not traces:
+        return traces, []
+    scale = float(np.ptp(outline, axis=0).max())
+    others = [shapely.LinearRing(outline)] + [shapely.LineString(t) for t in traces]
+    over = 1e-9 * scale  # cross the target by a hair: the stub beyond it closes nothing
+    moved = []
+    for k, end, gap, target, p, d in _trace_ends(traces, outline, snap):
+        ray = shapely.LineString([p, p + (1e3 * gap + 2.0 * over) * d])
+        hit = shapely.intersection(ray, others[target])
+        pts = np.array([c for g in shapely.get_parts(hit) for c in np.asarray(g.coords)]).reshape(-1, 2)
+        if not len(pts):
+            continue
+        q = pts[int(np.argmin(np.hypot(*(pts - p).T)))]
+        traces[k][end] = q + over * d
+        moved.append((k, gap, target))
+    return traces, moved
+
+
+def _warn_trace_gaps(traces: list, outline: np.ndarray, snap: float, scale: float) -> None:
+    """`TraceGapWarning` for ends left short of a trace or the outline (beyond ``snap``, or
+    within it but running beside the target) by at most `NEAR_MISS` × ``scale``."""
+    short = _trace_ends(traces, outline, NEAR_MISS * scale)
+    if not short:
+        return
+    import warnings
+
+    def where(target: int) -> str:
+        return "the outline" if target == 0 else f"joint {target - 1}"
+
+    shown = "; ".join(f"joint {k}'s end ({p[0]:.9g}, {p[1]:.9g}) stops {gap:.3g} m short of {where(tg)}"
+                      for k, _, gap, tg, p, _ in sorted(short, key=lambda e: e[2])[:3])
+    more = f" (and {len(short) - 3} more)" if len(short) > 3 else ""
+    widest = max(e[2] for e in short)
+    warnings.warn(f"cut: {len(short)} joint trace end(s) stop just short of another trace or the outline, beyond "
+                  f"the snap distance {snap:.3g} m: {shown}{more}. Such a trace closes no block there and the "
+                  f"part of it that closes none is dropped. If the joints are meant to meet, extend the traces "
+                  f"or pass snap_ends={1.5 * widest:.2g} (m) to snap them (read_dxf: snap=)", TraceGapWarning, stacklevel=4)
+
+
 def cut(boundary, joints: Sequence, *, snap: float | None = None,
-        max_blocks: float | None = None, slivers: str = "warn") -> list[tuple[np.ndarray, np.ndarray]]:
+        max_blocks: float | None = None, slivers: str = "warn",
+        snap_ends: float | None = None) -> list[tuple[np.ndarray, np.ndarray]]:
     """Cut a domain polygon by joint traces into blocks.
 
     Parameters
@@ -330,6 +436,11 @@ def cut(boundary, joints: Sequence, *, snap: float | None = None,
         `SliverWarning` naming the worst; ``"merge"`` merges each into the neighbour it shares
         the longest boundary with (the joint piece between them disappears; the union must be a
         simple polygon, else the sliver stays and is warned about); ``"keep"`` says nothing.
+    snap_ends : a trace end that stops at most this far [m] short of another trace or of the
+        outline is extended onto it (`snap_trace_ends`); default `SNAP_ENDS` × the domain size
+        (1e-6: coordinates typed to six decimals), 0: never. Ends short by more, up to
+        `NEAR_MISS` × the size, are warned about (`TraceGapWarning`, naming the trace, the gap
+        and the ``snap_ends`` that would close it).
 
     Returns
     -------
@@ -343,14 +454,22 @@ def cut(boundary, joints: Sequence, *, snap: float | None = None,
     domain = shapely.Polygon(outline)
     scale = float(np.ptp(outline, axis=0).max())
     tol = 1e-9 * scale if snap is None else float(snap)
-    lines = []
+    if snap_ends is None:
+        snap_ends = SNAP_ENDS * scale
+    elif isinstance(snap_ends, bool) or not isinstance(snap_ends, (int, float)) or not np.isfinite(snap_ends) \
+            or snap_ends < 0:
+        raise ValueError(f"cut: snap_ends must be a finite distance >= 0 m, got {snap_ends!r}")
+    arrays = []
     for k, trace in enumerate(joints):
         arr = np.asarray(trace, dtype=np.float64)
         if arr.ndim != 2 or arr.shape[1] != 2 or len(arr) < 2 or not np.all(np.isfinite(arr)):
             raise ValueError(f"joint {k}: a trace must be a polyline of at least 2 finite (x, y) points")
         if np.ptp(arr, axis=0).max() <= 0:
             raise ValueError(f"joint {k}: trace has zero length")
-        lines.append(shapely.LineString(arr))
+        arrays.append(arr)
+    arrays, _ = snap_trace_ends(outline, arrays, float(snap_ends))
+    _warn_trace_gaps(arrays, outline, float(snap_ends), scale)
+    lines = [shapely.LineString(arr) for arr in arrays]
     limit = max_blocks_here() if max_blocks is None else float(max_blocks)
     if np.isfinite(limit):
         estimate, pieces, crossings = estimate_blocks(domain, lines)

@@ -127,7 +127,8 @@ class Scene:
             raise ValueError(f"{name}: stress must be a finite (σx, σy, τxy) triple, got {stress!r}")
 
     def cut(self, boundary, joints: Sequence, material: Material, *, fixed: bool = False,
-            max_blocks: Optional[float] = None, slivers: str = "warn") -> list[int]:
+            max_blocks: Optional[float] = None, slivers: str = "warn",
+            snap_ends: Optional[float] = None) -> list[int]:
         """Cut the domain polygon ``boundary`` by joint traces and add the resulting blocks.
 
         ``joints`` is a list of ``(polyline, Joint)``: each polyline (k >= 2 points) is a
@@ -139,6 +140,10 @@ class Scene:
         estimate; ``max_blocks`` sets the limit, inf: none; `ddatai.geometry.cut`). Sliver
         blocks (≥ 50:1, or < 1e-4 of the median block) are reported (``slivers="warn"``, a
         `ddatai.geometry.SliverWarning`) or merged into a neighbour (``slivers="merge"``).
+        A trace end that stops at most ``snap_ends`` [m] short of another trace or of the
+        boundary (default 1e-6 × the boundary's size: coordinates typed to six decimals) is
+        extended onto it; one short by more, up to 1e-5 × the size, is warned about
+        (`ddatai.geometry.TraceGapWarning`, with the trace, the gap and what to do).
         """
         if not isinstance(material, Material):
             raise ValueError(f"cut: material must be a ddatai.Material, got {type(material).__name__}")
@@ -152,7 +157,7 @@ class Scene:
                 raise ValueError(f"joint {k}: expected a ddatai.Joint, got {type(jt).__name__}")
             traces.append(trace)
             jts.append(jt)
-        pieces = _cut_domain(boundary, traces, max_blocks=max_blocks, slivers=slivers)
+        pieces = _cut_domain(boundary, traces, max_blocks=max_blocks, slivers=slivers, snap_ends=snap_ends)
         # one joint-table entry per distinct Joint value
         table_index = {}
         for jt in jts:
