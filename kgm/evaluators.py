@@ -71,8 +71,17 @@ class Evaluation:
     K(F) whose forces are compressive, a group that is not a toppling row, ...)."""
 
 
+#: Order of mode kinds among modes of equal FS: the simplest mechanism governs a tie (a group
+#: sliding on one plane is a rigid slide and a Sarma mechanism with no shear at once).
+_KIND_RANK = {ModeKind.LIFTING: 0, ModeKind.SLIDING: 1, ModeKind.ROTATION: 2, ModeKind.SARMA: 3,
+              ModeKind.TOPPLING: 4, ModeKind.NONE: 5}
+
+
 def _governing(modes: list[Mode], rejected: list[str] = ()) -> Evaluation:
-    modes = sorted(modes, key=lambda m: (m.fs, -m.critical_friction))
+    # equal to 9 significant digits is a tie (one plane reached by two evaluators differs by
+    # round-off); then the larger critical friction, then the simpler mode
+    modes = sorted(modes, key=lambda m: (float(f"{m.fs:.9g}"), -float(f"{m.critical_friction:.9g}"),
+                                         _KIND_RANK.get(m.kind, 9)))
     if not modes:
         none = Mode(kind=ModeKind.NONE, fs=math.inf, critical_friction=0.0,
                     sliding_contacts=np.zeros(0, dtype=np.int64))
@@ -585,7 +594,7 @@ def sarma_checks(system: BlockSystem, blocks: frozenset, removed: frozenset = fr
         def admissible_at_u(u, _m=mech):
             st = _statics_at(_m, faces, _loaded(force, passive, _m, math.exp(u)), weight, math.exp(u))
             if st is None:
-                return False, "no equilibrium"
+                return False, "no force distribution balances it"
             return st.admissible, st.why
 
         def affine(x, _m=mech):  # x = 1/F
@@ -612,8 +621,10 @@ def sarma_checks(system: BlockSystem, blocks: frozenset, removed: frozenset = fr
         elif k_of_u(lo) <= 0 and admissible_at_u(lo)[0]:
             fs = 0.0  # fails even with a thousand times the strength
         else:
-            why = "; ".join(rejected) if rejected else f"K(F) has no root for F in [{F_MIN:g}, {F_MAX:g}]"
-            notes.append(f"Sarma mechanism {label}: not admissible ({why})")
+            why = f"K(F) has no root for F in [{F_MIN:g}, {F_MAX:g}]"
+            if rejected:
+                why = f"no root of K(F) for F in [{F_MIN:g}, {F_MAX:g}] has admissible forces: " + "; ".join(rejected)
+            notes.append(f"Sarma mechanism {label}: {why}")
             continue
         kc = _statics_at(mech, faces, _loaded(force, passive, mech, 1.0), weight, 1.0, check=False)
         phi_c = _mechanism_critical_friction(mech, faces, _loaded(force, passive, mech, 1.0), weight)
@@ -671,7 +682,7 @@ def _mechanism_critical_friction(mech: _Mechanism, faces: _Faces, force: np.ndar
 
     def admissible(phi: float) -> tuple[bool, str]:
         st = _statics(mech, faces, force, weight, 1.0, tan_of(phi))
-        return (False, "no equilibrium") if st is None else (st.admissible, st.why)
+        return (False, "no force distribution balances it") if st is None else (st.admissible, st.why)
 
     def affine(x: float):  # x = tanφ
         m, rhs, _, _ = _system(mech, faces, force, weight, 1.0, np.full(len(faces.a), x))

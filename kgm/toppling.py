@@ -1,11 +1,16 @@
 """Block toppling of a row of blocks: the Goodman & Bray (1976) limit-equilibrium recursion on
 the real polygons of a group (Hoek & Bray 1981, ch. 10; Wyllie & Mah 2004, §10.3).
 
-A group admits block toppling when its members form a **row**: every member rests on its own
-base (a face of contacts with the stable rock on which its active force presses), each pushes
-on the next one downslope through an interface (a face shared by the two, across the base),
-and the lowest member (the toe) has nothing in front of it. Going from the top block down to
-the toe, block n receives the force P_n from the block above and needs
+A group admits block toppling when its members form a **row** of columns on one stepped base
+(`row_geometry`, docs/kgm/footwall.md §6): every member rests on its own base (a face of
+contacts with the stable rock on which its active force presses; neighbours' bases within
+`ROW_BASE_ANGLE`), each pushes on the next one downslope through an interface (a face shared by
+the two, across both bases, facing downslope for both) that rises from its pivot, and the
+lowest member (the toe) has nothing, rock or member, in front of it; and its mechanism at limit
+equilibrium does not cut into the blocks around it (`toppling_check`). A face slab lying on its
+bedding and pushing a toe block that rests on another joint is a two-block sliding mechanism,
+not a row. Going from the top block down to the toe, block n receives the force P_n from the
+block above and needs
 
 * P_{n-1,t} from the block below to hold it against toppling about the downslope end of its
   base (moment equilibrium about that corner, Goodman & Bray eq. 11 / Wyllie & Mah eq. 10.9):
