@@ -173,6 +173,22 @@ def test_sarma_equals_the_closed_form_over_geometries(case, options):
     assert evaluate_sarma(system, PAIR).fs == pytest.approx(expected, rel=1e-6)
 
 
+def test_the_scan_fallback_finds_the_root_beside_the_pole(monkeypatch):
+    """Where the eigenvalue form does not apply (Barton–Bandis faces, an indeterminate
+    mechanism) K is scanned, and refined around the near-singular points of the system: with
+    the eigenvalue form switched off, the bilinear root beside its pole is still found (FS and
+    critical friction angle of the closed form)."""
+    from kgm import evaluators as ev_mod
+
+    _, system = _system("bilinear")
+    exact = evaluate_sarma(system, PAIR)
+    monkeypatch.setattr(ev_mod, "_pencil_roots", lambda *a, **k: None)
+    scanned = evaluate_sarma(system, PAIR)
+    assert scanned.mode.kind == ModeKind.SARMA
+    assert scanned.fs == pytest.approx(fw.closed_form_fs("bilinear"), rel=1e-9)
+    assert scanned.mode.critical_friction == pytest.approx(exact.mode.critical_friction, abs=1e-9)
+
+
 def test_a_mechanism_with_no_admissible_root_is_reported():
     """With c = 1 GPa the bilinear pair holds beyond F = 1000: K(F) has a root only where J1
     would pull (tension), so the mechanism is dropped and the evaluation says why, naming the
