@@ -1,11 +1,15 @@
-"""The paper's two examples under the three evaluators, in the paper's table layout.
+"""The paper's two examples and the footwall cases under the three evaluators, side by side.
 
-    python benchmarks/kgm_examples.py [--no-dda] [--gif DIR]
+    python benchmarks/kgm_examples.py [--no-dda] [--gif DIR] [--only paper|footwall]
 
 For each example: the critical key group found by the Sarma-KGM search, then its factor of
 safety, critical friction angle and verdict with the rigid (KGM), Sarma (SKGM) and DDA
 (developed method) evaluators, the DDA runs and their wall time, and the per-step time of the
 DDA sub-model against the whole slope. Prints Markdown (the README's tables).
+
+The footwall cases (`scenes/footwall.py`, docs/kgm/footwall.md): planar slab sliding,
+ploughing and bilinear slab failure, each with its closed-form factor of safety (computed by
+hand from the geometry, eqs. F1–F8) beside the rigid, Sarma and DDA evaluators of the group.
 
 ``--gif DIR`` also draws the DDA run of each paper example's key group at the scene's strength
 (``DIR/example_1.gif``, ``DIR/example_2.gif``; the README's are ``--gif docs/kgm``), titled
@@ -14,6 +18,7 @@ that the README's tables and pictures come from one run of this script.
 """
 
 import argparse
+import math
 import platform
 import sys
 import time
@@ -22,19 +27,28 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository root: scenes/
 import kgm  # noqa: E402
 from ddatai.io.scenefile import build_scene  # noqa: E402
-from scenes import example_1, example_2, kgm_slope  # noqa: E402
+from scenes import example_1, example_2, footwall, kgm_slope  # noqa: E402
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--no-dda", action="store_true", help="limit equilibrium only")
     ap.add_argument("--gif", metavar="DIR", help="also write DIR/example_1.gif and DIR/example_2.gif")
+    ap.add_argument("--only", choices=("paper", "footwall"), help="only the paper's examples or the footwall cases")
     args = ap.parse_args()
     if args.gif and args.no_dda:
         ap.error("--gif draws the DDA runs: it cannot be combined with --no-dda")
     methods = ("rigid", "sarma") if args.no_dda else ("rigid", "sarma", "dda")
-    settings = kgm.Settings(dda=kgm.DdaSettings(compare_whole=True))
     print(f"machine: {platform.processor() or platform.machine()}, Python {platform.python_version()}\n")
+    if args.only != "footwall":
+        paper_examples(methods, args, kgm.Settings(dda=kgm.DdaSettings(compare_whole=True)))
+    if args.only != "paper":
+        footwall_cases(methods)
+
+
+def paper_examples(methods, args, settings) -> None:
+    """The seed paper's examples and the jointed slope: the critical group of the Sarma search
+    under each evaluator, in the paper's table layout."""
     gifs = {"Example I": "example_1.gif", "Example II": "example_2.gif"}
     for name, mod in (("Example I", example_1), ("Example II", example_2), ("jointed slope", kgm_slope)):
         scene, params = build_scene(mod)  # the loader of ddatai run and kgm analyze
@@ -61,6 +75,42 @@ def main() -> None:
                 write_dda_gif(path, scene, params, group, rows[-1], settings)
                 print(f"\nwrote {path}")
         print()
+
+
+def footwall_cases(methods) -> None:
+    """Each footwall case: its closed form (F1, or the two-block root F3–F7; the rigid F8) and
+    the factor of safety and critical friction of the rigid, Sarma and DDA evaluators of its
+    group, with the governing limit-equilibrium mode; then the DDA runs and their time."""
+    names = {"rigid": "rigid (KGM)", "sarma": "Sarma (SKGM)", "dda": "DDA (strength reduction)"}
+    print("**Footwall slopes** (scenes/footwall.py, docs/kgm/footwall.md): factor of safety (critical "
+          "friction angle)\n")
+    head = "| case | closed form | " + " | ".join(names[m] for m in methods) + " | governing mode (Sarma) |"
+    print(head)
+    print("|" + "---|" * (head.count("|") - 1))
+    notes = []
+    for case in footwall.CASES:
+        scene, params = footwall.build(case)
+        group = [footwall.SLAB] if case == "planar" else [footwall.P, footwall.A]
+        closed = footwall.closed_form_fs(case)
+        rigid_closed = footwall.rigid_fs(case)
+        cells, gov = [], ""
+        for m in methods:
+            t0 = time.perf_counter()
+            g = kgm.evaluate(scene, group, m, params=params)
+            wall = time.perf_counter() - t0
+            fs = "no mode (inf)" if math.isinf(g.fs) else f"{g.fs:.4f} ({g.critical_friction:.2f}°)"
+            cells.append(fs)
+            if m == "sarma":
+                gov = g.mode.kind.value
+            if m == "dda":
+                notes.append(f"{case}: DDA {len(g.dda.runs)} runs, {sum(r.steps for r in g.dda.runs)} steps, "
+                             f"{wall:.1f} s; FS {100 * (g.fs / closed - 1):+.1f} % of the closed form")
+        ref = f"{closed:.4f}" + ("" if rigid_closed == closed else
+                                 f" (rigid {'inf' if math.isinf(rigid_closed) else f'{rigid_closed:.4f}'})")
+        print(f"| {case} | {ref} | " + " | ".join(cells) + f" | {gov} |")
+    for line in notes:
+        print(f"\n{line}")
+    print()
 
 
 def write_dda_gif(path: Path, scene, params, group, row, settings) -> None:

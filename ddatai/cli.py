@@ -348,13 +348,12 @@ def _guarded(args: argparse.Namespace, run: Callable[[], int], prog: str = "ddat
 
 
 def _allow_any_size(args) -> None:
-    """``--force``: the scene's cuts build any number of blocks (`ddatai.geometry.MAX_BLOCKS_ENV`;
+    """``--force``: the scene's cuts build any number of blocks (`ddatai.cutting.MAX_BLOCKS_ENV`;
     the scene script's ``build`` cannot be given an argument it does not take)."""
     if getattr(args, "force", False):
         import os
 
-        from .geometry import MAX_BLOCKS_ENV
-
+        from .cutting import MAX_BLOCKS_ENV
         os.environ[MAX_BLOCKS_ENV] = "inf"
 
 

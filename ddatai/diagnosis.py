@@ -42,7 +42,7 @@ def unit_causes(model: Model) -> str:
     the likely cause of a failure; empty if none does."""
     m, p = model, model.params
     values = [("Material", "density", float(d)) for d in np.unique(m.block_density)]
-    if p.penalty is None:  # the automatic penalty comes from the largest Young's modulus
+    if p.penalty is None:  # the automatic penalty comes from the free blocks' largest Young's modulus
         values.append(("Material", "young", m.penalty / p.penalty_ratio))
     values += [("Joint", name, float(v)) for name, arr in (("friction", m.joint_friction),
                                                            ("cohesion", m.joint_cohesion),

@@ -103,7 +103,6 @@ def joint_sets(boundary, sets: Sequence[JointSet], seed: int = 0) -> list[tuple[
     import shapely
 
     from .geometry import validate_polygon
-
     outline = validate_polygon(boundary, name="joint_sets boundary")
     domain = shapely.Polygon(outline)
     if not sets:

@@ -363,12 +363,12 @@ def build_model(scene: Scene, params: Optional[Params] = None) -> Model:
     d0 = 2.5 * max_step
     d9 = max(0.3 * d0, 3.0 * params.penetration_ratio * w0)
     d0 = max(d0, d9)
-    free_young = np.array([s.material.young for s in specs], dtype=float)
+    young = np.array([s.material.young for s in specs], dtype=float)
     loads = loads_at_start(scene)
     column = column_load(xy0, offset, fixed, density, areas, scene.gravity, loads)
-    check_strain(specs, fixed, column, vel, density, free_young)
+    check_strain(specs, fixed, column, vel, density, young)
     penalty = params.penalty if params.penalty is not None else \
-        automatic_penalty(params, free_young, fixed, column, vel, density, areas, xy0, offset,
+        automatic_penalty(params, young, fixed, column, vel, density, areas, xy0, offset,
                            2.5 * params.penetration_ratio * w0)
 
     return Model(
@@ -424,5 +424,4 @@ def _support_arrays(scene: Scene, xy0: np.ndarray, offset: np.ndarray, origin: n
 def _check_overlaps(scene: Scene) -> None:
     """Raise ValueError naming the first pair of blocks whose interiors overlap."""
     from .geometry import check_overlaps
-
     check_overlaps(scene)

@@ -109,14 +109,19 @@ def check_strain(specs, fixed, column, vel, density, young) -> None:
 
 def automatic_penalty(params, young, fixed, column, vel, density, areas, xy0, offset, limit) -> float:
     """The automatic contact penalty (docs/method/limits.md): ``penalty_ratio`` × the largest
-    Young's modulus, raised where the model's loads would push the contacts too deep for it —
-    the static penetration σ·size/p of the most loaded block within STATIC_PENETRATION_SHARE of
-    the penetration limit, and the penetration v·√(m/p) of an impact at a block's initial speed
-    within IMPACT_PENETRATION_SHARE of it."""
+    Young's modulus of the free blocks, raised where the model's loads would push the contacts
+    too deep for it — the static penetration σ·size/p of the most loaded block within
+    STATIC_PENETRATION_SHARE of the penetration limit, and the penetration v·√(m/p) of an
+    impact at a block's initial speed within IMPACT_PENETRATION_SHARE of it.
+
+    Fixed blocks do not set it: their deformation is not modelled (no degrees of freedom), so
+    their modulus says nothing about the stiffness the contacts must match. Soft blocks
+    (0.3 GPa) on a steel plate (200 GPa) would otherwise get springs 670× stiffer than their
+    own, and a falling pile of them cut its time step to 1e-4 s and below."""
     free = ~fixed
-    p = params.penalty_ratio * float(np.max(young))
     if not free.any():
-        return p
+        return params.penalty_ratio * float(np.max(young))
+    p = params.penalty_ratio * float(np.max(young[free]))
     size = np.sqrt(areas)
     static = float(np.max((column * size)[free])) / (STATIC_PENETRATION_SHARE * limit)
     centroid = np.add.reduceat(xy0, offset[:-1]) / np.diff(offset)[:, None]

@@ -176,9 +176,10 @@ class Params:
 
     penalty: Optional[float] = None
     """Normal contact spring p [N/m per m thickness = Pa]. ``None``: ``penalty_ratio`` × the
-    largest Young's modulus of the model."""
+    largest Young's modulus of the free blocks (fixed blocks do not deform in the model, so
+    their modulus does not set it)."""
     penalty_ratio: float = 50.0
-    """Automatic penalty as a multiple of the largest Young's modulus [-] (ntdda: 50)."""
+    """Automatic penalty as a multiple of the free blocks' largest Young's modulus [-] (ntdda: 50)."""
     shear_ratio: float = 2.5
     """h2: normal / shear contact spring ratio [-]; the shear spring is p/h2 (Shi: 2.5)."""
     fixed_point_ratio: float = 100.0

@@ -13,7 +13,7 @@ from typing import Callable, Optional, Sequence, Union
 
 import numpy as np
 
-from .geometry import cut as _cut_domain
+from .cutting import cut as _cut_domain
 from .geometry import validate_polygon
 from .params import Joint, Material
 
@@ -132,7 +132,8 @@ class Scene:
             raise ValueError(f"{name}: stress must be a finite (σx, σy, τxy) triple, got {stress!r}")
 
     def cut(self, boundary, joints: Sequence, material: Material, *, fixed: bool = False,
-            max_blocks: Optional[float] = None, slivers: str = "warn") -> list[int]:
+            max_blocks: Optional[float] = None, slivers: str = "warn",
+            snap_ends: Optional[float] = None) -> list[int]:
         """Cut the domain polygon ``boundary`` by joint traces and add the resulting blocks.
 
         ``joints`` is a list of ``(polyline, Joint)``: each polyline (k >= 2 points) is a
@@ -140,10 +141,14 @@ class Scene:
         dropped. Every block edge remembers the joint it lies on, and contacts along that edge
         use that joint's properties. Returns the ids of the new blocks (ordered by centroid,
         bottom to top, then left to right). A cut that would make more blocks than the machine
-        can simulate is refused before cutting (`ddatai.geometry.ModelSizeError`, with the
-        estimate; ``max_blocks`` sets the limit, inf: none; `ddatai.geometry.cut`). Sliver
+        can simulate is refused before cutting (`ddatai.cutting.ModelSizeError`, with the
+        estimate; ``max_blocks`` sets the limit, inf: none; `ddatai.cutting.cut`). Sliver
         blocks (≥ 50:1, or < 1e-4 of the median block) are reported (``slivers="warn"``, a
-        `ddatai.geometry.SliverWarning`) or merged into a neighbour (``slivers="merge"``).
+        `ddatai.cutting.SliverWarning`) or merged into a neighbour (``slivers="merge"``).
+        A trace end that stops at most ``snap_ends`` [m] short of another trace or of the
+        boundary (default 1e-6 × the boundary's size: coordinates typed to six decimals) is
+        extended onto it; one short by more, up to 1e-5 × the size, is warned about
+        (`ddatai.cutting.TraceGapWarning`, with the trace, the gap and what to do).
         """
         if not isinstance(material, Material):
             raise ValueError(f"cut: material must be a ddatai.Material, got {type(material).__name__}")
@@ -157,7 +162,7 @@ class Scene:
                 raise ValueError(f"joint {k}: expected a ddatai.Joint, got {type(jt).__name__}")
             traces.append(trace)
             jts.append(jt)
-        pieces = _cut_domain(boundary, traces, max_blocks=max_blocks, slivers=slivers)
+        pieces = _cut_domain(boundary, traces, max_blocks=max_blocks, slivers=slivers, snap_ends=snap_ends)
         # one joint-table entry per distinct Joint value
         table_index = {}
         for jt in jts:

@@ -27,7 +27,6 @@ from typing import Iterable, Optional
 import numpy as np
 
 from ddatai.geometry import check_overlaps, polygon_integrals
-
 #: Two directions closer than this are the same face direction [rad]. Cut blocks have edges
 #: parallel to ~1e-12 rad; hand-built scenes to the precision of their coordinates.
 ANGLE_TOL = 1e-6
@@ -662,7 +661,8 @@ class Mode:
     forces), top block first."""
 
 
-def rigid_modes(system: BlockSystem, blocks: frozenset, removed: frozenset = frozenset()) -> list[Mode]:
+def rigid_modes(system: BlockSystem, blocks: frozenset, removed: frozenset = frozenset(),
+                rejected: Optional[list] = None) -> list[Mode]:
     """Admissible modes of the group glued into one rigid body under its resultant
     (docs/kgm/method.md §2.4 and §4; the original KGM evaluator).
 
@@ -674,7 +674,9 @@ def rigid_modes(system: BlockSystem, blocks: frozenset, removed: frozenset = fro
       penetrate and the moment of r about V drives it (§4.5): FS = 0, as faces that open carry
       no tension.
 
-    Returns every admissible mode (an empty list: no mode, the group is stable by geometry).
+    Returns every admissible mode (an empty list: no mode, the group is stable by geometry);
+    ``rejected``, a list, receives one line saying why the faces and pivots tried are not
+    admissible.
     """
     faces = group_faces(system, blocks, removed)
     members = np.array(sorted(blocks))
@@ -705,18 +707,25 @@ def rigid_modes(system: BlockSystem, blocks: frozenset, removed: frozenset = fro
                           sliding_contacts=k, direction=r / rnorm))
         return modes
     # faces: contacts grouped by normal direction (parallel faces slide together, §2.4 item 2)
+    not_pressed, cut_in = 0, []
     for face in _parallel_sets(n):
         ni = n[face[0]]
         normal_force = -float(r @ ni)
         if normal_force <= ANGLE_TOL * rnorm:
+            not_pressed += 1
             continue
         s = r + normal_force * ni
         snorm = float(np.hypot(*s))
         if snorm <= ANGLE_TOL * rnorm:
+            not_pressed += 1
             continue  # r is normal to the face: no driving shear
         s /= snorm
         others = np.setdiff1d(np.arange(len(idx)), face)
-        if np.any(n[others] @ s < -ANGLE_TOL):
+        into = others[n[others] @ s < -ANGLE_TOL]
+        if len(into):
+            dip = math.degrees(math.atan2(-ni[0], ni[1]))  # the face's dip, + toward +x
+            cut_in.append(f"on the face dipping {abs(dip):.0f}° would cut into block "
+                          f"{int(faces.boundary_other[into[0]])}")
             continue
         k = idx[face]
         # B2: the passive force's normal part presses the face (N' grows by −P·n), its part
@@ -734,6 +743,13 @@ def rigid_modes(system: BlockSystem, blocks: frozenset, removed: frozenset = fro
         pivot, fs_rot = found
         modes.append(Mode(kind=ModeKind.ROTATION, fs=fs_rot, critical_friction=90.0 if fs_rot < 1.0 else 0.0,
                           sliding_contacts=np.zeros(0, np.int64), pivot=pivot))
+    if rejected is not None:
+        why = [f"sliding {c}" for c in cut_in]
+        if not_pressed:
+            why.append(f"{not_pressed} face(s) not pressed by the resultant")
+        if found is None:
+            why.append("no pivot about which it can rotate")
+        rejected.append(("rigid (one body): " if len(members) > 1 else "rigid: ") + "; ".join(why))
     return modes
 
 

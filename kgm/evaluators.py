@@ -40,7 +40,7 @@ from typing import Callable, Optional
 import numpy as np
 
 from .blocks import BlockSystem, Mode, ModeKind, _parallel_sets, group_faces, rigid_modes
-from .toppling import toppling_mode
+from .toppling import toppling_check
 
 #: Velocity tolerance of the mechanism checks, relative to the fastest member [-].
 VELOCITY_TOL = 1e-7
@@ -48,6 +48,11 @@ VELOCITY_TOL = 1e-7
 F_MIN, F_MAX = 1e-3, 1e3
 #: Largest friction angle tried in critical-friction searches [degrees].
 PHI_MAX = 89.9
+#: Points of the root scan where the pencil of `_pencil_roots` does not apply, over the
+#: bracket and around each near-singular point of the equilibrium [-].
+SCAN_SAMPLES, POLE_SAMPLES = 48, 32
+#: |K| at an accepted root [g]: a crossing with a larger |K| is a pole or a 0/0 point.
+ROOT_K_TOL = 1e-6
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -60,39 +65,61 @@ class Evaluation:
     """The governing mode (least safe)."""
     modes: tuple
     """All admissible modes found, least safe first."""
+    rejected: tuple = ()
+    """Why the modes the evaluator looked for and did not keep are not admissible: one line
+    each (a rigid face that would cut into a neighbour, a Sarma mechanism with no root of
+    K(F) whose forces are compressive, a group that is not a toppling row, ...)."""
 
 
-def _governing(modes: list[Mode]) -> Evaluation:
-    modes = sorted(modes, key=lambda m: (m.fs, -m.critical_friction))
+#: Order of mode kinds among modes of equal FS: the simplest mechanism governs a tie (a group
+#: sliding on one plane is a rigid slide and a Sarma mechanism with no shear at once).
+_KIND_RANK = {ModeKind.LIFTING: 0, ModeKind.SLIDING: 1, ModeKind.ROTATION: 2, ModeKind.SARMA: 3,
+              ModeKind.TOPPLING: 4, ModeKind.NONE: 5}
+
+
+def _governing(modes: list[Mode], rejected: list[str] = ()) -> Evaluation:
+    # equal to 9 significant digits is a tie (one plane reached by two evaluators differs by
+    # round-off); then the larger critical friction, then the simpler mode
+    modes = sorted(modes, key=lambda m: (float(f"{m.fs:.9g}"), -float(f"{m.critical_friction:.9g}"),
+                                         _KIND_RANK.get(m.kind, 9)))
     if not modes:
         none = Mode(kind=ModeKind.NONE, fs=math.inf, critical_friction=0.0,
                     sliding_contacts=np.zeros(0, dtype=np.int64))
-        return Evaluation(fs=math.inf, mode=none, modes=())
-    return Evaluation(fs=modes[0].fs, mode=modes[0], modes=tuple(modes))
+        return Evaluation(fs=math.inf, mode=none, modes=(), rejected=tuple(rejected))
+    return Evaluation(fs=modes[0].fs, mode=modes[0], modes=tuple(modes), rejected=tuple(rejected))
 
 
-def _with_toppling(system: BlockSystem, blocks: frozenset, removed: frozenset, modes: list[Mode]) -> list[Mode]:
+def _with_toppling(system: BlockSystem, blocks: frozenset, removed: frozenset, modes: list[Mode],
+                   rejected: list[str]) -> list[Mode]:
     """The modes plus the group's block-toppling mode where its geometry admits one (a row of
-    two or more blocks; a single block's toppling is the rigid rotation, §4.5)."""
+    two or more blocks; a single block's toppling is the rigid rotation, §4.5); why not in
+    ``rejected`` otherwise."""
     if len(blocks) > 1 and not any(m.fs == 0.0 for m in modes):
-        mode = toppling_mode(system, blocks, removed)
+        mode, why = toppling_check(system, blocks, removed)
         if mode is not None:
             modes = modes + [mode]
+        else:
+            rejected.append(f"toppling: {why}")
     return modes
 
 
 def evaluate_rigid(system: BlockSystem, blocks: frozenset, removed: frozenset = frozenset()) -> Evaluation:
     """KGM: the group as one rigid body (docs/kgm/method.md §4), and its block toppling."""
-    return _governing(_with_toppling(system, blocks, removed, rigid_modes(system, blocks, removed)))
+    rejected: list[str] = []
+    modes = rigid_modes(system, blocks, removed, rejected=rejected)
+    return _governing(_with_toppling(system, blocks, removed, modes, rejected), rejected)
 
 
 def evaluate_sarma(system: BlockSystem, blocks: frozenset, removed: frozenset = frozenset()) -> Evaluation:
     """SKGM: least safe of the rigid modes, the Sarma mechanisms (docs/kgm/method.md §5.3) and
     block toppling."""
-    modes = rigid_modes(system, blocks, removed)
+    rejected: list[str] = []
+    modes = rigid_modes(system, blocks, removed, rejected=rejected)
     if len(blocks) > 1 and not any(m.fs == 0.0 for m in modes):
-        modes += sarma_modes(system, blocks, removed)
-    return _governing(_with_toppling(system, blocks, removed, modes))
+        found, why = sarma_checks(system, blocks, removed)
+        modes += found
+        rejected += why
+    return _governing(_with_toppling(system, blocks, removed, modes, rejected), rejected)
 
 
 def critical_friction_of(evaluation: Evaluation) -> float:
@@ -118,6 +145,7 @@ class _Faces:
     tan_at: Optional[Callable[[np.ndarray], np.ndarray]] = None
     # Barton–Bandis faces: (f,) normal forces [N/m] -> each face's tanφ at σn = N/L (eq. BB4);
     # None when every face is Mohr–Coulomb
+    members: tuple = ()    # block id of each member position (for messages)
 
 
 def _merge_faces(system: BlockSystem, members: list[int], removed: frozenset) -> _Faces:
@@ -156,7 +184,7 @@ def _merge_faces(system: BlockSystem, members: list[int], removed: frozenset) ->
                   b=np.array([e[1] for e in entries], dtype=np.int64),
                   normal=normal, tangent=np.stack([normal[:, 1], -normal[:, 0]], axis=1) if f else normal,
                   cl=cl, length=length, tan_phi=tan_phi, contacts=tuple(e[2] for e in entries),
-                  tan_at=tan_at)
+                  tan_at=tan_at, members=tuple(members))
 
 
 def _pos_of(blocks: np.ndarray, pos: dict) -> np.ndarray:
@@ -267,12 +295,15 @@ class _Statics:
     k: float               # horizontal acceleration K [g] toward the motion
     admissible: bool       # N >= 0 everywhere, unslipped shear within its limit
     normal: np.ndarray     # (f,) normal force of each face [N/m] (0 on open faces)
+    why: str = ""          # what is not admissible (tension on a face, shear beyond its limit)
 
 
-def _statics(mech: _Mechanism, faces: _Faces, force: np.ndarray, weight: np.ndarray,
-             reduction: float, tan_phi: np.ndarray, check: bool = True) -> Optional[_Statics]:
-    """Forces of the mechanism at the strength (c/F, tanφ/F) and the K that balances them;
-    ``check`` also decides whether the forces are admissible (root searches need only K)."""
+def _system(mech: _Mechanism, faces: _Faces, force: np.ndarray, weight: np.ndarray,
+            reduction: float, tan_phi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The mechanism's equilibrium m·[N, S, K] = rhs at the strength (c/F, tanφ/F): 2n rows
+    (the members' force balance), one column per closed face's normal force, one per
+    unslipped face's shear, and K last. Every entry is affine in 1/F and in tanφ (F = inf
+    gives the frictionless, cohesionless system). Returns (m, rhs, closed, stuck)."""
     n = len(weight)
     closed = np.flatnonzero(mech.closed)
     stuck = closed[mech.slip_sign[closed] == 0]
@@ -301,6 +332,16 @@ def _statics(mech: _Mechanism, faces: _Faces, force: np.ndarray, weight: np.ndar
             m[2 * b:2 * b + 2, col] -= faces.tangent[k]
     for i in range(n):
         m[2 * i:2 * i + 2, -1] = weight[i] * e
+    return m, rhs, closed, stuck
+
+
+def _statics(mech: _Mechanism, faces: _Faces, force: np.ndarray, weight: np.ndarray,
+             reduction: float, tan_phi: np.ndarray, check: bool = True) -> Optional[_Statics]:
+    """Forces of the mechanism at the strength (c/F, tanφ/F) and the K that balances them;
+    ``check`` also decides whether the forces are admissible (root searches need only K)."""
+    m, rhs, closed, stuck = _system(mech, faces, force, weight, reduction, tan_phi)
+    cols = m.shape[1]
+    tphi = tan_phi / reduction
     scale = np.maximum(np.abs(m).max(axis=0), 1e-300)
     sol, *_ = np.linalg.lstsq(m / scale, rhs, rcond=None)
     sol = sol / scale
@@ -309,24 +350,24 @@ def _statics(mech: _Mechanism, faces: _Faces, force: np.ndarray, weight: np.ndar
     if not check:
         normal = np.zeros(len(faces.a))
         normal[closed] = sol[:len(closed)]
-        return _Statics(k=float(sol[-1]), admissible=False, normal=normal)
+        return _Statics(k=float(sol[-1]), admissible=False, normal=normal, why="not checked")
     # K must not depend on the redundant (statically indeterminate) forces
     _, sv, vh = np.linalg.svd(m / scale)
     rank = int(np.sum(sv > 1e-10 * sv[0]))
     if rank < cols and np.any(np.abs(vh[rank:, -1]) > 1e-8):
         return None
     tol = 1e-9 * float(weight.sum())
-    ok = _forces_admissible(sol, closed, stuck, faces, tphi, reduction, tol)
+    ok, why = _forces_admissible(sol, closed, stuck, faces, tphi, reduction, tol)
     if not ok and rank < cols:
         # statically indeterminate (e.g. members sliding together on one plane): the
         # minimum-norm forces may pull on a face while another distribution does not; look
         # for any admissible one (a small linear feasibility problem)
         alt = _admissible_forces(m, rhs, closed, stuck, faces, tphi, reduction)
         if alt is not None:
-            sol, ok = alt, True
+            sol, ok, why = alt, True, ""
     normal = np.zeros(len(faces.a))
     normal[closed] = sol[:len(closed)]
-    return _Statics(k=float(sol[-1]), admissible=ok, normal=normal)
+    return _Statics(k=float(sol[-1]), admissible=ok, normal=normal, why=why)
 
 
 def _statics_at(mech: _Mechanism, faces: _Faces, force: np.ndarray, weight: np.ndarray,
@@ -352,17 +393,28 @@ def _statics_at(mech: _Mechanism, faces: _Faces, force: np.ndarray, weight: np.n
     return _statics(mech, faces, force, weight, reduction, tan_phi, check=check)
 
 
-def _forces_admissible(sol, closed, stuck, faces, tphi, reduction, tol) -> bool:
-    """No tension on a closed face; unslipped shear within its Mohr–Coulomb limit (§5.2)."""
+def _forces_admissible(sol, closed, stuck, faces, tphi, reduction, tol) -> tuple[bool, str]:
+    """No tension on a closed face; unslipped shear within its Mohr–Coulomb limit (§5.2).
+    Returns (admissible, what is not: the face and its force)."""
     normal = sol[:len(closed)]
     if np.any(normal < -tol):
-        return False
+        i = int(np.argmin(normal))
+        return False, f"tension {normal[i] / 1e3:.3g} kN/m on {_face_name(faces, int(closed[i]))}"
     pos = {int(k): i for i, k in enumerate(closed)}
     for j, k in enumerate(stuck):
         limit = faces.cl[k] / reduction + max(normal[pos[int(k)]], 0.0) * tphi[k]
         if abs(sol[len(closed) + j]) > limit * (1 + 1e-9) + tol:
-            return False
-    return True
+            return False, f"shear beyond its strength on {_face_name(faces, int(k))}"
+    return True, ""
+
+
+def _face_name(faces: _Faces, k: int) -> str:
+    """'the face of block a on the stable rock' / 'the joint between blocks a and b'."""
+    def name(i: int) -> str:
+        return f"block {faces.members[i]}" if faces.members else f"member {i}"
+    if faces.b[k] < 0:
+        return f"the face of {name(faces.a[k])} on the stable rock"
+    return f"the joint between {name(faces.a[k])} and {name(faces.b[k])}"
 
 
 def _admissible_forces(m, rhs, closed, stuck, faces, tphi, reduction) -> Optional[np.ndarray]:
@@ -411,42 +463,129 @@ def _root(fn: Callable[[float], float], lo: float, hi: float, tol: float) -> flo
     return 0.5 * (lo + hi) if fx != 0 else x
 
 
-def _admissible_root(fn: Callable[[float], float], admissible: Callable[[float], bool], lo: float,
-                     hi: float, *, increasing: bool = False, samples: int = 48) -> Optional[float]:
-    """Root of fn on [lo, hi] where the mechanism's forces are admissible: the sign changes of
-    fn on a uniform grid, each refined by `_root`, the first admissible one kept. fn falls
-    through the root (increasing=False, K against log F) or rises (K against tanφ)."""
-    x = np.linspace(lo, hi, samples + 1)
-    f = np.array([fn(v) for v in x])
-    for i in range(samples):
-        a, b = f[i], f[i + 1]
+def _pencil_roots(affine: Callable[[float], tuple], lo: float, hi: float) -> Optional[list[float]]:
+    """Every x in [lo, hi] at which the mechanism balances without an inertia force (K = 0),
+    when its equilibrium m(x)·[N, S, K] = rhs(x) is square and affine in x (Mohr–Coulomb faces:
+    x = 1/F or tanφ, `_system`); None otherwise.
+
+    By Cramer's rule K(x) = det[m_f(x) | rhs(x)] / det m(x) (m_f: m without K's column). The
+    numerator is continuous in x (a polynomial), and its zeros are the roots of K; the zeros
+    of the denominator are poles, where K jumps through infinity and changes sign without a
+    root. det(P + x·Q) = 0 with P = [m_f | rhs](0) and Q = [m_f | rhs](1) − P is a generalised
+    eigenvalue problem: its finite real eigenvalues are all the roots at once, none stepped
+    over however close it lies to a pole (docs/kgm/footwall.md §5)."""
+    m0, r0 = affine(0.0)
+    m1, r1 = affine(1.0)
+    mh, rh = affine(0.5)
+    if m0.shape[0] != m0.shape[1]:
+        return None  # redundant (statically indeterminate) or overdetermined: scan instead
+    p = np.column_stack([m0[:, :-1], r0])
+    q = np.column_stack([m1[:, :-1], r1]) - p
+    half = np.column_stack([mh[:, :-1], rh])
+    size = max(float(np.abs(p).max()), float(np.abs(q).max()), 1e-300)
+    if np.abs(half - (p + 0.5 * q)).max() > 1e-9 * size:
+        return None  # not affine in x
+    scale = np.maximum(np.maximum(np.abs(p).max(axis=0), np.abs(q).max(axis=0)), 1e-300)
+    p, q = p / scale, q / scale
+    # a singular pencil (det ≡ 0 for every x) has no isolated roots: scan instead
+    probes = (lo, 0.5 * (lo + hi), hi, 0.37 * lo + 0.63 * hi)
+    hadamard = [float(np.prod(np.linalg.norm(p + x * q, axis=0))) for x in probes]
+    if all(abs(np.linalg.det(p + x * q)) <= 1e-12 * max(h, 1e-300) for x, h in zip(probes, hadamard)):
+        return None
+    from scipy.linalg import eigvals
+
+    with np.errstate(all="ignore"):
+        w = eigvals(p, -q)
+    real = w[np.isfinite(w) & (np.abs(w.imag) <= 1e-9 * np.maximum(1.0, np.abs(w)))].real
+    return sorted(float(x) for x in real if lo <= x <= hi)
+
+
+def _scan_roots(k_of: Callable[[float], float], sigma_of: Callable[[float], float], lo: float, hi: float,
+                *, falling: bool) -> list[float]:
+    """Roots of K(u) on [lo, hi] where the pencil does not apply (Barton–Bandis faces, a
+    statically indeterminate mechanism): the sign changes of K on SCAN_SAMPLES points, and on
+    POLE_SAMPLES more points around each point where the equilibrium is closest to singular
+    (a local minimum of ``sigma_of``, the smallest singular value of the scaled system): a
+    pole of K sits there, and a root beside it crosses zero between two coarse points that
+    both see the same sign. Each sign change in the mechanism's direction is refined by
+    `_root`; a pole found that way is rejected later (|K| is not small there)."""
+    u = np.linspace(lo, hi, SCAN_SAMPLES + 1)
+    sig = np.array([sigma_of(v) for v in u])
+    extra = []
+    for i in range(1, len(u) - 1):
+        if np.isfinite(sig[i]) and sig[i] <= sig[i - 1] and sig[i] <= sig[i + 1]:
+            extra.append(np.linspace(u[i - 1], u[i + 1], POLE_SAMPLES + 1))
+    pts = np.unique(np.concatenate([u] + extra))
+    k = np.array([k_of(v) for v in pts])
+    out = []
+    for i in range(len(pts) - 1):
+        a, b = k[i], k[i + 1]
         if not (np.isfinite(a) and np.isfinite(b)):
             continue
-        crosses = (a > 0 >= b) if not increasing else (a < 0 <= b)
-        if not crosses:
+        if (a > 0 >= b) if falling else (a < 0 <= b):
+            out.append(float(pts[i + 1]) if b == 0 else _root(k_of, float(pts[i]), float(pts[i + 1]), 1e-12))
+    return out
+
+
+def _first_limit(candidates: list[float], k_of: Callable[[float], float], admissible: Callable[[float], tuple],
+                 *, falling: bool, name: Callable[[float], str]) -> tuple[Optional[float], list[str]]:
+    """The least candidate u at which K crosses zero in the mechanism's direction (falls as F
+    grows, rises with φ) with admissible forces, and a note on each crossing rejected (its
+    forces: tension on a face, a shear beyond its strength). A candidate where K does not
+    cross (a pole, a touch, a removable singularity of K = 0/0) is no limit state."""
+    notes = []
+    for u in sorted(candidates):
+        d = 1e-7 * max(1.0, abs(u))
+        a, b, mid = k_of(u - d), k_of(u + d), k_of(u)
+        if not (np.isfinite(a) and np.isfinite(b) and np.isfinite(mid)) or abs(mid) > ROOT_K_TOL:
             continue
-        r = x[i + 1] if b == 0 else _root(fn, x[i], x[i + 1], 1e-12)
-        if admissible(r):
-            return r
-    return None
+        if not ((a > 0 > b) if falling else (a < 0 < b)):
+            continue
+        ok, why = admissible(u)
+        if ok:
+            return u, notes
+        notes.append(f"{name(u)}: {why}")
+    return None, notes
+
+
+def _sigma(m: np.ndarray) -> float:
+    """Smallest singular value of m with unit columns (0: singular, a pole of K)."""
+    scaled = m / np.maximum(np.linalg.norm(m, axis=0), 1e-300)
+    return float(np.linalg.svd(scaled, compute_uv=False)[-1])
 
 
 def sarma_modes(system: BlockSystem, blocks: frozenset, removed: frozenset = frozenset()) -> list[Mode]:
     """Admissible Sarma mechanisms of a group with their FS, K_c and critical friction angle.
 
-    FS: the F at which K(F) = 0 (Sarma 1979: reduce the strength until the critical
-    acceleration vanishes, §5.1–5.2); K_c = K(1). Critical friction: the φ of all joints
-    (cohesion held) at which K_c = 0, by bisection (§4.6). A mechanism whose forces are
-    inadmissible (tension on a face) at its solution is dropped (§5.2).
+    FS: the least F at which K(F) falls through 0 with admissible forces (Sarma 1979: reduce
+    the strength until the critical acceleration vanishes, §5.1–5.2); every root of K is
+    found (`_pencil_roots`; docs/kgm/footwall.md §5). K_c = K(1). Critical friction: the φ of
+    all joints (cohesion held) at which K_c = 0, the same way (§4.6). A mechanism with no
+    root whose forces are admissible (tension on a face) is dropped (§5.2); `sarma_checks`
+    says why.
     """
+    return sarma_checks(system, blocks, removed)[0]
+
+
+def sarma_checks(system: BlockSystem, blocks: frozenset, removed: frozenset = frozenset()
+                 ) -> tuple[list[Mode], list[str]]:
+    """`sarma_modes` and one line per mechanism it dropped, saying why (no root of K(F) in
+    [F_MIN, F_MAX], or the roots' forces are not admissible), or why the group has none."""
     members = sorted(blocks)
     n = len(members)
     faces = _merge_faces(system, members, removed)
     force = system.block_force[members]
     passive = system.block_passive[members] if system.block_passive is not None else None
     weight = system.block_mass[members] * system.gravity
-    modes = []
-    for mech in _mechanisms(faces, force, n):
+    modes, notes = [], []
+    mechanisms = _mechanisms(faces, force, n)
+    if not mechanisms:
+        notes.append("no Sarma mechanism: the members cannot move apart on their faces without cutting "
+                     "into a neighbour, or the active forces do not drive them")
+    lo, hi = math.log(F_MIN), math.log(F_MAX)
+    for mech in mechanisms:
+        label = _mechanism_label(mech, faces)
+
         def k_of_u(u, _m=mech):
             st = _statics_at(_m, faces, _loaded(force, passive, _m, math.exp(u)), weight, math.exp(u),
                              check=False)
@@ -454,21 +593,44 @@ def sarma_modes(system: BlockSystem, blocks: frozenset, removed: frozenset = fro
 
         def admissible_at_u(u, _m=mech):
             st = _statics_at(_m, faces, _loaded(force, passive, _m, math.exp(u)), weight, math.exp(u))
-            return st is not None and st.admissible
+            if st is None:
+                return False, "no force distribution balances it"
+            return st.admissible, st.why
+
+        def affine(x, _m=mech):  # x = 1/F
+            red = math.inf if x == 0 else 1.0 / x
+            m, rhs, _, _ = _system(_m, faces, _loaded(force, passive, _m, red), weight, red, faces.tan_phi)
+            return m, rhs
+
+        def sigma_of(u, _m=mech):
+            f = math.exp(u)
+            return _sigma(_system(_m, faces, _loaded(force, passive, _m, f), weight, f, faces.tan_phi)[0])
 
         # K(F) falls as F grows where the forces are admissible; outside that range (tension
-        # on a face) the linear solution means nothing, so scan log F for the sign changes and
-        # keep the root whose forces are admissible (§5.2)
-        u = _admissible_root(k_of_u, admissible_at_u, math.log(F_MIN), math.log(F_MAX))
+        # on a face) the linear solution means nothing: find every root, keep the least whose
+        # forces are admissible (§5.2)
+        roots = _pencil_roots(affine, 1.0 / F_MAX, 1.0 / F_MIN) if faces.tan_at is None else None
+        if roots is not None:
+            candidates = [-math.log(x) for x in roots if x > 0]
+        else:
+            candidates = _scan_roots(k_of_u, sigma_of, lo, hi, falling=True)
+        u, rejected = _first_limit(candidates, k_of_u, admissible_at_u, falling=True,
+                                   name=lambda v: f"F = {math.exp(v):.4g}")
         if u is not None:
             fs = math.exp(u)
-        elif k_of_u(math.log(F_MIN)) <= 0 and admissible_at_u(math.log(F_MIN)):
+        elif k_of_u(lo) <= 0 and admissible_at_u(lo)[0]:
             fs = 0.0  # fails even with a thousand times the strength
         else:
+            why = f"K(F) has no root for F in [{F_MIN:g}, {F_MAX:g}]"
+            if rejected:
+                why = f"no root of K(F) for F in [{F_MIN:g}, {F_MAX:g}] has admissible forces: " + "; ".join(rejected)
+            notes.append(f"Sarma mechanism {label}: {why}")
             continue
         kc = _statics_at(mech, faces, _loaded(force, passive, mech, 1.0), weight, 1.0, check=False)
         phi_c = _mechanism_critical_friction(mech, faces, _loaded(force, passive, mech, 1.0), weight)
         if phi_c is None:
+            notes.append(f"Sarma mechanism {label}: not admissible (no friction angle in [0°, {PHI_MAX}°] brings it "
+                         f"to limit equilibrium with admissible forces)")
             continue
         sliding = np.concatenate([faces.contacts[k] for k in np.flatnonzero(mech.closed & (faces.b < 0))]
                                  or [np.zeros(0, np.int64)])
@@ -480,7 +642,16 @@ def sarma_modes(system: BlockSystem, blocks: frozenset, removed: frozenset = fro
                           sliding_contacts=np.sort(sliding), sheared_contacts=np.sort(sheared),
                           block_velocity=vel,
                           critical_acceleration=(kc.k if kc is not None else math.nan)))
-    return modes
+    return modes, notes
+
+
+def _mechanism_label(mech: _Mechanism, faces: _Faces) -> str:
+    """'{0 → 0°, 1 ↓ 310°}'-like: each member and the direction it moves [degrees from +x]."""
+    parts = []
+    for i, b in enumerate(faces.members):
+        v = mech.velocity[2 * i:2 * i + 2]
+        parts.append(f"block {b} at {math.degrees(math.atan2(v[1], v[0])) % 360:.0f}°")
+    return "(" + ", ".join(parts) + ")"
 
 
 def _loaded(force: np.ndarray, passive: Optional[np.ndarray], mech: _Mechanism, reduction: float) -> np.ndarray:
@@ -499,20 +670,35 @@ def _loaded(force: np.ndarray, passive: Optional[np.ndarray], mech: _Mechanism, 
 
 def _mechanism_critical_friction(mech: _Mechanism, faces: _Faces, force: np.ndarray,
                                  weight: np.ndarray) -> Optional[float]:
-    """φ of all faces (cohesion held) with K(F = 1) = 0, by bisection on φ (§4.6)."""
+    """φ of all faces (cohesion held) with K(F = 1) = 0 (§4.6): the least φ at which K rises
+    through zero with admissible forces, every root found as for the FS (`_pencil_roots` in
+    x = tanφ, else `_scan_roots`)."""
+    def tan_of(phi: float) -> np.ndarray:
+        return np.full(len(faces.a), math.tan(math.radians(phi)))
+
     def k_of(phi: float) -> float:
-        tan_phi = np.full(len(faces.a), math.tan(math.radians(phi)))
-        st = _statics(mech, faces, force, weight, 1.0, tan_phi, check=False)
+        st = _statics(mech, faces, force, weight, 1.0, tan_of(phi), check=False)
         return math.nan if st is None else st.k
 
-    def admissible(phi: float) -> bool:
-        tan_phi = np.full(len(faces.a), math.tan(math.radians(phi)))
-        st = _statics(mech, faces, force, weight, 1.0, tan_phi)
-        return st is not None and st.admissible
+    def admissible(phi: float) -> tuple[bool, str]:
+        st = _statics(mech, faces, force, weight, 1.0, tan_of(phi))
+        return (False, "no force distribution balances it") if st is None else (st.admissible, st.why)
 
-    if k_of(0.0) >= 0 and admissible(0.0):
+    def affine(x: float):  # x = tanφ
+        m, rhs, _, _ = _system(mech, faces, force, weight, 1.0, np.full(len(faces.a), x))
+        return m, rhs
+
+    def sigma_of(phi: float) -> float:
+        return _sigma(_system(mech, faces, force, weight, 1.0, tan_of(phi))[0])
+
+    if k_of(0.0) >= 0 and admissible(0.0)[0]:
         return 0.0
-    phi = _admissible_root(k_of, admissible, 0.0, PHI_MAX, increasing=True)
+    roots = _pencil_roots(affine, 0.0, math.tan(math.radians(PHI_MAX)))
+    if roots is not None:
+        candidates = [math.degrees(math.atan(x)) for x in roots]
+    else:
+        candidates = _scan_roots(k_of, sigma_of, 0.0, PHI_MAX, falling=False)
+    phi, _ = _first_limit(candidates, k_of, admissible, falling=False, name=lambda v: f"φ = {v:.4g}°")
     if phi is None:
-        return 90.0 if k_of(PHI_MAX) < 0 and admissible(PHI_MAX) else None
+        return 90.0 if k_of(PHI_MAX) < 0 and admissible(PHI_MAX)[0] else None
     return float(phi)

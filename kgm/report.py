@@ -45,6 +45,12 @@ class GroupResult:
     beyond it) [N/m]; None: the scene has no bolts."""
     seismic: Optional[tuple] = None
     """Seismic coefficients (kh, kv) [-] of the analysis; None: none given."""
+    modes: tuple = ()
+    """Every admissible limit-equilibrium mode of the group, least safe first (the first
+    governs; for dda: the screening evaluator's)."""
+    rejected: tuple = ()
+    """Why the other modes the limit-equilibrium evaluator looked for are not admissible, one
+    line each (`kgm.evaluators.Evaluation.rejected`)."""
 
     @property
     def verdict(self) -> str:
@@ -60,6 +66,11 @@ class GroupResult:
     def critical_acceleration(self) -> Optional[float]:
         """Sarma's K_c of the governing mode [g], if the evaluator computed it."""
         return self.mode.critical_acceleration
+
+    def explain(self) -> str:
+        """Which mode governs and why: the governing mode, the other admissible ones (safer),
+        and why the modes not kept are not admissible (lines of `format_groups`)."""
+        return "\n".join(_explain_lines(self))
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -171,7 +182,31 @@ def format_groups(groups: Sequence[GroupResult]) -> str:
                     f"{_fmt(g.critical_acceleration):>8}{extra}  {g.mode.kind.value:<9} {g.verdict}")
         if g.mode.block_modes:
             rows.append(f"{'':>5}{_block_modes_line(g.mode.block_modes)}")
+        rows += [f"{'':>5}{line}" for line in _explain_lines(g)]
     return "\n".join(rows)
+
+
+#: Words for a mode in the tables.
+_MODE_WORDS = {"lifting": "lifting (the loads pull it off every contact)",
+               "sliding": "rigid sliding on one plane",
+               "rotation": "rigid rotation about a vertex",
+               "sarma": "Sarma mechanism (the blocks slide apart, shearing the joints between them)",
+               "toppling": "block toppling (Goodman–Bray row)",
+               "none": "no admissible mode (stable by geometry)"}
+
+
+def _explain_lines(g: GroupResult) -> list[str]:
+    """'governs: ...', 'also admissible: ...', 'not admissible: ...' lines of a group."""
+    lines = []
+    if g.mode.kind.value == "none":
+        lines.append(f"governs: {_MODE_WORDS['none']}")
+    else:
+        lines.append(f"governs: {_MODE_WORDS.get(g.mode.kind.value, g.mode.kind.value)}, FS {_fmt(g.mode.fs)}")
+    others = [m for m in g.modes if m is not g.mode]
+    if others:
+        lines.append("also admissible (safer): " + ", ".join(f"{m.kind.value} {_fmt(m.fs)}" for m in others))
+    lines += [f"not admissible: {why}" for why in g.rejected]
+    return lines
 
 
 def _block_modes_line(steps) -> str:

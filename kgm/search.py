@@ -192,7 +192,8 @@ def _le_result(system: BlockSystem, blocks: frozenset, ev: Evaluation, method: s
     return GroupResult(blocks=blocks, fs=ev.fs, critical_friction=critical_friction_of(ev),
                        stable=ev.fs >= settings.fs_target, mode=ev.mode,
                        surface=contact_polylines(system, ev.mode.sliding_contacts), evaluator=method,
-                       seed=seed, iteration=iteration, **_loads_of(system, blocks, ev))
+                       seed=seed, iteration=iteration, modes=ev.modes, rejected=ev.rejected,
+                       **_loads_of(system, blocks, ev))
 
 
 def _loads_of(system: BlockSystem, blocks: frozenset, ev: Evaluation) -> dict:
@@ -218,7 +219,7 @@ def _dda_result(scene, system: BlockSystem, le: GroupResult, settings: Settings,
     return GroupResult(blocks=le.blocks, fs=dres.fs, critical_friction=dres.critical_friction,
                        stable=dres.judgement.stable, mode=le.mode, surface=le.surface, evaluator="dda",
                        seed=le.seed, iteration=le.iteration, dda=dres, water_force=le.water_force,
-                       bolt_force=le.bolt_force, seismic=le.seismic)
+                       bolt_force=le.bolt_force, seismic=le.seismic, modes=le.modes, rejected=le.rejected)
 
 
 def _order(fs: float, blocks: frozenset) -> tuple:

@@ -1,11 +1,16 @@
 """Block toppling of a row of blocks: the Goodman & Bray (1976) limit-equilibrium recursion on
 the real polygons of a group (Hoek & Bray 1981, ch. 10; Wyllie & Mah 2004, §10.3).
 
-A group admits block toppling when its members form a **row**: every member rests on its own
-base (a face of contacts with the stable rock on which its active force presses), each pushes
-on the next one downslope through an interface (a face shared by the two, across the base),
-and the lowest member (the toe) has nothing in front of it. Going from the top block down to
-the toe, block n receives the force P_n from the block above and needs
+A group admits block toppling when its members form a **row** of columns on one stepped base
+(`row_geometry`, docs/kgm/footwall.md §6): every member rests on its own base (a face of
+contacts with the stable rock on which its active force presses; neighbours' bases within
+`ROW_BASE_ANGLE`), each pushes on the next one downslope through an interface (a face shared by
+the two, across both bases, facing downslope for both) that rises from its pivot, and the
+lowest member (the toe) has nothing, rock or member, in front of it; and its mechanism at limit
+equilibrium does not cut into the blocks around it (`toppling_check`). A face slab lying on its
+bedding and pushing a toe block that rests on another joint is a two-block sliding mechanism,
+not a row. Going from the top block down to the toe, block n receives the force P_n from the
+block above and needs
 
 * P_{n-1,t} from the block below to hold it against toppling about the downslope end of its
   base (moment equilibrium about that corner, Goodman & Bray eq. 11 / Wyllie & Mah eq. 10.9):
@@ -51,6 +56,13 @@ BASE_MIN_COS = 0.1
 #: Least |cos| between an interface normal and the base direction for the interface to be
 #: "across the base" (60° from the base normal) [-].
 INTERFACE_MIN_COS = 0.5
+#: Largest angle between the bases of two neighbouring columns of a row [degrees]: the
+#: columns stand on one (stepped) base; a toe block on a joint far steeper or flatter than the
+#: slab above it is a two-block sliding mechanism, not a toppling row.
+ROW_BASE_ANGLE = 30.0
+#: Largest distance from a column's pivot to the foot of its interface with the block below,
+#: as a fraction of the column's base length [-] (cut blocks: ~1e-12).
+ROW_PIVOT_TOL = 0.02
 #: Bracket of the strength-reduction factor F [-] and bisection steps.
 F_MIN, F_MAX = 1e-3, 1e3
 #: Largest friction angle of the critical-friction bisection [degrees].
@@ -145,12 +157,28 @@ def _face(system: BlockSystem, contacts: np.ndarray, normal: np.ndarray, point: 
 
 def toppling_row(system: BlockSystem, blocks: frozenset, removed: frozenset = frozenset()
                  ) -> Optional[TopplingRow]:
-    """The group as a toppling row (top block first), or None if its geometry does not admit
-    block toppling: a member without a base, members not in a single chain of interfaces
-    across their bases, or a toe blocked by rock in front of it."""
+    """The group as a toppling row (top block first), or None if its geometry is not one
+    (`row_geometry` says why)."""
+    return row_geometry(system, blocks, removed)[0]
+
+
+def row_geometry(system: BlockSystem, blocks: frozenset, removed: frozenset = frozenset()
+                 ) -> tuple[Optional[TopplingRow], str]:
+    """The group as a toppling row (top block first), or (None, why it is not one).
+
+    Goodman & Bray's row is a chain of columns standing side by side on a (stepped) base, all
+    leaning the same way: each member rests on its own base (a face of contacts with the rock
+    that its active force presses); the bases dip the same way (within `ROW_BASE_ANGLE`); each
+    member pushes on the next one downslope through an interface across both bases, facing
+    downslope for both; each member's pivot (the downslope end of its base) lies at the foot
+    of its interface with the block below, so that the column rises from it with its own
+    height (the interface's top, L_n) and width (its base); and the toe has nothing in front
+    of it, rock or member. A face slab on its bedding plane pushing a toe block that rests on
+    another joint is not such a row: the toe block's base and the slab's run at a large angle,
+    or the toe's "downslope" points into the slope and the slab would be the toe."""
     members = sorted(blocks)
     if not members:
-        return None
+        return None, "empty group"
     gf = group_faces(system, frozenset(members), removed)
     cb = system.contact_blocks
     bases: dict[int, tuple] = {}
@@ -159,7 +187,7 @@ def toppling_row(system: BlockSystem, blocks: frozenset, removed: frozenset = fr
         f = system.block_force[m]
         fnorm = float(np.hypot(*f))
         if fnorm == 0.0 or len(sel) == 0:
-            return None
+            return None, f"block {m} has no base on the rock"
         best = None
         for grp in _parallel_sets(gf.boundary_normal[sel]):
             k = sel[grp]
@@ -168,56 +196,75 @@ def toppling_row(system: BlockSystem, blocks: frozenset, removed: frozenset = fr
             if press >= BASE_MIN_COS and (best is None or press > best[0] + 1e-12):
                 best = (press, gf.boundary[k], nrm)
         if best is None:
-            return None
+            return None, f"block {m} has no base on the rock that its weight presses"
         tangent = f - (f @ best[2]) * best[2]
         if float(np.hypot(*tangent)) <= 1e-9 * fnorm:
-            return None  # level base: no downslope direction
-        bases[m] = (best[1], best[2], tangent / np.hypot(*tangent))
+            return None, f"block {m} stands on a level base (no downslope direction)"
+        t = tangent / np.hypot(*tangent)
+        ends = np.concatenate([system.contact_start[best[1]], system.contact_end[best[1]]])
+        bases[m] = (best[1], best[2], t, ends[int(np.argmax(ends @ t))])
     # interfaces between members, pooled per pair; the normal into the first of the pair
     pairs: dict[tuple[int, int], list[int]] = {}
     for k in gf.internal.tolist():
         pairs.setdefault((int(cb[k, 0]), int(cb[k, 1])), []).append(k)
     down: dict[int, int] = {}
     up: dict[int, int] = {}
+    min_cos = math.cos(math.radians(ROW_BASE_ANGLE))
     for (a, b), ks in pairs.items():
         ks = np.array(ks)
         n_a = system.contact_normal[ks[0]]  # into a
         ta, tb = bases[a][2], bases[b][2]
-        if float(ta @ tb) <= 0.0:
-            return None  # members sliding opposite ways
-        c = float(n_a @ ta)
-        if abs(c) < INTERFACE_MIN_COS or abs(float(n_a @ tb)) < INTERFACE_MIN_COS:
-            return None  # not across the bases (a block stacked on another)
-        lower, upper = (b, a) if c < 0 else (a, b)  # n into a points upslope: b lies below a
+        if float(ta @ tb) < min_cos:
+            return None, (f"the bases of blocks {a} and {b} dip {_angle(ta, tb):.0f}° apart (a row's columns "
+                          f"stand on one stepped base, within {ROW_BASE_ANGLE:g}°)")
+        lower, upper = (b, a) if float(n_a @ ta) < 0 else (a, b)  # n into a points upslope: b lies below a
+        n_low = n_a if lower == a else -n_a                       # into the lower block
+        if min(float(n_low @ bases[lower][2]), float(n_low @ bases[upper][2])) < INTERFACE_MIN_COS:
+            return None, (f"the joint between blocks {a} and {b} is not an interface across their bases "
+                          f"facing downslope for both (blocks stacked, or side by side the wrong way)")
+        if float((bases[lower][3] - bases[upper][3]) @ bases[upper][2]) <= 0.0:
+            return None, f"block {lower} does not stand downslope of block {upper}"
         if upper in down or lower in up:
-            return None
+            return None, f"the members do not form a single chain (block {upper if upper in down else lower} forks)"
         down[upper], up[lower] = lower, upper
     tops = [m for m in members if m not in up]
     if len(tops) != 1:
-        return None
+        return None, "the members do not form a single chain of interfaces"
     order = [tops[0]]
     while order[-1] in down:
         order.append(down[order[-1]])
     if len(order) != len(members):
-        return None
+        return None, "the members do not form a single chain of interfaces"
     toe = order[-1]
-    # the toe must be free to move downslope: no remaining rock in front of it
+    # the toe must be free to move downslope: no remaining rock in front of it, and no member
+    # (a member in front of the "toe" means the chain was read against the slope)
+    t_toe = bases[toe][2]
     sel = np.flatnonzero(gf.boundary_member == toe)
-    if np.any(gf.boundary_normal[sel] @ bases[toe][2] < -INTERFACE_MIN_COS):
-        return None
+    if np.any(gf.boundary_normal[sel] @ t_toe < -INTERFACE_MIN_COS):
+        return None, f"the toe block {toe} is held by rock in front of it"
+    for k in gf.internal.tolist():
+        if toe in cb[k]:
+            n_in = system.contact_normal[k] * (1.0 if cb[k, 0] == toe else -1.0)
+            if float(n_in @ t_toe) < -1e-6:
+                other = int(cb[k, 1] if cb[k, 0] == toe else cb[k, 0])
+                return None, f"the toe block {toe} has block {other} in front of it"
     rows = []
     for i, m in enumerate(order):
-        base_k, n_b, t = bases[m]
-        ends = np.concatenate([system.contact_start[base_k], system.contact_end[base_k]])
-        pivot = ends[int(np.argmax(ends @ t))]
+        base_k, n_b, t, pivot = bases[m]
         poly = system.polygon(m)
         height = float(((poly - pivot) @ n_b).max())
+        base_length = float(system.contact_length[base_k].sum())
         if i + 1 < len(order):
             lo = order[i + 1]
             ks = np.array(pairs.get((m, lo), pairs.get((lo, m))))
             sign = 1.0 if cb[ks[0], 0] == m else -1.0
             n_l = system.contact_normal[ks[0]] * sign
             pts = np.concatenate([system.contact_start[ks], system.contact_end[ks]])
+            # the column rises from its pivot: the pivot is the foot of its interface below
+            gap = min(_point_segment(pivot, system.contact_start[k], system.contact_end[k]) for k in ks)
+            if gap > ROW_PIVOT_TOL * base_length:
+                return None, (f"block {m} is not a column on its base: its interface with block {lo} starts "
+                              f"{gap:.3g} m from the downslope end of its base (its pivot)")
             point = pts[int(np.argmax((pts - pivot) @ n_b))]
             below = _face(system, ks, n_l, point)
         else:
@@ -230,8 +277,19 @@ def toppling_row(system: BlockSystem, blocks: frozenset, removed: frozenset = fr
                           tan_phi=like.tan_phi, tan_at=like.tan_at)
         rows.append(RowBlock(block=m, force=system.block_force[m].copy(), moment=float(system.block_moment[m]),
                              base=_face(system, base_k, n_b, pivot), downslope=t, pivot=pivot, below=below,
-                             height=height, base_length=float(system.contact_length[base_k].sum())))
-    return TopplingRow(blocks=tuple(rows))
+                             height=height, base_length=base_length))
+    return TopplingRow(blocks=tuple(rows)), ""
+
+
+def _angle(a: np.ndarray, b: np.ndarray) -> float:
+    return math.degrees(math.acos(max(-1.0, min(1.0, float(a @ b)))))
+
+
+def _point_segment(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    """Distance from p to the segment a–b [m]."""
+    d = b - a
+    s = 0.0 if not d.any() else min(1.0, max(0.0, float((p - a) @ d) / float(d @ d)))
+    return float(np.hypot(*(p - a - s * d)))
 
 
 # ---------------------------------------------------------------------- the recursion
@@ -374,26 +432,68 @@ def row_critical_friction(row: TopplingRow) -> float:
 
 def toppling_mode(system: BlockSystem, blocks: frozenset, removed: frozenset = frozenset()) -> Optional[Mode]:
     """The block-toppling mode of a group (Goodman & Bray 1976), or None if the group is not a
-    toppling row, stands even with a thousandth of its strength, or has no toppling block at
+    toppling row, stands even with a thousandth of its strength, has no toppling block at
     limit equilibrium (a row whose blocks only slide is a translational mechanism, left to the
-    rigid and Sarma evaluators). ``Mode.block_modes`` holds
-    the recursion at limit equilibrium (strength reduced by FS), top block first."""
-    row = toppling_row(system, blocks, removed)
+    rigid and Sarma evaluators), or its mechanism would cut into the rock (`toppling_check`
+    says which). ``Mode.block_modes`` holds the recursion at limit equilibrium (strength
+    reduced by FS), top block first."""
+    return toppling_check(system, blocks, removed)[0]
+
+
+def toppling_check(system: BlockSystem, blocks: frozenset, removed: frozenset = frozenset()
+                   ) -> tuple[Optional[Mode], str]:
+    """`toppling_mode` and, when there is none, why (one line)."""
+    row, why = row_geometry(system, blocks, removed)
     if row is None:
-        return None
+        return None, f"not a toppling row: {why}"
     fs = row_factor_of_safety(row)
     if not math.isfinite(fs):
-        return None
+        return None, "the row stands even with a thousandth of its strength"
     steps = recursion(row, reduction=fs if fs > 0 else F_MIN)
     if not any(s.state == BlockState.TOPPLING for s in steps):
-        return None  # blocks that only slide: a translational mechanism (rigid or Sarma)
+        return None, "at limit equilibrium its blocks only slide (a translation: the rigid and Sarma modes)"
+    cut = _cuts_into_rock(system, row, steps, frozenset(blocks), removed)
+    if cut:
+        return None, f"not admissible: {cut}"
     moving = [rb for rb, s in zip(row.blocks, steps) if s.state != BlockState.STABLE]
     # the failure surface: the bases the moving blocks slide or pivot on
     sliding = np.concatenate([rb.base.contacts for rb in moving])
     sheared = np.concatenate([rb.below.contacts for rb in moving] or [np.zeros(0, np.int64)])
     return Mode(kind=ModeKind.TOPPLING, fs=fs, critical_friction=row_critical_friction(row),
                 sliding_contacts=np.sort(sliding), sheared_contacts=np.sort(sheared),
-                pivot=row.blocks[-1].pivot.copy(), block_modes=steps)
+                pivot=row.blocks[-1].pivot.copy(), block_modes=steps), ""
+
+
+def _cuts_into_rock(system: BlockSystem, row: TopplingRow, steps: tuple, blocks: frozenset,
+                    removed: frozenset) -> str:
+    """Whether the mechanism at limit equilibrium is kinematically admissible against the
+    blocks outside the row: a toppling member rotates about its pivot (its top downslope), a
+    sliding one translates down its base; neither may move into a non-member across a
+    contact (§2.4). Returns what cuts in, or ''."""
+    gf = group_faces(system, blocks, removed)
+    tol = 1e-9 * system.scale
+    for rb, st in zip(row.blocks, steps):
+        if st.state == BlockState.STABLE:
+            continue
+        sel = np.flatnonzero(gf.boundary_member == rb.block)
+        if not len(sel):
+            continue
+        k = gf.boundary[sel]
+        n_in = gf.boundary_normal[sel]
+        for ends in (system.contact_start[k], system.contact_end[k]):
+            if st.state == BlockState.TOPPLING:
+                n_b, t = rb.base.normal, rb.downslope
+                omega = 1.0 if float(np.array([-n_b[1], n_b[0]]) @ t) > 0 else -1.0
+                r = ends - rb.pivot
+                vel = omega * np.stack([-r[:, 1], r[:, 0]], axis=1) / max(rb.height, rb.base_length)
+            else:
+                vel = np.broadcast_to(rb.downslope, ends.shape)
+            bad = np.flatnonzero((vel * n_in).sum(axis=1) < -1e-6 * np.hypot(vel[:, 0], vel[:, 1]) - tol)
+            if len(bad):
+                other = int(gf.boundary_other[sel[bad[0]]])
+                how = "toppling about its pivot" if st.state == BlockState.TOPPLING else "sliding down its base"
+                return f"block {rb.block} {how} would cut into block {other}"
+    return ""
 
 
 def upslope_neighbours(system: BlockSystem, blocks: frozenset, removed: frozenset = frozenset()) -> list[int]:

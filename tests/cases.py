@@ -129,7 +129,6 @@ def biplanar_critical_friction(**geometry) -> float:
     critical μ is the root of E·[(cos α + μ sin α)/(sin α − μ cos α) + μ] = W_A."""
     from scipy.optimize import brentq
     from ddatai.geometry import polygon_integrals
-
     g = {**BIPLANAR, **geometry}
     upper, lower, _ = biplanar_polygons(**g)
     area = [float(polygon_integrals(np.asarray(p, float), np.array([0, len(p)]))["area"][0]) for p in (upper, lower)]

@@ -15,7 +15,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from ddatai.geometry import polygon_integrals, signed_area
-
 #: parameter ranges per regime: (low, high); "log" ranges are sampled log-uniformly
 REGIMES = {
     # the rock masses of slope and tunnel models

@@ -124,7 +124,8 @@ def test_bad_arguments(tmp_path):
 
 def test_trace_ends_short_of_the_outline_are_snapped(tmp_path):
     """A trace drawn to within 1e-7 × the section's size of the outline (a CAD round-off)
-    still cuts the block in two; with snap=0 it is a dangling trace and is dropped."""
+    still cuts the block in two; with snap=0 it is a dangling trace and is dropped, with a
+    warning naming the gap."""
     path = tmp_path / "snap.dxf"
     box = [(0.0, 0.0), (10.0, 0.0), (10.0, 5.0), (0.0, 5.0)]
     write_dxf_section(path, boundary=box, traces=[([(0.0, 2.0), (10.0 - 1e-6, 2.5)], "BEDDING")])
@@ -132,7 +133,9 @@ def test_trace_ends_short_of_the_outline_are_snapped(tmp_path):
     scene = dd.read_dxf(path, **kw)
     assert scene.n_blocks == 2
     np.testing.assert_allclose(sorted(areas(scene)), [22.5, 27.5], rtol=1e-6)
-    assert dd.read_dxf(path, snap=0.0, **kw).n_blocks == 1
+    from ddatai.cutting import TraceGapWarning
+    with pytest.warns(TraceGapWarning, match="stops 1e-06 m short of the outline"):
+        assert dd.read_dxf(path, snap=0.0, **kw).n_blocks == 1
 
 
 def test_joints_file_is_the_scripts():

@@ -5,8 +5,8 @@ import pytest
 import shapely
 
 import ddatai as dd
-from ddatai.geometry import cut, displacement_matrix, mass_matrix, polygon_integrals, validate_polygon
-
+from ddatai.geometry import displacement_matrix, mass_matrix, polygon_integrals, validate_polygon
+from ddatai.cutting import cut
 
 def integrals(xy):
     xy = np.asarray(xy, float)
@@ -124,3 +124,78 @@ def test_scene_cut_carries_joint_properties():
     assert cents[0][1] < cents[2][1] and cents[0][0] < cents[1][0]
     used = {scene.joints[j] for b in ids for j in scene.blocks[b].edge_joint if j >= 0}
     assert used == {weak, strong}
+
+
+# ---------------------------------------------------------------------- trace ends that nearly meet
+BOX10 = [(0, 0), (10, 0), (10, 10), (0, 10)]
+#: a persistent horizontal joint; a vertical one from the floor to 1 µm below it; a vertical one
+#: from it to 1 µm below the top (coordinates typed to six decimals)
+NEAR = [[(-1, 5), (11, 5)], [(5, 0), (5, 4.999999)], [(3, 5), (3, 9.999999)]]
+
+
+def test_trace_ends_a_micrometre_short_are_snapped():
+    """Both short ends (1e-7 of the 10 m box, within the default snap of 1e-6 × its size) are
+    extended onto the joint and the outline they nearly reach: 4 blocks of the right areas,
+    their edges on the traces that made them, and nothing to warn about."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        pieces = cut(BOX10, NEAR)
+    areas = sorted(round(float(integrals(xy)["area"]), 6) for xy, _ in pieces)
+    assert areas == [15.0, 25.0, 25.0, 35.0]
+    on = {j for _, ej in pieces for j in ej if j >= 0}
+    assert on == {0, 1, 2}
+    for xy, ej in pieces:  # the vertical edges lie on the vertical traces, to the snap
+        for k, j in enumerate(ej):
+            a, b = xy[k], xy[(k + 1) % len(xy)]
+            if j in (1, 2):
+                assert abs(a[0] - NEAR[j][0][0]) < 1e-12 and abs(b[0] - NEAR[j][0][0]) < 1e-12
+
+
+def test_trace_ends_short_beyond_the_snap_are_warned_about():
+    """With no snap the two short traces close no block (the box is cut in 2, not 4), and the
+    warning names each trace, its end, the gap and the snap distance that closes it; passed
+    that distance, `Scene.cut` makes the 4 blocks. A gap of 1 mm (1e-4 of the size, beyond the
+    1e-5 band) is a finite joint that ends near another: dropped without a word."""
+    import warnings
+
+    from ddatai.cutting import TraceGapWarning
+    with pytest.warns(TraceGapWarning) as rec:
+        pieces = cut(BOX10, NEAR, snap_ends=0.0)
+    assert len(pieces) == 2 and len(rec) == 1
+    msg = str(rec[0].message)
+    assert "joint 1's end (5, 4.999999) stops 1e-06 m short of joint 0" in msg
+    assert "joint 2's end (3, 9.999999) stops 1e-06 m short of the outline" in msg
+    assert "snap_ends=1.5e-06" in msg
+    rock = dd.Material(density=2600.0, young=1e10, poisson=0.2)
+    scene = dd.Scene()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert len(scene.cut(BOX10, [(t, dd.Joint()) for t in NEAR], material=rock, snap_ends=1.5e-6)) == 4
+        far = [NEAR[0], [(5, 0), (5, 4.999)]]
+        assert len(cut(BOX10, far)) == 2
+    with pytest.raises(ValueError, match="snap_ends must be a finite distance >= 0 m"):
+        cut(BOX10, NEAR, snap_ends=-1.0)
+
+
+def test_snapping_leaves_meeting_and_crossing_traces_alone():
+    """Ends that already touch or cross a trace (by a hair) and persistent traces are not
+    moved; a slanted joint whose end was rounded to six decimals onto another slanted one
+    (short or past, whichever the rounding gives) closes its block either way."""
+    import warnings
+
+    from ddatai.cutting import snap_trace_ends
+    meet = [[(-1, 5), (11, 5)], [(5, 0), (5, 5)], [(3, 5), (3, 10.0000001)]]
+    traces, moved = snap_trace_ends(np.array(BOX10, float), meet, 1e-5)
+    assert moved == [] and all(np.array_equal(a, np.asarray(b, float)) for a, b in zip(traces, meet))
+    # the line y = 0.7x (through the box) and a joint from (2, 10) down to it at 60° from the
+    # horizontal, its end rounded to six decimals
+    d = np.array([np.cos(np.radians(-60.0)), np.sin(np.radians(-60.0))])
+    s = np.linalg.solve(np.column_stack([d, -np.array([1.0, 0.7])]), -np.array([2.0, 10.0]))[0]
+    end = np.round(np.array([2.0, 10.0]) + s * d, 6)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        pieces = cut(BOX10, [[(0, 0), (10, 7)], [(2, 10), tuple(end)]])
+    assert len(pieces) == 3
+    assert sum(integrals(xy)["area"] for xy, _ in pieces) == pytest.approx(100.0)

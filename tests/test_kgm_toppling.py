@@ -245,6 +245,29 @@ def test_rows_that_are_not_toppling_rows():
     assert toppling_mode(build_block_system(squat), frozenset([s1, s2])) is None
 
 
+def test_toppling_that_would_cut_into_rock_is_not_admissible():
+    """The two-block row by hand (the column topples at limit equilibrium), with a fixed block
+    resting against the column's downslope face above the toe block: the geometry is still a
+    row, but the column cannot rotate forward about its pivot without cutting into that rock,
+    so there is no toppling mode, and the evaluators say why."""
+    from kgm.toppling import toppling_check
+
+    scene, (_, toe, column) = _row_on_plane(30.0, [(1.0, 1.0), (1.0, 4.0)], 40.0)
+    t = np.array([math.cos(math.radians(30.0)), -math.sin(math.radians(30.0))])
+    n = np.array([math.sin(math.radians(30.0)), math.cos(math.radians(30.0))])
+    # the column's downslope face runs from its pivot −t up to −t + 4·n; the toe block covers
+    # it to 1·n; the buttress covers 1.5·n to 3.5·n, reaching 2 m downslope
+    foot = -t
+    scene.add_block([foot + 1.5 * n, foot + 1.5 * n + 2.0 * t, foot + 3.5 * n + 2.0 * t, foot + 3.5 * n],
+                    material=ROCK, fixed=True)
+    system = build_block_system(scene)
+    assert toppling_row(system, frozenset([toe, column])) is not None
+    mode, why = toppling_check(system, frozenset([toe, column]))
+    assert mode is None and why == f"not admissible: block {column} toppling about its pivot would cut into block 3"
+    ev = evaluate_sarma(system, frozenset([toe, column]))
+    assert ev.mode.kind != ModeKind.TOPPLING and any(r.startswith("toppling: not admissible") for r in ev.rejected)
+
+
 def test_gif_colours_blocks_by_their_toppling_state(tmp_path, monkeypatch):
     """`kgm analyze --gif` on a toppling group labels each block by its state."""
     import kgm

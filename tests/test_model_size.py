@@ -1,4 +1,4 @@
-"""A model far larger than intended is refused before it is cut (ddatai.geometry.cut's size
+"""A model far larger than intended is refused before it is cut (ddatai.cutting.cut's size
 estimate), with the estimate, the likely mistake and the way to go on."""
 
 import time
@@ -7,8 +7,7 @@ import numpy as np
 import pytest
 
 import ddatai as dd
-from ddatai.geometry import MAX_BLOCKS_ENV, ModelSizeError, estimate_blocks
-
+from ddatai.cutting import MAX_BLOCKS_ENV, ModelSizeError, estimate_blocks
 ROCK = dd.Material(density=2600.0, young=10e9, poisson=0.25)
 BOX = [(0, 0), (100, 0), (100, 50), (0, 50)]
 
@@ -96,8 +95,7 @@ def _sliver_scene_traces():
 def test_slivers_are_reported_and_merged_into_a_neighbour():
     import shapely
 
-    from ddatai.geometry import SLIVER_ASPECT, SliverWarning
-
+    from ddatai.cutting import SLIVER_ASPECT, SliverWarning
     box = [(0, 0), (10, 0), (10, 5), (0, 5)]
     with pytest.warns(SliverWarning, match=r"2 sliver block\(s\).*thinnest is 125:1.*slivers='merge'"):
         kept = dd.Scene().cut(box, _sliver_scene_traces(), material=ROCK)

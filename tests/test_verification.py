@@ -21,7 +21,6 @@ from cases import (G, ROCK, biplanar_critical_friction, biplanar_scene, block_on
                    downslope_displacement, incline_base, incline_frame, launched_block, sliding_scene)
 from ddatai.geometry import polygon_integrals
 
-
 # ----------------------------------------------------------------------------- §7a sliding
 @pytest.mark.parametrize("theta, phi, tol", [
     (30.0, 20.0, 1e-3),

@@ -202,23 +202,10 @@ def read_dxf_section(path, *, joint_layers, units: Optional[str] = None,
 
 def snap_traces(boundary: np.ndarray, traces, snap: float) -> list[np.ndarray]:
     """The trace polylines with every end that stops within ``snap`` [m] of the outline or of
-    another trace extended by 2·snap along its last segment, so that noding meets it there."""
-    import shapely
-
-    lines = [shapely.LineString(t) for t in traces]
-    others = [shapely.LinearRing(boundary)] + lines
-    tree = shapely.STRtree(others)
-    out = []
-    for k, t in enumerate(traces):
-        t = np.array(t, dtype=float)
-        for end, prev in ((-1, -2), (0, 1)):
-            p = shapely.Point(t[end])
-            near = [i for i in tree.query(p, predicate="dwithin", distance=snap) if i != k + 1]
-            if near and min(others[i].distance(p) for i in near) > 0.0:
-                d = t[end] - t[prev]
-                t[end] = t[end] + 2.0 * snap * d / np.hypot(*d)
-        out.append(t)
-    return out
+    another trace extended onto it (`ddatai.cutting.snap_trace_ends`, which `Scene.cut` also
+    applies), so that noding meets it there."""
+    from ..cutting import snap_trace_ends
+    return snap_trace_ends(boundary, traces, snap)[0]
 
 
 def read_dxf(path, *, material: Material, joints: Mapping[str, Joint], default_joint: Optional[Joint] = None,
@@ -258,11 +245,10 @@ def read_dxf(path, *, material: Material, joints: Mapping[str, Joint], default_j
     elif not (isinstance(snap, (int, float)) and np.isfinite(snap) and snap >= 0):
         raise ValueError(f"read_dxf: snap must be a finite distance >= 0 m, got {snap!r}")
     polylines = [pts for pts, _ in section.traces]
-    if snap > 0 and polylines:
-        polylines = snap_traces(section.boundary, polylines, snap)
     scene = Scene(gravity=gravity)
+    # Scene.cut extends the trace ends that stop within ``snap`` of the outline or a trace
     ids = scene.cut(section.boundary, [(pts, joints[name]) for pts, (_, name) in zip(polylines, section.traces)],
-                    material)
+                    material, snap_ends=float(snap))
     if default_joint is not None:
         scene.set_joint(default_joint)
     if section.fixed:

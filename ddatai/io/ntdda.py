@@ -1319,7 +1319,6 @@ def _initial_state(poly: np.ndarray, mat: NtddaBlockMaterial) -> tuple[tuple, tu
     if not (any(mat.stress) or any(mat.stress_gradient) or any(mat.velocity)):
         return (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)
     from ..geometry import polygon_integrals
-
     yc = float(polygon_integrals(poly, np.array([0, len(poly)]))["centroid"][0, 1])
     stress = tuple(float(s + yc * t) for s, t in zip(mat.stress, mat.stress_gradient))
     return stress, tuple(float(v) for v in mat.velocity)

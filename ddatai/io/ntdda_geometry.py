@@ -1,6 +1,6 @@
 """Blocks from a set of joint segments, cut the way ntdda ("DDA for Windows") cuts them.
 
-`ddatai.geometry.cut` cuts a *given* domain polygon by joint traces. An ntdda geometry file has
+`ddatai.cutting.cut` cuts a *given* domain polygon by joint traces. An ntdda geometry file has
 no domain polygon: the outline is itself made of joint lines, and the blocks are the closed
 regions of the whole line set after Shi's block-cutting program (GHS "DC", ntdda `blocks.c`,
 docs/ntdda.md §2) has merged close nodes and dropped dangling segments. Reproducing those
