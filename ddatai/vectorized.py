@@ -77,7 +77,7 @@ def broad_phase(model: Model, vertex_xy: np.ndarray, margin: float) -> np.ndarra
 
 
 # --------------------------------------------------------------------------- narrow phase
-def _wrap(angle: np.ndarray, lower: float) -> np.ndarray:
+def _wrap(angle: np.ndarray, lower) -> np.ndarray:
     """angle wrapped into [lower, lower + 2π) (`kernels._wrap`)."""
     return angle - TWO_PI * np.floor((angle - lower) / TWO_PI)
 
@@ -141,14 +141,15 @@ class _Geometry:
         lim2 = sin_h1 * self.n2[p]
         ok = np.flatnonzero((r1n >= -lim1) & (r2n >= -lim2))
         p, e, r1n, r2n, lim1, lim2 = p[ok], e[ok], r1n[ok], r2n[ok], lim1[ok], lim2[ok]
-        # edge-edge: one of the vertex's edges parallel to the line within h1 (§3.6)
+        # edge-edge: one of the vertex's edges parallel to the line within h1, the one to the
+        # next vertex first (§3.6)
         along1 = np.abs(r1n) <= lim1
-        along2 = ~along1 & (np.abs(r2n) <= lim2)
+        along = np.flatnonzero(along1 | (np.abs(r2n) <= lim2))
         length = np.zeros(len(p))
-        for along, other in ((along1, self.nxt), (along2, self.prv)):
-            j = np.flatnonzero(along)
-            if len(j):
-                length[j] = self.half_overlap(e[j], p[j], other[p[j]])
+        if len(along):
+            v = p[along]
+            end = np.where(along1[along], self.nxt[v], self.prv[v])
+            length[along] = self.half_overlap(e[along], v, end)
         return k[ok], length
 
 
@@ -191,7 +192,7 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray
     # block's box: every candidate of the rules below is among these. The margin is 1.5× that
     # reach so that round-off cannot drop one; the exact tests follow.
     reach = 1.5 * max(d0, d9)
-    lo, hi = box_bounds(model, xy, reach)
+    (lo_x, lo_y), (hi_x, hi_y) = (b.T.copy() for b in box_bounds(model, xy, reach))
     n_pairs = len(pairs)
     A = pairs[:, 0].astype(np.int64)
     B = pairs[:, 1].astype(np.int64)
@@ -200,9 +201,9 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray
     other = np.concatenate([B, A])
     side, rank = _expand(off[own + 1] - off[own])
     vertex = off[own[side]] + rank
-    p = xy[vertex]
     o = other[side]
-    near = np.flatnonzero(((p >= lo[o]) & (p <= hi[o])).all(axis=1))
+    x, y = geo.x[vertex], geo.y[vertex]
+    near = np.flatnonzero((x >= lo_x[o]) & (x <= hi_x[o]) & (y >= lo_y[o]) & (y <= hi_y[o]))
     if not len(near):
         return none
     # the near vertices, sorted by side (A's of every pair, then B's)
@@ -252,14 +253,13 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray
         both = np.flatnonzero(cP & cQ)
         if len(both):
             P, Q = P[both], Q[both]
-            a1 = np.arctan2(geo.r1y[P], geo.r1x[P])
-            a2 = np.arctan2(geo.r2y[P], geo.r2x[P])
-            b1 = np.arctan2(geo.r1y[Q], geo.r1x[Q])
-            b2 = np.arctan2(geo.r2y[Q], geo.r2x[Q])
-            wA = _wrap(a2 - a1, 0.0)
-            wB = _wrap(b2 - b1, 0.0)
-            e5 = _wrap(b1 - a2, -h1)  # free gap between A's edge (prev->P) and B's edge (Q->next)
-            e6 = _wrap(a1 - b2, -h1)  # free gap between B's edge (prev->Q) and A's edge (P->next)
+            PQ = np.concatenate([P, Q])
+            a1, b1 = np.arctan2(geo.r1y[PQ], geo.r1x[PQ]).reshape(2, -1)
+            a2, b2 = np.arctan2(geo.r2y[PQ], geo.r2x[PQ]).reshape(2, -1)
+            # the wedges' angles wA, wB and the free gaps e5 (between A's edge prev->P and B's
+            # edge Q->next) and e6 (between B's edge prev->Q and A's edge P->next)
+            wA, wB, e5, e6 = _wrap(np.stack([a2 - a1, b2 - b1, b1 - a2, a1 - b2]),
+                                   np.array([[0.0], [0.0], [-h1], [-h1]]))
             # the two wedges do not overlap (beyond h1) iff the four angles go once around
             apart = np.abs(wA + wB + e5 + e6 - TWO_PI) < _AROUND
             par5 = apart & (e5 < h1)
@@ -330,22 +330,19 @@ def detect_contacts(model: Model, vertex_xy: np.ndarray) -> tuple[np.ndarray, np
 
 
 # --------------------------------------------------------------------------- contact vectors
-def _trow(c: np.ndarray, T: np.ndarray) -> np.ndarray:
-    """c1·row 1 + c2·row 2 of T for coefficients c (n, 2) and T (n, 2, 6) (`kernels._trow`)."""
-    return c[:, 0:1] * T[:, 0] + c[:, 1:2] * T[:, 1]
-
-
-def _t_rows(X: np.ndarray) -> np.ndarray:
-    """(n, 2, 6): the two rows of T(X) (docs/method/dda.md §1.1) at centroidal points X."""
-    T = np.zeros((len(X), 2, 6))
-    T[:, 0, 0] = 1.0
-    T[:, 1, 1] = 1.0
-    T[:, 0, 2] = -X[:, 1]
-    T[:, 1, 2] = T[:, 0, 3] = X[:, 0]
-    T[:, 1, 4] = X[:, 1]
-    T[:, 0, 5] = 0.5 * X[:, 1]
-    T[:, 1, 5] = 0.5 * X[:, 0]
-    return T
+def _trow(c: np.ndarray, X: np.ndarray) -> np.ndarray:
+    """c1·row 1 + c2·row 2 of T(X) (docs/method/dda.md §1.1) for coefficients c (n, 2) at
+    centroidal points X (n, 2), as (n, 6) (`kernels._trow`)."""
+    a, b = c[:, 0], c[:, 1]
+    X0, X1 = X[:, 0], X[:, 1]
+    out = np.empty((len(c), 6))
+    out[:, 0] = a
+    out[:, 1] = b
+    out[:, 2] = b * X0 - a * X1
+    out[:, 3] = a * X0
+    out[:, 4] = b * X1
+    out[:, 5] = 0.5 * (a * X1 + b * X0)
+    return out
 
 
 def contact_vectors(model: Model, vertex_xy: np.ndarray, centroid: np.ndarray, cint: np.ndarray,
@@ -363,10 +360,10 @@ def contact_vectors(model: Model, vertex_xy: np.ndarray, centroid: np.ndarray, c
     centroid = np.asarray(centroid)
     # every line: line 0 of each contact, then line 1 of each vertex-vertex contact
     vv = np.flatnonzero(cint[:, 0] == VV)
-    c = np.concatenate([np.arange(m), vv])
-    q = np.repeat([0, 1], [m, len(vv)])
-    p1 = cint[c, 1 + 2 * q]
-    k = cint[c, 2 + 2 * q]
+    ve = np.flatnonzero(cint[:, 0] == VE)  # line 0 of contact c is line c
+    p1 = np.concatenate([cint[:, 1], cint[vv, 3]])
+    k = np.concatenate([cint[:, 2], cint[vv, 4]])
+    n = len(p1)
     P1 = vertex_xy[p1]
     x2 = vertex_xy[nxt[k]] - P1
     x3 = vertex_xy[k] - P1
@@ -374,25 +371,30 @@ def contact_vectors(model: Model, vertex_xy: np.ndarray, centroid: np.ndarray, c
     l = np.sqrt(s[:, 0] * s[:, 0] + s[:, 1] * s[:, 1])
     li = l[:, None]
     cj = centroid[vblock[k]]
-    n = len(c)
-    T = _t_rows(np.concatenate([P1 - centroid[vblock[p1]], x2 + P1 - cj, x3 + P1 - cj]))
-    T1, T2, T3 = T[:n], T[n:2 * n], T[2 * n:]
-    # ∂Δ/∂P1, ∂Δ/∂P2, ∂Δ/∂P3 with P1 at the origin, contracted with the rows of T
-    d1 = np.stack([x2[:, 1] - x3[:, 1], x3[:, 0] - x2[:, 0]], axis=1)
-    d2 = np.stack([x3[:, 1], -x3[:, 0]], axis=1)
-    d3 = np.stack([-x2[:, 1], x2[:, 0]], axis=1)
-    vec[c, 2 * q] = _trow(d1, T1) / li
-    vec[c, 2 * q + 1] = (_trow(d2, T2) + _trow(d3, T3)) / li
-    sca[c, q] = (x2[:, 0] * x3[:, 1] - x2[:, 1] * x3[:, 0]) / l
-    ve = np.flatnonzero(cint[:, 0] == VE)  # line 0 of contact c is line c
+    X1, X2, X3 = P1 - centroid[vblock[p1]], x2 + P1 - cj, x3 + P1 - cj
+    sca[:, 0] = (x2[:m, 0] * x3[:m, 1] - x2[:m, 1] * x3[:m, 0]) / l[:m]
+    sca[vv, 1] = (x2[m:, 0] * x3[m:, 1] - x2[m:, 1] * x3[m:, 0]) / l[m:]
+    # the coefficients of the rows of T at P1, P2, P3 (one batch for all lines): ∂Δ/∂P1,
+    # ∂Δ/∂P2, ∂Δ/∂P3 with P1 at the origin, and for line 0 of a vertex-edge contact the
+    # derivatives of ds = (P1 − P0)·(P3 − P2)/l with P0 = (1 − ω)P2 + ωP3 (§2.8.3)
+    coef = [np.stack([x2[:, 1] - x3[:, 1], x3[:, 0] - x2[:, 0]], axis=1),
+            np.stack([x3[:, 1], -x3[:, 0]], axis=1), np.stack([-x2[:, 1], x2[:, 0]], axis=1)]
+    at = [X1, X2, X3]
     if len(ve):
         w = omega[ve][:, None]
-        x2, x3, s, li = x2[ve], x3[ve], s[ve], li[ve]
-        # ds = (P1 − P0)·(P3 − P2)/l with P0 = (1 − ω)P2 + ωP3 (§2.8.3)
-        r = -(1.0 - w) * x2 - w * x3
-        sca[ve, 2] = (r[:, 0] * s[:, 0] + r[:, 1] * s[:, 1]) / li[:, 0]
-        c2 = (2.0 * (1.0 - w) * x2 - (1.0 - 2.0 * w) * x3) / li
-        c3 = (-(1.0 - 2.0 * w) * x2 - 2.0 * w * x3) / li
-        vec[ve, S_ES] = _trow(s / li, T1[ve])
-        vec[ve, S_GS] = _trow(c2, T2[ve]) + _trow(c3, T3[ve])
+        x2e, x3e, se, le = x2[ve], x3[ve], s[ve], li[ve]
+        r = -(1.0 - w) * x2e - w * x3e
+        sca[ve, 2] = (r[:, 0] * se[:, 0] + r[:, 1] * se[:, 1]) / le[:, 0]
+        coef += [se / le, (2.0 * (1.0 - w) * x2e - (1.0 - 2.0 * w) * x3e) / le,
+                 (-(1.0 - 2.0 * w) * x2e - 2.0 * w * x3e) / le]
+        at += [X1[ve], X2[ve], X3[ve]]
+    rows = _trow(np.concatenate(coef), np.concatenate(at))
+    e_vec = rows[:n] / li
+    g_vec = (rows[n:2 * n] + rows[2 * n:3 * n]) / li
+    vec[:, 0], vec[:, 1] = e_vec[:m], g_vec[:m]
+    vec[vv, 2], vec[vv, 3] = e_vec[m:], g_vec[m:]
+    if len(ve):
+        nve = len(ve)
+        vec[ve, S_ES] = rows[3 * n:3 * n + nve]
+        vec[ve, S_GS] = rows[3 * n + nve:3 * n + 2 * nve] + rows[3 * n + 2 * nve:]
     return vec, sca
