@@ -46,8 +46,8 @@ _AROUND = 1e-6
 def _expand(counts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(owner, rank) of the entries of runs of the given lengths: owner k repeated counts[k]
     times, rank 0 … counts[k] − 1 within each run."""
-    owner = np.repeat(np.arange(len(counts)), counts)
-    start = np.cumsum(counts) - counts
+    owner = np.arange(len(counts)).repeat(counts)
+    start = counts.cumsum() - counts
     return owner, np.arange(len(owner)) - start[owner]
 
 
@@ -63,9 +63,9 @@ def broad_phase(model: Model, vertex_xy: np.ndarray, margin: float) -> np.ndarra
     # sweep along x: with the boxes sorted by their left side, box a meets in x exactly the
     # boxes after it whose left side is at most a's right side (a's left side is at most
     # theirs, hence at most their right side)
-    order = np.argsort(lo[:, 0], kind="stable")
+    order = lo[:, 0].argsort(kind="stable")
     left = lo[order, 0]
-    count = np.searchsorted(left, hi[order, 0], side="right") - np.arange(1, nb + 1)
+    count = left.searchsorted(hi[order, 0], side="right") - np.arange(1, nb + 1)
     first, rank = _expand(np.maximum(count, 0))
     a, b = order[first], order[first + 1 + rank]
     fixed = model.block_fixed
@@ -73,7 +73,9 @@ def broad_phase(model: Model, vertex_xy: np.ndarray, margin: float) -> np.ndarra
     a, b = a[hit], b[hit]
     i, j = np.minimum(a, b), np.maximum(a, b)
     o = np.lexsort((j, i))
-    return np.stack([i[o], j[o]], axis=1).astype(np.int32)
+    out = np.empty((len(o), 2), np.int32)
+    out[:, 0], out[:, 1] = i[o], j[o]
+    return out
 
 
 # --------------------------------------------------------------------------- narrow phase
@@ -131,20 +133,20 @@ class _Geometry:
         dn = px * nx + py * ny
         t = (px * self.dx[e] + py * self.dy[e]) / (l * l)
         # a collapsed edge has no normal; a concave vertex never contacts as a vertex
-        k = np.flatnonzero((l > EDGE_FLOOR) & (dn <= d0) & (dn >= -d9) & self.convex[p] &
-                           (~check_projection | ((t >= 0.0) & (t <= 1.0))))
+        k = ((l > EDGE_FLOOR) & (dn <= d0) & (dn >= -d9) & self.convex[p] &
+                           (~check_projection | ((t >= 0.0) & (t <= 1.0)))).nonzero()[0]
         p, e, nx, ny = p[k], e[k], nx[k], ny[k]
         # the vertex's material wedge must lie on the outer side of the edge within h1
         r1n = self.r1x[p] * nx + self.r1y[p] * ny
         r2n = self.r2x[p] * nx + self.r2y[p] * ny
         lim1 = sin_h1 * self.n1[p]
         lim2 = sin_h1 * self.n2[p]
-        ok = np.flatnonzero((r1n >= -lim1) & (r2n >= -lim2))
+        ok = ((r1n >= -lim1) & (r2n >= -lim2)).nonzero()[0]
         p, e, r1n, r2n, lim1, lim2 = p[ok], e[ok], r1n[ok], r2n[ok], lim1[ok], lim2[ok]
         # edge-edge: one of the vertex's edges parallel to the line within h1, the one to the
         # next vertex first (§3.6)
         along1 = np.abs(r1n) <= lim1
-        along = np.flatnonzero(along1 | (np.abs(r2n) <= lim2))
+        along = (along1 | (np.abs(r2n) <= lim2)).nonzero()[0]
         length = np.zeros(len(p))
         if len(along):
             v = p[along]
@@ -203,14 +205,14 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray
     vertex = off[own[side]] + rank
     o = other[side]
     x, y = geo.x[vertex], geo.y[vertex]
-    near = np.flatnonzero((x >= lo_x[o]) & (x <= hi_x[o]) & (y >= lo_y[o]) & (y <= hi_y[o]))
+    near = ((x >= lo_x[o]) & (x <= hi_x[o]) & (y >= lo_y[o]) & (y <= hi_y[o])).nonzero()[0]
     if not len(near):
         return none
     # the near vertices, sorted by side (A's of every pair, then B's)
     vertex, side = vertex[near], side[near]
     n_near = len(vertex)
     per_side = np.bincount(side, minlength=2 * n_pairs)
-    side_start = np.cumsum(per_side) - per_side
+    side_start = per_side.cumsum() - per_side
 
     # 1. mutual-nearest vertex pairs within d0: every near vertex of A against every near
     # vertex of B of the same pair
@@ -222,7 +224,7 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray
     dx = geo.x[vb] - geo.x[va]
     dy = geo.y[vb] - geo.y[va]
     dist = np.sqrt(dx * dx + dy * dy)  # `kernels._nearest`: |Q − P|
-    close = np.flatnonzero(dist <= d0)
+    close = (dist <= d0).nonzero()[0]
     ka, kb, va, vb, dist = ka[close], kb[close], va[close], vb[close], dist[close]
     nearest = np.full(n_near, -1)
     g, at = _first_per_group(ka, dist, vb)
@@ -231,26 +233,26 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray
     nearest[g] = ka[at]
     has = nearest >= 0
     mutual = has.copy()
-    mutual[has] = nearest[nearest[has]] == np.flatnonzero(has)
+    mutual[has] = nearest[nearest[has]] == has.nonzero()[0]
     partner = np.where(mutual, vertex[np.maximum(nearest, 0)], -1)
 
     ve_v, ve_e, ve_check = [], [], []   # vertex-edge candidates for `_Geometry.ve_test`
     out_v, out_e, out_len = [], [], []  # edge-edge contacts of vertex pairs
     vv_rows = []
-    pa = np.flatnonzero(mutual[:n_a])
+    pa = mutual[:n_a].nonzero()[0]
     if len(pa):
         P = vertex[pa]
         Q = vertex[nearest[pa]]
         cP, cQ = geo.convex[P], geo.convex[Q]
         # one vertex concave: the convex one against both edges meeting at the concave one
-        one = np.flatnonzero(cP != cQ)
+        one = (cP != cQ).nonzero()[0]
         if len(one):
             v = np.where(cP[one], P[one], Q[one])
             w = np.where(cP[one], Q[one], P[one])
             ve_v += [v, v]
             ve_e += [prv[w], w]
             ve_check.append(np.zeros(2 * len(v), bool))
-        both = np.flatnonzero(cP & cQ)
+        both = (cP & cQ).nonzero()[0]
         if len(both):
             P, Q = P[both], Q[both]
             PQ = np.concatenate([P, Q])
@@ -258,13 +260,13 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray
             a2, b2 = np.arctan2(geo.r2y[PQ], geo.r2x[PQ]).reshape(2, -1)
             # the wedges' angles wA, wB and the free gaps e5 (between A's edge prev->P and B's
             # edge Q->next) and e6 (between B's edge prev->Q and A's edge P->next)
-            wA, wB, e5, e6 = _wrap(np.stack([a2 - a1, b2 - b1, b1 - a2, a1 - b2]),
+            wA, wB, e5, e6 = _wrap(np.concatenate([a2 - a1, b2 - b1, b1 - a2, a1 - b2]).reshape(4, -1),
                                    np.array([[0.0], [0.0], [-h1], [-h1]]))
             # the two wedges do not overlap (beyond h1) iff the four angles go once around
             apart = np.abs(wA + wB + e5 + e6 - TWO_PI) < _AROUND
             par5 = apart & (e5 < h1)
             par = par5 | (apart & (e6 < h1))
-            k = np.flatnonzero(par)
+            k = par.nonzero()[0]
             if len(k):
                 # edge-edge: A's edge (prev P, P) parallel to B's edge (Q, next Q) (e5), or A's
                 # edge (P, next P) parallel to B's edge (prev Q, Q) (e6). The contact vertex is
@@ -282,7 +284,7 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray
                 out_v.append(v)
                 out_e.append(e)
                 out_len.append(geo.half_overlap(e, v, end))
-            k = np.flatnonzero(apart & ~par)
+            k = (apart & ~par).nonzero()[0]
             if len(k):
                 # genuine vertex-vertex: the entrance lines are the edges across the smaller
                 # gap (e5 unless e6 is clearly smaller)
@@ -303,7 +305,7 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray
     v = vertex[kv]
     e = off[o[kv]] + rank
     mate = partner[kv]
-    keep = np.flatnonzero((mate != e) & (mate != nxt[e]))
+    keep = ((mate != e) & (mate != nxt[e])).nonzero()[0]
     ve_v.append(v[keep])
     ve_e.append(e[keep])
     ve_check.append(np.ones(len(keep), bool))
@@ -330,12 +332,10 @@ def detect_contacts(model: Model, vertex_xy: np.ndarray) -> tuple[np.ndarray, np
 
 
 # --------------------------------------------------------------------------- contact vectors
-def _trow(c: np.ndarray, X: np.ndarray) -> np.ndarray:
-    """c1·row 1 + c2·row 2 of T(X) (docs/method/dda.md §1.1) for coefficients c (n, 2) at
-    centroidal points X (n, 2), as (n, 6) (`kernels._trow`)."""
-    a, b = c[:, 0], c[:, 1]
-    X0, X1 = X[:, 0], X[:, 1]
-    out = np.empty((len(c), 6))
+def _trow(a: np.ndarray, b: np.ndarray, X0: np.ndarray, X1: np.ndarray) -> np.ndarray:
+    """a·row 1 + b·row 2 of T(X) (docs/method/dda.md §1.1) at centroidal points X = (X0, X1),
+    as (n, 6) (`kernels._trow`)."""
+    out = np.empty((len(a), 6))
     out[:, 0] = a
     out[:, 1] = b
     out[:, 2] = b * X0 - a * X1
@@ -359,8 +359,8 @@ def contact_vectors(model: Model, vertex_xy: np.ndarray, centroid: np.ndarray, c
     nxt, vblock = model.vertex_next, model.vertex_block
     centroid = np.asarray(centroid)
     # every line: line 0 of each contact, then line 1 of each vertex-vertex contact
-    vv = np.flatnonzero(cint[:, 0] == VV)
-    ve = np.flatnonzero(cint[:, 0] == VE)  # line 0 of contact c is line c
+    vv = (cint[:, 0] == VV).nonzero()[0]
+    ve = (cint[:, 0] == VE).nonzero()[0]  # line 0 of contact c is line c
     p1 = np.concatenate([cint[:, 1], cint[vv, 3]])
     k = np.concatenate([cint[:, 2], cint[vv, 4]])
     n = len(p1)
@@ -369,26 +369,30 @@ def contact_vectors(model: Model, vertex_xy: np.ndarray, centroid: np.ndarray, c
     x3 = vertex_xy[k] - P1
     s = x3 - x2
     l = np.sqrt(s[:, 0] * s[:, 0] + s[:, 1] * s[:, 1])
-    li = l[:, None]
     cj = centroid[vblock[k]]
     X1, X2, X3 = P1 - centroid[vblock[p1]], x2 + P1 - cj, x3 + P1 - cj
-    sca[:, 0] = (x2[:m, 0] * x3[:m, 1] - x2[:m, 1] * x3[:m, 0]) / l[:m]
-    sca[vv, 1] = (x2[m:, 0] * x3[m:, 1] - x2[m:, 1] * x3[m:, 0]) / l[m:]
-    # the coefficients of the rows of T at P1, P2, P3 (one batch for all lines): ∂Δ/∂P1,
+    dn0 = (x2[:, 0] * x3[:, 1] - x2[:, 1] * x3[:, 0]) / l
+    sca[:, 0] = dn0[:m]
+    sca[vv, 1] = dn0[m:]
+    # the coefficients of the rows of T at P1, P2, P3, for all lines in one batch: ∂Δ/∂P1,
     # ∂Δ/∂P2, ∂Δ/∂P3 with P1 at the origin, and for line 0 of a vertex-edge contact the
     # derivatives of ds = (P1 − P0)·(P3 − P2)/l with P0 = (1 − ω)P2 + ωP3 (§2.8.3)
-    coef = [np.stack([x2[:, 1] - x3[:, 1], x3[:, 0] - x2[:, 0]], axis=1),
-            np.stack([x3[:, 1], -x3[:, 0]], axis=1), np.stack([-x2[:, 1], x2[:, 0]], axis=1)]
+    x2x, x2y, x3x, x3y = x2[:, 0], x2[:, 1], x3[:, 0], x3[:, 1]
+    a = [x2y - x3y, x3y, -x2y]
+    b = [x3x - x2x, -x3x, x2x]
     at = [X1, X2, X3]
     if len(ve):
-        w = omega[ve][:, None]
-        x2e, x3e, se, le = x2[ve], x3[ve], s[ve], li[ve]
-        r = -(1.0 - w) * x2e - w * x3e
-        sca[ve, 2] = (r[:, 0] * se[:, 0] + r[:, 1] * se[:, 1]) / le[:, 0]
-        coef += [se / le, (2.0 * (1.0 - w) * x2e - (1.0 - 2.0 * w) * x3e) / le,
-                 (-(1.0 - 2.0 * w) * x2e - 2.0 * w * x3e) / le]
+        w = omega[ve]
+        x2x, x2y, x3x, x3y, sx, sy, le = x2x[ve], x2y[ve], x3x[ve], x3y[ve], s[ve, 0], s[ve, 1], l[ve]
+        sca[ve, 2] = ((-(1.0 - w) * x2x - w * x3x) * sx + (-(1.0 - w) * x2y - w * x3y) * sy) / le
+        a += [sx / le, (2.0 * (1.0 - w) * x2x - (1.0 - 2.0 * w) * x3x) / le,
+              (-(1.0 - 2.0 * w) * x2x - 2.0 * w * x3x) / le]
+        b += [sy / le, (2.0 * (1.0 - w) * x2y - (1.0 - 2.0 * w) * x3y) / le,
+              (-(1.0 - 2.0 * w) * x2y - 2.0 * w * x3y) / le]
         at += [X1[ve], X2[ve], X3[ve]]
-    rows = _trow(np.concatenate(coef), np.concatenate(at))
+    X = np.concatenate(at)
+    rows = _trow(np.concatenate(a), np.concatenate(b), X[:, 0], X[:, 1])
+    li = l[:, None]
     e_vec = rows[:n] / li
     g_vec = (rows[n:2 * n] + rows[2 * n:3 * n]) / li
     vec[:, 0], vec[:, 1] = e_vec[:m], g_vec[:m]
