@@ -260,8 +260,8 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray
             a2, b2 = np.arctan2(geo.r2y[PQ], geo.r2x[PQ]).reshape(2, -1)
             # the wedges' angles wA, wB and the free gaps e5 (between A's edge prev->P and B's
             # edge Q->next) and e6 (between B's edge prev->Q and A's edge P->next)
-            wA, wB, e5, e6 = _wrap(np.concatenate([a2 - a1, b2 - b1, b1 - a2, a1 - b2]).reshape(4, -1),
-                                   np.array([[0.0], [0.0], [-h1], [-h1]]))
+            angles = np.concatenate([a2 - a1, b2 - b1, b1 - a2, a1 - b2]).reshape(4, -1)
+            wA, wB, e5, e6 = _wrap(angles, np.array([[0.0], [0.0], [-h1], [-h1]]))
             # the two wedges do not overlap (beyond h1) iff the four angles go once around
             apart = np.abs(wA + wB + e5 + e6 - TWO_PI) < _AROUND
             par5 = apart & (e5 < h1)
