@@ -1,6 +1,6 @@
 """Contact detection + contact vectors: the vectorised NumPy path against the Taichi kernels.
 
-    python benchmarks/detection.py [--sizes 1,4,16,64,256] [--repeats 300] [--out PATH]
+    python benchmarks/detection.py [--sizes 1,4,16,64,256,1024] [--repeats 300] [--out PATH]
 
 On ntdda's grid (``benchmarks/scaling.py``'s ``grid_scene``: n unit blocks on a fixed base,
 at rest, every edge in contact) it times, on the same vertices:
@@ -142,7 +142,7 @@ def machine() -> str:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--sizes", default="1,4,16,64,256")
+    ap.add_argument("--sizes", default="1,4,16,64,256,1024")
     ap.add_argument("--repeats", type=int, default=300)
     ap.add_argument("--out", type=Path, default=RESULTS / "detection.md")
     a = ap.parse_args()
