@@ -20,6 +20,7 @@ from typing import Optional
 
 import numpy as np
 
+from . import vectorized
 from .contact_law import friction_terms
 from .contacts import Contacts
 from .geometry import displacement_matrix, mass_matrix
@@ -138,6 +139,9 @@ def contact_vectors(model: Model, vertex_xy: np.ndarray, geom: dict, contacts: C
     """Normal/shear vectors e, g, e_s, g_s, t_j and constant parts of every contact (§2.8):
     ``vec`` (m, N_SLOTS, 6) by `ddatai.layout` slot, ``sca`` (m, 3) = (dn0 line 0, dn0 line 1, ds0)."""
     m = contacts.n
+    if model.numpy_path:
+        return vectorized.contact_vectors(model, vertex_xy, np.ascontiguousarray(geom["centroid"]),
+                                          contacts.cint, contacts.omega)
     vec = np.zeros((m, N_SLOTS, 6))
     sca = np.zeros((m, 3))
     if m:

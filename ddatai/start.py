@@ -68,7 +68,7 @@ from scipy.sparse.csgraph import connected_components
 
 from .assembly import BlockPattern, assemble_blocks, assemble_contacts, contact_vectors, load_forces
 from .contact_law import contact_law, friction_force
-from .contacts import Contacts, detect_contacts
+from .contacts import Contacts
 from .geometry import displacement_matrix
 from .kinematics import block_displacement, settle_points
 from .layout import E0, KIND, LOCK, OPEN, SLIDE, VE
@@ -194,7 +194,7 @@ def _stage(stepper, state: State, size: np.ndarray, dt_static: float, dt_ladder,
     budget = MAX_PSEUDO_STEPS + (0 if dt_ladder is None else 4 * int(np.log2(dt_static / dt_ladder)) + 16)
     for _ in range(budget):
         geom = state.geometry if state.geometry is not None else model.block_geometry(state.vertex_xy)
-        cint, length = detect_contacts(model, state.vertex_xy, stepper.buffers)
+        cint, length = stepper.detect(state.vertex_xy)
         contacts = Contacts.start(model, state.vertex_xy, cint, length, memory, True)
         contacts = _subset(contacts, ~(released[contacts.block_a] | released[contacts.block_b]))
         if not np.any(contacts.state != OPEN):

@@ -34,7 +34,7 @@ from typing import Optional
 
 import numpy as np
 
-from . import backend
+from . import backend, vectorized
 from .assembly import BlockPattern, assemble_blocks, contact_vectors, load_forces
 from .contact_law import accumulate_slip
 from .contacts import Contacts, _Buffers, detect_contacts
@@ -101,8 +101,10 @@ class Stepper:
     sparse solver (and its last factor), the last step's block pattern, the detection buffers."""
 
     def __init__(self, model: Model):
-        backend.ensure(model.params.arch)
-        self.serial_scatter = backend.serial_scatter()
+        # the small-model path runs in NumPy: Taichi is neither imported nor started for it
+        if not model.numpy_path:
+            backend.ensure(model.params.arch)
+        self.serial_scatter = False if model.numpy_path else backend.serial_scatter()
         self.model = model
         self.params = model.params
         self.buffers = _Buffers()
@@ -167,7 +169,7 @@ class Stepper:
         """The step's contacts (detection, and the memory of the last step transferred, §3),
         with their vectors; the block pattern follows them (reused while the pairs stay)."""
         model = self.model
-        cint, length = detect_contacts(model, state.vertex_xy, self.buffers)
+        cint, length = self.detect(state.vertex_xy)
         contacts = Contacts.start(model, state.vertex_xy, cint, length, state.memory, state.step == 0)
         self.pattern = BlockPattern.build(model, contacts, self.pattern)
         vec, sca = contact_vectors(model, state.vertex_xy, geom, contacts)
@@ -175,6 +177,14 @@ class Stepper:
         # or the stage's force at strength): their energy belongs to the step's start energy
         contacts.ds[:] = np.where(contacts.cint[:, KIND] == VV, 0.0, sca[:, 2])
         return contacts, vec, sca
+
+    def detect(self, vertex_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The contacts at ``vertex_xy`` (cint, length), canonical order: the Taichi kernels
+        (`contacts.detect_contacts`) or, for a small model, their NumPy twin
+        (`vectorized.detect_contacts`)."""
+        if self.model.numpy_path:
+            return vectorized.detect_contacts(self.model, vertex_xy)
+        return detect_contacts(self.model, vertex_xy, self.buffers)
 
     def attempt(self, state: State, geom: dict, contacts0: Contacts, vec0: np.ndarray, sca0: np.ndarray,
                 dt: float, timer: StepTimer) -> Attempt:

@@ -29,11 +29,27 @@ import ddatai.results, ddatai.geometry, ddatai.reference
     assert _loaded_after(code) == set()
 
 
-def test_simulation_starts_taichi():
+def test_simulation_on_the_kernels_starts_taichi():
     code = """
 import ddatai as dd
 s = dd.Scene()
 s.add_block([(0, 0), (1, 0), (1, 1)], material=dd.Material(density=2500.0, young=1e9, poisson=0.2))
-dd.simulate(s, steps=1)
+dd.simulate(s, dd.Params(kernels="taichi"), steps=1)
 """
     assert "taichi" in _loaded_after(code)
+
+
+def test_a_small_model_runs_without_taichi():
+    """The small-model path (`Params.kernels`, "auto" for a few blocks on the CPU) is NumPy
+    throughout: a run of a block on a base, its equilibrium stage included, never imports
+    Taichi (whose import and kernel loading cost seconds, more than such a run)."""
+    code = """
+import ddatai as dd
+s = dd.Scene()
+rock = dd.Material(density=2500.0, young=1e9, poisson=0.2)
+s.add_block([(-1, -1), (2, -1), (2, 0), (-1, 0)], material=rock, fixed=True)
+s.add_block([(0, 0), (1, 0), (1, 1)], material=rock)
+res = dd.simulate(s, steps=20)
+assert res.start["held"][0] == 1 and res.steps["contacts"].min() > 0
+"""
+    assert "taichi" not in _loaded_after(code)

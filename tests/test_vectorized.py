@@ -14,7 +14,7 @@ import ddatai as dd
 from cases import G, ROCK, perturbed_vertices, random_jointed_scene
 from ddatai import vectorized
 from ddatai.contacts import _Buffers, broad_phase, detect_contacts, edge_projection, narrow_phase
-from ddatai.geometry import SliverWarning
+from ddatai.cutting import SliverWarning
 from ddatai.layout import VE, VV
 from ddatai.model import build_model
 
