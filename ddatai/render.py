@@ -73,9 +73,11 @@ class View:
         return np.stack([px, py], axis=-1)
 
 
-def _view(results: Results, frames: Sequence[int], size: tuple[int, int]) -> View:
+def _view(results: Results, frames: Sequence[int], size: tuple[int, int], *, top: int = 26,
+          bottom: int = 30, side: int = 12) -> View:
+    """The fixed view of an animation: every block of every drawn frame inside the drawing
+    area (below the header of ``top`` pixels, above the scale bar's ``bottom``), equal scales."""
     width, height = size
-    top, bottom, side = 26, 30, 12  # room for the time (top) and the scale bar (bottom)
     # frame by frame: no copy of every drawn frame's vertices at once
     lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
     for f in frames:
@@ -84,12 +86,117 @@ def _view(results: Results, frames: Sequence[int], size: tuple[int, int]) -> Vie
     span = np.maximum(hi - lo, 1e-9)
     pad = 0.03 * span.max()
     lo, span = lo - pad, span + 2 * pad
-    scale = min((width - 2 * side) / span[0], (height - top - bottom) / span[1])
+    room_h = max(height - top - bottom, 8)
+    scale = min((width - 2 * side) / span[0], room_h / span[1])
     # centre the model in the drawing area
     left = side + 0.5 * ((width - 2 * side) - span[0] * scale)
-    extra_v = 0.5 * ((height - top - bottom) - span[1] * scale)
+    extra_v = 0.5 * (room_h - span[1] * scale)
     return View(x0=float(lo[0]), y0=float(lo[1]), scale=float(scale), height=height,
                 left=int(round(left)), bottom=int(round(bottom + extra_v)))
+
+
+def _font(size: int):
+    """Pillow's default font at ``size`` pixels (its FreeType font; the fixed 11-pixel bitmap
+    font on Pillow builds without FreeType)."""
+    from PIL import ImageFont
+
+    try:
+        return ImageFont.load_default(size=size)
+    except (TypeError, ImportError, OSError):  # Pillow < 10.1 or no FreeType
+        return ImageFont.load_default()
+
+
+def text_size(size: tuple[int, int]) -> int:
+    """Text height for a picture of ``size`` [px]: 10 px up to 480 px high, then growing with
+    the height (15 px at 720, 22 at 1080), so that text stays readable on large frames."""
+    return max(10, int(round(size[1] / 48)))
+
+
+Box = tuple[float, float, float, float]  # (left, top, right, bottom) [px]
+
+
+def _overlap(a: Box, b: Box) -> bool:
+    return a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Where the header of a frame goes: the time stamp (top left), the colour bar with its
+    label and end values (top right), the title between them or, when it does not fit there,
+    on a line of its own below them (shortened with "…" when even that line is too narrow).
+    Boxes are (left, top, right, bottom) in pixels; no two of them overlap, at any size
+    (`tests/test_render.py` measures them on rendered frames at 320×240 and 1280×720)."""
+
+    time: Box
+    """Box of the time stamp (its widest text)."""
+    title: Optional[Box]
+    """Box of the title (None without one)."""
+    title_text: str
+    """The title as drawn (shortened to fit)."""
+    bar: Optional[Box]
+    """The colour bar itself (None when colouring by group labels)."""
+    bar_label: Optional[Box]
+    """The colour bar's label (the quantity) left of the bar."""
+    bar_values: Optional[Box]
+    """The colour bar's end values, under the bar."""
+    header: int
+    """Height of the header [px]: the drawing area and the legend start below it."""
+    pad: int
+    """Margin [px]."""
+
+    def boxes(self) -> dict:
+        """The named boxes that are drawn."""
+        out = {"time": self.time, "title": self.title, "colour bar": self.bar,
+               "colour bar label": self.bar_label, "colour bar values": self.bar_values}
+        return {k: v for k, v in out.items() if v is not None}
+
+
+def _text_box(font, xy, text: str) -> Box:
+    left, top, right, bottom = font.getbbox(text)
+    return (xy[0] + left, xy[1] + top, xy[0] + right, xy[1] + bottom)
+
+
+def layout(size: tuple[int, int], font, *, time_text: str, title: Optional[str],
+           bar_label: Optional[str], bar_value: Optional[str]) -> Layout:
+    """The header of a frame of ``size`` (`Layout`); ``time_text`` is the widest time stamp of
+    the animation, ``bar_label``/``bar_value`` the colour bar's quantity and top value (None:
+    no colour bar)."""
+    width, height = size
+    pad = max(6, int(round(height / 80)))
+    text_h = font.getbbox("Ag")[3]
+    time_box = _text_box(font, (pad, pad), time_text)
+    bottoms = [time_box[3]]
+    bar = label_box = values_box = None
+    block_left = width - pad  # left edge of the colour bar's block
+    if bar_label is not None:
+        bar_w = int(min(max(0.18 * width, 50), 240))
+        bar_h = max(8, int(round(0.8 * text_h)))
+        x1 = width - pad - bar_w
+        bar = (x1, pad, width - pad, pad + bar_h)
+        lw = font.getlength(bar_label)
+        label_box = _text_box(font, (x1 - 4 - lw, pad + 0.5 * bar_h - 0.5 * text_h), bar_label)
+        vy = pad + bar_h + 2
+        zero, top = _text_box(font, (x1, vy), "0"), _text_box(font, (width - pad - font.getlength(bar_value), vy),
+                                                                   bar_value)
+        values_box = (min(zero[0], top[0]), min(zero[1], top[1]), max(zero[2], top[2]), max(zero[3], top[3]))
+        block_left = min(label_box[0], values_box[0])
+        bottoms += [bar[3], label_box[3], values_box[3]]
+    title_box, shown = None, title or ""
+    if title:
+        tw = font.getlength(title)
+        gap_lo, gap_hi = time_box[2] + 2 * pad, block_left - 2 * pad
+        if tw <= gap_hi - gap_lo:  # between the time and the colour bar: centred if it can be
+            x = min(max(0.5 * (width - tw), gap_lo), gap_hi - tw)
+            title_box = _text_box(font, (x, pad), title)
+        else:  # a line of its own
+            room = width - 2 * pad
+            while shown and font.getlength(shown) > room:
+                shown = shown[:-2] + "…" if len(shown) > 1 else ""
+            y = max(bottoms) + max(2, pad // 2)
+            title_box = _text_box(font, (0.5 * (width - font.getlength(shown)), y), shown)
+        bottoms.append(title_box[3])
+    return Layout(time=time_box, title=title_box, title_text=shown, bar=bar, bar_label=label_box,
+                  bar_values=values_box, header=int(math.ceil(max(bottoms))) + pad, pad=pad)
 
 
 def _nice_length(target: float) -> float:
@@ -149,12 +256,9 @@ class _Painter:
 
     def __init__(self, results: Results, frames: Sequence[int], *, size, labels, label_names,
                  show_contacts, title, max_speed):
-        from PIL import ImageFont
-
         self.results = results
         self.size = size
-        self.view = _view(results, frames, size)
-        self.font = ImageFont.load_default()
+        self.font = _font(text_size(size))
         self.show_contacts = show_contacts
         self.title = title
         nb = results.n_blocks
@@ -193,6 +297,24 @@ class _Painter:
                     self.quantity, self.unit = "displacement", "m"
         off = results.vertex_offset
         self.offsets = off
+        # the header is laid out once for the animation (the widest time stamp), so that it
+        # and the view stay put from frame to frame
+        times = [self._time_text(float(results.time[f])) for f in frames]
+        widest = max(times, key=self.font.getlength)
+        coloured = self.labels is None
+        self.layout = layout(size, self.font, time_text=widest, title=title,
+                             bar_label=self.quantity if coloured else None,
+                             bar_value=self._bar_value() if coloured else None)
+        text_h = self.font.getbbox("Ag")[3]
+        self.view = _view(results, frames, size, top=self.layout.header,
+                          bottom=text_h + 2 * self.layout.pad + 4)
+
+    @staticmethod
+    def _time_text(t: float) -> str:
+        return f"t = {t:.3f} s"
+
+    def _bar_value(self) -> str:
+        return f"{self.max_speed:.3g} {self.unit}"
 
     def block_colours(self, frame: int) -> list[tuple[int, int, int]]:
         r = self.results
@@ -220,6 +342,7 @@ class _Painter:
 
         r, v = self.results, self.view
         width, height = self.size
+        self._frame = frame
         image = Image.new("RGB", self.size, BACKGROUND)
         d = ImageDraw.Draw(image)
         pix = v.pixels(r.vertices[frame])
@@ -240,47 +363,63 @@ class _Painter:
             for (x, y), s in zip(cpix.tolist(), cst.tolist()):
                 if s != 0:  # open contacts would only clutter the picture
                     d.ellipse([x - 2, y - 2, x + 2, y + 2], fill=CONTACT_COLOURS[s])
-        # time (top left), title (top centre)
-        d.text((8, 6), f"t = {r.time[frame]:.3f} s", fill=TEXT, font=self.font)
-        if self.title:
-            w = d.textlength(self.title, font=self.font)
-            d.text(((width - w) / 2, 6), self.title, fill=TEXT, font=self.font)
+        self.header(d)
         self._scale_bar(d)
         self._legend(d)
         return image
 
+    def header(self, d, parts: Optional[Sequence[str]] = None) -> None:
+        """Draw the header (`Layout`): the time stamp, the title, the colour bar, its label and
+        its end values; ``parts`` names some of them (`Layout.boxes`' names) to draw only those."""
+        lay, font = self.layout, self.font
+        frame = getattr(self, "_frame", 0)
+
+        def want(name: str) -> bool:
+            return parts is None or name in parts
+
+        if want("time"):
+            d.text((lay.pad, lay.pad), self._time_text(float(self.results.time[frame])), fill=TEXT, font=font)
+        if lay.title is not None and want("title"):
+            left, top = font.getbbox(lay.title_text)[:2]
+            d.text((lay.title[0] - left, lay.title[1] - top), lay.title_text, fill=TEXT, font=font)
+        if lay.bar is not None:
+            x0, y0, x1, y1 = lay.bar
+            if want("colour bar"):
+                n = len(SPEED_COLOURS)
+                for k, c in enumerate(SPEED_COLOURS):
+                    d.rectangle([x0 + k * (x1 - x0) / n, y0, x0 + (k + 1) * (x1 - x0) / n, y1], fill=c)
+            if want("colour bar label"):
+                left, top = font.getbbox(self.quantity)[:2]
+                d.text((lay.bar_label[0] - left, lay.bar_label[1] - top), self.quantity, fill=TEXT, font=font)
+            if want("colour bar values"):
+                vy = y1 + 2
+                d.text((x0, vy), "0", fill=TEXT, font=font)
+                value = self._bar_value()
+                d.text((x1 - font.getlength(value), vy), value, fill=TEXT, font=font)
+
     def _scale_bar(self, d) -> None:
         width, height = self.size
+        pad = self.layout.pad
         length = _nice_length(0.2 * width / self.view.scale)
         px = length * self.view.scale
-        x0, y0 = 10, height - 12
+        text_h = self.font.getbbox("Ag")[3]
+        x0, y0 = pad + 4, height - pad - 0.5 * text_h
         d.line([(x0, y0), (x0 + px, y0)], fill=TEXT, width=2)
         d.line([(x0, y0 - 4), (x0, y0 + 1)], fill=TEXT, width=1)
         d.line([(x0 + px, y0 - 4), (x0 + px, y0 + 1)], fill=TEXT, width=1)
-        label = f"{length:g} m"
-        d.text((x0 + px + 6, y0 - 7), label, fill=TEXT, font=self.font)
+        d.text((x0 + px + 6, y0 - 0.6 * text_h), f"{length:g} m", fill=TEXT, font=self.font)
 
     def _legend(self, d) -> None:
+        """Group labels, contacts, water, bolts and points, one per line at the right, below
+        the header."""
         width, _ = self.size
-        x, y = width - 8, 6
+        pad = self.layout.pad
+        text_h = self.font.getbbox("Ag")[3]
+        box = max(8, int(round(0.8 * text_h)))
+        x, y = width - pad, self.layout.header
         entries: list[tuple[tuple[int, int, int], str]] = []
         if self.labels is not None:
             entries = list(self.legend)
-        else:
-            # speed scale as a bar with its end values
-            bar_w, bar_h = 100, 8
-            x0 = width - bar_w - 8
-            n = len(SPEED_COLOURS)
-            for k, c in enumerate(SPEED_COLOURS):
-                d.rectangle([x0 + k * bar_w / n, y, x0 + (k + 1) * bar_w / n, y + bar_h], fill=c)
-            d.text((x0, y + bar_h + 2), "0", fill=TEXT, font=self.font)
-            label = f"{self.max_speed:.3g} {self.unit}"
-            w = d.textlength(label, font=self.font)
-            d.text((x0 + bar_w - w, y + bar_h + 2), label, fill=TEXT, font=self.font)
-            label = self.quantity
-            w = d.textlength(label, font=self.font)
-            d.text((x0 - w - 4, y - 1), label, fill=TEXT, font=self.font)
-            y += bar_h + 16
         if self.show_contacts:
             entries += [(CONTACT_COLOURS[s], CONTACT_NAMES[s] + " contact") for s in (1, 2)]
         entries += _water_and_bolt_legend(self.results)
@@ -291,10 +430,10 @@ class _Painter:
         if self.results.load_points.size:
             entries.append((LOAD, "point load"))
         for colour, name in entries:
-            w = d.textlength(name, font=self.font)
-            d.rectangle([x - 10, y + 2, x - 2, y + 10], fill=colour, outline=OUTLINE)
-            d.text((x - 14 - w, y), name, fill=TEXT, font=self.font)
-            y += 14
+            w = self.font.getlength(name)
+            d.rectangle([x - box, y + 2, x, y + 2 + box], fill=colour, outline=OUTLINE)
+            d.text((x - box - 4 - w, y), name, fill=TEXT, font=self.font)
+            y += text_h + 4
 
 
 def _frames(results: Results, stride: int, frames: Optional[Sequence[int]]) -> list[int]:

@@ -218,3 +218,74 @@ def test_measured_points_are_drawn():
     res.measured = np.zeros((3, 0, 2))
     frame = dd.render_frames(res, size=(200, 150), frames=[2])[0]
     assert not np.any(np.all(frame == render.MEASURED, axis=-1))
+
+
+def _ink_box(image: np.ndarray):
+    """(left, top, right, bottom) of the pixels that are not background, or None."""
+    from ddatai import render
+
+    ink = np.any(image != render.BACKGROUND, axis=2)
+    rows, cols = np.flatnonzero(ink.any(axis=1)), np.flatnonzero(ink.any(axis=0))
+    if not len(rows):
+        return None
+    return int(cols[0]), int(rows[0]), int(cols[-1]) + 1, int(rows[-1]) + 1
+
+
+LONG_TITLE = "Example II, key group {P, A}: rigid FS 1.586, Sarma FS 0.771, DDA FS 0.971 - the group slides out"
+
+
+@pytest.mark.parametrize("size", [(320, 240), (1280, 720)])
+@pytest.mark.parametrize("title", ["jointed_slope", "bolted_slope: design", LONG_TITLE, None])
+@pytest.mark.parametrize("colouring", ["speed", "displacement", "labels"])
+def test_title_time_and_colour_bar_never_overlap(size, title, colouring):
+    """The header's parts are drawn one at a time on blank frames, over every frame of the
+    animation (the time stamp changes); their measured ink boxes lie inside the picture and
+    no two overlap (the gallery once printed "jointed_slope" over the colour bar's "speed").
+    Nothing else is drawn in the header, and the model is drawn below it."""
+    from PIL import Image, ImageDraw
+
+    from ddatai import render
+
+    res = _static_pair() if colouring == "displacement" else _moving_square(np.linspace(0.0, 12.0, 7))
+    labels = np.array([-1, 0]) if colouring == "labels" else None
+    frames = list(range(res.n_frames))
+    painter = render._Painter(res, frames, size=size, labels=labels, label_names=["key group"] if labels is not None
+                              else None, show_contacts=False, title=title, max_speed=None)
+    parts = painter.layout.boxes()
+    expected = {"time"} | ({"title"} if title else set()) | \
+        ({"colour bar", "colour bar label", "colour bar values"} if colouring != "labels" else set())
+    assert set(parts) == expected
+    if colouring != "labels":
+        assert painter.quantity == colouring
+    measured = {}
+    for name in parts:
+        union = None
+        for f in frames:
+            image = Image.new("RGB", size, render.BACKGROUND)
+            painter._frame = f
+            painter.header(ImageDraw.Draw(image), parts=[name])
+            box = _ink_box(np.asarray(image))
+            assert box is not None, name
+            union = box if union is None else (min(union[0], box[0]), min(union[1], box[1]),
+                                               max(union[2], box[2]), max(union[3], box[3]))
+        assert 0 <= union[0] and 0 <= union[1] and union[2] <= size[0] and union[3] <= painter.layout.header, \
+            (name, union, size)
+        measured[name] = union
+    names = sorted(measured)
+    for i, a in enumerate(names):
+        for b in names[i + 1:]:
+            assert not render._overlap(measured[a], measured[b]), (a, measured[a], b, measured[b], size)
+    # the whole frame: its header holds only these parts, and the model lies below the header
+    for f in (0, frames[-1]):
+        frame = np.asarray(painter.draw(f))
+        header = frame[:painter.layout.header].copy()
+        for x0, y0, x1, y1 in measured.values():
+            header[y0:y1, x0:x1] = render.BACKGROUND
+        assert _ink_box(header) is None, (f, _ink_box(header))
+        blocks = painter.view.pixels(res.vertices[f])
+        assert blocks[:, 1].min() >= painter.layout.header
+        assert blocks[:, 1].max() <= size[1] and blocks[:, 0].min() >= 0 and blocks[:, 0].max() <= size[0]
+    if title == LONG_TITLE and size[0] == 320:
+        assert painter.layout.title_text.endswith("…")  # shortened to the picture's width
+    # text grows with large pictures
+    assert render.text_size(size) == (10 if size[1] <= 480 else 15)
