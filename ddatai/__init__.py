@@ -35,7 +35,7 @@ _EXPORTS = {
     "STEP_DTYPE": "results",
     "simulate": "step", "Stepper": "step", "sweep": "sweep",
     "polygon_integrals": "geometry", "validate_polygon": "geometry",
-    "write_gif": "render", "write_png": "render", "render_frames": "render",
+    "write_gif": "render", "write_png": "render", "render_frames": "render", "write_video": "render",
     "joint_sets": "jointsets", "JointSet": "jointsets", "fit_mapping": "jointsets", "MappingFit": "jointsets",
     "read_dxf": "dxf", "read_dxf_section": "dxf", "DxfSection": "dxf",
     "read_ntdda": "ntdda", "NtddaCase": "ntdda", "NtddaFormatError": "ntdda",

@@ -1,10 +1,14 @@
 """Offscreen rendering: GIF frame count, size, frames that differ, determinism, PNG, labels."""
 
+import importlib.util
+
 import numpy as np
 import pytest
 
 import ddatai as dd
 from cases import sliding_scene
+
+SLIDING = str(__import__("pathlib").Path(__file__).resolve().parents[1] / "scenes" / "sliding_block.py")
 
 
 @pytest.fixture(scope="module")
@@ -289,3 +293,75 @@ def test_title_time_and_colour_bar_never_overlap(size, title, colouring):
         assert painter.layout.title_text.endswith("…")  # shortened to the picture's width
     # text grows with large pictures
     assert render.text_size(size) == (10 if size[1] <= 480 else 15)
+
+
+_NO_VIDEO = "the optional [video] extra (imageio-ffmpeg) is not installed: pip install 'ddatai[video]'"
+
+
+def test_video_plays_at_the_stated_speed_and_shows_the_frames(tmp_path):
+    """MP4 through imageio's ffmpeg plugin: a 3 s run at speed 1 and 25 frames/s is 76 video
+    frames (a constant frame rate: each drawn frame repeated for its display time), of the
+    asked size (an odd size padded to even), close to the drawn frames (H.264 is lossy)."""
+    pytest.importorskip("imageio_ffmpeg", reason=_NO_VIDEO)
+    import imageio.v2 as imageio
+
+    res = _moving_square(np.linspace(0.0, 3.0, 61))
+    path = dd.write_video(res, tmp_path / "a.mp4", size=(320, 240), fps=25.0, title="square")
+    with imageio.get_reader(path, format="FFMPEG") as reader:
+        back = [frame for frame in reader]
+        assert reader.get_meta_data()["fps"] == pytest.approx(25.0)
+    assert len(back) == 76 and back[0].shape == (240, 320, 3)
+    drawn = dd.render_frames(res, size=(320, 240), frames=[0, 60], title="square")
+    for a, b in ((back[0], drawn[0]), (back[-1], drawn[1])):
+        assert np.abs(a.astype(int) - b.astype(int)).mean() < 6.0
+    assert np.abs(back[0].astype(int) - back[-1].astype(int)).mean() > 1.0  # the square moved
+    odd = dd.write_video(res, tmp_path / "odd.mp4", size=(161, 121), fps=10.0, speed=3.0)
+    with imageio.get_reader(odd, format="FFMPEG") as reader:
+        frames = [frame for frame in reader]
+    assert frames[0].shape == (122, 162, 3) and len(frames) == 11
+
+
+def test_video_is_streamed_and_smaller_than_the_gif_of_a_long_run(tmp_path, monkeypatch):
+    """600 frames drawn one at a time: at most a few alive at once (the writer keeps none),
+    and the MP4 is smaller than the GIF of the same frames."""
+    pytest.importorskip("imageio_ffmpeg", reason=_NO_VIDEO)
+    import weakref
+
+    from ddatai import render
+
+    res = _moving_square(np.linspace(0.0, 10.0, 600))
+    refs: list = []
+    most = [0]
+    original = render._Painter.image
+
+    class Frame(np.ndarray):
+        pass
+
+    def image(self, frame):
+        most[0] = max(most[0], sum(r() is not None for r in refs))
+        out = original(self, frame).view(Frame)
+        refs.append(weakref.ref(out))
+        return out
+
+    monkeypatch.setattr(render._Painter, "image", image)
+    mp4 = dd.write_video(res, tmp_path / "long.mp4", size=(320, 240), stride=1, fps=60.0)
+    assert len(refs) == 600 and most[0] <= 3, most[0]
+    gif = dd.write_gif(res, tmp_path / "long.gif", size=(320, 240), stride=1, fps=50.0)
+    assert mp4.stat().st_size < gif.stat().st_size
+
+
+def test_video_option_of_the_command_line(tmp_path, capsys):
+    from ddatai.cli import main
+
+    if importlib.util.find_spec("imageio_ffmpeg") is None:
+        # without the extra: one line naming it, before any work
+        assert main(["run", SLIDING, "--steps", "2", "--video", str(tmp_path / "v.mp4"),
+                     "--out", str(tmp_path), "--quiet"]) == 2
+        assert "pip install 'ddatai[video]'" in capsys.readouterr().err
+        return
+    assert main(["run", SLIDING, "--duration", "0.2", "--video", str(tmp_path / "v.mp4"),
+                 "--size", "320x240", "--out", str(tmp_path), "--quiet"]) == 0
+    assert (tmp_path / "v.mp4").stat().st_size > 0 and "video written to" in capsys.readouterr().out
+    assert main(["run", SLIDING, "--steps", "2", "--video", str(tmp_path / "v.avi"),
+                 "--out", str(tmp_path), "--quiet"]) == 2
+    assert "must name a .mp4 file" in capsys.readouterr().err
