@@ -8,7 +8,7 @@
 A scene script is a Python file defining ``build(**options)`` returning a Scene or
 ``(scene, params)``, and optionally ``DURATION`` (seconds; ``--duration`` or ``--steps``
 replaces it), loaded by `ddatai.scenefile` like ``kgm`` loads it; ``python scenes/NAME.py
-[options]`` runs the same way through `scene_main`. The options are checked before anything
+[options]`` runs the same way through `scene_main` (`run_as_script`). The options are checked before anything
 is built; a user error (a bad option, a broken scene) prints one line and exits with status 2
 (``--debug`` shows the traceback). The run shows a progress bar (simulated time, steps per
 second), writes the results to ``DIR/NAME.npz`` (NAME: the GIF's name when ``--gif`` is given,
@@ -422,6 +422,17 @@ def scene_main(build: Callable, duration: Optional[float], name: str, argv: Opti
         return run_scene(build, duration, _output_name(args, name), args)
 
     return _guarded(args, go, prog=name)
+
+
+def run_as_script(build: Callable, duration: Optional[float], name: str,
+                  argv: Optional[Sequence[str]] = None) -> None:
+    """The ``if __name__ == "__main__":`` block of a scene script: `scene_main`, exiting with
+    its status when the run failed (2: a user error, 1: the run diverged, 130: Ctrl-C) and
+    returning normally when it succeeded, so that a script that runs its scene can go on (the
+    documentation's gallery runs every scene script this way)."""
+    rc = scene_main(build, duration, name, argv)
+    if rc:
+        raise SystemExit(rc)
 
 
 if __name__ == "__main__":

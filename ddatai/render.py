@@ -126,7 +126,7 @@ class Layout:
     label and end values (top right), the title between them or, when it does not fit there,
     on a line of its own below them (shortened with "…" when even that line is too narrow).
     Boxes are (left, top, right, bottom) in pixels; no two of them overlap, at any size
-    (`tests/test_render.py` measures them on rendered frames at 320×240 and 1280×720)."""
+    (``tests/test_render.py`` measures them on rendered frames at 320×240 and 1280×720)."""
 
     time: Box
     """Box of the time stamp (its widest text)."""

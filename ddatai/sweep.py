@@ -92,7 +92,7 @@ def sweep(build, grid_or_samples, *, duration: float, measure: Optional[Callable
           workers: Optional[int] = None, progress: Optional[Callable] = None) -> np.ndarray:
     """Run ``build(**values)`` for every grid point or sample and simulate each for ``duration``
     seconds (module docstring). Returns one row per run, in input order, as a NumPy structured
-    array: the run's parameters (numbers), then `BASE_COLUMNS` and ``measure``'s columns.
+    array: the run's parameters (numbers), then ``BASE_COLUMNS`` and ``measure``'s columns.
 
     ``build`` is a function at the top level of an importable module or the path of a scene
     script (its ``build``); ``client``/``workers`` as in `kgm.probabilistic` (None: one local
