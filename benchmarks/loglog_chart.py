@@ -58,14 +58,18 @@ def _matplotlib():
 def draw_loglog_chart(path, panels: Sequence[Panel], *, title: str, x_label: str, y_label: str,
                       highlight_legend: str = "", notes: Sequence[str] = (), y_floor: Optional[float] = None,
                       columns: Optional[int] = None) -> Path:
-    """Write a PNG of log–log panels (`Panel`) side by side (``columns`` per row), one legend per
-    panel. Points at or below ``y_floor`` are drawn hollow on the floor (round-off errors);
+    """Write a PNG of log–log panels (`Panel`), ``columns`` per row (default one: the panels
+    stacked, so that the chart stays readable at the width of a documentation page), one legend
+    per panel. Points at or below ``y_floor`` are drawn hollow on the floor (round-off errors);
     ``notes`` go under the chart. Returns the path."""
     plt = _matplotlib()
     n = len(panels)
-    columns = columns or min(n, 3)
+    import textwrap
+
+    columns = columns or 1
     rows = math.ceil(n / columns)
-    fig, axes = plt.subplots(rows, columns, figsize=(5.2 * columns, 4.4 * rows + 0.5 + 0.22 * len(notes)),
+    lines = [line for note in notes for line in textwrap.wrap(note, 100 * columns)]
+    fig, axes = plt.subplots(rows, columns, figsize=(6.4 * columns, 3.6 * rows + 0.6 + 0.14 * len(lines)),
                              squeeze=False, sharex=True, sharey=True)
     for k, ax in enumerate(axes.flat):
         if k >= n:
@@ -115,10 +119,10 @@ def draw_loglog_chart(path, panels: Sequence[Panel], *, title: str, x_label: str
             ax.tick_params(labelbottom=True)
     fig.suptitle(title, fontsize=12)
     bottom = 0.0
-    if notes:
-        fig.text(0.01, 0.005, "\n".join(notes), fontsize=8, va="bottom", ha="left", color="#333333")
-        bottom = (0.22 * len(notes) + 0.3) / fig.get_figheight()
-    fig.tight_layout(rect=(0, bottom, 1, 0.97))
+    if lines:
+        fig.text(0.01, 0.005, "\n".join(lines), fontsize=8, va="bottom", ha="left", color="#333333")
+        bottom = (0.14 * len(lines) + 0.15) / fig.get_figheight()
+    fig.tight_layout(rect=(0, bottom, 1, 1 - 0.4 / fig.get_figheight()))
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)

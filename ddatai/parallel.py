@@ -166,7 +166,7 @@ def _guarded_lines(source: str) -> list[tuple[int, int]]:
     return [(node.lineno, node.end_lineno or node.lineno) for node in tree.body if _is_main_guard(node)]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class MainModuleCheck:
     """Whether worker processes started with ``spawn`` can run ``fn``, seen from the script
     that runs (`check_main_module`)."""

@@ -120,7 +120,7 @@ def _overlap(a: Box, b: Box) -> bool:
     return a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Layout:
     """Where the header of a frame goes: the time stamp (top left), the colour bar with its
     label and end values (top right), the title between them or, when it does not fit there,

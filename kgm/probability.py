@@ -315,7 +315,7 @@ def probabilistic(build, variables: Mapping, n: int, *, method: str = "sarma",
     settings : `kgm.Settings` of the analyses.
     client : None (this machine), a ``dask.distributed.Client`` or a scheduler address.
     workers : local worker processes. None: in this process for 'rigid' and 'sarma' (a
-        limit-equilibrium sample takes about a millisecond: worker processes would cost more
+        limit-equilibrium sample takes milliseconds: worker processes would cost more
         than they save), one per CPU for 'dda'; 1: in this process; N: N processes (the
         table is the same whatever the number).
     out : CSV file to which every sample is appended as it completes; an existing file of the

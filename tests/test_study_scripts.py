@@ -157,6 +157,22 @@ def test_unguarded_sweep_asking_for_processes_stops_with_one_line(tmp_path):
     assert not (tmp_path / "built.txt").exists()
 
 
+def test_the_default_follows_the_cost_of_a_sample():
+    """Limit-equilibrium samples (light) run in this process, DDA runs (heavy) on one process per
+    CPU, an explicit number wins; a lambda cannot go to processes: the default stays here and an
+    explicit request is refused before any work."""
+    import kgm_cases
+
+    from ddatai.parallel import default_workers, plan
+
+    assert plan(kgm_cases.incline_scene, cost="light") == 1
+    assert plan(kgm_cases.incline_scene, cost="heavy") == default_workers()
+    assert plan(kgm_cases.incline_scene, cost="light", workers=2) == 2
+    assert plan(lambda: None, cost="heavy") == 1
+    with pytest.raises(ValueError, match="cannot be sent"):
+        plan(lambda: None, cost="light", workers=2)
+
+
 def test_guard_detection_on_source():
     from ddatai.parallel import _guarded_lines
 
