@@ -27,7 +27,7 @@ study at its top level, outside an ``if __name__ == "__main__":`` block, would s
 every worker (Python's `multiprocessing` then breaks the pool). `plan` checks this before any
 work (`MainModuleCheck`): with ``workers=None`` such a study runs in this process (and says so
 once, with what to add to use the processes); with ``workers > 1`` it stops with one line saying
-what to add (`UnguardedMainError`).
+what to add (`UnguardedMainError`; at an interactive prompt, `InteractiveMainError`).
 """
 
 from __future__ import annotations
@@ -109,7 +109,17 @@ class UnguardedMainError(SystemExit):
     ``if __name__ == "__main__":`` block (or from a prompt, whose functions the workers cannot
     import). Raised before any work; uncaught, Python prints its one-line message and exits
     with status 1 (it is a `SystemExit`: the script cannot go on usefully, and the message is
-    the whole story)."""
+    the whole story). At an interactive prompt, which a `SystemExit` would close,
+    `InteractiveMainError` is raised instead."""
+
+
+class InteractiveMainError(RuntimeError):
+    """`UnguardedMainError`'s message, raised at an interactive prompt (Python's, IPython's, a
+    notebook's): the session goes on."""
+
+
+def _interactive() -> bool:
+    return bool(hasattr(sys, "ps1") or sys.flags.interactive or "IPython" in sys.modules)
 
 
 def default_workers_for(cost: str) -> int:
@@ -248,6 +258,8 @@ def plan(fn: Callable, *, client=None, workers: Optional[int] = None, cost: str 
     if check.ok:
         return n
     if workers is not None:
+        if _interactive():
+            raise InteractiveMainError(check.advice(caller))
         raise UnguardedMainError(check.advice(caller))
     warnings.warn(check.advice(caller).replace(", or pass workers=1 to run in this process", "") +
                   f" to use {n} worker processes; running in this process", RuntimeWarning, stacklevel=3)

@@ -125,6 +125,19 @@ def test_a_function_from_a_prompt_cannot_go_to_processes_and_says_so(tmp_path):
     assert not (tmp_path / "built.txt").exists()
 
 
+def test_at_an_interactive_prompt_the_session_goes_on(tmp_path):
+    """At a prompt (here ``python -i``) a `SystemExit` would close the session: the same line
+    comes as an `InteractiveMainError`, and the session goes on."""
+    code = f"MARK = {str(tmp_path / 'built.txt')!r}\n" + textwrap.dedent(BUILD) + \
+        textwrap.dedent(STUDY.format(n=20, extra=", workers=2"))
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    out = subprocess.run([sys.executable, "-i", "-c", code], input='print("STILL", "HERE")\n', capture_output=True,
+                         text=True, cwd=tmp_path, env=env, timeout=300)
+    assert "InteractiveMainError" in out.stderr and "define it in a module or script file" in out.stderr
+    assert "STILL HERE" in out.stdout + out.stderr, (out.stdout, out.stderr)
+    assert not (tmp_path / "built.txt").exists()
+
+
 SWEEP = '''
 import ddatai as dd
 rows = dd.sweep(build, {{"friction": [20.0, 40.0]}}, duration=0.05{extra})
