@@ -71,7 +71,7 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))  # run as a script: make `benchmarks` importable
 
 import ddatai as dd  # noqa: E402
-from benchmarks.loglog_chart import PALETTE, Panel, Series, draw_loglog_chart  # noqa: E402
+from benchmarks.loglog_chart import NO_CHART, PALETTE, Panel, Series, draw_loglog_chart, have_matplotlib  # noqa: E402
 from benchmarks.stick_slip import sinusoid_stick_slip, stick_slip  # noqa: E402
 
 G = 9.81
@@ -811,9 +811,13 @@ def main(argv: Optional[list[str]] = None) -> int:
         "",
     ]
     (a.out / "accuracy.md").write_text("\n".join(md))
-    draw_chart(a.out / "accuracy.png", cases, runs, summaries)
     write_runs_csv(a.out / "accuracy.csv", cases, configs, runs)
-    print(f"\nwrote accuracy.md, accuracy.png and accuracy.csv in {a.out} ({total:.0f} s)", file=sys.stderr)
+    if have_matplotlib():
+        draw_chart(a.out / "accuracy.png", cases, runs, summaries)
+    else:
+        print(NO_CHART, file=sys.stderr)
+    drawn = "accuracy.png, " if have_matplotlib() else ""
+    print(f"\nwrote accuracy.md, {drawn}accuracy.csv in {a.out} ({total:.0f} s)", file=sys.stderr)
     return 0
 
 

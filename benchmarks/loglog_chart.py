@@ -44,6 +44,17 @@ class Panel:
     series: Sequence[Series] = field(default_factory=list)
 
 
+def have_matplotlib() -> bool:
+    """Whether the charts can be drawn (matplotlib, the [plot] extra, is installed)."""
+    import importlib.util
+
+    return importlib.util.find_spec("matplotlib") is not None
+
+
+#: what a benchmark prints instead of drawing its chart without matplotlib
+NO_CHART = "chart not drawn: the benchmark charts need matplotlib (pip install -e '.[plot]')"
+
+
 def _matplotlib():
     try:
         import matplotlib

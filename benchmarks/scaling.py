@@ -280,8 +280,11 @@ def chart(rows: list[dict], path: Path) -> None:
     time per step of each family (with ntdda's grid), one for the sparse solve's share, one per
     open-close iteration against ntdda's."""
     sys.path.insert(0, str(ROOT / "benchmarks"))
-    from loglog_chart import Panel, Series, draw_loglog_chart
+    from loglog_chart import NO_CHART, Panel, Series, draw_loglog_chart, have_matplotlib
 
+    if not have_matplotlib():
+        print(NO_CHART, file=sys.stderr)
+        return
     families = [f for f in SCENES if any(r["family"] == f for r in rows)]
 
     def curve(family: str, key: str) -> list:
