@@ -71,7 +71,7 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))  # run as a script: make `benchmarks` importable
 
 import ddatai as dd  # noqa: E402
-from benchmarks.loglog_chart import PALETTE, Series, draw_loglog_chart  # noqa: E402
+from benchmarks.loglog_chart import NO_CHART, PALETTE, Panel, Series, draw_loglog_chart, have_matplotlib  # noqa: E402
 from benchmarks.stick_slip import sinusoid_stick_slip, stick_slip  # noqa: E402
 
 G = 9.81
@@ -431,7 +431,7 @@ def sweep_configs(quick: bool) -> list[Config]:
     configs += [Config("start", "sudden gravity", {"initial_equilibrium": False})]
     configs += [Config("open", f"open tol {v:g} w0", {"open_tolerance": v})
                 for v in (1e-14, 1e-12, 1e-11, 1e-10)]  # larger values are rejected: they act
-    #                                           as tension and shear allowances (see README)
+    #                                           as tension and shear allowances (docs/guide/accuracy.md)
     return configs
 
 
@@ -676,24 +676,46 @@ def redraw_chart(csv_path: Path, png_path: Path) -> None:
     draw_chart(png_path, cases, runs, summaries)
 
 
+#: the chart's panels: cases grouped by what sets their error (docs/guide/accuracy.md), at most
+#: four curves a panel
+CHART_PANELS = (("time integration sets the error", ("pushed", "toppling", "newmark")),
+                ("the contact law's round-off force sets it", ("sliding", "cohesive", "launched")),
+                ("round-off and elastic deformation set it", ("resting", "free_flight", "column", "bonded_column")))
+
+
 def draw_chart(path: Path, cases: list[Case], runs: dict, summaries: list[CaseSummary]) -> None:
-    series = []
-    for i, (case, summary) in enumerate(zip(cases, summaries)):
+    """Error against wall time (matplotlib, the [plot] extra): one panel per group of
+    `CHART_PANELS`, each case's runs as dots, its best curve as a line and its defaults as a
+    diamond."""
+    series = {}
+    for case, summary in zip(cases, summaries):
         case_runs = [r for (k, _), r in runs.items() if k == case.key]
         d = summary.default
-        series.append(Series(
+        series[case.key] = Series(
             label=case.label,
             points=[(r.wall, r.error) for r in case_runs if math.isfinite(r.error)],
             line=best_error_staircase(case_runs),
-            highlight=(d.wall, d.error) if math.isfinite(d.error) else None,
-            highlight_text=case.key,
-            color=PALETTE[i % len(PALETTE)]))
-    draw_loglog_chart(path, series, title="DDA error against run time, closed-form cases", x_label="wall time of dd.simulate [s]",
-                      y_label="error against the exact answer", highlight_legend="default parameters",
-                      notes=["dots: one parameter changed at a", "time (dt, dt_max, p/E, close and",
-                             "open tolerance; see accuracy.md)", "lines: the lowest error reached",
-                             "in that wall time or less (errors",
-                             f">= {WRONG_ANSWER_ERROR:g}, wrong answers, left off)",
+            highlight=(d.wall, d.error) if math.isfinite(d.error) else None)
+    panels = []
+    placed = set()
+    for title, keys in CHART_PANELS:
+        mine = [series[k] for k in keys if k in series]
+        for i, s in enumerate(mine):
+            s.color = PALETTE[i]
+        placed |= set(keys)
+        if mine:
+            panels.append(Panel(title, mine))
+    rest = [s for k, s in series.items() if k not in placed]
+    for start in range(0, len(rest), 4):
+        for i, s in enumerate(rest[start:start + 4]):
+            s.color = PALETTE[i]
+        panels.append(Panel("other cases", rest[start:start + 4]))
+    draw_loglog_chart(path, panels, title="DDA error against run time, closed-form cases",
+                      x_label="wall time of dd.simulate [s]", y_label="error against the exact answer",
+                      highlight_legend="default parameters",
+                      notes=["dots: one parameter changed at a time (dt, dt_max, p/E, close and open tolerance; "
+                             "see accuracy.md); lines: the lowest error reached in that wall time or less "
+                             f"(errors >= {WRONG_ANSWER_ERROR:g}, wrong answers, left off); "
                              f"errors < {ERROR_FLOOR:g}: hollow, on the floor"],
                       y_floor=ERROR_FLOOR)
 
@@ -763,7 +785,7 @@ def main(argv: Optional[list[str]] = None) -> int:
         "step count (in Details) are steadier measures of cost.",
         "- Each row changes one parameter from the defaults (`dd.Params()`; the column case "
         "always runs `static=True`); **defaults** is `params=None`. Every run at full precision: "
-        "`accuracy.csv`; what the numbers mean: README, \"Accuracy against run time\".",
+        "`accuracy.csv`; what the numbers mean: docs/guide/accuracy.md.",
         "",
         "![error against run time](accuracy.png)",
         "",
@@ -789,9 +811,13 @@ def main(argv: Optional[list[str]] = None) -> int:
         "",
     ]
     (a.out / "accuracy.md").write_text("\n".join(md))
-    draw_chart(a.out / "accuracy.png", cases, runs, summaries)
     write_runs_csv(a.out / "accuracy.csv", cases, configs, runs)
-    print(f"\nwrote accuracy.md, accuracy.png and accuracy.csv in {a.out} ({total:.0f} s)", file=sys.stderr)
+    if have_matplotlib():
+        draw_chart(a.out / "accuracy.png", cases, runs, summaries)
+    else:
+        print(NO_CHART, file=sys.stderr)
+    drawn = "accuracy.png, " if have_matplotlib() else ""
+    print(f"\nwrote accuracy.md, {drawn}accuracy.csv in {a.out} ({total:.0f} s)", file=sys.stderr)
     return 0
 
 

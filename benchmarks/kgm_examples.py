@@ -5,16 +5,16 @@
 For each example: the critical key group found by the Sarma-KGM search, then its factor of
 safety, critical friction angle and verdict with the rigid (KGM), Sarma (SKGM) and DDA
 (developed method) evaluators, the DDA runs and their wall time, and the per-step time of the
-DDA sub-model against the whole slope. Prints Markdown (the README's tables).
+DDA sub-model against the whole slope. Prints Markdown (the tables of docs/kgm/guide.md).
 
 The footwall cases (`scenes/footwall.py`, docs/kgm/footwall.md): planar slab sliding,
 ploughing and bilinear slab failure, each with its closed-form factor of safety (computed by
 hand from the geometry, eqs. F1–F8) beside the rigid, Sarma and DDA evaluators of the group.
 
 ``--gif DIR`` also draws the DDA run of each paper example's key group at the scene's strength
-(``DIR/example_1.gif``, ``DIR/example_2.gif``; the README's are ``--gif docs/kgm``), titled
+(``DIR/example_1.gif``, ``DIR/example_2.gif``; the documentation's are ``--gif docs/kgm``), titled
 with the factor of safety and critical friction angle of the same evaluation as the table, so
-that the README's tables and pictures come from one run of this script.
+that the documentation's tables and pictures come from one run of this script.
 """
 
 import argparse

@@ -286,23 +286,38 @@ def solves_table(rows: list[dict]) -> str:
 
 
 def chart(rows: list[dict], path: Path) -> None:
+    """Time per step against block count (matplotlib, the [plot] extra): one panel for the
+    time per step of each family (with ntdda's grid), one for the sparse solve's share, one per
+    open-close iteration against ntdda's."""
     sys.path.insert(0, str(ROOT / "benchmarks"))
-    from loglog_chart import Series, draw_loglog_chart
+    from loglog_chart import NO_CHART, Panel, Series, draw_loglog_chart, have_matplotlib
 
-    series = []
-    for family in sorted({r["family"] for r in rows}):
-        pts = sorted((r["blocks"], r["ms_per_step"] / 1e3) for r in rows if r["family"] == family)
-        series.append(Series(label=f"ddatai {family}: s/step", points=pts, line=pts))
-        solve = sorted((r["blocks"], r["ms_solve"] / 1e3) for r in rows if r["family"] == family)
-        series.append(Series(label=f"ddatai {family}: solve s/step", points=solve, line=solve))
-    oc = sorted((r["blocks"], r["ms_per_oc"] / 1e3) for r in rows if r["family"] == "grid")
-    series.append(Series(label="ddatai grid: s per OC iteration", points=oc, line=oc))
+    if not have_matplotlib():
+        print(NO_CHART, file=sys.stderr)
+        return
+    families = [f for f in SCENES if any(r["family"] == f for r in rows)]
+
+    def curve(family: str, key: str) -> list:
+        return sorted((r["blocks"], r[key] / 1e3) for r in rows if r["family"] == family and key in r)
+
     nt = sorted(NTDDA_GRID.items())
-    series.append(Series(label="ntdda grid: s/step (same machine type)", points=nt, line=nt))
+    per_step = [Series(label=f"ddatai {f}", points=curve(f, "ms_per_step"), line=curve(f, "ms_per_step"))
+                for f in families] + [Series(label="ntdda grid (same machine type)", points=nt, line=nt, dashed=True,
+                                             color="#000000")]
+    solve = [Series(label=f"ddatai {f}", points=curve(f, "ms_solve"), line=curve(f, "ms_solve")) for f in families]
     nt_oc = sorted((n, v[0]) for n, v in NTDDA_GRID_OC.items())
-    series.append(Series(label="ntdda grid: s per OC iteration", points=nt_oc, line=nt_oc))
-    draw_loglog_chart(path, series, title="Time per DDA step against block count",
-                      x_label="blocks", y_label="seconds per step")
+    oc = [Series(label="ddatai grid", points=curve("grid", "ms_per_oc"), line=curve("grid", "ms_per_oc")),
+          Series(label="ntdda grid", points=nt_oc, line=nt_oc, dashed=True, color="#000000")]
+    panels = [Panel("whole step", per_step), Panel("sparse solves of a step", solve),
+              Panel("per open-close iteration (grid)", oc)]
+    draw_loglog_chart(path, panels, title="Time per DDA step against block count", x_label="blocks",
+                      y_label="seconds")
+
+
+def chart_only(out: Path, suffix: str) -> None:
+    """Draw OUT/scaling{suffix}.png again from OUT/scaling{suffix}.json (no run)."""
+    rows = json.loads((out / f"scaling{suffix}.json").read_text())
+    chart(rows, out / f"scaling{suffix}.png")
 
 
 def main() -> None:
@@ -323,6 +338,9 @@ def main() -> None:
                     help="ntdda: from rest under sudden gravity (ntdda's scaling runs, the comparison "
                          "table); settled: the equilibrium stage first (a run's default start), steps "
                          "timed after it, start-up cost reported")
+    ap.add_argument("--chart-only", action="store_true",
+                    help="only draw OUT/scaling.png (OUT/scaling_settled.png with --protocol settled) again "
+                         "from the saved .json")
     ap.add_argument("--one", nargs=2, metavar=("FAMILY", "SIZE"), help=argparse.SUPPRESS)
     ap.add_argument("--out", type=Path, default=RESULTS)
     ap.add_argument("--append", action="store_true",
@@ -335,6 +353,9 @@ def main() -> None:
         return
     rows = []
     suffix = ("" if a.arch == "cpu" else f"_{a.arch}") + ("" if a.protocol == "ntdda" else f"_{a.protocol}")
+    if a.chart_only:
+        chart_only(a.out, suffix)
+        return
     if a.append and (a.out / f"scaling{suffix}.json").exists():
         rows = json.loads((a.out / f"scaling{suffix}.json").read_text())
     for family in a.family.split(","):

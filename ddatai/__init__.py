@@ -45,7 +45,7 @@ _EXPORTS = {
     "STEP_DTYPE": "records", "StepRecord": "records",
     "simulate": "run", "Stepper": "step", "sweep": "sweep",
     "polygon_integrals": "geometry", "validate_polygon": "geometry",
-    "write_gif": "render", "write_png": "render", "render_frames": "render",
+    "write_gif": "render", "write_png": "render", "render_frames": "render", "write_video": "render",
     "joint_sets": "jointsets", "JointSet": "jointsets", "fit_mapping": "jointsets", "MappingFit": "jointsets",
     "read_dxf": "io.dxf", "read_dxf_section": "io.dxf", "DxfSection": "io.dxf",
     "read_ntdda": "io.ntdda", "NtddaCase": "io.ntdda", "NtddaFormatError": "io.ntdda",

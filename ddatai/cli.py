@@ -1,6 +1,6 @@
 """Command line: ``ddatai run SCENE.py`` (or ``ddatai run MODEL.geo MODEL.ana``).
 
-    ddatai run SCENE.py [--duration S] [--steps N] [--every K] [--gif PATH] [--out DIR]
+    ddatai run SCENE.py [--duration S] [--steps N] [--every K] [--gif PATH] [--video PATH.mp4] [--out DIR]
                         [--contacts] [--size WxH] [--fps F] [--speed X] [--stride K]
                         [--arch cpu|gpu] [--checkpoint-every N] [--resume [PATH]] [--vtk DIR]
                         [--history X,Y ...] [--quiet] [--debug]
@@ -8,12 +8,13 @@
 A scene script is a Python file defining ``build(**options)`` returning a Scene or
 ``(scene, params)``, and optionally ``DURATION`` (seconds; ``--duration`` or ``--steps``
 replaces it), loaded by `ddatai.io.scenefile` like ``kgm`` loads it; ``python scenes/NAME.py
-[options]`` runs the same way through `scene_main`. The options are checked before anything
+[options]`` runs the same way through `scene_main` (`run_as_script`). The options are checked before anything
 is built; a user error (a bad option, a broken scene) prints one line and exits with status 2
 (``--debug`` shows the traceback). The run shows a progress bar (simulated time, steps per
 second), writes the results to ``DIR/NAME.npz`` (NAME: the GIF's name when ``--gif`` is given,
 else the input's; an existing file is never overwritten: NAME-2.npz, ...), the GIF if ``--gif``
-is given (only then are imaging libraries imported), the measured points' CSV
+is given and the MP4 video if ``--video`` is (only then are imaging libraries imported), the
+measured points' CSV
 (``DIR/NAME_measured.csv``), a CSV per ``--history`` point, VTK files with ``--vtk`` and prints a
 short summary. Ctrl-C saves what was recorded and a checkpoint (``DIR/NAME.checkpoint.npz``)
 and exits with status 130.
@@ -50,10 +51,13 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--steps", type=int, help="stop after this many steps")
     p.add_argument("--every", type=int, default=None, help="record a frame every K steps")
     p.add_argument("--gif", type=Path, help="write an animated GIF here")
+    p.add_argument("--video", type=Path, metavar="PATH.mp4",
+                   help="write an MP4 video here (needs the [video] extra: imageio-ffmpeg); smaller and "
+                        "sharper than a GIF for long runs; --size, --fps, --speed and --stride apply to it too")
     p.add_argument("--out", type=Path, default=Path("out"), help="directory for the results (.npz)")
     p.add_argument("--contacts", action="store_true", help="record contacts and draw them in the GIF")
     p.add_argument("--size", type=_size, default=(640, 480), help="GIF size, e.g. 640x480")
-    p.add_argument("--fps", type=float, default=20.0, help="GIF frames per second (at most 50)")
+    p.add_argument("--fps", type=float, default=20.0, help="GIF frames per second (at most 50; a video's at most 120)")
     p.add_argument("--speed", type=float, default=1.0,
                    help="GIF playback speed: simulated seconds per second of animation (default 1: real time)")
     p.add_argument("--stride", type=int, default=None,
@@ -181,6 +185,19 @@ def check_options(args: argparse.Namespace) -> None:
         check_gif_options(size=args.size, fps=args.fps, speed=args.speed, stride=args.stride)
     except ValueError as err:
         raise ValueError(f"--{err}") from None
+    video = getattr(args, "video", None)
+    if video is not None:
+        from .render import check_video_available
+
+        if video.suffix.lower() != ".mp4":
+            raise ValueError(f"--video must name a .mp4 file, got {video}")
+        try:
+            check_video_available()
+        except ImportError as err:
+            raise ValueError(f"--video: {err}") from None
+        _check_writable_dir(video.parent, "--video")
+        if video.is_dir():
+            raise ValueError(f"--video {video} is a directory")
     _check_writable_dir(args.out, "--out")
     if args.vtk is not None:
         import importlib.util
@@ -274,6 +291,12 @@ def _write_outputs(results, out: Path, name: str, args: argparse.Namespace, afte
         write_gif(results, args.gif, size=args.size, fps=args.fps, speed=args.speed, stride=args.stride,
                   show_contacts=args.contacts, title=getattr(args, "title", None) or name)
         print(f"GIF written to {args.gif} ({_gif_speed(results, args)})")
+    if getattr(args, "video", None) is not None:
+        from .render import write_video
+
+        write_video(results, args.video, size=args.size, fps=args.fps, speed=args.speed, stride=args.stride,
+                    show_contacts=args.contacts, title=getattr(args, "title", None) or name)
+        print(f"video written to {args.video} ({_gif_speed(results, args)})")
 
 
 def _gif_speed(results, args) -> str:
@@ -398,6 +421,17 @@ def scene_main(build: Callable, duration: Optional[float], name: str, argv: Opti
         return run_scene(build, duration, _output_name(args, name), args)
 
     return _guarded(args, go, prog=name)
+
+
+def run_as_script(build: Callable, duration: Optional[float], name: str,
+                  argv: Optional[Sequence[str]] = None) -> None:
+    """The ``if __name__ == "__main__":`` block of a scene script: `scene_main`, exiting with
+    its status when the run failed (2: a user error, 1: the run diverged, 130: Ctrl-C) and
+    returning normally when it succeeded, so that a script that runs its scene can go on (the
+    documentation's gallery runs every scene script this way)."""
+    rc = scene_main(build, duration, name, argv)
+    if rc:
+        raise SystemExit(rc)
 
 
 if __name__ == "__main__":

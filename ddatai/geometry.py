@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 #: Relative tolerance below which a vertex is treated as lying on the line of its neighbours
-#: (|sin| of the turning angle). Shapely's noding leaves such vertices at T-junctions; they are
+#: (abs(sin) of the turning angle). Shapely's noding leaves such vertices at T-junctions; they are
 #: removed because a flat vertex duplicates the edge contacts around it.
 COLLINEAR_TOL = 1e-10
 

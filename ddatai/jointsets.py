@@ -265,7 +265,7 @@ def fit_mapping(table, *, length: float, window: float, trend: float = 0.0, join
 
     Estimators, each correcting a sampling bias:
 
-    * dip: Terzaghi's weight 1/|sin δ| (δ between trace and scanline, capped at ``max_weight``)
+    * dip: Terzaghi's weight 1/abs(sin δ) (δ between trace and scanline, capped at ``max_weight``)
       on the traces crossing the scanline, doubled-angle mean (eq. M1–M2);
     * trace length: Pahl's estimator μ = h·(N + N0 − N2)/(N − N0 + N2) for censored traces in a
       window of height h along the set (eq. M3), its spread from the traces seen whole,

@@ -1,25 +1,43 @@
-"""Run many independent evaluations (simulations, key group analyses) on local processes or on
-a Dask cluster, yielding each result as it completes.
+"""Run many independent evaluations (simulations, key group analyses) in this process, on local
+processes or on a Dask cluster, yielding each result as it completes.
 
 Used by `ddatai.sweep` and `kgm.probabilistic`. Three ways to run, chosen by the caller's
 ``client`` and ``workers`` arguments:
 
-- ``workers=1`` (and no client): in this process, in order — for debugging and small studies;
-- no client: a pool of local worker processes (`concurrent.futures.ProcessPoolExecutor`,
-  ``spawn`` start method, so every worker starts its own Taichi runtime once, the first time it
-  needs one); the default, with no extra package;
+- ``workers=1`` (and no client): in this process, in order;
+- ``workers=N > 1`` (and no client): a pool of N local worker processes
+  (`concurrent.futures.ProcessPoolExecutor`, ``spawn`` start method, so every worker starts its
+  own Taichi runtime once, the first time it needs one);
 - a ``dask.distributed.Client``, or a scheduler address such as ``"tcp://host:8786"``: the
   cluster's workers (``pip install ddatai[dask]``).
 
-Work is sent in chunks of several items (one task per chunk) so that a cheap evaluation (a
-rigid limit-equilibrium analysis takes ~2 ms) is not dominated by the cost of a task. The
-function and its items must be picklable: a function defined at the top level of an importable
-module (a scene script loaded by path is run by `ScriptFunction`).
+``workers=None`` lets the caller's cost of one item decide (`default_workers_for`): items that
+take milliseconds (a limit-equilibrium sample) run in this process, where starting workers and
+shipping every item to them costs more than it saves; items that take seconds (a DDA run) go to
+one worker process per CPU.
+
+Work is sent in chunks of several items (one task per chunk) so that a cheap evaluation is not
+dominated by the cost of a task. The function and its items must be picklable: a function
+defined at the top level of an importable module, or of the script being run (a scene script
+loaded by path is run by `ScriptFunction`).
+
+**Scripts.** Worker processes are started with ``spawn``: each imports the script that started
+the study again (as ``__mp_main__``) to find the functions defined in it. A script that starts a
+study at its top level, outside an ``if __name__ == "__main__":`` block, would start it again in
+every worker (Python's `multiprocessing` then breaks the pool). `plan` checks this before any
+work (`MainModuleCheck`): with ``workers=None`` such a study runs in this process (and says so
+once, with what to add to use the processes); with ``workers > 1`` it stops with one line saying
+what to add (`UnguardedMainError`; at an interactive prompt, `InteractiveMainError`).
 """
 
 from __future__ import annotations
 
+import ast
 import os
+import pickle
+import sys
+import types
+import warnings
 from dataclasses import dataclass
 from typing import Any, Callable, Iterator, Optional, Sequence
 
@@ -81,11 +99,179 @@ def check_execution(client, workers: Optional[int]) -> None:
                          f"such as 'tcp://host:8786', got {type(client).__name__}")
 
 
+#: an item's cost for `plan`'s default: "light" (milliseconds: in this process) or "heavy"
+#: (seconds: one worker process per CPU)
+COSTS = ("light", "heavy")
+
+
+class UnguardedMainError(SystemExit):
+    """A study that needs worker processes was started at the top level of a script without an
+    ``if __name__ == "__main__":`` block (or from a prompt, whose functions the workers cannot
+    import). Raised before any work; uncaught, Python prints its one-line message and exits
+    with status 1 (it is a `SystemExit`: the script cannot go on usefully, and the message is
+    the whole story). At an interactive prompt, which a `SystemExit` would close,
+    `InteractiveMainError` is raised instead."""
+
+
+class InteractiveMainError(RuntimeError):
+    """`UnguardedMainError`'s message, raised at an interactive prompt (Python's, IPython's, a
+    notebook's): the session goes on."""
+
+
+def _interactive() -> bool:
+    return bool(hasattr(sys, "ps1") or sys.flags.interactive or "IPython" in sys.modules)
+
+
+def default_workers_for(cost: str) -> int:
+    """Workers a study uses with ``workers=None``: 1 (this process) for light items, one per
+    CPU for heavy ones."""
+    if cost not in COSTS:
+        raise ValueError(f"cost must be one of {COSTS}, got {cost!r}")
+    return 1 if cost == "light" else default_workers()
+
+
+class _GlobalsRecorder(pickle._Pickler):  # the Python pickler: its save_global can be hooked
+    """Pickles an object to nowhere, recording the modules of the functions and classes it
+    refers to by name (what a worker process must import)."""
+
+    def __init__(self):
+        import io
+
+        super().__init__(io.BytesIO(), protocol=pickle.DEFAULT_PROTOCOL)
+        self.modules: dict[str, set] = {}
+
+    def save_global(self, obj, name=None):
+        module = getattr(obj, "__module__", None) or "?"
+        self.modules.setdefault(module, set()).add(name or getattr(obj, "__qualname__", repr(obj)))
+        return super().save_global(obj, name)
+
+    # the dispatch table holds the base class's function for functions: route it here
+    dispatch = pickle._Pickler.dispatch.copy()
+    dispatch[types.FunctionType] = lambda self, obj: self.save_global(obj)
+
+
+def main_module_names(fn: Callable) -> list[str]:
+    """Names of the functions and classes of the ``__main__`` module that ``fn`` (with what it
+    carries: a study's ``build``, a sweep's ``measure``) refers to; a worker process finds them
+    only by importing the script again. Raises `pickle.PicklingError` (or what pickling raises)
+    for a function that cannot be sent to a worker at all (a lambda, a nested function)."""
+    rec = _GlobalsRecorder()
+    rec.dump(fn)
+    return sorted(rec.modules.get("__main__", ()))
+
+
+def _is_main_guard(node: ast.AST) -> bool:
+    """``if __name__ == "__main__":`` (either order of the comparison)."""
+    if not (isinstance(node, ast.If) and isinstance(node.test, ast.Compare) and len(node.test.ops) == 1
+            and isinstance(node.test.ops[0], ast.Eq)):
+        return False
+    sides = [node.test.left, node.test.comparators[0]]
+    return (any(isinstance(x, ast.Name) and x.id == "__name__" for x in sides)
+            and any(isinstance(x, ast.Constant) and x.value == "__main__" for x in sides))
+
+
+def _guarded_lines(source: str) -> list[tuple[int, int]]:
+    """Line ranges of the top-level ``if __name__ == "__main__":`` blocks of a script."""
+    tree = ast.parse(source)
+    return [(node.lineno, node.end_lineno or node.lineno) for node in tree.body if _is_main_guard(node)]
+
+
+@dataclass(frozen=True, kw_only=True)
+class MainModuleCheck:
+    """Whether worker processes started with ``spawn`` can run ``fn``, seen from the script
+    that runs (`check_main_module`)."""
+
+    names: tuple
+    """Functions and classes of ``__main__`` that ``fn`` needs."""
+    script: Optional[str]
+    """The script's path (None: a prompt, a notebook or ``python -c``, which workers cannot
+    import)."""
+    line: Optional[int]
+    """The script's line that started the study, when that line is outside an
+    ``if __name__ == "__main__":`` block (None: guarded, or not started from the script's top
+    level)."""
+
+    @property
+    def ok(self) -> bool:
+        return not self.names or (self.script is not None and self.line is None)
+
+    def advice(self, caller: str) -> str:
+        """One line: what to change so that worker processes can run the study."""
+        what = ", ".join(self.names)
+        if self.script is None:
+            return (f"{caller}: worker processes cannot import {what}, defined at a prompt or in a notebook: "
+                    f"define it in a module or script file, or pass workers=1 to run in this process")
+        return (f"{caller}: worker processes import {self.script} again to find {what}, and would start the "
+                f"study again from line {self.line}: put the code that starts it under "
+                f'`if __name__ == "__main__":` in {self.script}, or pass workers=1 to run in this process')
+
+
+def check_main_module(fn: Callable) -> MainModuleCheck:
+    """Can spawned worker processes run ``fn``? They import the running script again as
+    ``__mp_main__`` to find what ``fn`` needs of it; that runs the script's top-level code, so
+    the study must not be started from there outside an ``if __name__ == "__main__":`` block."""
+    names = tuple(main_module_names(fn))
+    if not names:
+        return MainModuleCheck(names=(), script=None, line=None)
+    main = sys.modules.get("__main__")
+    script = getattr(main, "__file__", None)
+    if script is None or not os.path.isfile(script):
+        return MainModuleCheck(names=names, script=None, line=None)
+    # the frame running the script's top-level code, if the study was started from it
+    frame, line = sys._getframe(1), None
+    while frame is not None:
+        if frame.f_code.co_name == "<module>" and frame.f_globals is getattr(main, "__dict__", None):
+            line = frame.f_lineno
+            break
+        frame = frame.f_back
+    if line is not None:
+        try:
+            with open(script, encoding="utf-8") as fh:
+                guarded = _guarded_lines(fh.read())
+        except (OSError, SyntaxError, UnicodeDecodeError):
+            guarded = []
+        if any(lo <= line <= hi for lo, hi in guarded):
+            line = None
+    return MainModuleCheck(names=names, script=script, line=line)
+
+
+def plan(fn: Callable, *, client=None, workers: Optional[int] = None, cost: str = "heavy",
+         caller: str = "study") -> int:
+    """The number of local workers a study runs on (1: this process; ignored with a client),
+    decided before any work: ``workers`` when given, else by ``cost`` (`default_workers_for`).
+    Where worker processes cannot run ``fn`` from the running script (`check_main_module`), an
+    explicit ``workers > 1`` raises `UnguardedMainError` and the default runs in this process
+    with a `RuntimeWarning` saying what to add."""
+    check_execution(client, workers)
+    if client is not None:
+        return workers or 1
+    n = workers if workers is not None else default_workers_for(cost)
+    if n == 1:
+        return 1
+    try:
+        check = check_main_module(fn)
+    except Exception as exc:  # noqa: BLE001 - a function that cannot be pickled at all
+        if workers is not None:
+            raise ValueError(f"{caller}: worker processes cannot be sent {fn!r}: {type(exc).__name__}: {exc}; "
+                             "define it at the top level of a module, or pass workers=1") from None
+        return 1
+    if check.ok:
+        return n
+    if workers is not None:
+        if _interactive():
+            raise InteractiveMainError(check.advice(caller))
+        raise UnguardedMainError(check.advice(caller))
+    warnings.warn(check.advice(caller).replace(", or pass workers=1 to run in this process", "") +
+                  f" to use {n} worker processes; running in this process", RuntimeWarning, stacklevel=3)
+    return 1
+
+
 def run(fn: Callable, items: Sequence[tuple[int, Any]], *, client=None, workers: Optional[int] = None,
         chunk: Optional[int] = None) -> Iterator[tuple[int, Any]]:
     """Evaluate ``fn(item)`` for every ``(index, item)``; yields ``(index, result)`` in
     completion order (any order: callers key results by index). An exception in ``fn`` is
-    raised here, naming nothing more than ``fn`` did: callers wrap ``fn`` to name the item."""
+    raised here, naming nothing more than ``fn`` did: callers wrap ``fn`` to name the item.
+    ``workers=None`` means one process per CPU here: callers decide it first with `plan`."""
     check_execution(client, workers)
     items = list(items)
     if not items:

@@ -148,7 +148,7 @@ class Params:
     """Numerical parameters of a DDA run. ``None`` means "choose automatically" (documented rule).
 
     The defaults are meant to give accurate answers on the verification cases of
-    ``tests/test_verification.py`` without tuning; see README "Numerical defaults".
+    ``tests/test_verification.py`` without tuning; see docs/guide/how_it_works.md, "Numerical defaults".
     """
 
     dt: Optional[float] = None

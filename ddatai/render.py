@@ -2,7 +2,8 @@
 
 Reads `ddatai.results.Results` only; never starts Taichi and never opens a window. Pillow draws
 the frames (filled polygons, outlines, contacts, text) and encodes them; a GIF is written one
-frame at a time (`GifStream`), so its memory does not grow with its length. Pillow is imported
+frame at a time (`GifStream`), so its memory does not grow with its length, and so is an MP4
+video (`write_video`, `VideoStream`: the optional ``[video]`` extra, imageio's ffmpeg plugin). Pillow is imported
 inside the functions, so ``import ddatai`` and runs without a GIF never load it.
 
 Why Pillow and not a Taichi raster kernel: measured with ``benchmarks/render.py`` on the
@@ -73,9 +74,11 @@ class View:
         return np.stack([px, py], axis=-1)
 
 
-def _view(results: Results, frames: Sequence[int], size: tuple[int, int]) -> View:
+def _view(results: Results, frames: Sequence[int], size: tuple[int, int], *, top: int = 26,
+          bottom: int = 30, side: int = 12) -> View:
+    """The fixed view of an animation: every block of every drawn frame inside the drawing
+    area (below the header of ``top`` pixels, above the scale bar's ``bottom``), equal scales."""
     width, height = size
-    top, bottom, side = 26, 30, 12  # room for the time (top) and the scale bar (bottom)
     # frame by frame: no copy of every drawn frame's vertices at once
     lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
     for f in frames:
@@ -84,12 +87,117 @@ def _view(results: Results, frames: Sequence[int], size: tuple[int, int]) -> Vie
     span = np.maximum(hi - lo, 1e-9)
     pad = 0.03 * span.max()
     lo, span = lo - pad, span + 2 * pad
-    scale = min((width - 2 * side) / span[0], (height - top - bottom) / span[1])
+    room_h = max(height - top - bottom, 8)
+    scale = min((width - 2 * side) / span[0], room_h / span[1])
     # centre the model in the drawing area
     left = side + 0.5 * ((width - 2 * side) - span[0] * scale)
-    extra_v = 0.5 * ((height - top - bottom) - span[1] * scale)
+    extra_v = 0.5 * (room_h - span[1] * scale)
     return View(x0=float(lo[0]), y0=float(lo[1]), scale=float(scale), height=height,
                 left=int(round(left)), bottom=int(round(bottom + extra_v)))
+
+
+def _font(size: int):
+    """Pillow's default font at ``size`` pixels (its FreeType font; the fixed 11-pixel bitmap
+    font on Pillow builds without FreeType)."""
+    from PIL import ImageFont
+
+    try:
+        return ImageFont.load_default(size=size)
+    except (TypeError, ImportError, OSError):  # Pillow < 10.1 or no FreeType
+        return ImageFont.load_default()
+
+
+def text_size(size: tuple[int, int]) -> int:
+    """Text height for a picture of ``size`` [px]: 10 px up to 480 px high, then growing with
+    the height (15 px at 720, 22 at 1080), so that text stays readable on large frames."""
+    return max(10, int(round(size[1] / 48)))
+
+
+Box = tuple[float, float, float, float]  # (left, top, right, bottom) [px]
+
+
+def _overlap(a: Box, b: Box) -> bool:
+    return a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]
+
+
+@dataclass(frozen=True, kw_only=True)
+class Layout:
+    """Where the header of a frame goes: the time stamp (top left), the colour bar with its
+    label and end values (top right), the title between them or, when it does not fit there,
+    on a line of its own below them (shortened with "…" when even that line is too narrow).
+    Boxes are (left, top, right, bottom) in pixels; no two of them overlap, at any size
+    (``tests/test_render.py`` measures them on rendered frames at 320×240 and 1280×720)."""
+
+    time: Box
+    """Box of the time stamp (its widest text)."""
+    title: Optional[Box]
+    """Box of the title (None without one)."""
+    title_text: str
+    """The title as drawn (shortened to fit)."""
+    bar: Optional[Box]
+    """The colour bar itself (None when colouring by group labels)."""
+    bar_label: Optional[Box]
+    """The colour bar's label (the quantity) left of the bar."""
+    bar_values: Optional[Box]
+    """The colour bar's end values, under the bar."""
+    header: int
+    """Height of the header [px]: the drawing area and the legend start below it."""
+    pad: int
+    """Margin [px]."""
+
+    def boxes(self) -> dict:
+        """The named boxes that are drawn."""
+        out = {"time": self.time, "title": self.title, "colour bar": self.bar,
+               "colour bar label": self.bar_label, "colour bar values": self.bar_values}
+        return {k: v for k, v in out.items() if v is not None}
+
+
+def _text_box(font, xy, text: str) -> Box:
+    left, top, right, bottom = font.getbbox(text)
+    return (xy[0] + left, xy[1] + top, xy[0] + right, xy[1] + bottom)
+
+
+def layout(size: tuple[int, int], font, *, time_text: str, title: Optional[str],
+           bar_label: Optional[str], bar_value: Optional[str]) -> Layout:
+    """The header of a frame of ``size`` (`Layout`); ``time_text`` is the widest time stamp of
+    the animation, ``bar_label``/``bar_value`` the colour bar's quantity and top value (None:
+    no colour bar)."""
+    width, height = size
+    pad = max(6, int(round(height / 80)))
+    text_h = font.getbbox("Ag")[3]
+    time_box = _text_box(font, (pad, pad), time_text)
+    bottoms = [time_box[3]]
+    bar = label_box = values_box = None
+    block_left = width - pad  # left edge of the colour bar's block
+    if bar_label is not None:
+        bar_w = int(min(max(0.18 * width, 50), 240))
+        bar_h = max(8, int(round(0.8 * text_h)))
+        x1 = width - pad - bar_w
+        bar = (x1, pad, width - pad, pad + bar_h)
+        lw = font.getlength(bar_label)
+        label_box = _text_box(font, (x1 - 4 - lw, pad + 0.5 * bar_h - 0.5 * text_h), bar_label)
+        vy = pad + bar_h + 2
+        zero, top = _text_box(font, (x1, vy), "0"), _text_box(font, (width - pad - font.getlength(bar_value), vy),
+                                                                   bar_value)
+        values_box = (min(zero[0], top[0]), min(zero[1], top[1]), max(zero[2], top[2]), max(zero[3], top[3]))
+        block_left = min(label_box[0], values_box[0])
+        bottoms += [bar[3], label_box[3], values_box[3]]
+    title_box, shown = None, title or ""
+    if title:
+        tw = font.getlength(title)
+        gap_lo, gap_hi = time_box[2] + 2 * pad, block_left - 2 * pad
+        if tw <= gap_hi - gap_lo:  # between the time and the colour bar: centred if it can be
+            x = min(max(0.5 * (width - tw), gap_lo), gap_hi - tw)
+            title_box = _text_box(font, (x, pad), title)
+        else:  # a line of its own
+            room = width - 2 * pad
+            while shown and font.getlength(shown) > room:
+                shown = shown[:-2] + "…" if len(shown) > 1 else ""
+            y = max(bottoms) + max(2, pad // 2)
+            title_box = _text_box(font, (0.5 * (width - font.getlength(shown)), y), shown)
+        bottoms.append(title_box[3])
+    return Layout(time=time_box, title=title_box, title_text=shown, bar=bar, bar_label=label_box,
+                  bar_values=values_box, header=int(math.ceil(max(bottoms))) + pad, pad=pad)
 
 
 def _nice_length(target: float) -> float:
@@ -149,12 +257,9 @@ class _Painter:
 
     def __init__(self, results: Results, frames: Sequence[int], *, size, labels, label_names,
                  show_contacts, title, max_speed):
-        from PIL import ImageFont
-
         self.results = results
         self.size = size
-        self.view = _view(results, frames, size)
-        self.font = ImageFont.load_default()
+        self.font = _font(text_size(size))
         self.show_contacts = show_contacts
         self.title = title
         nb = results.n_blocks
@@ -193,6 +298,24 @@ class _Painter:
                     self.quantity, self.unit = "displacement", "m"
         off = results.vertex_offset
         self.offsets = off
+        # the header is laid out once for the animation (the widest time stamp), so that it
+        # and the view stay put from frame to frame
+        times = [self._time_text(float(results.time[f])) for f in frames]
+        widest = max(times, key=self.font.getlength)
+        coloured = self.labels is None
+        self.layout = layout(size, self.font, time_text=widest, title=title,
+                             bar_label=self.quantity if coloured else None,
+                             bar_value=self._bar_value() if coloured else None)
+        text_h = self.font.getbbox("Ag")[3]
+        self.view = _view(results, frames, size, top=self.layout.header,
+                          bottom=text_h + 2 * self.layout.pad + 4)
+
+    @staticmethod
+    def _time_text(t: float) -> str:
+        return f"t = {t:.3f} s"
+
+    def _bar_value(self) -> str:
+        return f"{self.max_speed:.3g} {self.unit}"
 
     def block_colours(self, frame: int) -> list[tuple[int, int, int]]:
         r = self.results
@@ -220,6 +343,7 @@ class _Painter:
 
         r, v = self.results, self.view
         width, height = self.size
+        self._frame = frame
         image = Image.new("RGB", self.size, BACKGROUND)
         d = ImageDraw.Draw(image)
         pix = v.pixels(r.vertices[frame])
@@ -240,47 +364,63 @@ class _Painter:
             for (x, y), s in zip(cpix.tolist(), cst.tolist()):
                 if s != 0:  # open contacts would only clutter the picture
                     d.ellipse([x - 2, y - 2, x + 2, y + 2], fill=CONTACT_COLOURS[s])
-        # time (top left), title (top centre)
-        d.text((8, 6), f"t = {r.time[frame]:.3f} s", fill=TEXT, font=self.font)
-        if self.title:
-            w = d.textlength(self.title, font=self.font)
-            d.text(((width - w) / 2, 6), self.title, fill=TEXT, font=self.font)
+        self.header(d)
         self._scale_bar(d)
         self._legend(d)
         return image
 
+    def header(self, d, parts: Optional[Sequence[str]] = None) -> None:
+        """Draw the header (`Layout`): the time stamp, the title, the colour bar, its label and
+        its end values; ``parts`` names some of them (`Layout.boxes`' names) to draw only those."""
+        lay, font = self.layout, self.font
+        frame = getattr(self, "_frame", 0)
+
+        def want(name: str) -> bool:
+            return parts is None or name in parts
+
+        if want("time"):
+            d.text((lay.pad, lay.pad), self._time_text(float(self.results.time[frame])), fill=TEXT, font=font)
+        if lay.title is not None and want("title"):
+            left, top = font.getbbox(lay.title_text)[:2]
+            d.text((lay.title[0] - left, lay.title[1] - top), lay.title_text, fill=TEXT, font=font)
+        if lay.bar is not None:
+            x0, y0, x1, y1 = lay.bar
+            if want("colour bar"):
+                n = len(SPEED_COLOURS)
+                for k, c in enumerate(SPEED_COLOURS):
+                    d.rectangle([x0 + k * (x1 - x0) / n, y0, x0 + (k + 1) * (x1 - x0) / n, y1], fill=c)
+            if want("colour bar label"):
+                left, top = font.getbbox(self.quantity)[:2]
+                d.text((lay.bar_label[0] - left, lay.bar_label[1] - top), self.quantity, fill=TEXT, font=font)
+            if want("colour bar values"):
+                vy = y1 + 2
+                d.text((x0, vy), "0", fill=TEXT, font=font)
+                value = self._bar_value()
+                d.text((x1 - font.getlength(value), vy), value, fill=TEXT, font=font)
+
     def _scale_bar(self, d) -> None:
         width, height = self.size
+        pad = self.layout.pad
         length = _nice_length(0.2 * width / self.view.scale)
         px = length * self.view.scale
-        x0, y0 = 10, height - 12
+        text_h = self.font.getbbox("Ag")[3]
+        x0, y0 = pad + 4, height - pad - 0.5 * text_h
         d.line([(x0, y0), (x0 + px, y0)], fill=TEXT, width=2)
         d.line([(x0, y0 - 4), (x0, y0 + 1)], fill=TEXT, width=1)
         d.line([(x0 + px, y0 - 4), (x0 + px, y0 + 1)], fill=TEXT, width=1)
-        label = f"{length:g} m"
-        d.text((x0 + px + 6, y0 - 7), label, fill=TEXT, font=self.font)
+        d.text((x0 + px + 6, y0 - 0.6 * text_h), f"{length:g} m", fill=TEXT, font=self.font)
 
     def _legend(self, d) -> None:
+        """Group labels, contacts, water, bolts and points, one per line at the right, below
+        the header."""
         width, _ = self.size
-        x, y = width - 8, 6
+        pad = self.layout.pad
+        text_h = self.font.getbbox("Ag")[3]
+        box = max(8, int(round(0.8 * text_h)))
+        x, y = width - pad, self.layout.header
         entries: list[tuple[tuple[int, int, int], str]] = []
         if self.labels is not None:
             entries = list(self.legend)
-        else:
-            # speed scale as a bar with its end values
-            bar_w, bar_h = 100, 8
-            x0 = width - bar_w - 8
-            n = len(SPEED_COLOURS)
-            for k, c in enumerate(SPEED_COLOURS):
-                d.rectangle([x0 + k * bar_w / n, y, x0 + (k + 1) * bar_w / n, y + bar_h], fill=c)
-            d.text((x0, y + bar_h + 2), "0", fill=TEXT, font=self.font)
-            label = f"{self.max_speed:.3g} {self.unit}"
-            w = d.textlength(label, font=self.font)
-            d.text((x0 + bar_w - w, y + bar_h + 2), label, fill=TEXT, font=self.font)
-            label = self.quantity
-            w = d.textlength(label, font=self.font)
-            d.text((x0 - w - 4, y - 1), label, fill=TEXT, font=self.font)
-            y += bar_h + 16
         if self.show_contacts:
             entries += [(CONTACT_COLOURS[s], CONTACT_NAMES[s] + " contact") for s in (1, 2)]
         entries += _water_and_bolt_legend(self.results)
@@ -291,10 +431,10 @@ class _Painter:
         if self.results.load_points.size:
             entries.append((LOAD, "point load"))
         for colour, name in entries:
-            w = d.textlength(name, font=self.font)
-            d.rectangle([x - 10, y + 2, x - 2, y + 10], fill=colour, outline=OUTLINE)
-            d.text((x - 14 - w, y), name, fill=TEXT, font=self.font)
-            y += 14
+            w = self.font.getlength(name)
+            d.rectangle([x - box, y + 2, x, y + 2 + box], fill=colour, outline=OUTLINE)
+            d.text((x - box - 4 - w, y), name, fill=TEXT, font=self.font)
+            y += text_h + 4
 
 
 def _frames(results: Results, stride: int, frames: Optional[Sequence[int]]) -> list[int]:
@@ -330,14 +470,19 @@ def _check_size(size) -> tuple[int, int]:
 MAX_FPS = 50.0
 
 
+#: a video's frame rate may be higher (its frames are not whole hundredths)
+MAX_VIDEO_FPS = 120.0
+
+
 def check_gif_options(*, size=(640, 480), fps: float = 20.0, speed: Optional[float] = 1.0,
-                      stride: Optional[int] = None) -> tuple[int, int]:
-    """Validate the GIF options of `write_gif` without drawing anything (the command line calls
-    it before a run); returns the size as (width, height). Raises `ValueError`."""
+                      stride: Optional[int] = None, max_fps: float = MAX_FPS) -> tuple[int, int]:
+    """Validate the GIF options of `write_gif` (or, with ``max_fps=MAX_VIDEO_FPS``, the video
+    options of `write_video`) without drawing anything (the command line calls it before a
+    run); returns the size as (width, height). Raises `ValueError`."""
     size = _check_size(size)
     if not (isinstance(fps, (int, float)) and not isinstance(fps, bool) and math.isfinite(fps)
-            and 0 < fps <= MAX_FPS):
-        raise ValueError(f"fps must be a number in (0, {MAX_FPS:g}] frames per second, got {fps!r}")
+            and 0 < fps <= max_fps):
+        raise ValueError(f"fps must be a number in (0, {max_fps:g}] frames per second, got {fps!r}")
     if speed is not None and not (isinstance(speed, (int, float)) and not isinstance(speed, bool)
                                   and math.isfinite(speed) and speed > 0):
         raise ValueError(f"speed must be a number > 0 (simulated seconds per second of playback), got {speed!r}")
@@ -534,6 +679,105 @@ class GifStream:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def check_video_available() -> None:
+    """`ImportError` naming the extra when the video writer's packages are missing."""
+    import importlib.util
+
+    if importlib.util.find_spec("imageio") is None or importlib.util.find_spec("imageio_ffmpeg") is None:
+        raise ImportError("writing a video needs imageio and imageio-ffmpeg, an optional extra: "
+                          "pip install 'ddatai[video]'")
+
+
+class VideoStream:
+    """An MP4 video (H.264) written one frame at a time through imageio's ffmpeg plugin (the
+    ``[video]`` extra): like `GifStream`, only the last frame is held, and the file is smaller
+    and sharper than a GIF for long runs (no 256-colour limit, motion-compensated frames).
+
+    A video plays at a constant frame rate: a frame appended for ``seconds`` is written
+    ``round(seconds × fps)`` times (counted on the running total, so the video keeps its
+    schedule). Frames of odd width or height are padded by one background pixel (H.264 in the
+    usual yuv420p pixel format needs even sizes).
+
+    >>> with VideoStream("out.mp4", fps=25) as video:   # doctest: +SKIP
+    ...     for image in images:                         # (H, W, 3) uint8 arrays
+    ...         video.append(image, 0.04)
+    """
+
+    def __init__(self, path, *, fps: float = 20.0, quality: float = 7.0):
+        check_video_available()
+        import imageio.v2 as imageio
+
+        self.path = Path(path)
+        self.fps = float(fps)
+        self.frames = 0          # video frames written
+        self._elapsed = 0.0      # display time appended so far [s]
+        self._shape = None
+        self._writer = imageio.get_writer(self.path, format="FFMPEG", mode="I", fps=self.fps, codec="libx264",
+                                          quality=quality, pixelformat="yuv420p", macro_block_size=1,
+                                          ffmpeg_log_level="error")
+
+    def append(self, image: np.ndarray, seconds: float) -> None:
+        """Write one (H, W, 3) uint8 frame, shown for ``seconds``."""
+        image = np.asarray(image)
+        if image.ndim != 3 or image.shape[2] != 3 or image.dtype != np.uint8:
+            raise ValueError(f"a video frame must be an (H, W, 3) uint8 array, got {image.shape} {image.dtype}")
+        if self._shape is None:
+            self._shape = image.shape
+        elif image.shape != self._shape:
+            raise ValueError(f"frame {self.frames} is {image.shape[1]}×{image.shape[0]} pixels, "
+                             f"the first was {self._shape[1]}×{self._shape[0]}")
+        h, w = image.shape[:2]
+        if h % 2 or w % 2:
+            image = np.pad(image, ((0, h % 2), (0, w % 2), (0, 0)), mode="edge")
+        before = int(round(self._elapsed * self.fps))
+        self._elapsed += float(seconds)
+        repeat = int(round(self._elapsed * self.fps)) - before
+        if self.frames == 0:
+            repeat = max(repeat, 1)  # the first frame is always shown
+        for _ in range(repeat):
+            self._writer.append_data(image)
+            self.frames += 1
+
+    def close(self) -> None:
+        if self._writer is not None:
+            self._writer.close()
+            self._writer = None
+
+    def __enter__(self) -> "VideoStream":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def write_video(results: Results, path, *, size=(640, 480), fps: float = 25.0, speed: float = 1.0,
+                stride: Optional[int] = None, frames=None, labels=None, label_names=None,
+                show_contacts: bool = False, title: Optional[str] = None,
+                max_speed: Optional[float] = None, quality: float = 7.0) -> Path:
+    """Render recorded frames to an MP4 video (H.264; needs the ``[video]`` extra: imageio and
+    imageio-ffmpeg). The options are those of `write_gif`: the video plays at ``speed``
+    simulated seconds per second (or shows every ``stride``-th recorded frame for 1/fps s),
+    drawn and written one frame at a time (`VideoStream`). ``fps`` may be up to 120;
+    ``quality`` is imageio's 0–10 (higher: larger, sharper files). Returns the path written."""
+    size = check_gif_options(size=size, fps=fps, speed=speed, stride=stride, max_fps=MAX_VIDEO_FPS)
+    check_video_available()
+    if results.n_frames == 0:
+        raise ValueError("results have no frames to render")
+    if frames is None and stride is None:
+        idx, durations = gif_schedule(results.time, fps=fps, speed=speed)
+    else:
+        idx = _frames(results, 1 if stride is None else stride, frames)
+        durations = [1.0 / fps] * len(idx)
+    images = iter_frames(results, size=size, frames=idx, labels=labels, label_names=label_names,
+                         show_contacts=show_contacts, title=title, max_speed=max_speed)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with VideoStream(path, fps=fps, quality=quality) as video:
+        for image, seconds in zip(images, durations):
+            video.append(image, seconds)
+    return path
 
 
 def write_png(results: Results, path, frame: int = -1, *, size=(640, 480), labels=None,

@@ -1,4 +1,4 @@
-"""Results of a run: recorded frames, one record per step, `.npz` save/load.
+"""Results of a run: recorded frames, one record per step, ``.npz`` save/load.
 
 Plain NumPy, no Taichi: the renderer, `kgm` and users read results without starting the
 solver. Frame 0 is the initial state.
@@ -305,7 +305,7 @@ class Results:
         return write_vtk(self, directory, frames=frames)
 
     def save(self, path) -> None:
-        """Write all arrays (and the metadata) to an `.npz` file."""
+        """Write all arrays (and the metadata) to an ``.npz`` file."""
         np.savez_compressed(Path(path), **{f.name: np.asarray(getattr(self, f.name)) for f in fields(self)})
 
     def summary(self) -> dict:
@@ -412,7 +412,7 @@ class History:
                "sigma_x_Pa", "sigma_y_Pa", "tau_xy_Pa")
 
     def table(self) -> np.ndarray:
-        """(F, 11) the columns of `COLUMNS`."""
+        """(F, 11) the columns of ``History.COLUMNS``."""
         return np.column_stack([self.time, self.position, self.displacement, self.velocity, self.rotation,
                                 self.stress])
 

@@ -92,13 +92,17 @@ def sweep(build, grid_or_samples, *, duration: float, measure: Optional[Callable
           workers: Optional[int] = None, progress: Optional[Callable] = None) -> np.ndarray:
     """Run ``build(**values)`` for every grid point or sample and simulate each for ``duration``
     seconds (module docstring). Returns one row per run, in input order, as a NumPy structured
-    array: the run's parameters (numbers), then `BASE_COLUMNS` and ``measure``'s columns.
+    array: the run's parameters (numbers), then ``BASE_COLUMNS`` and ``measure``'s columns.
 
     ``build`` is a function at the top level of an importable module or the path of a scene
-    script (its ``build``); ``client``/``workers`` as in `kgm.probabilistic` (None: local
-    processes, one per CPU; 1: in this process; a Dask client or scheduler address: the
-    cluster); ``progress(done, total)`` is called after each run."""
-    from .parallel import ScriptFunction, check_execution, run
+    script (its ``build``); ``client``/``workers`` as in `kgm.probabilistic` (None: one local
+    worker process per CPU, since each run is a simulation of seconds; 1: in this process; a
+    Dask client or scheduler address: the cluster); ``progress(done, total)`` is called after
+    each run. A script that calls ``sweep`` at its top level without an
+    ``if __name__ == "__main__":`` block runs in this process by default (with a warning saying
+    what to add) and stops before any work, with one line saying what to add, when it asks
+    for worker processes (`ddatai.parallel.plan`)."""
+    from .parallel import ScriptFunction, check_execution, plan, run
 
     if isinstance(build, str) or hasattr(build, "__fspath__"):
         build = ScriptFunction(str(build))
@@ -110,7 +114,9 @@ def sweep(build, grid_or_samples, *, duration: float, measure: Optional[Callable
     runs = _expand(grid_or_samples)
     rows: dict = {}
     job = _Run(build=build, duration=float(duration), measure=measure)
-    for index, row in run(functools.partial(_run_one, job), list(enumerate(runs)), client=client,
+    fn = functools.partial(_run_one, job)
+    workers = plan(fn, client=client, workers=workers, cost="heavy", caller="ddatai.sweep")
+    for index, row in run(fn, list(enumerate(runs)), client=client,
                           workers=workers, chunk=1):
         rows[index] = row
         if progress is not None:

@@ -193,7 +193,8 @@ def main(argv: Optional[Sequence[str]] = None, out=None) -> int:
     pr.add_argument("--sampling", choices=("monte-carlo", "latin-hypercube"), default="monte-carlo")
     pr.add_argument("--seed", type=int, default=0)
     pr.add_argument("--group", metavar="IDS", help="judge this group (comma-separated block ids) in every sample")
-    pr.add_argument("--workers", type=int, default=None, help="local worker processes (default: one per CPU)")
+    pr.add_argument("--workers", type=int, default=None,
+                    help="local worker processes (default: this process for rigid and sarma, one per CPU for dda)")
     pr.add_argument("--scheduler", metavar="ADDRESS", help="run on a Dask cluster, e.g. tcp://host:8786")
     pr.add_argument("--out", metavar="CSV", help="append samples to this file as they finish (and resume it)")
     pr.add_argument("--png", metavar="PATH", help="draw how often each block is in the critical group")

@@ -17,8 +17,13 @@ back (the correlation given is that of the normal scores). All samples are drawn
 work from the study's seed, so the table does not depend on the number of workers or on the
 order in which samples complete.
 
-Execution (`ddatai.parallel`): local worker processes by default, a Dask cluster with
-``client=`` (a ``dask.distributed.Client`` or a scheduler address). With ``out=`` every sample
+Execution (`ddatai.parallel`): by default rigid and Sarma samples (limit equilibrium, about a
+millisecond each) run in this process, where they are fastest, and DDA samples (seconds each)
+on one local worker process per CPU; ``workers=`` chooses, and ``client=`` (a
+``dask.distributed.Client`` or a scheduler address) runs them on a Dask cluster. A script that
+starts a study at its top level without an ``if __name__ == "__main__":`` block still gets its
+result by default (in this process, with a warning saying what to add); asked for worker
+processes explicitly, it stops before any work with one line saying what to add. With ``out=`` every sample
 is appended to a CSV file as it completes; a study started again with the same arguments reads
 the samples already there and runs only the others.
 """
@@ -308,8 +313,11 @@ def probabilistic(build, variables: Mapping, n: int, *, method: str = "sarma",
     group : evaluate this group of blocks in every sample instead of searching for the
         critical one (faster; block ids must mean the same blocks in every sample).
     settings : `kgm.Settings` of the analyses.
-    client : None (local processes), a ``dask.distributed.Client`` or a scheduler address.
-    workers : local worker processes (None: one per CPU; 1: in this process).
+    client : None (this machine), a ``dask.distributed.Client`` or a scheduler address.
+    workers : local worker processes. None: in this process for 'rigid' and 'sarma' (a
+        limit-equilibrium sample takes milliseconds: worker processes would cost more
+        than they save), one per CPU for 'dda'; 1: in this process; N: N processes (the
+        table is the same whatever the number).
     out : CSV file to which every sample is appended as it completes; an existing file of the
         same study is resumed (its samples are not run again).
     geometry_seed : pass each sample's seed to ``build(seed=...)`` (a new joint-set
@@ -319,7 +327,7 @@ def probabilistic(build, variables: Mapping, n: int, *, method: str = "sarma",
         DDA runs a sample); by default only the verdict at the sample's strength (one run),
         which is all P_f needs, and ``fs`` is nan.
     """
-    from ddatai.parallel import ScriptFunction, check_execution, run
+    from ddatai.parallel import ScriptFunction, check_execution, plan, run
 
     t0 = time.perf_counter()
     if method not in METHODS:
@@ -350,6 +358,10 @@ def probabilistic(build, variables: Mapping, n: int, *, method: str = "sarma",
     resumed = len(done)
     items = [(i, {k: _scalar(samples[k][i]) for k in names}, int(seeds[i])) for i in range(n) if i not in done]
     job = _Job(build=build, method=method, settings=settings, group=group, pass_seed=pass_seed, dda_fs=bool(dda_fs))
+    # before any work: this process for limit-equilibrium samples, processes for DDA, and a
+    # script whose workers could not import what the study needs is told what to add
+    workers = plan(functools.partial(_evaluate, job), client=client, workers=workers,
+                   cost="heavy" if method == "dda" else "light", caller="kgm.probabilistic")
     writer = _Appender(Path(out), identity, names) if out is not None else None
     try:
         for index, (fs, failed, critical) in run(functools.partial(_evaluate, job),

@@ -49,7 +49,7 @@ class DdaSettings:
     """
 
     params: Optional[Params] = None
-    """DDA parameters of the runs; None: the scene's (given to `analyze`) or `Params()`."""
+    """DDA parameters of the runs; None: the scene's (given to `analyze`) or ``ddatai.Params()``."""
     duration: Optional[float] = None
     """Simulated time T of a run [s]; None: √(2δ/a_r)."""
     displacement_ratio: float = 0.005

@@ -53,7 +53,7 @@ from .blocks import BARTON_ITERATIONS, BARTON_TOL, BlockSystem, Mode, ModeKind, 
 #: Least cosine between the active force and a base face's inward normal for the face to carry
 #: the block (a base must be pressed, not a wall beside the block) [-].
 BASE_MIN_COS = 0.1
-#: Least |cos| between an interface normal and the base direction for the interface to be
+#: Least abs(cos) between an interface normal and the base direction for the interface to be
 #: "across the base" (60° from the base normal) [-].
 INTERFACE_MIN_COS = 0.5
 #: Largest angle between the bases of two neighbouring columns of a row [degrees]: the

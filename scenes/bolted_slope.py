@@ -1,23 +1,27 @@
-"""A jointed slope with a water table, bolted until kgm's factor of safety reaches 1.5.
+"""
+Bolted slope under a water table
+================================
+
+A jointed slope with a water table, bolted until kgm's factor of safety reaches 1.5.
 
 A 20 m high, 60° face (looking to +x) over a bedding plane dipping 35° that daylights in the
 face 2 m above the toe (φ = 32°, c = 20 kPa), with a vertical tension crack 6 m deep behind the crest and two
 steep cross joints cutting the wedge into three blocks. Winter water table: the crack holds
 5 m of water and the pressure on the plane falls linearly to zero where it daylights (Hoek & Bray's
 distribution, docs/method/water_bolts.md). Unbolted, kgm (Sarma) gives FS ≈ 0.87 and DDA shows
-the wedge sliding out. `design` adds rows of passive bolts (32 mm bars of 300 kN at 1.5 m
+the wedge sliding out. ``build("design")`` adds rows of passive bolts (32 mm bars of 300 kN at 1.5 m
 across the slope: 10.7 MN/m per m stiffness, 200 kN/m capacity, plunging 15° into the slope)
 up the face until kgm's least safe key group has FS ≥ 1.5; DDA then shows the wedge held.
 With one row of half the capacity (``build(bolts="weak")``, FS ≈ 0.94) the bolt breaks and the
 wedge slides.
 
 Run ``python scenes/bolted_slope.py --gif out/bolted_slope.gif`` (the design) or
-``kgm analyze scenes/bolted_slope.py``. The README's pictures::
+``kgm analyze scenes/bolted_slope.py``. The pictures of docs/guide/water_bolts.md::
 
     for case in ("weak", "design"):
         res = dd.simulate(*build(case), duration=2.0, record_every=2)
         dd.write_gif(res, f"docs/gallery/bolted_slope{'_weak' if case == 'weak' else ''}.gif",
-                     title=f"bolted_slope: {case}", size=(480, 300))
+                     title=f"bolted_slope: {case}")
 """
 
 import math
@@ -95,6 +99,6 @@ def build(bolts: str = "design"):
 
 
 if __name__ == "__main__":
-    from ddatai.cli import scene_main
+    from ddatai.cli import run_as_script
 
-    raise SystemExit(scene_main(build, DURATION, "bolted_slope"))
+    run_as_script(build, DURATION, "bolted_slope")

@@ -1,4 +1,8 @@
-"""Example I of Shahami, Yarahmadi Bafghi & Fatehi Marji (the seed paper, §5-1): a simple key
+"""
+KGM Example I: a two-block key group
+====================================
+
+Example I of Shahami, Yarahmadi Bafghi & Fatehi Marji (the seed paper, §5-1): a simple key
 group of two blocks.
 
 Four blocks, the bottom one fixed. The paper gives the material and joint data (Table 1:
@@ -50,6 +54,6 @@ def build(friction: float = 11.0, cohesion: float = 0.02e6, young: float = 5e9):
 
 
 if __name__ == "__main__":
-    from ddatai.cli import scene_main
+    from ddatai.cli import run_as_script
 
-    raise SystemExit(scene_main(build, DURATION, "example_1"))
+    run_as_script(build, DURATION, "example_1")

@@ -1,4 +1,8 @@
-"""Example II of the seed paper (§5-2): a 95 m high rock slope with a two-block key group.
+"""
+KGM Example II: active and passive blocks
+=========================================
+
+Example II of the seed paper (§5-2): a 95 m high rock slope with a two-block key group.
 
 The paper gives c = 0.02 MPa, φ = 22°, ν = 0.25, ρ = 2500 kg/m³, "normal stiffness 1",
 Δt = 0.0013 s (Table 2) and reports that the original KGM finds the candidate key group
@@ -69,6 +73,6 @@ def build(friction: float = 22.0, cohesion: float = 0.02e6, young: float = 5e9,
 
 
 if __name__ == "__main__":
-    from ddatai.cli import scene_main
+    from ddatai.cli import run_as_script
 
-    raise SystemExit(scene_main(build, DURATION, "example_2"))
+    run_as_script(build, DURATION, "example_2")

@@ -1,4 +1,8 @@
-"""Footwall slopes: a face slab on its bedding plane, the three limit-equilibrium mechanisms
+"""
+KGM footwall slopes: a slab on its bedding plane
+================================================
+
+Footwall slopes: a face slab on its bedding plane, the three limit-equilibrium mechanisms
 after Alejano et al. (planar slab sliding, ploughing, bilinear slab failure), each with a small
 geometry and its closed-form factor of safety (docs/kgm/footwall.md).
 
@@ -258,6 +262,6 @@ def closed_form_fs(case: str = "bilinear", **options) -> float:
 
 
 if __name__ == "__main__":
-    from ddatai.cli import scene_main
+    from ddatai.cli import run_as_script
 
-    raise SystemExit(scene_main(build, DURATION, "footwall"))
+    run_as_script(build, DURATION, "footwall")

@@ -1,4 +1,8 @@
-"""A jointed rock slope under gravity: which blocks move.
+"""
+Jointed slope
+=============
+
+A jointed rock slope under gravity: which blocks move.
 
 A 30 m high, 60° slope cut by two joint sets: bedding dipping 35° out of the face (φ = 22°,
 below its dip, so blocks daylighting in the face can slide) and a steep cross set with short
@@ -34,6 +38,6 @@ def build(seed: int = 7, bedding_spacing: float = 3.0, cross_spacing: float = 4.
 
 
 if __name__ == "__main__":
-    from ddatai.cli import scene_main
+    from ddatai.cli import run_as_script
 
-    raise SystemExit(scene_main(build, DURATION, "jointed_slope"))
+    run_as_script(build, DURATION, "jointed_slope")

@@ -1,4 +1,8 @@
-"""A jointed rock slope for the Key Group Method: many blocks, key groups of several blocks,
+"""
+Jointed slope for the Key Group Method
+======================================
+
+A jointed rock slope for the Key Group Method: many blocks, key groups of several blocks,
 progressive failure, and the time a DDA judgement saves by simulating only the group.
 
 A 30 m high slope with a 65° face is cut by two persistent joint sets: J1 dipping 35° out of
@@ -39,6 +43,6 @@ def build(friction: float = 30.0, cohesion: float = 20e3, spacing1: float = 7.0,
 
 
 if __name__ == "__main__":
-    from ddatai.cli import scene_main
+    from ddatai.cli import run_as_script
 
-    raise SystemExit(scene_main(build, DURATION, "kgm_slope"))
+    run_as_script(build, DURATION, "kgm_slope")

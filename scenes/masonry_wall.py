@@ -1,4 +1,8 @@
-"""A dry-stone wall toppling out of plane under sinusoidal ground shaking.
+"""
+Masonry wall under shaking
+==========================
+
+A dry-stone wall toppling out of plane under sinusoidal ground shaking.
 
 The cross-section of a free-standing dry-stone wall, 0.6 m thick and 2.8 m high: 14 courses
 of 0.2 m, alternately two 0.3 m stones and three 0.2 m stones (joints staggered), on a fixed
@@ -36,6 +40,6 @@ def build(courses: int = 14, amplitude_g: float = 0.35, frequency: float = 1.5):
 
 
 if __name__ == "__main__":
-    from ddatai.cli import scene_main
+    from ddatai.cli import run_as_script
 
-    raise SystemExit(scene_main(build, DURATION, "masonry_wall"))
+    run_as_script(build, DURATION, "masonry_wall")

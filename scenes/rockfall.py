@@ -1,4 +1,8 @@
-"""Rockfall: a block bounces and rolls down a jointed slope.
+"""
+Rockfall
+========
+
+Rockfall: a block bounces and rolls down a jointed slope.
 
 The slope (a 40° cliff over a 25° scree slope) is a fixed rock mass cut by two joint sets, so
 its surface is the stepped trace of the joints; a 1.2 m twelve-sided boulder is launched over the
@@ -36,6 +40,6 @@ def build(seed: int = 3, friction: float = 35.0):
 
 
 if __name__ == "__main__":
-    from ddatai.cli import scene_main
+    from ddatai.cli import run_as_script
 
-    raise SystemExit(scene_main(build, DURATION, "rockfall"))
+    run_as_script(build, DURATION, "rockfall")

@@ -1,4 +1,8 @@
-"""A block sliding down an inclined plane, next to one that stays (docs/method/dda.md §7a, §7b).
+"""
+Sliding block
+=============
+
+A block sliding down an inclined plane, next to one that stays (docs/method/dda.md §7a, §7b).
 
 Both blocks sit on one 30° plane; the lower joint has φ = 20° (it slides with
 a = g(sinθ − cosθ tanφ)), the upper one φ = 40° (it stays).
@@ -28,6 +32,6 @@ def build(theta: float = 30.0, phi_slide: float = 20.0, phi_stay: float = 40.0):
 
 
 if __name__ == "__main__":
-    from ddatai.cli import scene_main
+    from ddatai.cli import run_as_script
 
-    raise SystemExit(scene_main(build, DURATION, "sliding_block"))
+    run_as_script(build, DURATION, "sliding_block")

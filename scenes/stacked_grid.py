@@ -1,4 +1,8 @@
-"""A stacked pile: an n × n grid of unit blocks on a fixed base (aligned columns).
+"""
+Stacked pile
+============
+
+A stacked pile: an n × n grid of unit blocks on a fixed base (aligned columns).
 
 With ``gap = 0`` every block starts in edge-to-edge contact (the base of the block-count
 scaling benchmark and of a verification test, run static). The default scene drops the blocks
@@ -27,6 +31,6 @@ def build(n: int = 15, gap: float = 0.02, friction: float = 30.0, static: bool =
 
 
 if __name__ == "__main__":
-    from ddatai.cli import scene_main
+    from ddatai.cli import run_as_script
 
-    raise SystemExit(scene_main(build, DURATION, "stacked_grid"))
+    run_as_script(build, DURATION, "stacked_grid")

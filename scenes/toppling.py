@@ -1,4 +1,8 @@
-"""Toppling and sliding on one incline: a row of slender columns topples, squat blocks slide.
+"""
+Toppling and sliding columns
+============================
+
+Toppling and sliding on one incline: a row of slender columns topples, squat blocks slide.
 
 A 30° plane with joints of φ = 25°. Slender 0.3 × 1.5 m columns (b/h = 0.2 < tan 30°, and
 tan 25° = 0.47 above the toppling limit 0.29 of docs/method/dda.md §7d) rotate about their down-slope
@@ -36,6 +40,6 @@ def build(theta: float = 30.0, phi: float = 25.0, columns: int = 5, squat: int =
 
 
 if __name__ == "__main__":
-    from ddatai.cli import scene_main
+    from ddatai.cli import run_as_script
 
-    raise SystemExit(scene_main(build, DURATION, "toppling"))
+    run_as_script(build, DURATION, "toppling")

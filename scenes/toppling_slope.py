@@ -1,4 +1,8 @@
-"""Block toppling: Goodman & Bray's (1976) example of 16 blocks on a stepped base (Hoek & Bray
+"""
+Block toppling (Goodman and Bray)
+=================================
+
+Block toppling: Goodman & Bray's (1976) example of 16 blocks on a stepped base (Hoek & Bray
 1981, Rock Slope Engineering, ch. 10; Wyllie & Mah 2004, §10.3).
 
 Sixteen blocks, each Δx = 10 m wide, stand on a stepped base whose treads dip ψp = 30°; their
@@ -12,8 +16,8 @@ equilibrium needs φ = 38.15°, with blocks 16–14 stable, 13–4 toppling and 
 
 The stable rock below the stepped base is one fixed block. Block ids: block n of the textbook
 (toe n = 1) is scene block n − 1; the fixed base is block 16. ``python scenes/toppling_slope.py``
-prints the Goodman–Bray table computed by `kgm` against the published modes;
-``python scenes/toppling_slope.py --dda`` runs the plain DDA simulation instead.
+prints the Goodman–Bray table computed by ``kgm`` against the published modes;
+``python scenes/toppling_slope.py --dda`` then also runs the plain DDA simulation.
 """
 
 import numpy as np
@@ -111,9 +115,9 @@ def main() -> None:
 if __name__ == "__main__":
     import sys
 
+    main()
     if "--dda" in sys.argv:
-        from ddatai.cli import scene_main
+        from ddatai.cli import run_as_script
 
         sys.argv.remove("--dda")
-        raise SystemExit(scene_main(build, DURATION, "toppling_slope"))
-    main()
+        run_as_script(build, DURATION, "toppling_slope")

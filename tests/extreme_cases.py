@@ -220,8 +220,8 @@ def check(res, model, energy: bool = True) -> list[str]:
     allowance = allowance + np.maximum.accumulate(_mass_change_energy(res, model))[1:]
     # a spinning block: DDA's first-order displacement field turns a block by its rotation r0
     # linearly, the exact-rotation update corrects the vertices, and the second-order rest
-    # (ωΔt)²/2 lands in the strain and the velocities: up to ½Iω²·(ωΔt)² per step (the README's
-    # "rotation" limit). Allowed, summed over the steps
+    # (ωΔt)²/2 lands in the strain and the velocities: up to ½Iω²·(ωΔt)² per step (the
+    # "rotation" limit of docs/guide/verification.md). Allowed, summed over the steps
     allowance = allowance + np.cumsum(_rotation_error(res, model))
     created = -rest - allowance
     if energy and np.any(created > 0):

@@ -1,10 +1,14 @@
 """Offscreen rendering: GIF frame count, size, frames that differ, determinism, PNG, labels."""
 
+import importlib.util
+
 import numpy as np
 import pytest
 
 import ddatai as dd
 from cases import sliding_scene
+
+SLIDING = str(__import__("pathlib").Path(__file__).resolve().parents[1] / "scenes" / "sliding_block.py")
 
 
 @pytest.fixture(scope="module")
@@ -218,3 +222,146 @@ def test_measured_points_are_drawn():
     res.measured = np.zeros((3, 0, 2))
     frame = dd.render_frames(res, size=(200, 150), frames=[2])[0]
     assert not np.any(np.all(frame == render.MEASURED, axis=-1))
+
+
+def _ink_box(image: np.ndarray):
+    """(left, top, right, bottom) of the pixels that are not background, or None."""
+    from ddatai import render
+
+    ink = np.any(image != render.BACKGROUND, axis=2)
+    rows, cols = np.flatnonzero(ink.any(axis=1)), np.flatnonzero(ink.any(axis=0))
+    if not len(rows):
+        return None
+    return int(cols[0]), int(rows[0]), int(cols[-1]) + 1, int(rows[-1]) + 1
+
+
+LONG_TITLE = "Example II, key group {P, A}: rigid FS 1.586, Sarma FS 0.771, DDA FS 0.971 - the group slides out"
+
+
+@pytest.mark.parametrize("size", [(320, 240), (1280, 720)])
+@pytest.mark.parametrize("title", ["jointed_slope", "bolted_slope: design", LONG_TITLE, None])
+@pytest.mark.parametrize("colouring", ["speed", "displacement", "labels"])
+def test_title_time_and_colour_bar_never_overlap(size, title, colouring):
+    """The header's parts are drawn one at a time on blank frames, over every frame of the
+    animation (the time stamp changes); their measured ink boxes lie inside the picture and
+    no two overlap (the gallery once printed "jointed_slope" over the colour bar's "speed").
+    Nothing else is drawn in the header, and the model is drawn below it."""
+    from PIL import Image, ImageDraw
+
+    from ddatai import render
+
+    res = _static_pair() if colouring == "displacement" else _moving_square(np.linspace(0.0, 12.0, 7))
+    labels = np.array([-1, 0]) if colouring == "labels" else None
+    frames = list(range(res.n_frames))
+    painter = render._Painter(res, frames, size=size, labels=labels, label_names=["key group"] if labels is not None
+                              else None, show_contacts=False, title=title, max_speed=None)
+    parts = painter.layout.boxes()
+    expected = {"time"} | ({"title"} if title else set()) | \
+        ({"colour bar", "colour bar label", "colour bar values"} if colouring != "labels" else set())
+    assert set(parts) == expected
+    if colouring != "labels":
+        assert painter.quantity == colouring
+    measured = {}
+    for name in parts:
+        union = None
+        for f in frames:
+            image = Image.new("RGB", size, render.BACKGROUND)
+            painter._frame = f
+            painter.header(ImageDraw.Draw(image), parts=[name])
+            box = _ink_box(np.asarray(image))
+            assert box is not None, name
+            union = box if union is None else (min(union[0], box[0]), min(union[1], box[1]),
+                                               max(union[2], box[2]), max(union[3], box[3]))
+        assert 0 <= union[0] and 0 <= union[1] and union[2] <= size[0] and union[3] <= painter.layout.header, \
+            (name, union, size)
+        measured[name] = union
+    names = sorted(measured)
+    for i, a in enumerate(names):
+        for b in names[i + 1:]:
+            assert not render._overlap(measured[a], measured[b]), (a, measured[a], b, measured[b], size)
+    # the whole frame: its header holds only these parts, and the model lies below the header
+    for f in (0, frames[-1]):
+        frame = np.asarray(painter.draw(f))
+        header = frame[:painter.layout.header].copy()
+        for x0, y0, x1, y1 in measured.values():
+            header[y0:y1, x0:x1] = render.BACKGROUND
+        assert _ink_box(header) is None, (f, _ink_box(header))
+        blocks = painter.view.pixels(res.vertices[f])
+        assert blocks[:, 1].min() >= painter.layout.header
+        assert blocks[:, 1].max() <= size[1] and blocks[:, 0].min() >= 0 and blocks[:, 0].max() <= size[0]
+    if title == LONG_TITLE and size[0] == 320:
+        assert painter.layout.title_text.endswith("…")  # shortened to the picture's width
+    # text grows with large pictures
+    assert render.text_size(size) == (10 if size[1] <= 480 else 15)
+
+
+_NO_VIDEO = "the optional [video] extra (imageio-ffmpeg) is not installed: pip install 'ddatai[video]'"
+
+
+def test_video_plays_at_the_stated_speed_and_shows_the_frames(tmp_path):
+    """MP4 through imageio's ffmpeg plugin: a 3 s run at speed 1 and 25 frames/s is 76 video
+    frames (a constant frame rate: each drawn frame repeated for its display time), of the
+    asked size (an odd size padded to even), close to the drawn frames (H.264 is lossy)."""
+    pytest.importorskip("imageio_ffmpeg", reason=_NO_VIDEO)
+    import imageio.v2 as imageio
+
+    res = _moving_square(np.linspace(0.0, 3.0, 61))
+    path = dd.write_video(res, tmp_path / "a.mp4", size=(320, 240), fps=25.0, title="square")
+    with imageio.get_reader(path, format="FFMPEG") as reader:
+        back = [frame for frame in reader]
+        assert reader.get_meta_data()["fps"] == pytest.approx(25.0)
+    assert len(back) == 76 and back[0].shape == (240, 320, 3)
+    drawn = dd.render_frames(res, size=(320, 240), frames=[0, 60], title="square")
+    for a, b in ((back[0], drawn[0]), (back[-1], drawn[1])):
+        assert np.abs(a.astype(int) - b.astype(int)).mean() < 6.0
+    assert np.abs(back[0].astype(int) - back[-1].astype(int)).mean() > 1.0  # the square moved
+    odd = dd.write_video(res, tmp_path / "odd.mp4", size=(161, 121), fps=10.0, speed=3.0)
+    with imageio.get_reader(odd, format="FFMPEG") as reader:
+        frames = [frame for frame in reader]
+    assert frames[0].shape == (122, 162, 3) and len(frames) == 11
+
+
+def test_video_is_streamed_and_smaller_than_the_gif_of_a_long_run(tmp_path, monkeypatch):
+    """600 frames drawn one at a time: at most a few alive at once (the writer keeps none),
+    and the MP4 is smaller than the GIF of the same frames."""
+    pytest.importorskip("imageio_ffmpeg", reason=_NO_VIDEO)
+    import weakref
+
+    from ddatai import render
+
+    res = _moving_square(np.linspace(0.0, 10.0, 600))
+    refs: list = []
+    most = [0]
+    original = render._Painter.image
+
+    class Frame(np.ndarray):
+        pass
+
+    def image(self, frame):
+        most[0] = max(most[0], sum(r() is not None for r in refs))
+        out = original(self, frame).view(Frame)
+        refs.append(weakref.ref(out))
+        return out
+
+    monkeypatch.setattr(render._Painter, "image", image)
+    mp4 = dd.write_video(res, tmp_path / "long.mp4", size=(320, 240), stride=1, fps=60.0)
+    assert len(refs) == 600 and most[0] <= 3, most[0]
+    gif = dd.write_gif(res, tmp_path / "long.gif", size=(320, 240), stride=1, fps=50.0)
+    assert mp4.stat().st_size < gif.stat().st_size
+
+
+def test_video_option_of_the_command_line(tmp_path, capsys):
+    from ddatai.cli import main
+
+    if importlib.util.find_spec("imageio_ffmpeg") is None:
+        # without the extra: one line naming it, before any work
+        assert main(["run", SLIDING, "--steps", "2", "--video", str(tmp_path / "v.mp4"),
+                     "--out", str(tmp_path), "--quiet"]) == 2
+        assert "pip install 'ddatai[video]'" in capsys.readouterr().err
+        return
+    assert main(["run", SLIDING, "--duration", "0.2", "--video", str(tmp_path / "v.mp4"),
+                 "--size", "320x240", "--out", str(tmp_path), "--quiet"]) == 0
+    assert (tmp_path / "v.mp4").stat().st_size > 0 and "video written to" in capsys.readouterr().out
+    assert main(["run", SLIDING, "--steps", "2", "--video", str(tmp_path / "v.avi"),
+                 "--out", str(tmp_path), "--quiet"]) == 2
+    assert "must name a .mp4 file" in capsys.readouterr().err

@@ -2,6 +2,7 @@
 ntdda model; a run without --gif never imports an imaging library (fresh interpreter)."""
 
 import importlib
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -47,7 +48,9 @@ def test_scenes_build_only_what_they_use():
 
 
 def _run(args, **kw):
-    return subprocess.run([sys.executable, *args], capture_output=True, text=True, cwd=ROOT, **kw)
+    # this checkout's packages, whichever copy an editable install points to
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    return subprocess.run([sys.executable, *args], capture_output=True, text=True, cwd=ROOT, env=env, **kw)
 
 
 def test_command_line_runs_a_scene_without_imaging(tmp_path):

@@ -84,7 +84,7 @@ def test_example_1_slides_at_8_degrees(which, outline):
 
 
 def test_example_2_group_slides_at_22_degrees():
-    """Rigid KGM: stable (FS 1.59); Sarma-KGM and DDA: unstable (README, the paper's
+    """Rigid KGM: stable (FS 1.59); Sarma-KGM and DDA: unstable (docs/kgm/guide.md, the paper's
     examples). Under plain `dd.simulate` the two blocks of the group move out, by metres in
     3 s."""
     scene, params = example_2.build()
@@ -96,7 +96,7 @@ def test_example_2_group_slides_at_22_degrees():
 
 def test_example_2_section_8_3_reconstruction_holds_at_22_degrees():
     """The §8.3 geometry (J3 from Q at 45°): the group can only translate along the gentle J1,
-    and DDA keeps it stable at 22° (README): held by the stage, it moves less than 1 mm."""
+    and DDA keeps it stable at 22° (docs/kgm/guide.md): held by the stage, it moves less than 1 mm."""
     scene, params = example_2.build(cross_joint_offset=0.0, cross_joint_angle=45.0)
     res = dd.simulate(scene, params, duration=3.0, record_every=100)
     start = res.start[0]

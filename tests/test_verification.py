@@ -332,7 +332,7 @@ def _along(res, block, theta):
 
 
 @pytest.mark.parametrize("theta, phi, speed", [
-    (0.0, 30.0, 1.0),    # the README's block, on a flat base
+    (0.0, 30.0, 1.0),    # the guide's block (docs/guide/modelling.md), on a flat base
     (0.0, 30.0, 3.0),
     (20.0, 30.0, 2.0),   # launched down a 20° plane
     (20.0, 30.0, -2.0),  # launched up it: decelerates at g(sinθ + cosθ tanφ), then stays
@@ -379,7 +379,7 @@ def test_block_thrown_onto_a_plane_slides_with_coulomb_deceleration():
     slope = np.polyfit(t[sliding], vx[sliding], 1)[0]
     assert slope == pytest.approx(-G * mu, rel=0.01)
     # not a bound from the method: at the stop the integrator reverses the velocity inside the
-    # contact springs (measured 1.5e-6 m back; README, limits)
+    # contact springs (measured 1.5e-6 m back; docs/guide/verification.md, limits)
     assert np.all(np.diff(x) >= -1e-5)
     assert abs(vx[-1]) < 1e-3
 

@@ -22,8 +22,8 @@ segments in the drawing.
 
 Drawing units come from the header variable ``$INSUNITS``: a drawing in millimetres (or cm,
 inches, feet) is scaled to metres; a unitless drawing (``$INSUNITS`` 0 or absent) must say its
-unit with ``units=`` — a section drawn in millimetres must not run as metres. See README
-"Sections from DXF".
+unit with ``units=`` — a section drawn in millimetres must not run as metres. See
+docs/guide/modelling.md, "From the field".
 """
 
 from __future__ import annotations
@@ -304,7 +304,7 @@ def write_dxf_section(path, *, boundary, traces, fixed=(), points=(), water=None
 # ---------------------------------------------------------------------- joints file (command line)
 def read_joints_file(path) -> dict:
     """The keyword arguments of `read_dxf` (and the run's ``duration``) from a TOML joints file
-    (README "Sections from DXF")::
+    (docs/guide/modelling.md, "From the field")::
 
         units = "m"              # optional: the drawing's unit when its header has none
         duration = 2.0           # optional: simulated time of ``ddatai run`` [s]

@@ -14,7 +14,7 @@ each file is detected from its first characters.
 >>> write_measured_csv(res, case, "pushblock.csv")               # doctest: +SKIP
 
 Where ntdda behaves oddly (docs/ntdda.md §3) the reader makes an
-explicit choice, documented where it is made and in README "Reading ntdda files", and warns
+explicit choice, documented where it is made and in docs/guide/ntdda_files.md, and warns
 with an `NtddaQuirkWarning` when a file relies on the odd behaviour. Settings ddatai does not
 implement are ignored with an `NtddaUnsupportedWarning`. A malformed file raises
 `NtddaFormatError` (a ``ValueError``) naming the file, the line (text format) or the line and
@@ -72,7 +72,7 @@ class NtddaWarning(UserWarning):
 
 class NtddaQuirkWarning(NtddaWarning):
     """The file relies on an ntdda quirk or bug; ddatai makes the documented choice instead
-    (README "Reading ntdda files")."""
+    (docs/guide/ntdda_files.md)."""
 
 
 class NtddaUnsupportedWarning(NtddaWarning):
@@ -212,9 +212,9 @@ class NtddaAnalysis:
     contact_damping: float
     """``ContactDamping`` (not supported)."""
     openclose: float
-    """ntdda's re-closing tolerance / w0 (read; ddatai keeps its own, README)."""
+    """ntdda's re-closing tolerance / w0 (read; ddatai keeps its own, docs/guide/method_choices.md)."""
     opencriteria: float
-    """ntdda's opening tolerance / w0 (read; ddatai keeps its own, README)."""
+    """ntdda's opening tolerance / w0 (read; ddatai keeps its own, docs/guide/method_choices.md)."""
     norm_spring_pen: float
     """g3: allowed penetration / w0 [-]."""
     angle_overlap: float
@@ -836,7 +836,7 @@ def _read_ddaml_analysis(path: Path, text: str, log: list) -> NtddaAnalysis:
               f"re-estimation is not supported; the penalty stays at pfactor × the largest Young's modulus")
     if s["plane_strain"]:
         _warn(log, NtddaQuirkWarning, f"{path}: plane strain: ntdda's plane-strain stiffness is too stiff by "
-              "(1+ν)/(1−ν) (README, method choices); ddatai uses the correct one")
+              "(1+ν)/(1−ν) (docs/guide/method_choices.md); ddatai uses the correct one")
     return NtddaAnalysis(path=str(path), format="ddaml", block_materials=tuple(bmats),
                          joint_materials=tuple(jmats), load_histories=tuple(histories),
                          load_where=tuple(hwhere), warnings=tuple(log), **s)
@@ -852,13 +852,13 @@ def _read_constants(xml: _Xml, el: _Element, s: dict, log: list) -> None:
             _warn(log, NtddaUnsupportedWarning, f"{xml.path}, {ch.where()}: unknown contact constant ignored")
     if s["angle_overlap"] >= 30.0:
         xml.fail(el, f"AngleOverlap must be < 30 degrees, got {s['angle_overlap']:g}")
-    # ddatai opens and closes contacts with its own much tighter tolerances (README "Method
-    # choices"); a file that changes ntdda's only gets told
+    # ddatai opens and closes contacts with its own much tighter tolerances
+    # (docs/guide/method_choices.md); a file that changes ntdda's only gets told
     for key, default, what in (("openclose", NTDDA_OPENCLOSE, "Openclose"),
                                ("opencriteria", NTDDA_OPENCRITERIA, "Opencriteria")):
         if not math.isclose(s[key], default, rel_tol=1e-9):
             _warn(log, NtddaQuirkWarning, f"{xml.path}, {el.where()}: {what} = {s[key]:g} is not used: ddatai "
-                  "opens and closes contacts with its own tolerances (README, method choices)")
+                  "opens and closes contacts with its own tolerances (docs/guide/method_choices.md)")
 
 
 def _read_ddaml_block_material(xml: _Xml, el: _Element, log: list) -> NtddaBlockMaterial:
@@ -942,7 +942,7 @@ class NtddaBlocks:
     fixed_block: np.ndarray
     """(nf,) block of each fixed point."""
     fixed_xy: np.ndarray
-    """(nf, 2) fixed points [length] (ddatai's rule for fixed lines, README)."""
+    """(nf, 2) fixed points [length] (ddatai's rule for fixed lines, docs/guide/ntdda_files.md)."""
     load_block: np.ndarray
     """(nl,) block of each load point."""
     measured_block: np.ndarray
@@ -958,7 +958,7 @@ def cut_ntdda_geometry(geometry: NtddaGeometry) -> NtddaBlocks:
     points, then material lines); the documented choices are: blocks lying inside other blocks
     are deleted before points are located (ntdda deletes them after, leaving points on deleted
     blocks), and fixed lines pin each block they cross at both ends of the line's piece inside
-    it (docs/ntdda.md §4.8; ntdda's rule is in `_fixed_points`).
+    it (docs/ntdda.md §4.8; ntdda's rule is in ``_fixed_points``).
     """
     g = geometry
     log: list[str] = []
@@ -1112,7 +1112,7 @@ class NtddaCase:
 
     scene: Scene
     """Blocks (ntdda's order and numbering, 0-based), joints, fixed points, loads, measured
-    points; gravity is the effective γ/ρ (README "Reading ntdda files")."""
+    points; gravity is the effective γ/ρ (docs/guide/ntdda_files.md)."""
     params: Params
     """Time step, penalty, open-close limit, static/dynamic, plane stress/strain from the file."""
     duration: Optional[float]
