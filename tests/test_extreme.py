@@ -19,7 +19,7 @@ hypothesis = pytest.importorskip("hypothesis", reason="the property suite needs 
 from hypothesis import HealthCheck, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
-from extreme_cases import REGIMES, SHAPES, CaseSpec, build, check, run_case  # noqa: E402
+from extreme_cases import REGIMES, SHAPES, CaseSpec, build, check, random_spec, run_case  # noqa: E402
 
 import ddatai as dd  # noqa: E402
 
@@ -70,22 +70,31 @@ def _holds(spec: CaseSpec, refuse_ok: bool) -> None:
     assert not out.problems, f"{out.problems}\n{spec!r}"
 
 
-SHORT = settings(max_examples=25, deadline=None, derandomize=True, database=None,
-                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 LONG = settings(max_examples=1000, deadline=None, database=None,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 
 
-@SHORT
-@given(cases("rock"))
-def test_rock_like_scenes_run_through(spec):
-    _holds(spec, refuse_ok=True)
+# The default run draws its 25 scenes a regime with NumPy from fixed seeds (`random_spec`, the
+# same ranges as `cases`), not with hypothesis: hypothesis mixes the literal constants of every
+# project module loaded so far into what it draws, so even derandomised its examples change
+# with the modules earlier tests happened to import, and the default run would test other
+# scenes than a run of this file alone. The slow profile below explores with hypothesis.
+@pytest.mark.parametrize("seed", range(25))
+def test_rock_like_scenes_run_through(seed):
+    _holds(random_spec(np.random.default_rng(1000 + seed), "rock", steps=25), refuse_ok=True)
 
 
-@SHORT
-@given(cases("extreme"))
-def test_extreme_scenes_run_through_or_are_refused(spec):
-    _holds(spec, refuse_ok=True)
+#: seed 20: a 0.75 m domain of dense stiff rock (ρ 10,675 kg/m³, E 54 GPa, c 8.8 MPa) cut by
+#: three joints, under a point load of 4.5 × its weight: the open-close iteration of a cut
+#: domain keeps one contact changing state for 20 iterations at step 4 (NumPy path) or 7
+#: (kernels), even at Δt = 1e-6 s — the stuck open-close class of randomly cut domains
+STUCK_CUT_DOMAIN = pytest.mark.xfail(strict=True, reason="known: a cut domain whose open-close iteration "
+                                     "does not converge (1 contact still changing)")
+
+
+@pytest.mark.parametrize("seed", [pytest.param(s, marks=STUCK_CUT_DOMAIN) if s == 20 else s for s in range(25)])
+def test_extreme_scenes_run_through_or_are_refused(seed):
+    _holds(random_spec(np.random.default_rng(2000 + seed), "extreme", steps=25), refuse_ok=True)
 
 
 @pytest.mark.slow
