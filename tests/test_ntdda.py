@@ -23,7 +23,7 @@ import ddatai as dd
 from ddatai.io.ntdda import (NtddaFormatError, NtddaQuirkWarning, NtddaUnsupportedWarning, NtddaWarning,
                           cut_ntdda_geometry, read_ntdda_analysis, read_ntdda_geometry,
                           write_measured_csv)
-from ddatai.io.ntdda_geometry import ntdda_fixed_points
+from ddatai.io.ntdda.geometry import ntdda_fixed_points
 
 def _shared_data() -> Path:
     """The data folder: in a ``shared`` folder beside the checkout, or the workplace's
