@@ -6,7 +6,7 @@
   initial stress, body force, fixed points, point loads, water pressure and bolts (§2.1–2.6);
 - `contact_vectors` and `assemble_contacts`: the normal and shear springs of closed contacts
   and the friction loads of sliding ones (§2.8);
-- `second_order`: the second-order rotation terms of the constraints (§5.3).
+- ``second_order``: the second-order rotation terms of the constraints (§5.3).
 
 Taichi kernels (`ddatai.kernels`) do the per-block and per-contact work; their NumPy twins are
 in `ddatai.reference` (dense assembly), and tests compare them.

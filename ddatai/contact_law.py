@@ -9,7 +9,7 @@ Barton–Bandis joints take the NumPy path: their friction follows the law's own
 - `contact_law`: the law at a solution D — each contact's normal distance, state, forces and
   Coulomb strength, and the forces of the state it has now;
 - `violations`: which contacts' assumed states break the law or mismatch their motion;
-- `judge`: apply those changes (in place on the contacts) and return the `Judgement`;
+- `judge`: apply those changes (in place on the contacts) and return the ``Judgement``;
 - `internal_force`: the generalised forces of the law's contact forces (the line search's
   energy gradient).
 """

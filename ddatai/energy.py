@@ -5,13 +5,13 @@ Per unit thickness [J/m]:
 - kinetic      T  = Σ ½ ρ vᵀ M v            (generalized velocities, M of §1.3)
 - gravitational Vg = Σ ρ S (−g · c)           (c: block centroid; zero at the model origin)
 - strain       U  = Σ ½ S σᵀ C⁻¹ σ           (constant stress per block, total stress)
-- contact      Uc = Σ ½ p dn² (closed) + ½ ks ds² (locked) + ½ p_f |u|² (fixed points)
+- contact      Uc = Σ ½ p dn² (closed) + ½ ks ds² (locked) + ½ p_f u² (fixed points)
 
 Over a step, the work of the point loads and of the ground motion's inertial forces enters,
-friction dissipates Ff·|slip|, and what is left of the balance is the work dissipated by the
+friction dissipates Ff times the slip's magnitude, and what is left of the balance is the work dissipated by the
 integrator (Newmark's numerical damping and the penalty springs' losses):
 ``integrator = external − ΔE − friction``. It must not be negative: a step that creates energy
-is a numerical instability. `ddatai.results.STEP_DTYPE` carries all of these.
+is a numerical instability. ``ddatai.results.STEP_DTYPE`` carries all of these.
 """
 
 from __future__ import annotations

@@ -597,7 +597,7 @@ def contact_law(cint: I32_2, cstate: I8_2, cvalue: F64_2, block_a: I32_1, block_
                 vec: F64_3, sca: F64_2, disp: F64_2, penalty: ti.f64, shear_penalty: ti.f64,
                 penetration_limit: ti.f64, out_f: F64_2, out_i: I8_2):
     """The contact law at the displacements ``disp``, contact by contact (docs/method/dda.md
-    §2.8, §4.3; `ddatai.contact_law.contact_law` documents it; its NumPy twin is `contact_law_numpy`).
+    §2.8, §4.3; ``ddatai.contact_law.contact_law`` documents it; its NumPy twin is ``contact_law_numpy``).
 
     ``cstate`` rows IN_* (field-major, (5, m)): the contact's state, line, coupled, bond, shear direction;
     ``cvalue`` rows: tan φ, cohesion, tensile strength, length, normal force of the last solve;
@@ -709,7 +709,7 @@ def violations(cint: I32_2, cstate: I8_2, cvalue: F64_2, block_a: I32_1, block_b
                law_f: F64_2, law_i: I8_2, level: F64_1, penalty: ti.f64, force_tolerance: ti.f64,
                state_tolerance: ti.f64, roundoff: ti.f64, bad: I8_1):
     """Contacts whose assumed state must change given the law at the solution
-    (`ddatai.contact_law.violations` documents the rules; the NumPy twin is `violations_numpy`).
+    (``ddatai.contact_law.violations`` documents the rules; the NumPy twin is ``violations_numpy``).
     ``level`` enters as each block's weight and leaves as the load the block carries (its
     weight or its largest contact force)."""
     for c in range(cint.shape[0]):
@@ -744,7 +744,7 @@ def violations(cint: I32_2, cstate: I8_2, cvalue: F64_2, block_a: I32_1, block_b
 @ti.kernel
 def internal_force(block_a: I32_1, block_b: I32_1, dof: I32_1, vec: F64_3, law_f: F64_2, law_i: I8_2,
                    out: F64_1, serial: ti.template()):
-    """Generalised forces of the law's contact forces (`ddatai.contact_law.internal_force`,
+    """Generalised forces of the law's contact forces (``ddatai.contact_law.internal_force``,
     which holds the NumPy twin): p·dn·∇dn of each closed contact's active line and f_t·∇ds,
     added into ``out`` (6 per free block). ``serial`` as in `assemble_contacts`."""
     ti.loop_config(serialize=serial)

@@ -5,8 +5,8 @@ Each solve takes the contact states (and the Jacobian of their forces) at the la
 when no state has to change the solution satisfies the law at every contact. A step of
 Newton's method can overshoot into a state that sends the next one back (a contact that carries
 almost no normal force, flipping between sticking and sliding); from the second solve on it is
-shortened by a backtracking line search on the energy (`line_search`). The iteration returns
-its outcome as an `OpenClose` value.
+shortened by a backtracking line search on the energy (``line_search``). The iteration returns
+its outcome as an ``OpenClose`` value.
 
 The iteration reads what steps reuse from the `ddatai.step.Stepper` it is given (``stepper``):
 the model, the solver with its last factor, each block's weight and the scatter mode.

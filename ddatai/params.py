@@ -248,7 +248,7 @@ class Params:
     """Direct solver of each open-close iteration: "scipy" (SuperLU, always available),
     "pardiso" (Intel MKL PARDISO through the optional ``pypardiso`` package, ~5× faster at
     1,600 blocks), "dense" (LAPACK on the dense matrix: the fastest for small models) or
-    "auto" (dense up to `ddatai.solver.DENSE_UNKNOWNS` unknowns, then PARDISO when installed,
+    "auto" (dense up to ``ddatai.solver.DENSE_UNKNOWNS`` unknowns, then PARDISO when installed,
     else SuperLU). See `ddatai.solver`."""
     arch: str = "cpu"
     """Taichi backend for contact detection and assembly: "cpu", "gpu" (CUDA/Vulkan/Metal,
@@ -256,7 +256,7 @@ class Params:
     kernels: str = "auto"
     """Where a step's per-block and per-contact work runs: "taichi" (the Taichi kernels, on
     ``arch``), "numpy" (their vectorised NumPy twins: no kernel launch, no Taichi at all) or
-    "auto" (NumPy for a model of at most `ddatai.model.SMALL_MODEL_BLOCKS` free blocks on the
+    "auto" (NumPy for a model of at most ``ddatai.model.SMALL_MODEL_BLOCKS`` free blocks on the
     CPU, where a kernel launch costs more than the work; Taichi otherwise). Both give the same
     results to round-off (tests compare them)."""
 

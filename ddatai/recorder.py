@@ -1,4 +1,4 @@
-"""The `Recorder`: frames and step records accumulated during a run, and the `Results` built
+"""The ``Recorder``: frames and step records accumulated during a run, and the `Results` built
 from them (also a partial one, when a run stops)."""
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """`simulate`: a DDA run from a scene to its results (docs/method/dda.md §0): the model is
 built and checked, brought to equilibrium (`ddatai.start`), and advanced step by step
-(`ddatai.step`) while a `Recorder` keeps frames and step records; checkpoints and Ctrl-C are
+(`ddatai.step`) while a ``Recorder`` keeps frames and step records; checkpoints and Ctrl-C are
 handled here (`ddatai.io.checkpoint`).
 """
 

@@ -182,7 +182,7 @@ class Scene:
     def subset(self, keep: Sequence[int], *, held: Sequence[int] = ()) -> tuple["Scene", list[int]]:
         """A scene of the blocks ``keep`` (in that order), the blocks in ``held`` fixed.
 
-        Everything that refers to blocks (`BLOCK_REFERENCES`: joint overrides between block
+        Everything that refers to blocks (``BLOCK_REFERENCES``: joint overrides between block
         pairs, fixed points, point loads, measured points, bolts) is renumbered, and kept where
         all its blocks are kept; every other attribute (gravity, the joint table, the water
         table, the shaking, and any added later) is the scene's own. The one place that cuts a

@@ -20,7 +20,7 @@
     energy and work of the step                                              ddatai.energy
 
 Each phase is timed under its own name into the step's `StepRecord`
-(`ddatai.results.STEP_DTYPE`). `ddatai.run.simulate` runs the steps (after the equilibrium
+(``ddatai.results.STEP_DTYPE``). ``ddatai.run.simulate`` runs the steps (after the equilibrium
 stage of `ddatai.start`); a `Stepper` holds only what steps reuse: the model, the solver and
 its last factor, the sparse pattern, the detection buffers.
 """

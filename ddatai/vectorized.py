@@ -1,8 +1,8 @@
 """Vectorised NumPy contact detection and contact vectors, for small models.
 
 A Taichi kernel launch costs ~0.3–0.5 ms of Python-side argument passing whatever the work,
-so on a model of a few blocks the four or five launches of `ddatai.contacts.detect_contacts`
-and `ddatai.assembly.contact_vectors` cost more than the geometry itself. This module does the
+so on a model of a few blocks the four or five launches of ``ddatai.contacts.detect_contacts``
+and ``ddatai.assembly.contact_vectors`` cost more than the geometry itself. This module does the
 same work in whole-array NumPy operations, with no Python loop over blocks, vertices or
 contacts, and no Taichi:
 
@@ -13,12 +13,12 @@ contacts, and no Taichi:
   once, operation for operation as `ddatai.kernels.narrow_phase` (the same guards
   ``EDGE_FLOOR`` and ``TIE``, the same mutual-nearest-vertex rule, the same entrance-angle
   test), so that it returns the same contacts, kinds, lines and lengths;
-- `detect_contacts`: both, in the canonical order of `ddatai.contacts.sort_contacts`;
+- `detect_contacts`: both, in the canonical order of ``ddatai.contacts.sort_contacts``;
 - `contact_vectors`: the normal and shear vectors of every contact line (§2.8.1–2.8.4), as
   `ddatai.kernels.contact_vectors`.
 
-`tests/test_vectorized.py` compares every function with the kernel path;
-`benchmarks/detection.py` times both and finds the block count where the kernels win.
+``tests/test_vectorized.py`` compares every function with the kernel path;
+``benchmarks/detection.py`` times both and finds the block count where the kernels win.
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ from .layout import N_SLOTS, S_ES, S_GS, VE, VV
 from .model import Model
 
 #: the narrow phase's guards, as `ddatai.kernels` (kept here so that this module does not
-#: import Taichi; `tests/test_vectorized.py` checks that they agree)
+#: import Taichi; ``tests/test_vectorized.py`` checks that they agree)
 EDGE_FLOOR = 1e-150
 EDGE_FLOOR2 = EDGE_FLOOR * EDGE_FLOOR
 TIE = 1e-3
@@ -54,7 +54,7 @@ def _expand(counts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def broad_phase(model: Model, vertex_xy: np.ndarray, margin: float) -> np.ndarray:
     """Candidate block pairs (i < j, not both fixed) whose boxes, enlarged by margin/2, overlap.
 
-    Returns a (P, 2) int32 array sorted by (i, j), as `ddatai.contacts.broad_phase`.
+    Returns a (P, 2) int32 array sorted by (i, j), as ``ddatai.contacts.broad_phase``.
     """
     lo, hi = box_bounds(model, vertex_xy, 0.5 * margin)
     nb = len(lo)
@@ -169,7 +169,7 @@ def _first_per_group(group: np.ndarray, dist: np.ndarray, index: np.ndarray
 def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray]:
     """Contacts of the candidate block pairs (A < B): (cint (m, 5) int32 — kind, vertex0,
-    edge0, vertex1, edge1 — and length (m,)), in canonical order (`contacts.sort_contacts`).
+    edge0, vertex1, edge1 — and length (m,)), in canonical order (``contacts.sort_contacts``).
 
     Shi's rules of docs/method/dda.md §3.3–3.6 as `ddatai.kernels.narrow_phase`, over all
     pairs at once: (1) each vertex of A and vertex of B that are mutual nearest within d0 go
@@ -327,7 +327,7 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray
 
 def detect_contacts(model: Model, vertex_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Broad + narrow phase in NumPy. Returns (cint, length) in canonical order, as
-    `ddatai.contacts.detect_contacts`."""
+    ``ddatai.contacts.detect_contacts``."""
     return narrow_phase(model, vertex_xy, broad_phase(model, vertex_xy, model.search_distance))
 
 

@@ -48,7 +48,7 @@ VELOCITY_TOL = 1e-7
 F_MIN, F_MAX = 1e-3, 1e3
 #: Largest friction angle tried in critical-friction searches [degrees].
 PHI_MAX = 89.9
-#: Points of the root scan where the pencil of `_pencil_roots` does not apply, over the
+#: Points of the root scan where the pencil of ``_pencil_roots`` does not apply, over the
 #: bracket and around each near-singular point of the equilibrium [-].
 SCAN_SAMPLES, POLE_SAMPLES = 48, 32
 #: |K| at an accepted root [g]: a crossing with a larger |K| is a pole or a 0/0 point.
@@ -559,9 +559,9 @@ def sarma_modes(system: BlockSystem, blocks: frozenset, removed: frozenset = fro
 
     FS: the least F at which K(F) falls through 0 with admissible forces (Sarma 1979: reduce
     the strength until the critical acceleration vanishes, §5.1–5.2); every root of K is
-    found (`_pencil_roots`; docs/kgm/footwall.md §5). K_c = K(1). Critical friction: the φ of
+    found (``_pencil_roots``; docs/kgm/footwall.md §5). K_c = K(1). Critical friction: the φ of
     all joints (cohesion held) at which K_c = 0, the same way (§4.6). A mechanism with no
-    root whose forces are admissible (tension on a face) is dropped (§5.2); `sarma_checks`
+    root whose forces are admissible (tension on a face) is dropped (§5.2); ``sarma_checks``
     says why.
     """
     return sarma_checks(system, blocks, removed)[0]
@@ -671,7 +671,7 @@ def _loaded(force: np.ndarray, passive: Optional[np.ndarray], mech: _Mechanism, 
 def _mechanism_critical_friction(mech: _Mechanism, faces: _Faces, force: np.ndarray,
                                  weight: np.ndarray) -> Optional[float]:
     """φ of all faces (cohesion held) with K(F = 1) = 0 (§4.6): the least φ at which K rises
-    through zero with admissible forces, every root found as for the FS (`_pencil_roots` in
+    through zero with admissible forces, every root found as for the FS (``_pencil_roots`` in
     x = tanφ, else `_scan_roots`)."""
     def tan_of(phi: float) -> np.ndarray:
         return np.full(len(faces.a), math.tan(math.radians(phi)))

@@ -50,7 +50,7 @@ class GroupResult:
     governs; for dda: the screening evaluator's)."""
     rejected: tuple = ()
     """Why the other modes the limit-equilibrium evaluator looked for are not admissible, one
-    line each (`kgm.evaluators.Evaluation.rejected`)."""
+    line each (``kgm.evaluators.Evaluation.rejected``)."""
 
     @property
     def verdict(self) -> str:

@@ -23,9 +23,9 @@ joints share one strength (φ, c), no tensile strength; ρ = 2500 kg/m³.
   the bedding and drives P out along J1, shearing J2 (an active–passive, bi-planar failure).
   Block ids: P = 0, A = 1, rock = 2.
 
-`closed_form_fs` gives each case's limit-equilibrium answer computed by hand from the
+``closed_form_fs`` gives each case's limit-equilibrium answer computed by hand from the
 geometry (the referee of tests/test_kgm_footwall.py and benchmarks/kgm_examples.py);
-`rigid_fs` the answer of the group glued into one body.
+``rigid_fs`` the answer of the group glued into one body.
 
 Run ``python scenes/footwall.py`` (plain DDA run of the bilinear case) or
 ``kgm analyze scenes/footwall.py``.
