@@ -110,8 +110,10 @@ def run_one(family: str, size: int, steps: int, warmup: int, arch: str, solver: 
 
     ``protocol``: ``ntdda`` starts at rest under sudden gravity (ntdda's scaling runs);
     ``settled`` first runs the equilibrium stage (`ddatai.start.settle`, the default start of a
-    run) and times the steps after it, and also reports the start-up cost: the stage's wall time
-    and solves, and the wall time per step of the stage plus the first ``FROM_REST_STEPS`` steps."""
+    run) and times the steps after it, and also reports the start-up cost: the stage's wall time,
+    solves (and the factorisations among them), held and released blocks and whether it fell back to
+    the welded start, and the wall time per step of the stage plus the first ``FROM_REST_STEPS``
+    steps."""
     import dataclasses
 
     import ddatai as dd
@@ -133,7 +135,8 @@ def run_one(family: str, size: int, steps: int, warmup: int, arch: str, solver: 
     if protocol == "settled":
         state, rec = settle(stepper, state)
         start = dict(start_s=rec.wall_time, start_solves=rec.solves, start_held=rec.held,
-                     start_released=rec.released)
+                     start_released=rec.released, start_factorisations=rec.factorisations,
+                     start_welded=bool(rec.welded))
     records, factorised = [], []
     for k in range(warmup + steps):
         before = stepper.solver.factorisations
@@ -236,13 +239,18 @@ def machine() -> str:
 
 
 def table(rows: list[dict]) -> str:
-    lines = ["| family | blocks | contacts | ms/step | ms per OC iteration | OC it./step | ms per 1-OC step (steps) | contacts ms | assembly ms | solve ms | judge + update ms | peak MB | solver |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    staged = any("start_s" in r for r in rows)  # the settled protocol: the stage beside the steps
+    head = "| family | blocks | contacts | ms/step | ms per OC iteration | OC it./step | ms per 1-OC step (steps) | contacts ms | assembly ms | solve ms | judge + update ms | peak MB | solver |"
+    lines = [head + (" stage s (solves) |" if staged else ""), "|---" * (14 if staged else 13) + "|"]
     for r in rows:
         one = f"{r['ms_one_oc']:.1f} ({r['one_oc_steps']})" if r.get("ms_one_oc") else "–"
+        stage = ""
+        if staged:
+            stage = (f" {r['start_s']:.2f} ({r['start_solves']}{', welded' if r.get('start_welded') else ''}) |"
+                     if "start_s" in r else " – |")
         lines.append(f"| {r['family']} | {r['blocks']:,} | {r['contacts']:,} | {r['ms_per_step']:.1f} | "
                      f"{r['ms_per_oc']:.1f} | {r['oc_per_step']:.1f} | {one} | {r['ms_contacts']:.1f} | {r['ms_assembly']:.1f} | "
-                     f"{r['ms_solve']:.1f} | {r['ms_update']:.1f} | {r['peak_mb']:.0f} | {r['solver']} |")
+                     f"{r['ms_solve']:.1f} | {r['ms_update']:.1f} | {r['peak_mb']:.0f} | {r['solver']} |" + stage)
     nt = [r for r in rows if r["family"] == "grid" and r["blocks"] in NTDDA_GRID_OC]
     if nt:
         lines += ["", "Against ntdda on the same grid scene with the same parameters (docs/ntdda.md §5, "
@@ -270,13 +278,17 @@ def table(rows: list[dict]) -> str:
 def solves_table(rows: list[dict]) -> str:
     """Open-close solves per step, the factorisations among them (a step's first solve may reuse
     the last factor, `ddatai.solver`), and, for the settled protocol, the start-up."""
-    lines = ["| family | blocks | solves/step: median (mean, max) | factorisations/step: median (mean) | steps with a cut attempt | stage: s (solves, held/released) | stage + first 10 steps: ms/step |",
-             "|---|---|---|---|---|---|---|"]
+    lines = ["| family | blocks | solves/step: median (mean, max) | factorisations/step: median (mean) | steps with a cut attempt | stage: s | stage: solves (factorised) | stage: held/released | stage + first 10 steps: ms/step |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         if "median_solves" not in r:
             continue
-        stage = (f"{r['start_s']:.2f} ({r['start_solves']}, {r['start_held']:,}/{r['start_released']:,})"
-                 if "start_s" in r else "–")
+        if "start_s" in r:
+            welded = ", welded" if r.get("start_welded") else ""
+            stage = (f"{r['start_s']:.2f} | {r['start_solves']} ({r.get('start_factorisations', '–')}) | "
+                     f"{r['start_held']:,}/{r['start_released']:,}{welded}")
+        else:
+            stage = "– | – | –"
         rest = f"{r['from_rest_ms_per_step']:.0f}" if "from_rest_ms_per_step" in r else "–"
         fact = (f"{r['median_factorisations']:.0f} ({r['factorisations_per_step']:.1f})"
                 if "median_factorisations" in r else "–")

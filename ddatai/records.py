@@ -107,6 +107,7 @@ START_DTYPE = np.dtype([
     ("at_strength", "i4"),      # contacts of held blocks at their strength at t = 0
     ("wall_time", "f8"),        # wall time of the stage [s]
     ("welded", "?"),            # started from the welded equilibrium (no frictional one found)
+    ("factorisations", "i4"),   # factorisations of K among the solves
 ])
 
 #: a rock bolt that broke (docs/method/water_bolts.md), one record per broken bolt

@@ -7,47 +7,63 @@ and a slope that limit equilibrium calls stable can fail in its own start-up tra
 gravity turn-on phase. ddatai's stage (`Params.initial_equilibrium`, on by default) is a static
 solve of the model under its weight, the point loads at t = 0 and its initial stresses:
 
-1. The contacts that touch at t = 0 start locked; the open-close iteration then applies the
-   contact law of a step (no tension beyond a bond's strength, Coulomb friction with
-   cohesion) with one difference: joints are Mohr–Coulomb, perfectly plastic — a contact
-   loaded to its strength slides and keeps its cohesion while its load moves to the rest of
-   the joint and to other joints. The ground acceleration is the dynamic input and is left out.
+1. The contacts that touch at t = 0 start closed and locked. The stage applies the contact law
+   of a step (no tension beyond a bond's strength, Coulomb friction with cohesion) with one
+   difference: joints are Mohr–Coulomb, perfectly plastic — a contact loaded to its strength
+   slides and keeps its cohesion while its load moves to the rest of the joint and to other
+   joints. The ground acceleration is the dynamic input and is left out.
 2. K is the static stiffness (elastic blocks, contact and fixed-point springs) plus the
    inertia of a very long pseudo time step, over which free fall would cover 1e4 block sizes:
    it keeps K regular for a block that nothing holds and does not change a held block's
    displacement measurably.
-3. A block that moves more than a quarter of its size away from what holds it, or whose
+3. The equilibrium is found by *return mapping* (`_iterate`): every closed contact stays a
+   spring — normal, and for a vertex-edge contact shear from its lock point, moved by how far
+   the contact has slid —, the slip of a contact whose spring carries more than its Coulomb
+   strength grows by the excess (the return mapping of elastic, perfectly plastic friction,
+   Anderson-accelerated), and a contact opens where it pulls beyond its tensile strength or
+   closes where it overlaps (K changes only then; otherwise the last factor solves the next
+   iterate, and where states change the step stops where the energy stops falling). It ends
+   when no state changes and every contact force is the contact law's within
+   ``Params.oc_force_tolerance`` × the load its blocks carry — the law's forces then balance
+   every block within that much —, or, where the iteration stalls before, within
+   ``Params.oc_state_tolerance``; in that case, and where a bonded contact ends at its strength
+   (the run's first step would break its bond, Shi's rule, for the least excess), the
+   open-close iteration of a static step finishes from there — its contacts at their strength
+   sliding without springs, where a wedge slides until bolts or a wedging joint take its load —
+   and its equilibrium is taken where it converges and moves nothing away. A contact without
+   friction and cohesion has no shear spring. Semismooth Newton on the same law (the open-close
+   iteration of a step) does not converge here from the all-locked start: a block whose contacts are
+   sliding or open in an iterate has no stiffness but the pseudo inertia and is thrown ~1e4
+   sizes, which scrambles its neighbours' states, and in a fitted mass of stiff blocks groups
+   of corner contacts flip together for ever (docs/method/dda.md §8.12).
+4. A block that moves more than a quarter of its size away from what holds it, or whose
    contacts sink deeper than the penetration limit, is a mechanism that the contacts cannot
-   hold: a free block, one balanced on a corner, a column that topples, a group that limit
-   equilibrium calls unstable. "Away from what holds it": the block is not tied to the ground
-   (fixed blocks, fixed points) through a chain of closed contacts across which the two blocks
-   move alike — a tall, soft column settles by more than a quarter of a block at its top, every
-   block with its neighbours, and is held. A mechanism is *released*: its contacts leave the
-   stage and it starts at t = 0 from its initial position under sudden gravity (as without the
-   stage), and the others are solved again.
-4. The held blocks move by the solution (their elastic settlement), their stresses and contact
-   springs carry the equilibrium forces, and their velocities are the scene's initial ones. A
-   contact that reached its strength in the stage starts locked at its strength with its bond
-   intact.
-
-5. If the static open-close iteration does not converge (contacts near zero force in a fitted
-   mass of blocks flip between states), the stage starts again as a ladder of pseudo-steps with
-   inertia: Δt from the run's step, doubling up to the static pseudo time step, each starting
-   from the contact states of the last; a pseudo-step that does not converge is retried with a
-   shorter Δt while the ladder climbs past the Δt of its last failure. Each solve then stays close to the last, as in a
-   dynamic step.
-6. If the ladder fails too (a stiff, fitted mass of blocks whose joints slip by microns under
-   the Poisson effect of their own weight: thousands of contacts near the Coulomb limit, whose
-   frictional equilibrium semismooth Newton does not find from the all-locked start), the
-   model starts from its *welded* equilibrium: the same static solve with every touching
-   contact held as it is (normal and shear springs, no open-close judgement), repeated at the
-   settled geometry until the increment is round-off; blocks that move as mechanisms even so
-   are released. Then each contact takes the joint law at t = 0: one pulled beyond its tensile
-   strength opens, one sheared beyond its Coulomb strength is handed over locked at it
-   (`StartRecord.at_strength`). The first steps release only the difference between the welded
-   and the real joint forces instead of the whole weight (sudden gravity rings a stiff grid
-   for its whole run and doubles the solves per step; docs/method/dda.md §8.12).
-   `StartRecord.welded` says that a run started so.
+   hold: a free block, one balanced on a corner, a column that topples. "Away from what holds
+   it": the block is not tied to the ground (fixed blocks, fixed points) through a chain of
+   closed contacts across which the two blocks move alike — a tall, soft column settles by
+   more than a quarter of a block at its top, every block with its neighbours, and is held. A
+   block that slides as a mechanism keeps the return mapping out of balance: the blocks still
+   out of balance when it stalls are tested by the open-close iteration of a static step with
+   their contacts at the strength sliding (`test_unbalanced`), and those that move away in it
+   on which their loads do positive work are mechanisms (friction only resists: a block that
+   friction pushed away against its loads is held). A mechanism is *released*: its contacts
+   leave the stage and it starts at t = 0 from its initial position under sudden gravity (as
+   without the stage), and the others are solved again from where they were.
+5. The held blocks move by the solution (their elastic settlement), their stresses and contact
+   springs carry the equilibrium forces, and their velocities are the scene's initial ones:
+   each contact is handed over locked, its lock point moved by its slip, and a contact at its
+   strength starts locked at it with its bond intact. The stage repeats at the settled
+   geometry until the contact forces there balance every block (`balanced`).
+6. If no frictional equilibrium is found (a pseudo-step out of iterations, or out-of-balance
+   blocks that the test does not move), the model starts from its *welded* equilibrium: the
+   same static solve with every touching contact held as it is (normal and shear springs, no
+   open-close judgement), repeated at the settled geometry until the increment is round-off;
+   blocks that move as mechanisms even so are released. Then each contact takes the joint law
+   at t = 0: one pulled beyond its tensile strength opens, one sheared beyond its Coulomb
+   strength is handed over locked at it (`StartRecord.at_strength`). The first steps release
+   only the difference between the welded and the real joint forces instead of the whole
+   weight (sudden gravity rings a stiff grid for its whole run and doubles the solves per
+   step; docs/method/dda.md §8.12). `StartRecord.welded` says that a run started so.
 
 So a model that limit equilibrium calls stable moves no more than its elastic settlement, and
 one that it calls unstable starts failing at once: its released blocks start under sudden
@@ -59,47 +75,20 @@ tensile strength. `StartRecord` counts the contacts that reached their strength.
 from __future__ import annotations
 
 import time as _time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 from .assembly import BlockPattern, assemble_blocks, assemble_contacts, contact_vectors, load_forces
 from .contact_law import contact_law, friction_force
 from .contacts import Contacts
-from .geometry import displacement_matrix
 from .kinematics import block_displacement, settle_points
 from .layout import E0, KIND, LOCK, OPEN, SLIDE, VE
 from .model import ContactMemory, State
-from .open_close import open_close, solve
-from .records import StepTimer
-
-#: the pseudo time step: free fall over it covers this many median block sizes
-FALL_IN_SIZES = 1e4
-#: a block that moves more than this fraction of its size √area in the stage, away from the
-#: ground (`_anchored`), is a mechanism. Over the pseudo time step a block that its contacts
-#: cannot hold moves about FALL_IN_SIZES × (its net acceleration / g) sizes away from what
-#: held it, so this catches every mechanism whose net acceleration exceeds 2.5e-5 g; a held
-#: block moves with its neighbours, by its elastic settlement, which in a soft, tall model
-#: exceeds a block size's quarter (a 60-block column with E = 100 MPa: 37 % at its top)
-MECHANISM_SIZE = 0.25
-#: a block of an iterate that did not converge moving more than this many times the free fall
-#: of the pseudo-step (FALL_IN_SIZES sizes) is not moving as a mechanism: the iterate went astray
-FREE_FALL_BOUND = 2.0
-#: at most this many solves in a pseudo-step (each adds contacts that open, close or slide, or
-#: releases mechanisms)
-MAX_SOLVES = 30
-#: a pseudo-step of the ladder (below) whose increment is this fraction of the median block
-#: size has settled as far as inertia lets it: the ladder jumps to the static step
-LADDER_DONE = 1e-8
-#: a pseudo-step of the ladder that does not converge is tried again with a smaller Δt at most
-#: this many times in all, and only while the ladder climbs past its last failure
-MAX_LADDER_RETRIES = 8
-#: Newmark's β of the stage's system: that of a first step (the stage's pseudo-steps have no
-#: acceleration history; `kinematics.newmark_beta`)
-STAGE_BETA = 0.5
+from .open_close import solve
+from .mechanisms import FALL_IN_SIZES, mechanisms
+from .return_mapping import STAGE_BETA, Frame, balanced, return_mapping, subset_contacts
 #: at most this many pseudo-steps (each re-solves the increment at the settled geometry; the
 #: second is ~strain × the first, the third round-off)
 MAX_PSEUDO_STEPS = 8
@@ -123,8 +112,10 @@ class StartRecord:
     wall_time: float
     """Wall time of the stage [s]."""
     welded: bool = False
-    """The Mohr–Coulomb stage did not converge, and the model started from its welded
+    """The frictional stage found no equilibrium, and the model started from its welded
     equilibrium with each contact then at most at its strength (module docstring, 6.)."""
+    factorisations: int = 0
+    """Factorisations of K among the solves (the others reuse the last factor) [-]."""
 
 
 #: the record of a model with nothing to settle
@@ -147,71 +138,52 @@ def settle(stepper, state: State, welded: bool = False) -> tuple[State, StartRec
     model = stepper.model
     if not needs_settling(model):
         return state, NOTHING
+    factorised = stepper.solver.factorisations
     geom = model.block_geometry(state.vertex_xy)
     size = np.sqrt(geom["area"])
     dt_static = _pseudo_time_step(stepper, geom, size)
-    if welded:
-        return _stage(stepper, state, size, dt_static, None, t0, welded=True)[:2]
-    settled, record, converged = _stage(stepper, state, size, dt_static, None, t0)
-    if not converged:
-        # the static solve did not converge (contacts near zero force in a fitted mass of
-        # blocks flip between states): approach it through pseudo-steps whose inertia keeps
-        # each solve close to the last — Δt doubling from the run's step, each starting from
-        # the contact states of the last, until the increments are round-off
-        p = stepper.params
-        dt = min(p.dt if p.dt is not None else p.dt_max, dt_static)
-        settled, again, converged = _stage(stepper, state, size, dt_static, dt, t0)
-        record = StartRecord(**{**vars(again), "solves": record.solves + again.solves})
+    settled, record, converged = _stage(stepper, state, size, dt_static, t0, welded=welded)
     if not converged:
         # no frictional equilibrium found: start from the welded one, each contact then at most
         # at its strength (module docstring, 6.), rather than under sudden gravity
-        settled, again, _ = _stage(stepper, state, size, dt_static, None, t0, welded=True)
-        record = StartRecord(**{**vars(again), "solves": record.solves + again.solves})
-    return settled, record
+        settled, again, _ = _stage(stepper, state, size, dt_static, t0, welded=True)
+        record = replace(again, solves=record.solves + again.solves)
+    return settled, replace(record, factorisations=stepper.solver.factorisations - factorised,
+                            wall_time=_time.perf_counter() - t0)
 
 
-def _stage(stepper, state: State, size: np.ndarray, dt_static: float, dt_ladder, t0: float,
+def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
            welded: bool = False) -> tuple[State, StartRecord, bool]:
-    """Pseudo-steps: with Δt = ``dt_static`` until the increment is round-off, or (the ladder)
-    from ``dt_ladder`` doubling up to ``dt_static`` — a pseudo-step that does not converge is
-    tried again with a smaller Δt (a quarter at the start, then half-way in log to the last
-    that converged), and once an increment is round-off the ladder goes to ``dt_static``.
-    ``welded``: every pseudo-step is one solve with the touching contacts held, and the
-    contacts then take the joint law (`_unweld`). Returns (state, record, whether the
-    open-close iterations converged)."""
+    """Pseudo-steps with Δt = ``dt`` (the static pseudo time step) until the increment is
+    round-off, each the return-mapping iteration of `return_mapping` (``welded``: one solve
+    with the touching contacts held, `_welded_step`, the contacts then taking the joint law,
+    `_unweld`). Returns (state, record, whether every pseudo-step found its equilibrium)."""
     model = stepper.model
     free = ~model.block_fixed
     initial = state
     released = np.zeros(model.n_blocks, bool)
-    at_strength: set = set()
     memory = ContactMemory.empty()
-    last = None  # contacts of the last pseudo-step that converged
+    last = None  # the contacts of the last pseudo-step
     solves = 0
-    dt = dt_static if dt_ladder is None else dt_ladder
-    converged_dt = None  # the last Δt of the ladder that converged
-    failed_dt = None     # and the last that did not
-    retries = 0
-    budget = MAX_PSEUDO_STEPS + (0 if dt_ladder is None else 4 * int(np.log2(dt_static / dt_ladder)) + 16)
-    for _ in range(budget):
+    for pseudo_steps in range(MAX_PSEUDO_STEPS):
         geom = state.geometry if state.geometry is not None else model.block_geometry(state.vertex_xy)
         cint, length = stepper.detect(state.vertex_xy)
         contacts = Contacts.start(model, state.vertex_xy, cint, length, memory, True)
-        contacts = _subset(contacts, ~(released[contacts.block_a] | released[contacts.block_b]))
+        contacts = subset_contacts(contacts, ~(released[contacts.block_a] | released[contacts.block_b]))
         if not np.any(contacts.state != OPEN):
             break  # nothing (left) touches: nothing to hold
-        disp, n, found, contacts = _static_solve(stepper, state, geom, contacts, dt, released, size,
-                                                 welded)
+        if welded:
+            disp, n, found, contacts = _welded_step(stepper, state, geom, contacts, dt, released, size)
+        else:
+            frame = Frame.build(stepper, state, geom, contacts, dt)
+            if pseudo_steps >= 2 and balanced(stepper, frame, contacts, geom, size):
+                # the settled geometry holds: its contact forces balance every block (a second
+                # pseudo-step first, which takes the first one's linearisation error out)
+                break
+            disp, n, found, contacts = return_mapping(stepper, state, geom, contacts, dt, released, size,
+                                                       frame)
         solves += n
-        # a pseudo-step of the ladder that fails is retried shorter, as long as the ladder has
-        # climbed past the Δt of its last failure (else it is cycling there: give up)
-        progress = failed_dt is None or dt > failed_dt * (1.0 + 1e-9)
-        if disp is None and dt_ladder is not None and progress and retries < MAX_LADDER_RETRIES \
-                and dt < dt_static:
-            retries += 1
-            failed_dt = dt
-            dt = 0.25 * dt if converged_dt is None else float(np.sqrt(converged_dt * dt))
-            continue
-        if disp is None:  # no equilibrium: start under sudden gravity, as without the stage
+        if disp is None:  # no equilibrium found
             return initial, StartRecord(solves=solves, held=0, released=int(np.count_nonzero(free)),
                                         settlement=0.0, at_strength=0,
                                         wall_time=_time.perf_counter() - t0), False
@@ -222,22 +194,18 @@ def _stage(stepper, state: State, size: np.ndarray, dt_static: float, dt_ladder,
             geom = state.geometry
         held = free & ~released
         disp[~held] = 0.0
-        step = float(block_displacement(model, state.vertex_xy, geom, disp).max(initial=0.0))
-        state = settle_points(model, state, geom, disp)
+        step = float(block_displacement(stepper.model, state.vertex_xy, geom, disp).max(initial=0.0))
+        state = settle_points(stepper.model, state, geom, disp)
         last = contacts
-        # the contact states go on into the next pseudo-step (sliding ones keep sliding: locked
-        # at their strength, an O(strain) increment would tip them over again and the next
-        # open-close iteration would start from scratch)
+        # the contacts go on into the next pseudo-step as they ended: locked ones with their
+        # lock points moved by their slip, those at their strength sliding (`Contacts.start`
+        # anchors them at their friction), all with their bonds
         memory = contacts.memory(bond_breaks_on_slip=False)
-        if step <= model.open_tol and dt >= dt_static:
+        if step <= model.open_tol:
             break  # the increment is round-off: an equilibrium of the settled geometry
-        if dt < dt_static:
-            converged_dt = dt
-            # along the ladder, an increment of round-off size means the inertia no longer
-            # holds anything back: go to the static step
-            dt = dt_static if step <= LADDER_DONE * float(np.median(size)) else min(2.0 * dt, dt_static)
     if solves == 0:
         return initial, NOTHING, True
+    at_strength: set = set()
     if last is not None and welded:
         _unweld(stepper, last)
     if last is not None:
@@ -279,7 +247,7 @@ def _pseudo_time_step(stepper, geom, size) -> float:
     model = stepper.model
     accel = float(np.hypot(*model.gravity))
     if len(model.load_block):
-        loads = load_forces(model, 0.0)
+        loads = load_forces(stepper.model, 0.0)
         mass = model.block_density * geom["area"]
         accel = max(accel, float(np.max(np.hypot(loads[:, 0], loads[:, 1]) / mass[model.load_block])))
     if accel == 0.0:  # initial stresses only: any acceleration scale will do
@@ -311,14 +279,14 @@ def _welded_solve(stepper, state: State, geom: dict, contacts: Contacts, vec: np
     without open-close judgement; the contacts' distances and normal forces are updated to
     the solution in place. Returns D, or None if the solve is not finite."""
     m = stepper.model
-    data, rhs = assemble_blocks(m, state, geom, pattern, dt, STAGE_BETA, static_start=True)
-    assemble_contacts(m, contacts, pattern, vec, sca, data, rhs, stepper.serial_scatter)
+    data, rhs = assemble_blocks(stepper.model, state, geom, pattern, dt, STAGE_BETA, static_start=True)
+    assemble_contacts(stepper.model, contacts, pattern, vec, sca, data, rhs, stepper.serial_scatter)
     # K is symmetric: a welded stage changes no state, so its vertex-edge contacts stay locked
     # (only vertex-vertex ones are "sliding", with no friction) and none is coupled
     disp = solve(stepper, pattern, data, rhs, reuse=True)  # repeated at a settled geometry
     if not np.all(np.isfinite(disp)):
         return None
-    law = contact_law(m, contacts, vec, sca, disp)
+    law = contact_law(stepper.model, contacts, vec, sca, disp)
     closed = contacts.state != OPEN
     contacts.normal_force[:] = np.where(closed, np.maximum(-m.penalty * law.dn_now, 0.0), 0.0)
     if law.tan_phi is not None:  # Barton–Bandis: the friction of this normal stress
@@ -328,95 +296,25 @@ def _welded_solve(stepper, state: State, geom: dict, contacts: Contacts, vec: np
     return disp
 
 
-def _static_solve(stepper, state: State, geom: dict, contacts: Contacts, dt: float,
-                  released: np.ndarray, size: np.ndarray, welded: bool = False):
-    """One pseudo-step: the open-close iteration of the static system at this geometry, with
-    Mohr–Coulomb joints (``welded``: one solve with the contacts held as they are); blocks that
-    turn out to be mechanisms are released and the rest solved again. Returns (D or None when
-    it does not converge, solves, newly released blocks, the contacts left); sliding contacts
-    end locked at their strength."""
-    model = stepper.model
-    free = ~model.block_fixed
+def _welded_step(stepper, state: State, geom: dict, contacts: Contacts, dt: float,
+                 released: np.ndarray, size: np.ndarray):
+    """One welded pseudo-step (module docstring, 6.): one solve with every touching contact held
+    (`_welded_solve`); blocks that move away even so are released and the rest solved again.
+    Returns (D or None when a solve is not finite, solves, newly released blocks, contacts)."""
     out = released.copy()
     solves = 0
     while True:
-        contacts = _subset(contacts, ~(out[contacts.block_a] | out[contacts.block_b]))
-        vec, sca = contact_vectors(model, state.vertex_xy, geom, contacts)
-        pattern = BlockPattern.build(model, contacts)
-        if welded:
-            disp = _welded_solve(stepper, state, geom, contacts, vec, sca, pattern, dt)
-            n, converged = 1, True
-        else:
-            data0, rhs0 = assemble_blocks(model, state, geom, pattern, dt, STAGE_BETA, static_start=True)
-            oc = open_close(stepper, state, geom, contacts, pattern, vec, sca, data0, rhs0,
-                            np.zeros(model.n_blocks), StepTimer(), MAX_SOLVES, break_bonds=False)
-            disp, n, converged = oc.displacement, oc.iterations, oc.converged
-        solves += n
+        contacts = subset_contacts(contacts, ~(out[contacts.block_a] | out[contacts.block_b]))
+        vec, sca = contact_vectors(stepper.model, state.vertex_xy, geom, contacts)
+        pattern = BlockPattern.build(stepper.model, contacts)
+        disp = _welded_solve(stepper, state, geom, contacts, vec, sca, pattern, dt)
+        solves += 1
         if disp is None:
             return None, solves, out & ~released, contacts
-        moved = block_displacement(model, state.vertex_xy, geom, disp)
-        if not converged and np.any((moved > FREE_FALL_BOUND * FALL_IN_SIZES * size)[free & ~out]):
-            # a motion beyond free fall over the pseudo-step is no mechanism but an iterate that
-            # went astray (contacts near zero force flipping in a stiff, fitted mass of blocks)
-            return None, solves, out & ~released, contacts
-        # a block that moved far is a mechanism unless it moved with the ground: a tall, soft
-        # column settles by more than MECHANISM_SIZE at its top, every block with its neighbours
-        far = free & ~out & (moved > MECHANISM_SIZE * size)
-        mechanism = far & ~_anchored(stepper, state.vertex_xy, geom, contacts, disp, size) if far.any() else far
-        # a block held only by contacts deeper than the penetration limit is not held (the
-        # penalty is too soft for its load): it starts as a mechanism, and the run reports it
-        deep = (contacts.state != OPEN) & (-contacts.dn > model.penetration_limit)
-        if deep.any():
-            sunk = np.zeros(model.n_blocks, bool)
-            sunk[contacts.block_a[deep]] = True
-            sunk[contacts.block_b[deep]] = True
-            mechanism |= sunk & free & ~out
+        mechanism = mechanisms(stepper, state.vertex_xy, geom, contacts, disp, out, size)
         if not mechanism.any():
-            if not converged:  # no mechanism to blame: the held blocks found no equilibrium
-                return None, solves, out & ~released, contacts
-            break
-        # release them and solve the rest again without their contacts. The iteration need not
-        # have converged: a mechanism moves up to ~FALL_IN_SIZES sizes in the pseudo-step, its
-        # contacts slide off their edges and their states cycle, so its open-close iteration
-        # has no answer to converge to — its last iterate already shows it moving away (no
-        # faster than free fall: checked above)
+            return disp, solves, out & ~released, contacts
         out |= mechanism
-    return disp, solves, out & ~released, contacts
-
-
-def _anchored(stepper, vertex_xy, geom, contacts: Contacts, disp: np.ndarray, size: np.ndarray) -> np.ndarray:
-    """Blocks tied to the ground — fixed blocks and blocks with fixed points — through chains of
-    closed contacts across which the two blocks move alike: each block's vertices, moved by its
-    own displacement field and by its neighbour's (T·D of docs/method/dda.md §1.1), differ by
-    less than MECHANISM_SIZE × the smaller block's size. A held block differs from its
-    neighbour by its strain and the contact springs' give; a mechanism slides, opens or turns
-    away from what holds it by about FALL_IN_SIZES × its net acceleration / g sizes."""
-    model = stepper.model
-    closed = contacts.state != OPEN
-    pa = np.minimum(contacts.block_a[closed], contacts.block_b[closed]).astype(np.int64)
-    pb = np.maximum(contacts.block_a[closed], contacts.block_b[closed]).astype(np.int64)
-    pairs = np.unique(np.stack([pa, pb], axis=1), axis=0) if len(pa) else np.zeros((0, 2), np.int64)
-    alike = np.ones(len(pairs), bool)
-    centroid = geom["centroid"]
-    off = model.vertex_offset
-    for own, other in ((pairs[:, 0], pairs[:, 1]), (pairs[:, 1], pairs[:, 0])):
-        # the vertices of `own`, pair by pair
-        count = off[own + 1] - off[own]
-        row = np.repeat(np.arange(len(pairs)), count)
-        start = np.repeat(off[own] - np.cumsum(count) + count, count)
-        vertex = start + np.arange(int(count.sum()))
-        xy = vertex_xy[vertex]
-        u_own = np.einsum("nij,nj->ni", displacement_matrix(xy, centroid[own[row]]), disp[own[row]])
-        u_other = np.einsum("nij,nj->ni", displacement_matrix(xy, centroid[other[row]]), disp[other[row]])
-        gap = np.zeros(len(pairs))
-        np.maximum.at(gap, row, np.hypot(*(u_own - u_other).T))
-        alike &= gap < MECHANISM_SIZE * np.minimum(size[pairs[:, 0]], size[pairs[:, 1]])
-    n = model.n_blocks
-    graph = coo_matrix((np.ones(int(alike.sum())), (pairs[alike, 0], pairs[alike, 1])), shape=(n, n))
-    _, label = connected_components(graph, directed=False)
-    ground = model.block_fixed.copy()
-    ground[model.fixed_point_block] = True
-    return np.isin(label, label[ground])
 
 
 def _keys(contacts: Contacts, sel: np.ndarray) -> set:
@@ -442,5 +340,3 @@ def _lock_at_strength(stepper, contacts: Contacts, vertex_xy: np.ndarray) -> np.
     return sliding
 
 
-def _subset(contacts: Contacts, keep: np.ndarray) -> Contacts:
-    return Contacts(**{k: v[keep] for k, v in vars(contacts).items()})

@@ -1,12 +1,15 @@
-"""The welded start: the equilibrium a model starts from when the frictional stage finds none
-(`ddatai.start`, docstring item 6; docs/method/dda.md §8.12).
+"""The equilibrium start (`ddatai.start`; docs/method/dda.md §8.12): the frictional stage and
+its welded fallback.
 
-Each contact touching at t = 0 is held as a spring for one static solve, then takes the joint
-law: pulled beyond its tensile strength it opens, sheared beyond its Coulomb strength it is
-handed over locked at that strength. So the run starts with the elastic settlement and stress
-of its weight, and only the difference between the welded and the real joint forces is
-released in the first steps. Checked against closed forms: the stress of a stacked column,
-the ringing of a column under sudden gravity, a block sliding down a plane, a hanging block.
+The stage finds the model's frictional equilibrium under its weight by return mapping: every
+closed contact keeps its springs while the iteration finds which contacts open and how far each
+slides, so that a stiff, fitted mass of blocks converges where semismooth Newton from the
+all-locked start did not. Where no frictional equilibrium is found, the model starts from its
+welded one: each contact touching at t = 0 held as a spring for one static solve, then taking
+the joint law (pulled beyond its tensile strength it opens, sheared beyond its Coulomb strength
+it is handed over locked at that strength). Checked against closed forms: the stress of a
+stacked column, the ringing of a column under sudden gravity, a block sliding down a plane, a
+hanging block, and limit equilibrium's verdict on each block of a partly failing model.
 """
 
 import numpy as np
@@ -16,7 +19,7 @@ import ddatai as dd
 from ddatai.model import build_model
 from ddatai.start import settle
 from ddatai.step import Stepper
-from tests.cases import G, ROCK, incline_frame, sliding_scene
+from tests.cases import G, ROCK, block_on_incline, incline_base, incline_frame, sliding_scene
 
 
 def stacked_grid(n: int) -> dd.Scene:
@@ -30,14 +33,14 @@ def stacked_grid(n: int) -> dd.Scene:
     return scene
 
 
-def test_a_stiff_grid_the_frictional_stage_cannot_settle_starts_welded_and_does_not_ring():
+def test_a_stiff_fitted_grid_settles_by_the_frictional_stage_and_does_not_ring():
     """An 8 × 8 fitted grid of stiff rock (p = 250 GPa): its joints slip by microns under the
-    Poisson effect of its own weight, and the frictional stage does not converge. The welded
-    start holds every block, gives the bottom row σy = −ρ·g·(n − ½)·h at once (1 %, as the
-    bonded column of the verification suite), and the blocks stay an order of magnitude
-    slower than the ringing of sudden gravity, whose amplitude for an elastic column of
-    height H is g·H/c (c = √(E/ρ), the 1D bar's first arrival) — which the same grid started
-    under sudden gravity does reach."""
+    Poisson effect of its own weight (semismooth Newton from the all-locked start did not
+    converge, and the model started welded). The frictional stage holds every block, gives the
+    bottom row σy = −ρ·g·(n − ½)·h at once (1 %, as the bonded column of the verification
+    suite), and the blocks stay an order of magnitude slower than the ringing of sudden
+    gravity, whose amplitude for an elastic column of height H is g·H/c (c = √(E/ρ), the 1D
+    bar's first arrival) — which the same grid started under sudden gravity does reach."""
     n, duration = 8, 0.1
     scene = stacked_grid(n)
     bottom = np.arange(1, n + 1)  # block 0 is the base
@@ -46,13 +49,63 @@ def test_a_stiff_grid_the_frictional_stage_cannot_settle_starts_welded_and_does_
 
     res = dd.simulate(scene, params=dd.Params(dt=1e-3), duration=duration)
     start = res.start[0]
-    assert start["welded"] and start["held"] == n * n and start["released"] == 0
+    assert not start["welded"] and start["held"] == n * n and start["released"] == 0
     for frame in (0, -1):
         assert res.stress[frame, bottom, 1].mean() == pytest.approx(exact, rel=0.01)
     assert np.abs(res.velocity).max() < 0.1 * ringing
 
     sudden = dd.simulate(scene, params=dd.Params(dt=1e-3, initial_equilibrium=False), duration=duration)
     assert np.abs(sudden.velocity).max() > 0.5 * ringing
+
+
+def test_the_welded_start_of_the_stiff_grid_does_not_ring():
+    """The same grid from its welded equilibrium (the fallback, asked for directly): every block
+    held, the bottom row's stress at once within 1 %, and no ringing."""
+    n = 8
+    model = build_model(stacked_grid(n), dd.Params(dt=1e-3))
+    stepper = Stepper(model)
+    state, record = settle(stepper, model.initial_state(), welded=True)
+    assert record.welded and record.held == n * n and record.released == 0
+    exact = -ROCK.density * G * (n - 0.5)
+    assert state.block_stress[1:n + 1, 1].mean() == pytest.approx(exact, rel=0.01)
+    ringing = G * n / np.sqrt(ROCK.young / ROCK.density)
+    while state.time < 0.05 * (1 - 1e-12):
+        state, _ = stepper.step(state, t_end=0.05)
+    assert np.abs(state.block_velocity[:, :2]).max() < 0.1 * ringing
+
+
+def partly_failing_scene():
+    """A 30° plane: block A on it with φ = 25° (limit equilibrium: slides, tan 25° < tan 30°),
+    block B further up with φ = 35° (holds), and block C resting on B (φ = 35° between them:
+    holds). Returns (scene, A, B, C)."""
+    theta = 30.0
+    scene = dd.Scene(gravity=G)
+    base = incline_base(scene, theta)
+    a = block_on_incline(scene, theta, at=2.0, width=1.0, height=1.0)
+    b = block_on_incline(scene, theta, at=6.0, width=1.5, height=1.0)
+    t, n = incline_frame(theta)
+    p0 = 6.25 * t + 1.0 * n
+    c = scene.add_block([p0, p0 + 1.0 * t, p0 + 1.0 * t + 0.8 * n, p0 + 0.8 * n], material=ROCK)
+    scene.set_joint(dd.Joint(friction=35.0))
+    scene.set_joint(dd.Joint(friction=25.0), between=(base, a))
+    return scene, a, b, c
+
+
+def test_a_partly_failing_model_releases_exactly_what_limit_equilibrium_lets_move():
+    """`partly_failing_scene`: the stage converges (not welded), holds B and C and releases A
+    only; in the run A slides from t = 0 with a = g(sin θ − cos θ tan φ) (½·a·t² within 1 %)
+    while B and C stay within their elastic settlement (10 µm)."""
+    scene, a, b, c = partly_failing_scene()
+    duration = 0.3
+    res = dd.simulate(scene, params=dd.Params(dt=1e-3), duration=duration)
+    start = res.start[0]
+    assert not start["welded"] and start["released"] == 1 and start["held"] == 2
+    up, _ = incline_frame(30.0)
+    slid = -float((res.centroid[-1, a] - res.centroid[0, a]) @ up)
+    th, mu = np.radians(30.0), np.tan(np.radians(25.0))
+    assert slid == pytest.approx(0.5 * G * (np.sin(th) - np.cos(th) * mu) * duration ** 2, rel=0.01)
+    for held in (b, c):
+        assert np.hypot(*(res.centroid[-1, held] - res.centroid[0, held])) < 1e-5
 
 
 def run_welded(scene: dd.Scene, block: int, duration: float):

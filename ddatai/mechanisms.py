@@ -1,0 +1,152 @@
+"""Which blocks the contacts cannot hold in the equilibrium stage (`ddatai.start`): blocks an
+iterate throws away from what holds them, and blocks out of balance that an open-close test
+shows moving as their loads drive them. They are released: they start at t = 0 under sudden
+gravity."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+
+from .contacts import Contacts
+from .geometry import displacement_matrix
+from .assembly import load_forces
+from .kinematics import block_displacement
+from .layout import KIND, LOCK, OPEN, SLIDE, VE
+from .model import State
+from .open_close import open_close
+from .records import StepTimer
+
+#: the pseudo time step: free fall over it covers this many median block sizes
+FALL_IN_SIZES = 1e4
+#: a block that moves more than this fraction of its size √area in the stage, away from the
+#: ground (`anchored`), is a mechanism. Over the pseudo time step a block that its contacts
+#: cannot hold moves about FALL_IN_SIZES × (its net acceleration / g) sizes away from what
+#: held it, so this catches every mechanism whose net acceleration exceeds 2.5e-5 g; a held
+#: block moves with its neighbours, by its elastic settlement, which in a soft, tall model
+#: exceeds a block size's quarter (a 60-block column with E = 100 MPa: 37 % at its top)
+MECHANISM_SIZE = 0.25
+#: at most this many open-close solves in the test of the out-of-balance blocks
+MAX_TEST_SOLVES = 12
+
+
+def mechanisms(stepper, vertex_xy: np.ndarray, geom: dict, contacts: Contacts, disp: np.ndarray,
+                out: np.ndarray, size: np.ndarray) -> np.ndarray:
+    """Blocks that ``disp`` moves away by more than MECHANISM_SIZE (not `anchored`), and blocks
+    held only by contacts deeper than the penetration limit (the penalty is too soft for their
+    load: they start as mechanisms, and the run reports them)."""
+    model = stepper.model
+    free = ~model.block_fixed
+    moved = block_displacement(stepper.model, vertex_xy, geom, disp)
+    far = free & ~out & (moved > MECHANISM_SIZE * size)
+    mechanism = far & ~anchored(stepper, vertex_xy, geom, contacts, disp, size) if far.any() else far
+    deep = (contacts.state != OPEN) & (-contacts.dn > model.penetration_limit)
+    if deep.any():
+        sunk = np.zeros(model.n_blocks, bool)
+        sunk[contacts.block_a[deep]] = True
+        sunk[contacts.block_b[deep]] = True
+        mechanism |= sunk & free & ~out
+    return mechanism
+
+
+def out_of_balance(model, contacts: Contacts, outcome) -> np.ndarray:
+    """Blocks with a contact whose shear spring still exceeds its strength by more than the
+    tolerance where `_iterate` stopped."""
+    if outcome.excess is None:
+        return np.zeros(model.n_blocks, bool)
+    over = outcome.excess > outcome.loose
+    blocks = np.zeros(model.n_blocks, bool)
+    blocks[contacts.block_a[over]] = True
+    blocks[contacts.block_b[over]] = True
+    return blocks & ~model.block_fixed
+
+
+def test_unbalanced(stepper, state: State, geom: dict, frame, contacts: Contacts,
+                     outcome, guess, unbalanced: np.ndarray,
+                     max_solves: int = MAX_TEST_SOLVES):
+    """The open-close iteration of a static step (`Stepper.open_close`, Mohr–Coulomb: bonds
+    kept) from where `_iterate` stopped: closed vertex-edge contacts at or beyond their strength
+    slide against their shear (friction of their own normal force), the others are locked with
+    their lock points moved by their slip. A block that the contacts cannot hold then moves
+    ~FALL_IN_SIZES × its net acceleration / g sizes; one that they hold stays. Returns
+    ((D, the contacts as judged, whether the iteration converged), solves), or (None, solves)
+    when a solve is not finite."""
+    model = stepper.model
+    c = contacts.copy()
+    ve = c.cint[:, KIND] == VE
+    law = outcome.law
+    sca = frame.sca.copy()
+    sca[:, 2] -= guess.slip
+    at = guess.closed & ve & (outcome.excess >= 0.0) & \
+        (unbalanced[c.block_a] | unbalanced[c.block_b])
+    c.state[:] = np.where(guess.closed, np.where(ve & ~at, LOCK, SLIDE), OPEN)
+    c.line[:] = guess.line
+    c.shear_dir[:] = np.where(law.ds >= 0.0, 1, -1)
+    c.coupled[:] = at & (c.tan_phi > 0)
+    c.normal_force[:] = np.where(guess.closed, np.maximum(law.fn, 0.0), 0.0)
+    oc = open_close(stepper, state, geom, c, frame.pattern, frame.vec, sca, frame.data, frame.rhs,
+                    np.zeros(model.n_blocks), StepTimer(), max_solves, break_bonds=False, reuse_first=False)
+    disp, n, converged = oc.displacement, oc.iterations, oc.converged
+    if disp is None:
+        return None, n
+    return (disp, c, converged), n
+
+
+def driven(stepper, state: State, geom: dict, contacts: Contacts, disp: np.ndarray,
+            moving: np.ndarray) -> np.ndarray:
+    """The ``moving`` blocks that move as their loads drive them: groups of them (linked by
+    closed contacts) on which gravity and the point loads do positive work over ``disp``.
+    Friction resists motion and never drives it: a group that the test's friction pushed
+    against its loads (its contacts at their strength all sliding, where some of them would
+    stick) is held."""
+    model = stepper.model
+    if not moving.any():
+        return moving
+    link = (contacts.state != OPEN) & moving[contacts.block_a] & moving[contacts.block_b]
+    n = model.n_blocks
+    graph = coo_matrix((np.ones(int(link.sum())), (contacts.block_a[link], contacts.block_b[link])),
+                       shape=(n, n))
+    _, label = connected_components(graph, directed=False)
+    work = model.block_density * geom["area"] * (disp[:, :2] @ np.asarray(model.gravity, float))
+    if len(model.load_block):
+        at = displacement_matrix(state.load_xy, geom["centroid"][model.load_block])
+        moved = np.einsum("nij,nj->ni", at, disp[model.load_block])
+        np.add.at(work, model.load_block, np.einsum("ni,ni->n", load_forces(stepper.model, 0.0), moved))
+    group = np.bincount(label[moving], weights=work[moving], minlength=n)
+    return moving & (group[label] > 0.0)
+
+
+def anchored(stepper, vertex_xy, geom, contacts: Contacts, disp: np.ndarray, size: np.ndarray) -> np.ndarray:
+    """Blocks tied to the ground — fixed blocks and blocks with fixed points — through chains of
+    closed contacts across which the two blocks move alike: each block's vertices, moved by its
+    own displacement field and by its neighbour's (T·D of docs/method/dda.md §1.1), differ by
+    less than MECHANISM_SIZE × the smaller block's size. A held block differs from its
+    neighbour by its strain and the contact springs' give; a mechanism slides, opens or turns
+    away from what holds it by about FALL_IN_SIZES × its net acceleration / g sizes."""
+    model = stepper.model
+    closed = contacts.state != OPEN
+    pa = np.minimum(contacts.block_a[closed], contacts.block_b[closed]).astype(np.int64)
+    pb = np.maximum(contacts.block_a[closed], contacts.block_b[closed]).astype(np.int64)
+    pairs = np.unique(np.stack([pa, pb], axis=1), axis=0) if len(pa) else np.zeros((0, 2), np.int64)
+    alike = np.ones(len(pairs), bool)
+    centroid = geom["centroid"]
+    off = model.vertex_offset
+    for own, other in ((pairs[:, 0], pairs[:, 1]), (pairs[:, 1], pairs[:, 0])):
+        # the vertices of `own`, pair by pair
+        count = off[own + 1] - off[own]
+        row = np.repeat(np.arange(len(pairs)), count)
+        start = np.repeat(off[own] - np.cumsum(count) + count, count)
+        vertex = start + np.arange(int(count.sum()))
+        xy = vertex_xy[vertex]
+        u_own = np.einsum("nij,nj->ni", displacement_matrix(xy, centroid[own[row]]), disp[own[row]])
+        u_other = np.einsum("nij,nj->ni", displacement_matrix(xy, centroid[other[row]]), disp[other[row]])
+        gap = np.zeros(len(pairs))
+        np.maximum.at(gap, row, np.hypot(*(u_own - u_other).T))
+        alike &= gap < MECHANISM_SIZE * np.minimum(size[pairs[:, 0]], size[pairs[:, 1]])
+    n = model.n_blocks
+    graph = coo_matrix((np.ones(int(alike.sum())), (pairs[alike, 0], pairs[alike, 1])), shape=(n, n))
+    _, label = connected_components(graph, directed=False)
+    ground = model.block_fixed.copy()
+    ground[model.fixed_point_block] = True
+    return np.isin(label, label[ground])

@@ -1,0 +1,431 @@
+"""The equilibrium stage's iteration (`ddatai.start`): return mapping on the contacts of one
+pseudo-step. Every closed contact stays a spring, its shear measured from a lock point moved by
+its slip, while the iteration finds which contacts open and how far each slides (slips
+accelerated by Anderson mixing, an energy line search where states change); a stalled or
+bonded-at-strength end is finished by the open-close iteration of a static step; blocks the
+contacts cannot hold are found (thrown away, or out of balance and moved by their loads) and
+released (docs/method/dda.md §8.12).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Optional
+
+import numpy as np
+from scipy.sparse import csr_matrix
+
+from .assembly import BlockPattern, assemble_blocks, assemble_contacts, contact_vectors
+from .contact_law import contact_law, internal_force
+from .contacts import Contacts
+from .kinematics import block_displacement
+from .layout import KIND, LOCK, OPEN, S_E0, S_E1, S_ES, S_G0, S_G1, S_GS, SLIDE, VE, VV
+from .model import State
+from .open_close import solve
+from .mechanisms import MECHANISM_SIZE, anchored, driven, mechanisms, out_of_balance, test_unbalanced
+
+#: Newmark's β of the stage's system: that of a first step (the stage's pseudo-steps have no
+#: acceleration history; `kinematics.newmark_beta`)
+STAGE_BETA = 0.5
+
+
+def subset_contacts(contacts: Contacts, keep: np.ndarray) -> Contacts:
+    return Contacts(**{k: v[keep] for k, v in vars(contacts).items()})
+
+#: at most this many return-mapping iterations in a pseudo-step before the blocks that are
+#: still out of balance are tested as mechanisms (`unbalanced`); most pseudo-steps need
+#: 10–40, each one solve (a refinement with the last factor while no contact opens or closes)
+MAX_ITERATIONS = 120
+#: ... and the test comes earlier once the iteration has stalled: no contact opened or closed
+#: and the largest out-of-balance force did not halve in this many iterations
+STALL_ITERATIONS = 20
+#: ... and in finishing an iteration that stalled within the looser tolerance only
+MAX_FINISH_SOLVES = 8
+#: a pseudo-step that has not found its equilibrium in this many solves gives up (the welded
+#: start follows, module docstring 6.)
+MAX_STAGE_SOLVES = 150
+#: the line search halves its interval this many times (`_line_search`)
+LINE_SEARCH_BISECTIONS = 30
+#: Anderson acceleration of the slips keeps this many past iterates (`_anderson`), and starts
+#: again when the largest out-of-balance force has not halved in this many iterations
+ANDERSON_DEPTH = 8
+ANDERSON_RESTART = 4
+#: round-off of the balance of the settled geometry that ends the pseudo-steps (`balanced`), as a
+#: fraction of the load that a contact's blocks carry
+BALANCE_ROUNDOFF = 1e-12
+
+
+@dataclass(frozen=True, kw_only=True)
+class Frame:
+    """What one pseudo-step keeps: its geometry, the contact vectors there, the sparsity
+    pattern, and the block part of K and F (pseudo inertia included)."""
+
+    vertex_xy: np.ndarray
+    vec: np.ndarray
+    sca: np.ndarray
+    pattern: BlockPattern
+    data: np.ndarray
+    rhs: np.ndarray
+    k_blocks: object  # the block part of K as a CSR matrix (the energy of `_line_search`)
+
+    @staticmethod
+    def build(stepper, state: State, geom: dict, contacts: Contacts, dt: float) -> "Frame":
+        vec, sca = contact_vectors(stepper.model, state.vertex_xy, geom, contacts)
+        pattern = BlockPattern.build(stepper.model, contacts)
+        data, rhs = assemble_blocks(stepper.model, state, geom, pattern, dt, STAGE_BETA, static_start=True)
+        n = 6 * pattern.n_rows
+        return Frame(vertex_xy=state.vertex_xy, vec=vec, sca=sca, pattern=pattern, data=data, rhs=rhs,
+                      k_blocks=csr_matrix((data, pattern.indices, pattern.indptr), shape=(n, n)))
+
+
+@dataclass(kw_only=True)
+class Guess:
+    """The return-mapping iteration's contact unknowns besides D: which contacts are closed,
+    the entrance line of a vertex-vertex one, and how far each vertex-edge one has slid (its
+    lock point moved that far along the edge) [m]."""
+
+    closed: np.ndarray
+    line: np.ndarray
+    slip: np.ndarray
+
+    @staticmethod
+    def start(contacts: Contacts) -> "Guess":
+        return Guess(closed=contacts.state != OPEN, line=contacts.line.copy(), slip=np.zeros(contacts.n))
+
+    def subset(self, keep: np.ndarray) -> "Guess":
+        return Guess(**{k: v[keep] for k, v in vars(self).items()})
+
+
+@dataclass(kw_only=True)
+class Outcome:
+    """Where `_iterate` ended."""
+
+    disp: Optional[np.ndarray] = None    # D, None when a solve was not finite
+    solves: int = 0
+    converged: bool = False
+    strict: bool = False                 # converged within ``Params.oc_force_tolerance``
+    law: object = None                   # the contact law at D (`Stepper.contact_law`)
+    excess: Optional[np.ndarray] = None  # shear spring force beyond the strength [N/m]
+    loose: Optional[np.ndarray] = None   # each contact's force tolerance [N/m]
+
+
+def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: float,
+                    released: np.ndarray, size: np.ndarray, frame: "Optional[Frame]" = None):
+    """One pseudo-step (module docstring, 1.–3.): the return-mapping iteration (`_iterate`);
+    blocks that move away in it, or that it leaves out of balance and that then move away in
+    the open-close test (`test_unbalanced`), are released, and the rest iterated again from
+    where they were. Returns (D, or None when no equilibrium was found; solves; the newly
+    released blocks; the contacts as handed over, `_hand_over`)."""
+    out = released.copy()
+    solves = 0
+    guess = None
+    while solves < MAX_STAGE_SOLVES:
+        keep = ~(out[contacts.block_a] | out[contacts.block_b])
+        if frame is None or not keep.all():
+            contacts = subset_contacts(contacts, keep)
+            guess = guess.subset(keep) if guess is not None else None
+            frame = Frame.build(stepper, state, geom, contacts, dt)
+        outcome, guess = _iterate(stepper, frame, contacts, geom, out, size, guess)
+        solves += outcome.solves
+        if outcome.disp is None:
+            return None, solves, out & ~released, contacts
+        contacts.state[:] = np.where(guess.closed, contacts.state, OPEN)
+        contacts.dn[:] = outcome.law.dn_now
+        mechanism = mechanisms(stepper, state.vertex_xy, geom, contacts, outcome.disp, out, size)
+        if not mechanism.any() and not outcome.converged:
+            # out of balance after the iteration: those blocks that move away in the open-close
+            # iteration, their contacts at the strength sliding, are mechanisms
+            unbalanced = out_of_balance(stepper.model, contacts, outcome)
+            tested, n = test_unbalanced(stepper, state, geom, frame, contacts, outcome, guess, unbalanced)
+            solves += n
+            if tested is not None:
+                moving = unbalanced & mechanisms(stepper, state.vertex_xy, geom, tested[1], tested[0],
+                                                  out, size)
+                mechanism = driven(stepper, state, geom, tested[1], tested[0], moving)
+        if not mechanism.any():
+            if not outcome.converged:
+                return None, solves, out & ~released, contacts
+            break
+        out |= mechanism
+    else:
+        return None, solves, out & ~released, contacts
+    law = outcome.law
+    ve = contacts.cint[:, KIND] == VE
+    at_strength = guess.closed & ve & \
+        (stepper.model.shear_penalty * np.abs(law.ds) >= law.strength * (1.0 - 1e-9))
+    bonded = contacts.bond & ((contacts.cohesion > 0.0) | (contacts.tensile > 0.0))
+    if not outcome.strict or np.any(at_strength & bonded):
+        # within the looser tolerance only (a wedge that must slide by millimetres until bolts
+        # or a wedging joint take its load: each iterate slides it by its excess over the stiff
+        # shear spring), or a bonded contact at its strength, which the run's first step would
+        # break (Shi's rule) for the least excess beyond it: the open-close iteration from
+        # here, its contacts at their strength sliding without springs, finishes the
+        # equilibrium to the step's own tolerances where it converges and moves nothing away
+        finished, n = test_unbalanced(stepper, state, geom, frame, contacts, outcome, guess,
+                                       ~stepper.model.block_fixed, MAX_FINISH_SOLVES)
+        solves += n
+        if finished is not None and finished[2] and \
+                not mechanisms(stepper, state.vertex_xy, geom, finished[1], finished[0], out, size).any():
+            disp, contacts = finished[0], finished[1]
+            _shift_lock_points(stepper, state.vertex_xy, contacts, guess.slip)
+            contacts.coupled[:] = False
+            return disp, solves, out & ~released, contacts
+    _hand_over(stepper, state.vertex_xy, contacts, outcome.law, guess)
+    return outcome.disp, solves, out & ~released, contacts
+
+
+def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndarray,
+             size: np.ndarray, guess: Optional[Guess]) -> tuple[Outcome, Guess]:
+    """The return-mapping iteration of one pseudo-step (module docstring, 1.–2.). Every closed
+    contact is a spring — normal, and for a vertex-edge one shear from its lock point moved by
+    its slip — so that no block loses its stiffness while the iteration finds which contacts
+    open and how far each slides:
+
+    - solve K D = F with the closed contacts and slips of this iterate (K changes only when a
+      contact opens or closes, and the last factor solves it otherwise: `ddatai.solver`,
+      reuse), and move D towards the solution as far as the energy falls (`_line_search`);
+    - a contact opens where it pulls beyond its tensile strength, closes where it overlaps, and
+      a vertex-vertex one changes line where the other is less penetrated — each only where
+      that changes a force by more than the tolerance (below);
+    - the slip of a closed vertex-edge contact grows by what its shear spring carries beyond the
+      Coulomb strength N·tanφ + c·L of its own normal force (the return mapping of elastic,
+      perfectly plastic friction, which keeps its cohesion while sliding), Anderson-accelerated
+      (`_anderson`).
+
+    Converged when no contact opens, closes or changes line and no spring exceeds its strength
+    by more than the tolerance, ``Params.oc_force_tolerance`` × the load that the contact's
+    blocks carry (their weight or their largest contact force): the contact law's forces are
+    then in equilibrium within that much. A block that moves away by more than MECHANISM_SIZE
+    ends the iteration (`mechanisms`), and so do MAX_ITERATIONS iterations or a stall."""
+    model, p = stepper.model, stepper.params
+    free = ~model.block_fixed
+    ve = contacts.cint[:, KIND] == VE
+    vv = ~ve
+    if guess is None:
+        guess = Guess.start(contacts)
+    # a contact without friction and cohesion carries no shear: no shear spring
+    shearing = ve & ((contacts.tan_phi > 0.0) | ((contacts.cohesion * contacts.length > 0.0) & contacts.bond))
+    weight = model.block_density * geom["area"] * float(np.hypot(*model.gravity))
+    tensile = np.where(contacts.bond, contacts.tensile * contacts.length, 0.0)
+    pen, ks = model.penalty, model.shear_penalty
+    disp = np.zeros((model.n_blocks, 6))
+    history: list = []
+    changed = True  # the closed contacts changed: K is factorised
+    best, best_at = np.inf, 0
+    outcome = Outcome()
+    accepted = None  # the last iterate within ``Params.oc_state_tolerance``
+    for it in range(1, MAX_ITERATIONS + 1):
+        contacts.state[:] = np.where(guess.closed, np.where(shearing, LOCK, SLIDE), OPEN)
+        contacts.line[:] = guess.line
+        contacts.coupled[:] = False
+        sca = frame.sca.copy()
+        sca[:, 2] -= guess.slip  # ds from the lock point moved by the slip
+        data, rhs = frame.data.copy(), frame.rhs.copy()
+        assemble_contacts(stepper.model, contacts, frame.pattern, frame.vec, sca, data, rhs, stepper.serial_scatter)
+        target = solve(stepper, frame.pattern, data, rhs, reuse=not changed)
+        outcome.solves += 1
+        if not np.all(np.isfinite(target)):
+            outcome.disp = None
+            return outcome, guess
+        # where contacts opened or closed, the step stops where the energy stops falling (slips
+        # alone change only F: the solution is the minimiser)
+        alpha = _line_search(stepper, frame, contacts, sca, disp, target - disp, shearing) \
+            if changed and it > 1 else 1.0
+        disp = target if alpha == 1.0 else disp + alpha * (target - disp)
+        law = contact_law(stepper.model, _coupled(contacts), frame.vec, sca, disp)
+        outcome.disp, outcome.law = disp, law
+        moved = block_displacement(stepper.model, frame.vertex_xy, geom, disp)
+        far = free & ~out & (moved > MECHANISM_SIZE * size)
+        if far.any() and np.any(far & ~anchored(stepper, frame.vertex_xy, geom, contacts, disp, size)):
+            return outcome, guess  # a block moves away from what holds it: `mechanisms` tells
+        # the load that each contact's blocks carry, and the force tolerance
+        level = weight.copy()
+        np.maximum.at(level, contacts.block_a, np.abs(law.fn))
+        np.maximum.at(level, contacts.block_b, np.abs(law.fn))
+        carried = np.maximum(level[contacts.block_a], level[contacts.block_b])
+        loose = p.oc_force_tolerance * carried + model.force_roundoff
+        outcome.loose = loose
+        # normal, as the open-close judgement (`Stepper.violations`): a closed contact opens where
+        # it pulls beyond its tensile strength (the strict tolerance), an open one closes where
+        # it overlaps and a vertex-vertex one changes line where the other is less penetrated,
+        # both where that moves a force by more than ``Params.oc_state_tolerance`` of the load
+        state_loose = p.oc_state_tolerance * carried + model.force_roundoff
+        closes = ~guess.closed & law.closed & (law.fn > state_loose)
+        opens = guess.closed & ~law.closed & (pen * law.dn - tensile > loose)
+        switch = vv & guess.closed & law.closed & (law.line != guess.line) & \
+            (pen * np.abs(law.dn - law.dn_now) > state_loose)
+        changed = bool(np.any(closes | opens | switch))
+        guess.closed = (guess.closed | closes) & ~opens
+        guess.line = np.where(closes | switch, law.line, guess.line).astype(np.int8)
+        # shear: the return mapping
+        trial = ks * law.ds
+        excess = np.where(shearing & guess.closed, np.abs(trial) - law.strength, -np.inf)
+        outcome.excess = excess
+        dslip = np.where(excess > 0, np.maximum(excess, 0.0) / ks * np.sign(trial), 0.0)
+        if not changed and alpha == 1.0 and np.all(excess <= state_loose):
+            # within the looser tolerance: kept in case the strict one is not reached
+            accepted = (replace(outcome, disp=disp.copy(), converged=True),
+                        Guess(closed=guess.closed.copy(), line=guess.line.copy(), slip=guess.slip + dslip),
+                        dslip)
+            if np.all(excess <= loose):
+                # the last correction brings each spring to at most its strength; the forces it
+                # moves are within the tolerance
+                guess.slip = guess.slip + dslip
+                law.ds[:] = law.ds - dslip
+                outcome.converged = outcome.strict = True
+                return outcome, guess
+        unbalance = float(np.max(np.maximum(excess, 0.0) / loose, initial=0.0))
+        if changed or alpha < 1.0:
+            history.clear()
+            best, best_at = np.inf, it
+        elif unbalance < 0.5 * best:
+            best, best_at = unbalance, it
+        elif it - best_at >= STALL_ITERATIONS:
+            break  # the slips no longer converge: out-of-balance blocks are tested
+        elif (it - best_at) % ANDERSON_RESTART == 0:
+            history.clear()  # the acceleration has stagnated: start it again from here
+        guess.slip = _anderson(history, guess.slip, guess.slip + dslip)
+    if accepted is not None:
+        outcome, guess, dslip = accepted
+        outcome.law.ds[:] = outcome.law.ds - dslip
+    return outcome, guess
+
+
+def balanced(stepper, frame: Frame, contacts: Contacts, geom: dict, size: np.ndarray) -> bool:
+    """Whether the contacts as the last pseudo-step handed them over hold every block at this
+    (settled) geometry to round-off: at D = 0 each keeps its state by the contact law, no shear
+    spring exceeds its strength, and the contact law's forces balance each block's loads (force
+    and moment rows), each within BALANCE_ROUNDOFF of the load its blocks carry (a block held
+    by a weak spring, a bolt, must not keep a residual of the tolerance of `_iterate`)."""
+    model = stepper.model
+    c = _coupled(contacts)
+    law = contact_law(stepper.model, c, frame.vec, frame.sca, np.zeros((model.n_blocks, 6)))
+    ve = c.cint[:, KIND] == VE
+    closed = c.state != OPEN
+    weight = model.block_density * geom["area"] * float(np.hypot(*model.gravity))
+    level = weight.copy()
+    np.maximum.at(level, c.block_a, np.abs(law.fn))
+    np.maximum.at(level, c.block_b, np.abs(law.fn))
+    loose = BALANCE_ROUNDOFF * np.maximum(level[c.block_a], level[c.block_b])
+    tensile = np.where(c.bond, c.tensile * c.length, 0.0)
+    if np.any(closed & ~law.closed & (model.penalty * law.dn - tensile > loose)) or \
+            np.any(~closed & law.closed & (law.fn > loose)):
+        return False
+    locked = ve & closed & (c.state == LOCK)
+    excess = np.where(locked, model.shear_penalty * np.abs(law.ds) - law.strength, 0.0)
+    if np.any(excess > loose):
+        return False
+    residual = np.abs((frame.rhs - internal_force(stepper.model, c, frame.vec, law, stepper.serial_scatter)).reshape(-1, 6))
+    rows = stepper.free_idx
+    allowed = BALANCE_ROUNDOFF * level[rows]
+    return bool(np.all(residual[:, :2] <= allowed[:, None]) and
+                np.all(residual[:, 2:] <= (allowed * size[rows])[:, None]))
+
+
+def _coupled(contacts: Contacts) -> Contacts:
+    """A copy whose friction follows the normal force of the solve it is evaluated at."""
+    c = contacts.copy()
+    c.coupled[:] = True
+    return c
+
+
+def _measures(vec: np.ndarray, sca: Optional[np.ndarray], contacts: Contacts, disp: np.ndarray):
+    """(dn of line 0, dn of line 1 (−∞ for a vertex-edge contact), ds) at ``disp`` (with the
+    constant parts ``sca``), or their rates along ``disp`` (``sca`` None): §2.8.1, linear in D."""
+    da, db = disp[contacts.block_a], disp[contacts.block_b]
+    vv = contacts.cint[:, KIND] == VV
+    dn0 = np.einsum("ij,ij->i", vec[:, S_E0], da) + np.einsum("ij,ij->i", vec[:, S_G0], db)
+    dn1 = np.einsum("ij,ij->i", vec[:, S_E1], db) + np.einsum("ij,ij->i", vec[:, S_G1], da)
+    ds = np.einsum("ij,ij->i", vec[:, S_ES], da) + np.einsum("ij,ij->i", vec[:, S_GS], db)
+    if sca is not None:
+        dn0, dn1, ds = dn0 + sca[:, 0], dn1 + sca[:, 1], ds + sca[:, 2]
+    return dn0, np.where(vv, dn1, -np.inf if sca is not None else 0.0), np.where(vv, 0.0, ds)
+
+
+def _line_search(stepper, frame: Frame, contacts: Contacts, sca: np.ndarray, disp: np.ndarray,
+                 step: np.ndarray, shearing: np.ndarray) -> float:
+    """α ∈ (0, 1] that minimises along ``disp`` + α·``step`` the energy of the iterate: the
+    blocks' ½DᵀKD − FᵀD, ½p·dn² of each contact closed there (the less penetrated line of a
+    vertex-vertex one, up to the tensile allowance), ½k_s·(ds − slip)² of each closed
+    vertex-edge one with friction or cohesion (``shearing``). The solution of the iterate's K
+    minimises it as long as no contact opens or closes on the way; where some do, the energy's
+    slope, piecewise linear in α, has its root before 1 (bisection), and the iterate stops
+    there: contacts that all flip together cannot flip back and forth."""
+    model = stepper.model
+    rows = stepper.free_idx
+    x, v = disp[rows].ravel(), step[rows].ravel()
+    kv = frame.k_blocks @ v
+    curvature = float(v @ kv)
+    slope0 = float(kv @ x) - float(frame.rhs @ v)  # vᵀ(K x − F), K symmetric
+    dn0, dn1, ds = _measures(frame.vec, sca, contacts, disp)
+    r0, r1, rs = _measures(frame.vec, None, contacts, step)
+    allowance = np.where(contacts.bond, contacts.tensile * contacts.length / model.penalty, 0.0)
+
+    def slope(a: float) -> float:
+        n0, n1 = dn0 + a * r0, dn1 + a * r1
+        one = n1 > n0
+        dn = np.where(one, n1, n0)
+        closed = dn <= allowance
+        normal = np.where(closed, model.penalty * dn, 0.0)
+        shear = np.where(closed & shearing, model.shear_penalty * (ds + a * rs), 0.0)
+        return curvature * a + slope0 + float(normal @ np.where(one, r1, r0)) + float(shear @ rs)
+
+    if slope(1.0) <= 0.0:
+        return 1.0
+    lo, hi = 0.0, 1.0
+    for _ in range(LINE_SEARCH_BISECTIONS):
+        mid = 0.5 * (lo + hi)
+        if slope(mid) < 0.0:
+            lo = mid
+        else:
+            hi = mid
+    return max(lo, 1.0 / 2 ** LINE_SEARCH_BISECTIONS)
+
+
+def _anderson(history: list, x: np.ndarray, g: np.ndarray) -> np.ndarray:
+    """Anderson acceleration (depth ANDERSON_DEPTH) of the fixed point x = g(x) of the slips:
+    the combination of the last iterates whose residuals g − x cancel best (least squares)."""
+    history.append((x, g))
+    if len(history) > ANDERSON_DEPTH + 1:
+        history.pop(0)
+    if len(history) < 2:
+        return g
+    f = np.array([gi - xi for xi, gi in history])
+    gs = np.array([gi for _, gi in history])
+    df, dg = (f[1:] - f[:-1]).T, (gs[1:] - gs[:-1]).T
+    gamma = np.linalg.lstsq(df, f[-1], rcond=None)[0]
+    return g - dg @ gamma
+
+
+def _hand_over(stepper, vertex_xy: np.ndarray, contacts: Contacts, law, guess: Guess) -> None:
+    """The contacts as the pseudo-step leaves them, in place: each closed vertex-edge contact
+    locked with its lock point moved by its slip (its shear spring carries the force that the
+    iteration found, at most its strength) — marked sliding where that is its strength, to be
+    locked at it (`_lock_at_strength`) —, vertex-vertex ones closed on their line; normal
+    forces and distances of the solution."""
+    model = stepper.model
+    ve = contacts.cint[:, KIND] == VE
+    closed = guess.closed
+    _shift_lock_points(stepper, vertex_xy, contacts, np.where(closed, guess.slip, 0.0))
+    strength = law.strength
+    at = closed & ve & (model.shear_penalty * np.abs(law.ds) >= strength * (1.0 - 1e-9))
+    contacts.state[:] = np.where(closed, np.where(ve & ~at, LOCK, SLIDE), OPEN)
+    contacts.shear_dir[:] = np.where(law.ds >= 0.0, 1, -1)
+    contacts.line[:] = guess.line
+    contacts.coupled[:] = False
+    contacts.dn[:] = law.dn_now
+    contacts.ds[:] = np.where(ve, law.ds, 0.0)
+    contacts.normal_force[:] = np.where(closed, np.maximum(-model.penalty * law.dn_now, 0.0), 0.0)
+    if law.tan_phi is not None:  # Barton–Bandis: the friction of this normal stress
+        contacts.tan_phi[closed] = law.tan_phi[closed]
+
+
+def _shift_lock_points(stepper, vertex_xy: np.ndarray, contacts: Contacts, slip: np.ndarray) -> None:
+    """Move the lock point of each vertex-edge contact along its edge by its ``slip`` [m], in
+    place: ds = (P1 − P0)·t falls by l·Δω when the lock point P0 moves by Δω along the edge."""
+    model = stepper.model
+    shift = (contacts.cint[:, KIND] == VE) & (slip != 0.0)
+    if shift.any():
+        edge = contacts.cint[shift, 2]
+        length = np.hypot(*(vertex_xy[edge] - vertex_xy[model.vertex_next[edge]]).T)
+        contacts.omega[shift] += slip[shift] / length
