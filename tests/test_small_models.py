@@ -42,18 +42,46 @@ CASES = {
 
 @pytest.mark.parametrize("case", sorted(CASES))
 def test_every_path_gives_the_same_run(case):
-    runs = []
+    """The steps (started under sudden gravity, so that only the step is compared): the NumPy
+    twins and the kernels with the same solver take the same solves to the same positions
+    (1e-9 of the model's size); the dense and the sparse factorisation differ in round-off, which
+    may tip one contact across its tolerance in a step (one more solve there), never more than
+    at two steps, and the positions still agree to 1e-9 of the size."""
+    runs = {}
     for kernels, solver in PATHS:
         scene, params = CASES[case]()
-        params = dataclasses.replace(params or dd.Params(), kernels=kernels, solver=solver)
+        params = dataclasses.replace(params or dd.Params(), kernels=kernels, solver=solver,
+                                     initial_equilibrium=False)
         res = dd.simulate(scene, params, steps=60, record_every=20)
-        runs.append((res.steps["oc_total"].copy(), res.start["solves"].copy(), res.vertices[-1]))
-    solves, stage, xy = runs[0]
+        runs[kernels, solver] = (res.steps["oc_total"].copy(), res.vertices[-1])
+    solves, xy = runs["taichi", "scipy"]
     size = np.ptp(xy, axis=0).max()
-    for other_solves, other_stage, other_xy in runs[1:]:
-        np.testing.assert_array_equal(other_solves, solves)
-        np.testing.assert_array_equal(other_stage, stage)
+    for (kernels, solver), (other_solves, other_xy) in runs.items():
+        if solver == "scipy":
+            np.testing.assert_array_equal(other_solves, solves)
+        else:
+            assert np.count_nonzero(other_solves != solves) <= 2
         assert np.abs(other_xy - xy).max() < 1e-9 * size
+
+
+@pytest.mark.parametrize("friction, held, released", [(14.0, 3, 0), (8.0, 1, 2)])
+def test_the_stage_gives_the_same_start_on_every_path(friction, held, released):
+    """The equilibrium stage (an iteration to a force tolerance, `ddatai.return_mapping`) holds
+    and releases the same blocks of Example I on every path. A held model's settled positions
+    agree to a tenth of its settlement: the stage stops once every block balances within its
+    tolerance, and the contacts at their strength (5 at 14°) then slide by amounts that the
+    round-off of each path leaves a little different (measured: 3.7e-7 m of 1.2e-4 m)."""
+    for kernels, solver in PATHS:
+        scene, params = example_1.build(friction=friction)
+        params = dataclasses.replace(params, kernels=kernels, solver=solver)
+        res = dd.simulate(scene, params, steps=1)
+        start = res.start[0]
+        assert (start["held"], start["released"], bool(start["welded"])) == (held, released, False)
+        if released == 0:
+            xy = res.vertices[0]
+            if (kernels, solver) == PATHS[0]:
+                reference = xy
+            assert np.abs(xy - reference).max() < 0.1 * start["settlement"]
 
 
 def test_automatic_choice_by_size():
