@@ -16,7 +16,7 @@ solve of the model under its weight, the point loads at t = 0 and its initial st
    inertia of a very long pseudo time step, over which free fall would cover 1e4 block sizes:
    it keeps K regular for a block that nothing holds and does not change a held block's
    displacement measurably.
-3. The equilibrium is found by *return mapping* (`_iterate`): every closed contact stays a
+3. The equilibrium is found by *return mapping* (``_iterate``): every closed contact stays a
    spring — normal, and for a vertex-edge contact shear from its lock point, moved by how far
    the contact has slid —, the slip of a contact whose spring carries more than its Coulomb
    strength grows by the excess (the return mapping of elastic, perfectly plastic friction,
@@ -44,7 +44,7 @@ solve of the model under its weight, the point loads at t = 0 and its initial st
    more than a quarter of a block at its top, every block with its neighbours, and is held. A
    block that slides as a mechanism keeps the return mapping out of balance: the blocks still
    out of balance when it stalls are tested by the open-close iteration of a static step with
-   their contacts at the strength sliding (`test_unbalanced`), and those that move away in it
+   their contacts at the strength sliding (``test_unbalanced``), and those that move away in it
    on which their loads do positive work are mechanisms (friction only resists: a block that
    friction pushed away against its loads is held). A mechanism is *released*: its contacts
    leave the stage and it starts at t = 0 from its initial position under sudden gravity (as
@@ -53,7 +53,7 @@ solve of the model under its weight, the point loads at t = 0 and its initial st
    springs carry the equilibrium forces, and their velocities are the scene's initial ones:
    each contact is handed over locked, its lock point moved by its slip, and a contact at its
    strength starts locked at it with its bond intact. The stage repeats at the settled
-   geometry until the contact forces there balance every block (`balanced`).
+   geometry until the contact forces there balance every block (``balanced``).
 6. If no frictional equilibrium is found (a pseudo-step out of iterations, or out-of-balance
    blocks that the test does not move), the model starts from its *welded* equilibrium: the
    same static solve with every touching contact held as it is (normal and shear springs, no

@@ -27,9 +27,9 @@ so the effective gravity is γ/ρ (docs/method/dda.md §6.3).
 Run from the command line: ``ddatai run MODEL.geo MODEL.ana --out DIR`` (`ddatai.cli`).
 No Taichi at import: the solver is loaded only by `NtddaCase.simulate`.
 
-The package: `records` (errors, warnings, raw file content), `text` (formats, tokens, DDAML),
-`readers` (the two files in either format), `geometry` (ntdda's block cutting and points in
-blocks), `case` (the case and its run, the measured-points CSV).
+The package: ``records`` (errors, warnings, raw file content), ``text`` (formats, tokens, DDAML),
+``readers`` (the two files in either format), ``geometry`` (ntdda's block cutting and points in
+blocks), ``case`` (the case and its run, the measured-points CSV).
 """
 
 from __future__ import annotations

@@ -217,7 +217,7 @@ class NtddaCase:
     record_every: int
     """Record a frame every this many steps (the file's save interval)."""
     points: tuple
-    """`NtddaPoint` per recorded point: measured points, then load points."""
+    """``NtddaPoint`` per recorded point: measured points, then load points."""
     geometry: NtddaGeometry
     """What the geometry file says."""
     analysis: NtddaAnalysis
