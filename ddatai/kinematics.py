@@ -64,20 +64,28 @@ def max_vertex_displacement(model: Model, vertex_xy: np.ndarray, geom: dict, dis
     return float(np.max(vertex_displacement(model, vertex_xy, geom, disp), initial=0.0))
 
 
-def settle_points(model: Model, state: State, geom: dict, disp: np.ndarray) -> State:
-    """``state`` with its blocks moved by a static increment ``disp`` and its stress added
-    (the equilibrium stage's settlement): velocities untouched, fixed blocks' stress kept."""
+def moved(model: Model, state: State, geom: dict, disp: np.ndarray) -> dict:
+    """The fields of ``state`` that a solution ``disp`` moves: vertices and points (exact
+    rotation, §5.3), stresses (strain increment, then rotated with the block, §5.4; fixed
+    blocks keep theirs) and the accumulated rotation — what a step and the equilibrium stage's
+    settlement share."""
     centroid = geom["centroid"]
-    xy = move_points(state.vertex_xy, model.vertex_block, centroid, disp)
     stress = state.block_stress + np.einsum("bij,bj->bi", model.block_elastic, disp[:, 3:6])
     stress = rotate_stress(stress, disp[:, 2])
     stress[model.block_fixed] = state.block_stress[model.block_fixed]
-    return state.replace(
-        vertex_xy=xy, block_stress=stress, block_rotation=state.block_rotation + disp[:, 2],
+    return dict(
+        vertex_xy=move_points(state.vertex_xy, model.vertex_block, centroid, disp),
+        block_stress=stress, block_rotation=state.block_rotation + disp[:, 2],
         fixed_point_xy=move_points(state.fixed_point_xy, model.fixed_point_block, centroid, disp),
         load_xy=move_points(state.load_xy, model.load_block, centroid, disp),
-        measured_xy=move_points(state.measured_xy, model.measured_block, centroid, disp),
-        geometry=model.block_geometry(xy))
+        measured_xy=move_points(state.measured_xy, model.measured_block, centroid, disp))
+
+
+def settle_points(model: Model, state: State, geom: dict, disp: np.ndarray) -> State:
+    """``state`` with its blocks moved by a static increment ``disp`` and its stress added
+    (the equilibrium stage's settlement): velocities untouched, fixed blocks' stress kept."""
+    fields = moved(model, state, geom, disp)
+    return state.replace(**fields, geometry=model.block_geometry(fields["vertex_xy"]))
 
 
 def update(model: Model, state: State, geom: dict, disp: np.ndarray, contacts: Contacts, dt: float) -> State:
@@ -85,15 +93,7 @@ def update(model: Model, state: State, geom: dict, disp: np.ndarray, contacts: C
     stresses (§5.4), velocities and accelerations (§5.2), bolts, and the contact memory that
     the next step starts from."""
     m, p = model, model.params
-    centroid = geom["centroid"]
-    xy = move_points(state.vertex_xy, m.vertex_block, centroid, disp)
-    fp = move_points(state.fixed_point_xy, m.fixed_point_block, centroid, disp)
-    lp = move_points(state.load_xy, m.load_block, centroid, disp)
-    mp = move_points(state.measured_xy, m.measured_block, centroid, disp)
-    strain = disp[:, 3:6]
-    stress = state.block_stress + np.einsum("bij,bj->bi", m.block_elastic, strain)
-    stress = rotate_stress(stress, disp[:, 2])
-    stress[m.block_fixed] = state.block_stress[m.block_fixed]
+    fields = moved(m, state, geom, disp)
     # Newmark, γ = 1: a_{n+1} = (D − v Δt)/(βΔt²) − (1/(2β) − 1) a_n, v_{n+1} = v + Δt a_{n+1}
     # (β = ½: v_{n+1} = 2D/Δt − v, Shi's update, §5.2)
     beta = newmark_beta(p, state)
@@ -102,7 +102,7 @@ def update(model: Model, state: State, geom: dict, disp: np.ndarray, contacts: C
     velocity = carried + dt * block_accel
     velocity[m.block_fixed] = 0.0
     block_accel[m.block_fixed] = 0.0
-    radius = block_radius(m, state.vertex_xy, centroid)
+    radius = block_radius(m, state.vertex_xy, geom["centroid"])
     dv = velocity - state.block_velocity
     accel = float(np.max(np.hypot(dv[:, 0], dv[:, 1]) + np.abs(dv[:, 2]) * radius, initial=0.0)) / dt
     if p.static:
@@ -113,10 +113,8 @@ def update(model: Model, state: State, geom: dict, disp: np.ndarray, contacts: C
         # bolt tensions on the moved ends; those beyond their capacity break (B1)
         from .support import break_bolts
 
-        bolts = break_bolts(m, state, xy, state.step + 1, state.time + dt)
+        bolts = break_bolts(m, state, fields["vertex_xy"], state.step + 1, state.time + dt)
     return State(
-        geometry=m.block_geometry(xy),
-        time=state.time + dt, step=state.step + 1, vertex_xy=xy, block_velocity=velocity,
-        block_stress=stress, block_accel=block_accel, block_rotation=state.block_rotation + disp[:, 2],
-        fixed_point_xy=fp, load_xy=lp, measured_xy=mp, dt=dt, accel=accel,
-        memory=contacts.memory(p.bond_breaks_on_slip), **bolts)
+        geometry=m.block_geometry(fields["vertex_xy"]), time=state.time + dt, step=state.step + 1,
+        block_velocity=velocity, block_accel=block_accel, dt=dt, accel=accel,
+        memory=contacts.memory(p.bond_breaks_on_slip), **fields, **bolts)

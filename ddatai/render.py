@@ -437,6 +437,17 @@ class _Painter:
             y += text_h + 4
 
 
+def _schedule(results, fps, speed, stride, frames):
+    """The frames to draw and how long each shows: sampled in simulated time at ``speed`` (the
+    default), or every ``stride``-th / the given ``frames`` with durations left to the writer
+    (None)."""
+    if results.n_frames == 0:
+        raise ValueError("results have no frames to render")
+    if frames is None and stride is None:
+        return gif_schedule(results.time, fps=fps, speed=speed)
+    return _frames(results, 1 if stride is None else stride, frames), None
+
+
 def _frames(results: Results, stride: int, frames: Optional[Sequence[int]]) -> list[int]:
     if results.n_frames == 0:
         raise ValueError("results have no frames to render")
@@ -597,12 +608,8 @@ def write_gif(results: Results, path, *, size=(640, 480), fps: float = 20.0, spe
     Returns the path written.
     """
     size = check_gif_options(size=size, fps=fps, speed=speed, stride=stride)
-    if results.n_frames == 0:
-        raise ValueError("results have no frames to render")
-    if frames is None and stride is None:
-        idx, durations = gif_schedule(results.time, fps=fps, speed=speed)
-    else:
-        idx = _frames(results, 1 if stride is None else stride, frames)
+    idx, durations = _schedule(results, fps, speed, stride, frames)
+    if durations is None:  # every chosen frame shown for 1/fps, in whole hundredths
         durations = _display_times(range(1, len(idx) + 1), fps)
     images = iter_frames(results, size=size, frames=idx, labels=labels, label_names=label_names,
                          show_contacts=show_contacts, title=title, max_speed=max_speed)
@@ -763,12 +770,8 @@ def write_video(results: Results, path, *, size=(640, 480), fps: float = 25.0, s
     ``quality`` is imageio's 0–10 (higher: larger, sharper files). Returns the path written."""
     size = check_gif_options(size=size, fps=fps, speed=speed, stride=stride, max_fps=MAX_VIDEO_FPS)
     check_video_available()
-    if results.n_frames == 0:
-        raise ValueError("results have no frames to render")
-    if frames is None and stride is None:
-        idx, durations = gif_schedule(results.time, fps=fps, speed=speed)
-    else:
-        idx = _frames(results, 1 if stride is None else stride, frames)
+    idx, durations = _schedule(results, fps, speed, stride, frames)
+    if durations is None:  # every chosen frame shown for 1/fps
         durations = [1.0 / fps] * len(idx)
     images = iter_frames(results, size=size, frames=idx, labels=labels, label_names=label_names,
                          show_contacts=show_contacts, title=title, max_speed=max_speed)
