@@ -1,13 +1,14 @@
 """Samples per second of a probabilistic key group study on 1 and 2 local workers.
 
-    python benchmarks/probabilistic.py [--n 200] [--method dda] [--workers 1,2]
+    python benchmarks/probabilistic.py [--n 200] [--method dda] [--workers 1,2] [--batch 1,16]
 
 The study is Example II's critical group (blocks 0 and 1 of ``scenes/example_2.py``) with its
 joint friction angle N(22°, 2°) and cohesion N(20 kPa, 5 kPa) truncated at 0, correlated
 −0.3 (``docs/kgm/example_2_vars.toml``), judged by DDA (each sample: one run of the group at its
 own strength, the verdict) or by the rigid / Sarma evaluators. Prints, per
-worker count, the wall time, samples per second, the speed-up over one worker and P_f; the
-tables of all worker counts must be identical (the study's samples do not depend on them).
+worker count and DDA batch size (`kgm.DdaSettings.batch`: samples judged side by side in one
+run), the wall time, samples per second, the speed-up over the first row and P_f; the tables of
+all rows must be identical (the study's samples and verdicts depend on neither).
 """
 
 from __future__ import annotations
@@ -37,30 +38,33 @@ def main() -> None:
     ap.add_argument("--method", default="dda", choices=("rigid", "sarma", "dda"))
     ap.add_argument("--workers", default="1,2")
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--batch", default="16", help="DDA batch sizes to run, comma-separated")
     args = ap.parse_args()
 
     from ddatai.parallel import ScriptFunction
     from kgm.probability import probabilistic, read_variables
+    from kgm.settings import DdaSettings, Settings
 
     variables, correlation = read_variables(ROOT / "docs" / "kgm" / "example_2_vars.toml")
     build = ScriptFunction(str(ROOT / "scenes" / "example_2.py"))
     print(f"# Example II group {{0, 1}}, {args.n} samples, method {args.method}, "
           f"{platform.processor() or platform.machine()}, {os.cpu_count()} CPUs")
-    print("| workers | wall [s] | samples/s | speed-up | P_f | mean FS |")
-    print("|---|---|---|---|---|---|")
+    print("| workers | batch | wall [s] | samples/s | speed-up | P_f | mean FS |")
+    print("|---|---|---|---|---|---|---|")
     base, ref = None, None
-    for w in (int(x) for x in args.workers.split(",")):
+    runs = [(int(w), int(b)) for b in args.batch.split(",") for w in args.workers.split(",")]
+    for w, b in runs:
         t0 = time.perf_counter()
         study = probabilistic(build, variables, args.n, method=args.method, seed=args.seed, group={0, 1},
-                              correlation=correlation, workers=w)
+                              correlation=correlation, workers=w, settings=Settings(dda=DdaSettings(batch=b)))
         wall = time.perf_counter() - t0
         base = base or wall
         if ref is not None and not _same(study.table, ref.table):
-            raise SystemExit(f"tables differ between 1 and {w} workers")
+            raise SystemExit(f"tables differ between the first row and {w} workers, batch {b}")
         ref = ref if ref is not None else study
         fs = study.fs[np.isfinite(study.fs)]
         mean = f"{fs.mean():.3f}" if len(fs) else "— (verdicts only)"
-        print(f"| {w} | {wall:.1f} | {args.n / wall:.2f} | {base / wall:.2f} | {study.pf:.3f} | {mean} |",
+        print(f"| {w} | {b} | {wall:.1f} | {args.n / wall:.2f} | {base / wall:.2f} | {study.pf:.3f} | {mean} |",
               flush=True)
 
 

@@ -282,9 +282,12 @@ def _elastic_matrix(young: float, poisson: float, plane: str) -> np.ndarray:
     return f * np.array([[1.0, nu, 0.0], [nu, 1.0, 0.0], [0.0, 0.0, (1.0 - nu) / 2.0]])
 
 
-def build_model(scene: Scene, params: Optional[Params] = None) -> Model:
+def build_model(scene: Scene, params: Optional[Params] = None, *,
+                length_scale: Optional[float] = None) -> Model:
     """Turn a `Scene` into a `Model`, validating what can only be checked on the whole model
-    (at least one free block, no overlapping blocks)."""
+    (at least one free block, no overlapping blocks). ``length_scale``: w0 [m], the length of
+    the tolerances (`Model.w0`), given instead of taken from the model's extent (a batch of
+    independent members keeps each member's own: `ddatai.batch`)."""
     params = params or Params()
     if not isinstance(params, Params):
         raise ValueError(f"params must be a ddatai.Params, got {type(params).__name__}")
@@ -309,6 +312,10 @@ def build_model(scene: Scene, params: Optional[Params] = None) -> Model:
     areas = polygon_integrals(xy0, offset)["area"]
     sizes = np.sqrt(areas[~fixed_flags] if (~fixed_flags).any() else areas)
     w0 = min(w0, 10.0 * float(np.median(sizes)))
+    if length_scale is not None:
+        if not (np.isfinite(length_scale) and length_scale > 0):
+            raise ValueError(f"build_model: length_scale must be a finite length > 0 m, got {length_scale!r}")
+        w0 = float(length_scale)
     extent = float(np.max(hi - lo))
     if extent >= PRECISION_EXTENT * float(np.median(sizes)):
         # the block farthest from the bulk of the model (the median of the block centres)

@@ -27,7 +27,7 @@ def simulate(scene: Scene, params: Optional[Params] = None, duration: Optional[f
              record_contacts: Optional[bool] = None,
              progress: Optional[Callable[[State, tuple], None]] = None,
              checkpoint=None, checkpoint_every: Optional[int] = None, resume=None,
-             model: Optional[Model] = None) -> Results:
+             model: Optional[Model] = None, initial_state: Optional[State] = None) -> Results:
     """Run a DDA simulation of ``scene``.
 
     Parameters
@@ -48,6 +48,9 @@ def simulate(scene: Scene, params: Optional[Params] = None, duration: Optional[f
     model : the `Model` of ``scene`` and ``params`` when the caller has built it already
         (`ddatai.build_model`; kgm reads the model's origin before the run): it is not built
         again. It must be the model of this scene and these parameters.
+    initial_state : a `State` of ``model`` to start from instead of its initial state and
+        equilibrium stage (a batch of members each settled by its own stage,
+        `ddatai.batch.combined_state`); needs ``model``.
     resume : a checkpoint to continue from, written by a run of the same scene and ``params``.
         The run goes on to its own ``duration`` / ``steps`` (unless new ones are given) with its
         recording options, and returns the whole run's results: the same numbers as a run that
@@ -74,6 +77,8 @@ def simulate(scene: Scene, params: Optional[Params] = None, duration: Optional[f
             raise ValueError(f"simulate: checkpoint_every must be a positive integer, got {checkpoint_every!r}")
         if checkpoint is None:
             raise ValueError("simulate: checkpoint_every needs a checkpoint path")
+    if initial_state is not None and (model is None or resume is not None):
+        raise ValueError("simulate: initial_state needs the model it is a state of (model=), and no resume")
     if model is None:
         model = build_model(scene, params)
     elif params is not None and model.params != params:
@@ -103,6 +108,12 @@ def simulate(scene: Scene, params: Optional[Params] = None, duration: Optional[f
     if resume is not None:
         state = saved.state
         recorder.seed(saved.results, state)
+    elif initial_state is not None:
+        if initial_state.vertex_xy.shape != model.vertex_xy0.shape:
+            raise ValueError(f"simulate: initial_state has {len(initial_state.vertex_xy)} vertices, the model "
+                             f"{model.n_vertices}")
+        state = initial_state
+        recorder.frame(state, model.block_geometry(state.vertex_xy)["centroid"])
     else:
         state = model.initial_state()
         if model.params.initial_equilibrium:

@@ -61,6 +61,9 @@ class DdaJudgement:
     """Blocks in the whole scene [-]."""
     note: str = ""
     """'stopped early' or the cause of a divergence after the group had failed."""
+    batch: int = 1
+    """Members of the run it was judged in (`judge_many`: several strengths side by side in one
+    model; ``wall_time`` is then that run's) [-]."""
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -216,20 +219,181 @@ def judge(scene: Scene, system: BlockSystem, blocks: frozenset, *, settings: Dda
         note = f"diverged after failing: {err}"
         results = err.results
     wall = time.perf_counter() - t0
-    t, d = np.array(times), np.array(disp)
-    tq = 0.75 * t[-1]
-    speed = float((d[-1] - np.interp(tq, t, d)) / max(t[-1] - tq, 1e-300))
-    unstable = bool(note) or (d[-1] >= delta and speed >= delta / duration)
-    j = DdaJudgement(stable=not unstable, displacement=float(d[-1]), speed=speed, threshold=delta,
-                     duration=duration, simulated=float(t[-1]), steps=len(t) - 1, wall_time=wall,
-                     friction=friction, reduction=reduction, model_blocks=len(ids),
-                     moving_blocks=sum(not s.fixed for s in sub.blocks), scene_blocks=scene.n_blocks,
-                     note=note)
+    j = _verdict(np.array(times), np.array(disp), delta=delta, duration=duration, note=note, wall_time=wall,
+                 friction=friction, reduction=reduction, model_blocks=len(ids),
+                 moving_blocks=sum(not s.fixed for s in sub.blocks), scene_blocks=scene.n_blocks)
     if settings.progress is not None:
         settings.progress(j)
     if record_every is not None:
         return j, results, ids
     return j
+
+
+def _verdict(t: np.ndarray, d: np.ndarray, *, delta: float, duration: float, note: str, **fields) -> DdaJudgement:
+    """The verdict of a run from its displacement history d(t) (`kgm.DdaSettings`): unstable if
+    it was stopped or failed after moving, or if d(T) ≥ δ while its mean speed over the last
+    quarter of the run is ≥ δ/T."""
+    tq = 0.75 * t[-1]
+    speed = float((d[-1] - np.interp(tq, t, d)) / max(t[-1] - tq, 1e-300))
+    unstable = bool(note) or (d[-1] >= delta and speed >= delta / duration)
+    return DdaJudgement(stable=not unstable, displacement=float(d[-1]), speed=speed, threshold=delta,
+                        duration=duration, simulated=float(t[-1]), steps=len(t) - 1, note=note, **fields)
+
+
+# ---------------------------------------------------------------------- many judgements in one run
+@dataclass(frozen=True, kw_only=True, eq=False)
+class Member:
+    """One judgement of a batched run (`judge_members`): the group in ``scene`` (its
+    ``system``), with every joint's friction angle ``friction`` [degrees] if given and tanφ, c
+    divided by ``reduction`` [-], as `judge` takes them."""
+
+    scene: Scene
+    system: BlockSystem
+    friction: Optional[float] = None
+    reduction: float = 1.0
+
+
+def judge_many(scene: Scene, system: BlockSystem, blocks: frozenset, probes, *, settings: DdaSettings,
+               params: Optional[Params] = None, removed: frozenset = frozenset()) -> list:
+    """Judge the group at several strengths ``probes`` (a sequence of ``(friction, reduction)``
+    as `judge` takes them) in one run (`judge_members`). Returns the judgements in the order of
+    ``probes``."""
+    members = [Member(scene=scene, system=system, friction=None if f is None else float(f), reduction=float(r))
+               for f, r in probes]
+    return judge_members(members, blocks, settings=settings, params=params, removed=removed)
+
+
+def judge_members(members, blocks: frozenset, *, settings: DdaSettings, params: Optional[Params] = None,
+                  removed: frozenset = frozenset(), exact: bool = False) -> list:
+    """Judge the same group in several members — the scene at several strengths, or the scenes
+    of a probabilistic study's samples, which differ only in their joints — in one run: the
+    sub-models side by side (`ddatai.batch`), each with the constants of its own model, so that
+    each verdict is the one `judge` gives (the members share the step's Δt: a fixed Δt stays;
+    the automatic one follows the fastest member, a shorter step than it needs alone). The run
+    ends when every member has moved past ``stop_ratio``·δ, or at T. A step of a few blocks costs
+    its fixed overhead, so the members share it (docs/guide/performance.md, "Batched studies").
+
+    ``exact``: every verdict is the one its own run gives, not only as a rule: with a fixed Δt
+    (`ddatai.Params.dt`) the members take the same steps as alone until one of them makes the
+    run cut Δt (a member that fails and falls); the run stops there and the members not yet
+    decided are judged again without the ones that were (a probabilistic study's table does
+    not depend on how its samples were grouped). With the automatic Δt, one run a member.
+
+    Falls back to one `judge` a member where members cannot share a run (a water table, shaking,
+    sub-models whose geometry, δ or model constants differ, a single member), and for the
+    members that had not failed when a batched run diverged. Returns the judgements in the order
+    of ``members``.
+    """
+    from ddatai.batch import batch_model, combined_state, member_constants, side_by_side
+    from ddatai.model import build_model
+    from ddatai.results import SimulationError
+    from ddatai.run import simulate
+    from ddatai.start import settle
+    from ddatai.step import Stepper
+
+    def alone(which):
+        return {k: judge(members[k].scene, members[k].system, blocks, settings=settings, params=params,
+                         removed=removed, friction=members[k].friction, reduction=members[k].reduction)
+                for k in which}
+
+    def one_by_one():
+        done = alone(range(len(members)))
+        return [done[k] for k in range(len(members))]
+
+    prm = run_params(params, settings)
+    if len(members) < 2 or any(m.scene.water is not None or m.scene.ground_acceleration is not None
+                               for m in members) or (exact and prm.dt is None):
+        return one_by_one()
+    subs = []
+    for m in members:
+        sub, ids = sub_scene(m.scene, m.system, blocks, removed=removed, free_neighbours=settings.free_neighbours,
+                             friction=m.friction, reduction=m.reduction)
+        subs.append((sub, ids))
+    deltas = {settings.displacement_ratio * group_size(m.system, blocks) for m in members}
+    shapes = {tuple(ids) for _, ids in subs}
+    geometry = {np.concatenate([b.vertices for b in sub.blocks]).tobytes() for sub, _ in subs}
+    if len(deltas) != 1 or len(shapes) != 1 or len(geometry) != 1:
+        return one_by_one()
+    models = [build_model(sub, prm) for sub, _ in subs]
+    constants = {member_constants(m) for m in models}
+    if len(constants) != 1:
+        return one_by_one()
+    ((w0, penalty),), (delta,), (ids,) = constants, deltas, shapes
+    duration = settings.duration or math.sqrt(2.0 * delta / settings.acceleration_resolution)
+    # a member that fails keeps moving until the run ends: at most ½·g·T² of free fall, and
+    # the speed it left its support with (≤ g·T) for T: members farther apart cannot meet
+    first = subs[0][0]
+    xy = np.concatenate([b.vertices for b in first.blocks])
+    gap = float(np.max(xy.max(axis=0) - xy.min(axis=0))) + 1.5 * first.gravity * duration ** 2
+    batch = side_by_side([sub for sub, _ in subs], gap=gap)
+    model = batch_model(batch, prm, w0=w0, penalty=penalty)
+    # each member settled by its own equilibrium stage: the stage decides per model what it
+    # holds, releases or welds (`ddatai.batch.combined_state`)
+    start = time.perf_counter()
+    settled = [settle(Stepper(m), m.initial_state())[0] if prm.initial_equilibrium else m.initial_state()
+               for m in models]
+    initial = combined_state(batch, model, models, settled)
+    n_members = batch.n_members
+    pos = [list(ids).index(b) for b in sorted(blocks)]
+    member_blocks = (batch.block_offset[:-1, None] + np.array(pos)[None, :]).ravel()
+    counts = np.diff(model.vertex_offset)[member_blocks]
+    vidx = np.concatenate([np.arange(model.vertex_offset[b], model.vertex_offset[b + 1]) for b in member_blocks])
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    x0 = model.vertex_xy0[vidx]
+    stop_at = settings.stop_ratio * delta
+    times, disp = [0.0], [np.zeros(n_members)]
+    decided = np.full(n_members, -1)  # the record at which each member passed stop_at
+    cut = []  # (exact) the record of the first step whose Δt was cut
+
+    def progress(state, record):
+        if exact and record.dt_cuts > 0:
+            cut.append(len(times))
+            raise _StopRun
+        # as `judge`: a member block's displacement is the mean of its vertices'; a member's
+        # the largest of its group's blocks
+        u = np.add.reduceat(state.vertex_xy[vidx] - x0, starts, axis=0) / counts[:, None]
+        d = np.hypot(u[:, 0], u[:, 1]).reshape(n_members, len(pos)).max(axis=1)
+        times.append(state.time)
+        disp.append(d)
+        decided[(decided < 0) & (d > stop_at)] = len(times) - 1
+        if np.all(decided >= 0):
+            raise _StopRun
+
+    failure = None
+    try:
+        simulate(batch.scene, model.params, duration=duration, progress=progress, record_every=10 ** 9,
+                 model=model, initial_state=initial)
+    except _StopRun:
+        pass
+    except SimulationError as err:
+        failure = err
+    wall = time.perf_counter() - start
+    t, d = np.array(times), np.array(disp)
+    out, rerun = {}, []
+    for k, m in enumerate(members):
+        end = decided[k] + 1 if decided[k] >= 0 else len(t)
+        note = "stopped early" if decided[k] >= 0 else ""
+        if cut and decided[k] < 0:
+            rerun.append(k)  # not decided when the run left the steps it takes alone
+            continue
+        if failure is not None and not note:
+            if d[:, k].max() < delta:
+                rerun.append(k)  # it had not failed when the run diverged: judged on its own
+                continue
+            note = f"diverged after failing: {failure}"
+        out[k] = _verdict(t[:end], d[:end, k], delta=delta, duration=duration, note=note, wall_time=wall,
+                          friction=m.friction, reduction=m.reduction, model_blocks=len(ids),
+                          moving_blocks=sum(not b.fixed for b in first.blocks), scene_blocks=m.scene.n_blocks,
+                          batch=n_members)
+        if settings.progress is not None:
+            settings.progress(out[k])
+    if cut and rerun:
+        again = judge_members([members[k] for k in rerun], blocks, settings=settings, params=params,
+                              removed=removed, exact=True)
+        out.update(zip(rerun, again))
+    else:
+        out.update(alone(rerun))
+    return [out[k] for k in range(len(members))]
 
 
 # ---------------------------------------------------------------------- bisections
@@ -239,32 +403,127 @@ def evaluate_dda(scene: Scene, system: BlockSystem, blocks: frozenset, *, settin
                  with_fs: bool = True, with_friction: bool = True) -> DdaEvaluation:
     """Verdict at the scene's strength, FS by strength reduction and the critical friction
     angle, each by bisection on DDA verdicts (docs/kgm/method.md §6.4). The guesses (the
-    limit-equilibrium values) only place the first bracket."""
+    limit-equilibrium values) only place the first bracket.
+
+    With ``settings.batch`` > 1 the probes of a round — the verdict, probes of F and of φ — run
+    side by side in one model (`judge_many`) and each bracket is cut into as many pieces as it
+    has probes (a K-section instead of a bisection): the same final brackets, to the same
+    tolerances, in a few runs instead of a dozen."""
     runs: list[DdaJudgement] = []
     cache: dict[tuple, DdaJudgement] = {}
 
+    def key(friction, reduction):
+        return (None if friction is None else round(friction, 9), round(reduction, 12))
+
     def run(friction=None, reduction=1.0) -> bool:
-        key = (None if friction is None else round(friction, 9), round(reduction, 12))
-        if key not in cache:
-            cache[key] = judge(scene, system, blocks, settings=settings, params=params, removed=removed,
-                               friction=friction, reduction=reduction)
-            runs.append(cache[key])
-        return cache[key].stable
+        k = key(friction, reduction)
+        if k not in cache:
+            cache[k] = judge(scene, system, blocks, settings=settings, params=params, removed=removed,
+                             friction=friction, reduction=reduction)
+            runs.append(cache[k])
+        return cache[k].stable
 
     t0 = time.perf_counter()
-    run()
-    fs = math.nan
-    if with_fs:
-        fs = _bisect_reduction(run, fs_guess, settings.fs_tolerance)
-    phi = math.nan
-    if with_friction:
-        guess = friction_guess if friction_guess is not None else float(np.mean(system.contact_friction))
-        phi = _bisect_friction(run, guess, settings.friction_tolerance)
+    fs = phi = math.nan
+    if settings.batch > 1:
+        searches = {}
+        if with_fs:
+            f = min(max(fs_guess, 0.1), 10.0) if math.isfinite(fs_guess) and fs_guess > 0 else 1.0
+            # x = −ln F: the group is stable for x ≥ −ln FS
+            searches["fs"] = _Bracket(guess=-math.log(f), lower=-math.log(50.0), upper=-math.log(0.02),
+                                      tolerance=math.log1p(settings.fs_tolerance), step=math.log(1.25))
+        if with_friction:
+            g = friction_guess if friction_guess is not None else float(np.mean(system.contact_friction))
+            searches["phi"] = _Bracket(guess=min(max(g, 0.0), 85.0), lower=0.0, upper=89.0,
+                                       tolerance=settings.friction_tolerance, step=2.0)
+        first = True
+        while first or any(not b.done for b in searches.values()):
+            active = [n for n, b in searches.items() if not b.done]
+            probes = [(None, 1.0)] if first else []
+            share = max(1, (settings.batch - len(probes)) // max(len(active), 1))
+            asked = {n: searches[n].proposals(share, share_next=max(1, settings.batch // max(len(active), 1)))
+                     for n in active}
+            for n, xs in asked.items():
+                probes += [(None, math.exp(-x)) if n == "fs" else (x, 1.0) for x in xs]
+            todo = [p for p in dict.fromkeys(probes) if key(*p) not in cache]
+            for p, j in zip(todo, judge_many(scene, system, blocks, todo, settings=settings, params=params,
+                                             removed=removed)):
+                cache[key(*p)] = j
+                runs.append(j)
+            for n, xs in asked.items():
+                for x in xs:
+                    p = (None, math.exp(-x)) if n == "fs" else (x, 1.0)
+                    searches[n].record(x, cache[key(*p)].stable)
+            if first and "fs" in searches:  # the verdict is the probe F = 1
+                searches["fs"].record(0.0, cache[(None, 1.0)].stable)
+            first = False
+        if with_fs:
+            fs = searches["fs"].limit(lambda x: math.exp(-x), below=math.inf, above=0.0)
+        if with_friction:
+            phi = searches["phi"].limit(lambda x: x, below=0.0, above=90.0)
+    else:
+        run()
+        if with_fs:
+            fs = _bisect_reduction(run, fs_guess, settings.fs_tolerance)
+        if with_friction:
+            guess = friction_guess if friction_guess is not None else float(np.mean(system.contact_friction))
+            phi = _bisect_friction(run, guess, settings.friction_tolerance)
     timing = None
     if settings.compare_whole:
         timing = time_sub_and_whole(scene, system, blocks, settings=settings, params=params, removed=removed)
     return DdaEvaluation(fs=fs, critical_friction=phi, judgement=cache[(None, 1.0)], runs=tuple(runs),
                          wall_time=time.perf_counter() - t0, timing=timing)
+
+
+class _Bracket:
+    """A K-section search for the limit x* of a monotone verdict, stable for x ≥ x* on
+    [lower, upper]: each round proposes points that cut the bracket (largest unstable x,
+    smallest stable x) into equal pieces, or, while one side is missing, points stepping away
+    from what is known (the step doubling each round); done when the bracket is at most
+    ``tolerance`` wide or the limit lies outside [lower, upper]."""
+
+    def __init__(self, *, guess: float, lower: float, upper: float, tolerance: float, step: float):
+        self.guess, self.lower, self.upper = guess, lower, upper
+        self.tolerance, self.step = tolerance, step
+        self.stable_min = math.inf      # smallest x judged stable
+        self.unstable_max = -math.inf   # largest x judged unstable
+
+    def record(self, x: float, stable: bool) -> None:
+        if stable:
+            self.stable_min = min(self.stable_min, x)
+        else:
+            self.unstable_max = max(self.unstable_max, x)
+
+    @property
+    def done(self) -> bool:
+        s, u = self.stable_min, self.unstable_max
+        return (s - u <= self.tolerance) or s <= self.lower or u >= self.upper
+
+    def proposals(self, n: int, share_next: int) -> list:
+        s, u = self.stable_min, self.unstable_max
+        if math.isfinite(s) and math.isfinite(u):
+            return [u + (s - u) * i / (n + 1) for i in range(1, n + 1)]
+        # spacing such that the next round, with ``share_next`` probes, closes the bracket
+        h = max(self.step if math.isfinite(s) or math.isfinite(u) else 0.0,
+                0.95 * self.tolerance * (share_next + 1))
+        if not math.isfinite(s) and not math.isfinite(u):
+            xs = [self.guess + h * (i - (n - 1) / 2.0) for i in range(n)]
+        elif math.isfinite(s):  # all stable so far: look below
+            xs = [s - h * 2.0 ** i for i in range(n)]
+        else:
+            xs = [u + h * 2.0 ** i for i in range(n)]
+        xs = sorted({min(max(x, self.lower), self.upper) for x in xs})
+        return [x for x in xs if x != s and x != u]
+
+    def limit(self, value, *, below: float, above: float) -> float:
+        """The limit in the caller's variable (``value`` maps x): the bracket's midpoint in x;
+        ``below`` when even ``lower`` was stable, ``above`` when even ``upper`` failed."""
+        s, u = self.stable_min, self.unstable_max
+        if s <= self.lower:
+            return below
+        if u >= self.upper:
+            return above
+        return value(0.5 * (s + u))
 
 
 def _bisect_reduction(stable_at, guess: float, tol: float) -> float:

@@ -251,40 +251,89 @@ class _Job:
 def _evaluate(job: _Job, item: tuple) -> tuple:
     """(fs, failed, critical block ids) of one sample; errors name the sample."""
     index, values, seed = item
-    kwargs = dict(values)
-    if job.pass_seed:
-        kwargs["seed"] = int(seed)
     try:
-        from ddatai.io.scenefile import build_scene
-
-        scene, params = build_scene(job.build, **kwargs)
-        from . import search
-        from .settings import Settings
-
-        settings = job.settings or Settings()
-        # DDA judges the critical group of the screening evaluator (a DDA-ranked search runs
-        # DDA on every candidate): the verdict from one run at the sample's strength, FS by
-        # strength reduction only when asked (several runs)
-        method = settings.screening if job.method == "dda" else job.method
-        if job.group is not None:
-            result = search.evaluate(scene, job.group, method, settings=settings, params=params)
-        else:
-            result = search.analyze(scene, method, settings=settings, params=params).critical
-        if result is None:  # no key group: nothing can fail
-            return math.inf, False, ""
-        critical = " ".join(str(b) for b in sorted(result.blocks))
-        if job.method != "dda":
-            return float(result.fs), not bool(result.stable), critical
+        screened = _screen(job, item)
+        if screened[0] is None or job.method != "dda":
+            return screened[3]
+        scene, params, result, _, settings = screened
         from .blocks import build_block_system
         from .dda import evaluate_dda
 
         dres = evaluate_dda(scene, build_block_system(scene, contact_gap=settings.contact_gap),
                             frozenset(result.blocks), settings=settings.dda,
                             params=params, fs_guess=result.fs, with_fs=job.dda_fs, with_friction=False)
-        return float(dres.fs), not bool(dres.judgement.stable), critical
+        return float(dres.fs), not bool(dres.judgement.stable), screened[3][2]
     except Exception as exc:
-        raise RuntimeError(f"sample {index} ({_describe(values)}, seed {seed}) failed: "
-                           f"{type(exc).__name__}: {exc}") from exc
+        raise _failed(index, values, seed, exc) from exc
+
+
+def _failed(index, values, seed, exc) -> RuntimeError:
+    return RuntimeError(f"sample {index} ({_describe(values)}, seed {seed}) failed: {type(exc).__name__}: {exc}")
+
+
+def _screen(job: _Job, item: tuple) -> tuple:
+    """The sample's scene, its parameters, its critical group by the screening evaluator (or
+    by the job's limit-equilibrium method), the sample's row (fs, failed, critical) as that
+    evaluator gives it, and the settings; ``(None, None, None, row, None)`` when the sample has
+    no key group (nothing can fail)."""
+    index, values, seed = item
+    kwargs = dict(values)
+    if job.pass_seed:
+        kwargs["seed"] = int(seed)
+    from ddatai.io.scenefile import build_scene
+
+    scene, params = build_scene(job.build, **kwargs)
+    from . import search
+    from .settings import Settings
+
+    settings = job.settings or Settings()
+    # DDA judges the critical group of the screening evaluator (a DDA-ranked search runs
+    # DDA on every candidate): the verdict from one run at the sample's strength, FS by
+    # strength reduction only when asked (several runs)
+    method = settings.screening if job.method == "dda" else job.method
+    if job.group is not None:
+        result = search.evaluate(scene, job.group, method, settings=settings, params=params)
+    else:
+        result = search.analyze(scene, method, settings=settings, params=params).critical
+    if result is None:
+        return None, None, None, (math.inf, False, ""), None
+    critical = " ".join(str(b) for b in sorted(result.blocks))
+    return scene, params, result, (float(result.fs), not bool(result.stable), critical), settings
+
+
+def _evaluate_batch(job: _Job, items: tuple) -> list:
+    """[(index, (fs, failed, critical))] of DDA verdicts of several samples (``dda_fs`` off):
+    each sample screened on its own, then the samples whose critical groups are the same blocks
+    of the same geometry judged side by side in one run (`kgm.dda.judge_members`; the verdict
+    of each is the one a run of its own gives). Errors name the sample."""
+    from .blocks import build_block_system
+    from .dda import Member, judge_members
+
+    rows, groups = {}, {}
+    for item in items:
+        index, values, seed = item
+        try:
+            scene, params, result, row, settings = _screen(job, item)
+        except Exception as exc:
+            raise _failed(index, values, seed, exc) from exc
+        if scene is None:
+            rows[index] = row
+            continue
+        member = Member(scene=scene, system=build_block_system(scene, contact_gap=settings.contact_gap))
+        groups.setdefault((frozenset(result.blocks), params), []).append((item, member, row[2], settings))
+    for (blocks, params), entries in groups.items():
+        settings = entries[0][3]
+        try:
+            verdicts = judge_members([e[1] for e in entries], blocks, settings=settings.dda, params=params,
+                                     exact=True)
+        except Exception:
+            # which sample: each on its own, so that the error names it
+            for item, member, critical, _ in entries:
+                rows[item[0]] = _evaluate(job, item)
+            continue
+        for (item, _, critical, _), j in zip(entries, verdicts):
+            rows[item[0]] = (math.nan, not j.stable, critical)
+    return [(item[0], rows[item[0]]) for item in items]
 
 
 def _describe(values: Mapping) -> str:
@@ -362,11 +411,24 @@ def probabilistic(build, variables: Mapping, n: int, *, method: str = "sarma",
     # script whose workers could not import what the study needs is told what to add
     workers = plan(functools.partial(_evaluate, job), client=client, workers=workers,
                    cost="heavy" if method == "dda" else "light", caller="kgm.probabilistic")
+    # DDA verdicts: samples judged side by side, a batch of them per item (kgm.dda.judge_members)
+    from .settings import DdaSettings
+
+    size = (settings.dda.batch if settings is not None else DdaSettings().batch) \
+        if method == "dda" and not dda_fs else 1
+    if size > 1:
+        # two batches a worker or more keep them all busy to the end; none larger than asked
+        sharing = 1 if client is None and workers == 1 else 2 * _n_workers(client, workers)
+        size = max(1, min(size, -(-len(items) // sharing)))
+        batches = [tuple(items[i:i + size]) for i in range(0, len(items), size)]
+        results = run(functools.partial(_evaluate_batch, job), [(b[0][0], b) for b in batches],
+                      client=client, workers=workers, chunk=1)
+        flat = (row for _, rows in results for row in rows)
+    else:
+        flat = run(functools.partial(_evaluate, job), [(it[0], it) for it in items], client=client, workers=workers)
     writer = _Appender(Path(out), identity, names) if out is not None else None
     try:
-        for index, (fs, failed, critical) in run(functools.partial(_evaluate, job),
-                                                 [(it[0], it) for it in items],
-                                                 client=client, workers=workers):
+        for index, (fs, failed, critical) in flat:
             done[index] = (fs, failed, critical)
             if writer is not None:
                 writer.append(index, int(seeds[index]), [samples[k][index] for k in names], fs, failed, critical)
@@ -379,6 +441,18 @@ def probabilistic(build, variables: Mapping, n: int, *, method: str = "sarma",
     return Study(n=n, pf=float(np.mean(table["failed"])), beta=_beta(table["fs"]), table=table, variables=names,
                  method=method, sampling=sampling, seed=seed, resumed=resumed,
                  wall_time=time.perf_counter() - t0)
+
+
+def _n_workers(client, workers: Optional[int]) -> int:
+    """How many evaluate at once: the local workers, or the Dask cluster's."""
+    if client is None:
+        from ddatai.parallel import default_workers
+
+        return workers or default_workers()
+    try:
+        return max(1, len(client.scheduler_info()["workers"]))
+    except Exception:
+        return 1
 
 
 def _beta(fs: np.ndarray) -> float:

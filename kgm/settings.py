@@ -74,6 +74,10 @@ class DdaSettings:
     """Also time the whole slope over ``whole_steps`` steps to report the time saved."""
     whole_steps: int = 100
     """Steps of the timing runs of the sub-model and the whole slope [-]."""
+    batch: int = 16
+    """Probes judged side by side in one run (`kgm.dda.judge_many`): the verdict and the probes
+    of a round of the F and φ searches, each bracket cut into as many pieces as it has probes;
+    1: one run a probe and bisections (docs/guide/performance.md, "Batched studies") [-]."""
     progress: Optional[Callable[..., None]] = None
     """Called with each `kgm.dda.DdaJudgement` as its run ends (``kgm analyze`` prints a line
     per run); None: silent."""
@@ -86,7 +90,7 @@ class DdaSettings:
             _positive(self, name)
         _require(isinstance(self.stop_ratio, (int, float)) and self.stop_ratio >= 1.0,
                  f"DdaSettings.stop_ratio must be >= 1, got {self.stop_ratio!r}")
-        for name in ("candidates", "whole_steps"):
+        for name in ("candidates", "whole_steps", "batch"):
             v = getattr(self, name)
             _require(isinstance(v, int) and not isinstance(v, bool) and v >= 1,
                      f"DdaSettings.{name} must be an integer >= 1, got {v!r}")

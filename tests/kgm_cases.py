@@ -106,6 +106,11 @@ def incline_scene(friction=30.0, cohesion=0.0, theta=30.0, width=10.0, height=1.
     return block_on_incline(theta=theta, width=width, height=height, friction=friction, cohesion=cohesion)[0]
 
 
+def incline_scene_fixed_dt(friction=30.0, cohesion=0.0):
+    """`incline_scene` with its `Params`: a fixed Δt of 2 ms (as the paper's examples)."""
+    return incline_scene(friction=friction, cohesion=cohesion), dd.Params(dt=2e-3)
+
+
 def incline_fs(friction, cohesion, theta=30.0, width=10.0, height=1.0):
     """Closed-form FS of `incline_scene`'s block."""
     t = np.radians(theta)

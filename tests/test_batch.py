@@ -1,0 +1,149 @@
+"""Independent models run side by side in one (`ddatai.batch`) and the kgm judgements that use
+it (`kgm.dda.judge_members`): each member moves as it does alone, each verdict is the one its
+own run gives, and a batched bisection finds the closed-form limit."""
+
+import math
+
+import numpy as np
+import pytest
+import scipy.stats as st
+
+import ddatai as dd
+import kgm
+import kgm_cases
+from cases import downslope_displacement, sliding_scene
+from ddatai.batch import batch_model, combined_state, member_constants, side_by_side
+from ddatai.model import build_model
+from ddatai.start import settle
+from ddatai.step import Stepper
+from kgm.blocks import build_block_system
+from kgm.dda import Member, judge, judge_many, judge_members
+
+G = 9.81
+THETA = 30.0
+
+
+def _run_batch(scenes, params, steps):
+    models = [build_model(s, params) for s in scenes]
+    (w0, penalty), = {member_constants(m) for m in models}
+    batch = side_by_side(scenes, gap=50.0)
+    model = batch_model(batch, params, w0=w0, penalty=penalty)
+    states = [settle(Stepper(m), m.initial_state())[0] for m in models]
+    res = dd.simulate(batch.scene, model.params, steps=steps, model=model,
+                      initial_state=combined_state(batch, model, models, states))
+    return batch, model, res
+
+
+def test_members_move_as_they_do_alone():
+    """Blocks on a 30° plane with φ = 15°, 25° (slide at a = g(sinθ − cosθ·tanφ)) and 45°
+    (holds), side by side: every member's centroid path is its own run's to round-off, and the
+    sliding ones follow the closed form."""
+    params = dd.Params(dt=2e-3)
+    phis = (15.0, 45.0, 25.0)
+    scenes = [sliding_scene(THETA, phi)[0] for phi in phis]
+    block = sliding_scene(THETA, 15.0)[1]
+    steps = 150
+    batch, model, res = _run_batch(scenes, params, steps)
+    assert model.w0 == build_model(scenes[0], params).w0
+    for k, (scene, phi) in enumerate(zip(scenes, phis)):
+        alone = dd.simulate(scene, params, steps=steps)
+        path = res.centroid[:, batch.block_offset[k]:batch.block_offset[k + 1]] - batch.shift[k]
+        assert np.abs(path - alone.centroid).max() <= 1e-9 * (1.0 + np.abs(alone.centroid).max())
+        s = downslope_displacement(alone, block, THETA)
+        t = res.time[-1]
+        a = max(G * (math.sin(math.radians(THETA)) - math.cos(math.radians(THETA)) * math.tan(math.radians(phi))), 0)
+        if a > 0:
+            assert s == pytest.approx(0.5 * a * t * t, rel=0.02)
+        else:
+            assert abs(s) < 1e-6
+
+
+def test_each_member_keeps_its_own_joints_and_points():
+    """Member k's default joint, pair overrides, points and loads follow its blocks."""
+    a, b = sliding_scene(THETA, 20.0)[0], sliding_scene(THETA, 40.0)[0]
+    b.set_joint(dd.Joint(friction=10.0), between=(0, 1))
+    b.add_measured_point(1, b.blocks[1].vertices.mean(axis=0))
+    batch = side_by_side([a, b], gap=3.0)
+    sc = batch.scene
+    assert batch.block_offset.tolist() == [0, 2, 4]
+    assert [sc.joints[k].friction for k in sc.blocks[1].edge_joint] == [20.0] * 4
+    assert [sc.joints[k].friction for k in sc.blocks[3].edge_joint] == [40.0] * 4
+    assert {pair: sc.joints[k].friction for pair, k in sc.pair_joints.items()} == {(2, 3): 10.0}
+    assert sc.measured_points[0].block == 3
+    assert sc.measured_points[0].xy[0] == pytest.approx(b.measured_points[0].xy[0] + batch.shift[1][0])
+    xa = np.concatenate([blk.vertices for blk in sc.blocks[:2]])[:, 0].max()
+    xb = np.concatenate([blk.vertices for blk in sc.blocks[2:]])[:, 0].min()
+    assert xb - xa == pytest.approx(3.0)
+
+
+def test_side_by_side_refuses_what_members_cannot_share():
+    a = sliding_scene(THETA, 20.0)[0]
+    with pytest.raises(ValueError, match="member 1 has gravity"):
+        side_by_side([a, dd.Scene(gravity=3.0)], gap=1.0)
+    wet = sliding_scene(THETA, 20.0)[0]
+    wet.set_water_table([(-50.0, 1.0), (50.0, 1.0)])
+    with pytest.raises(ValueError, match="member 1 has a water table"):
+        side_by_side([a, wet], gap=1.0)
+    with pytest.raises(ValueError, match="gap"):
+        side_by_side([a], gap=-1.0)
+
+
+def test_batched_verdicts_are_the_runs_alone():
+    """The block on the 30° plane judged at φ = 20°, 29°, 31° and 40° in one run: each verdict,
+    displacement and step count is its own run's (`exact`, fixed Δt)."""
+    scene, _, b = kgm_cases.block_on_incline(theta=THETA, width=2.0, height=1.0, friction=35.0, cohesion=0.0)
+    system = build_block_system(scene)
+    settings = kgm.DdaSettings(duration=0.5)
+    params = dd.Params(dt=2e-3)
+    probes = [(20.0, 1.0), (29.0, 1.0), (31.0, 1.0), (40.0, 1.0)]
+    many = judge_members([Member(scene=scene, system=system, friction=f, reduction=r) for f, r in probes],
+                         frozenset([b]), settings=settings, params=params, exact=True)
+    assert [j.stable for j in many] == [False, False, True, True]
+    assert all(j.batch == 4 for j in many)
+    for (f, r), j in zip(probes, many):
+        alone = judge(scene, system, frozenset([b]), settings=settings, params=params, friction=f, reduction=r)
+        assert (j.stable, j.steps, j.note) == (alone.stable, alone.steps, alone.note)
+        assert j.displacement == pytest.approx(alone.displacement, rel=1e-9, abs=1e-12)
+    # the strength-reduction probes of the same group, as judge_many takes them
+    fs = judge_many(scene, system, frozenset([b]), [(None, 1.0), (None, 1.5)], settings=settings, params=params)
+    assert [j.stable for j in fs] == [True, False]  # FS = tan35°/tan30° = 1.21
+
+
+def test_batched_and_sequential_bisections_agree_with_the_closed_form():
+    """φc = θ and FS = tanφ/tanθ of one block on a plane, by the batched K-section (the default)
+    and by one run a probe (``batch=1``): both within the tolerance plus the judgement's
+    friction resolution Δtanφ ≈ a_r/(g cosθ) (docs/kgm/method.md §6.3), and in far fewer runs
+    of the batch."""
+    phi = 40.0
+    scene, _, b = kgm_cases.block_on_incline(theta=THETA, width=2.0, height=1.0, friction=phi, cohesion=0.0)
+    system = build_block_system(scene)
+    from kgm.dda import evaluate_dda
+
+    tan_t = math.tan(math.radians(THETA))
+    for batch in (16, 1):
+        s = kgm.DdaSettings(batch=batch)
+        dtan = s.acceleration_resolution / (G * math.cos(math.radians(THETA)))
+        ev = evaluate_dda(scene, system, frozenset([b]), settings=s, fs_guess=1.3, friction_guess=35.0)
+        assert ev.fs == pytest.approx(math.tan(math.radians(phi)) / tan_t, abs=s.fs_tolerance + dtan / tan_t)
+        dphi = math.degrees(math.atan(tan_t + dtan)) - THETA
+        assert ev.critical_friction == pytest.approx(THETA, abs=s.friction_tolerance + dphi)
+        runs = len({j.wall_time for j in ev.runs}) if batch > 1 else len(ev.runs)
+        if batch > 1:
+            assert runs <= 3
+        else:
+            assert runs >= 8
+
+
+def test_probabilistic_table_does_not_depend_on_the_batch():
+    """A DDA-judged study with a fixed Δt: the same table whether its samples run one a run or
+    side by side."""
+    variables = {"friction": st.uniform(20.0, 20.0)}
+    tables = []
+    for batch in (1, 4):
+        study = kgm.probabilistic(kgm_cases.incline_scene_fixed_dt, variables, 6, method="dda", group={1}, seed=5,
+                                  workers=1, settings=kgm.Settings(dda=kgm.DdaSettings(batch=batch, duration=0.4)))
+        tables.append(study.table)
+    a, b = tables
+    assert all(np.array_equal(a[k], b[k], equal_nan=a[k].dtype.kind == "f") for k in a.dtype.names)
+    clear = np.abs(a["friction"] - THETA) > 1.0
+    assert np.array_equal(a["failed"][clear], a["friction"][clear] < THETA)
