@@ -6,8 +6,8 @@ The study is Example II's critical group (blocks 0 and 1 of ``scenes/example_2.p
 joint friction angle N(22°, 2°) and cohesion N(20 kPa, 5 kPa) truncated at 0, correlated
 −0.3 (``docs/kgm/example_2_vars.toml``), judged by DDA (each sample: one run of the group at its
 own strength, the verdict) or by the rigid / Sarma evaluators. Prints, per
-worker count and DDA batch size (`kgm.DdaSettings.batch`: samples judged side by side in one
-run), the wall time, samples per second, the speed-up over the first row and P_f; the tables of
+worker count and DDA batch size (`kgm.DdaSettings.sample_batch`: samples judged side by side
+in one run), the wall time, samples per second, the speed-up over the first row and P_f; the tables of
 all rows must be identical (the study's samples and verdicts depend on neither).
 """
 
@@ -38,7 +38,7 @@ def main() -> None:
     ap.add_argument("--method", default="dda", choices=("rigid", "sarma", "dda"))
     ap.add_argument("--workers", default="1,2")
     ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--batch", default="16", help="DDA batch sizes to run, comma-separated")
+    ap.add_argument("--batch", default="128", help="DDA batch sizes to run, comma-separated")
     args = ap.parse_args()
 
     from ddatai.parallel import ScriptFunction
@@ -56,7 +56,7 @@ def main() -> None:
     for w, b in runs:
         t0 = time.perf_counter()
         study = probabilistic(build, variables, args.n, method=args.method, seed=args.seed, group={0, 1},
-                              correlation=correlation, workers=w, settings=Settings(dda=DdaSettings(batch=b)))
+                              correlation=correlation, workers=w, settings=Settings(dda=DdaSettings(sample_batch=b)))
         wall = time.perf_counter() - t0
         base = base or wall
         if ref is not None and not _same(study.table, ref.table):

@@ -414,7 +414,7 @@ def probabilistic(build, variables: Mapping, n: int, *, method: str = "sarma",
     # DDA verdicts: samples judged side by side, a batch of them per item (kgm.dda.judge_members)
     from .settings import DdaSettings
 
-    size = (settings.dda.batch if settings is not None else DdaSettings().batch) \
+    size = (settings.dda if settings is not None else DdaSettings()).sample_batch \
         if method == "dda" and not dda_fs else 1
     if size > 1:
         # two batches a worker or more keep them all busy to the end; none larger than asked

@@ -78,6 +78,12 @@ class DdaSettings:
     """Probes judged side by side in one run (`kgm.dda.judge_many`): the verdict and the probes
     of a round of the F and φ searches, each bracket cut into as many pieces as it has probes;
     1: one run a probe and bisections (docs/guide/performance.md, "Batched studies") [-]."""
+    sample_batch: int = 128
+    """Samples of a DDA-judged probabilistic study (verdicts only) judged side by side in one
+    run (`kgm.dda.judge_members`, exact: the table is the one of one run a sample), at most so
+    many that every worker gets two batches; 1: one run a sample [-]. Large batches pay: a
+    member-step costs 1.6 ms alone, 0.17 ms among 16 and 0.036 ms among 128 (Example II's group,
+    docs/guide/performance.md "Batched studies")."""
     progress: Optional[Callable[..., None]] = None
     """Called with each `kgm.dda.DdaJudgement` as its run ends (``kgm analyze`` prints a line
     per run); None: silent."""
@@ -90,7 +96,7 @@ class DdaSettings:
             _positive(self, name)
         _require(isinstance(self.stop_ratio, (int, float)) and self.stop_ratio >= 1.0,
                  f"DdaSettings.stop_ratio must be >= 1, got {self.stop_ratio!r}")
-        for name in ("candidates", "whole_steps", "batch"):
+        for name in ("candidates", "whole_steps", "batch", "sample_batch"):
             v = getattr(self, name)
             _require(isinstance(v, int) and not isinstance(v, bool) and v >= 1,
                      f"DdaSettings.{name} must be an integer >= 1, got {v!r}")

@@ -141,7 +141,7 @@ def test_probabilistic_table_does_not_depend_on_the_batch():
     tables = []
     for batch in (1, 4):
         study = kgm.probabilistic(kgm_cases.incline_scene_fixed_dt, variables, 6, method="dda", group={1}, seed=5,
-                                  workers=1, settings=kgm.Settings(dda=kgm.DdaSettings(batch=batch, duration=0.4)))
+                                  workers=1, settings=kgm.Settings(dda=kgm.DdaSettings(sample_batch=batch, duration=0.4)))
         tables.append(study.table)
     a, b = tables
     assert all(np.array_equal(a[k], b[k], equal_nan=a[k].dtype.kind == "f") for k in a.dtype.names)
