@@ -106,7 +106,14 @@ def member_constants(model: Model) -> tuple[float, float]:
 def batch_model(batch: Batch, params: Params, *, w0: float, penalty: float) -> Model:
     """The model of the combined scene with a member's own constants: the length scale ``w0``
     [m] (and every tolerance that follows from it) and the ``penalty`` [N/m] of the members'
-    models (`member_constants`; all members must have the same)."""
+    models (`member_constants`; all members must have the same). ``solver="auto"`` takes the
+    sparse solver whatever the size."""
+    from .solver import resolve
+
+    if params.solver == "auto":
+        # K is block-diagonal, one block a member: a sparse factorisation costs about the sum
+        # of the members', a dense one the cube of their total (11 ms a solve at 600 unknowns)
+        params = replace(params, solver=resolve("auto"))
     return build_model(batch.scene, replace(params, penalty=float(penalty)), length_scale=w0)
 
 
@@ -170,3 +177,61 @@ def combined_state(batch: Batch, model: Model, members: Sequence[Model], states:
         measured_xy=np.concatenate([moved(k, s.measured_xy) for k, s in enumerate(states)]).reshape(-1, 2),
         dt=max(s.dt for s in states), accel=max(s.accel for s in states),
         memory=ContactMemory(key=key[order], **joined), energy=energy, **extra)
+
+
+def member_states(batch: Batch, model: Model, members: Sequence[Model], state: State,
+                  which: Optional[Sequence[int]] = None) -> list:
+    """The states of members ``which`` (all by default) in their own models, cut out of a
+    ``state`` of the batch's ``model`` (the inverse of `combined_state`): a batch whose members
+    have been decided goes on with the others alone (`side_by_side` of those, `combined_state`
+    of these states). The mechanical energy of a member is not known apart: None (a step
+    computes it again)."""
+    from .layout import ContactKind
+    from .model import ContactMemory
+
+    which = range(batch.n_members) if which is None else which
+    v_offset = np.concatenate([[0], np.cumsum([m.n_vertices for m in members])])
+    b_offset = batch.block_offset
+
+    def offsets(name):
+        return np.concatenate([[0], np.cumsum([len(getattr(m, name)) for m in members])])
+
+    points = {name: offsets(name) for name in ("fixed_point_block", "load_block", "measured_block", "bolt_block")}
+    total = np.int64(model.n_vertices)
+    mem = state.memory
+    vv = mem.kind == ContactKind.VV
+    key = np.where(vv, mem.key - total * total, mem.key)
+    first, second = key // total, key % total
+    owner = np.searchsorted(v_offset, first, side="right") - 1
+    fields = [f for f in ContactMemory.__dataclass_fields__ if f != "key"]
+    out = []
+    for k in which:
+        m = members[k]
+        lo, hi = v_offset[k], v_offset[k + 1]
+        b0, b1 = b_offset[k], b_offset[k + 1]
+        back = m.origin + batch.shift[k] - model.origin  # member -> batch coordinates
+
+        def part(name, kind):
+            p = points[kind]
+            return getattr(state, name)[p[k]:p[k + 1]]
+
+        rows = np.flatnonzero(owner == k)
+        n = np.int64(m.n_vertices)
+        new_key = np.where(vv[rows], n * n, 0) + (first[rows] - lo) * n + (second[rows] - lo)
+        order = np.argsort(new_key, kind="stable")
+        memory = ContactMemory(key=new_key[order], **{
+            f: (getattr(mem, f)[rows][order] if len(getattr(mem, f)) == len(mem.key) else np.zeros(0))
+            for f in fields})
+        extra = {} if not len(m.bolt_block) else {
+            name: part(name, "bolt_block").copy()
+            for name in ("bolt_force", "bolt_broken_step", "bolt_broken_time", "bolt_broken_force")}
+        out.append(State(
+            time=state.time, step=state.step,
+            vertex_xy=state.vertex_xy[lo:hi] - back,
+            block_velocity=state.block_velocity[b0:b1].copy(), block_stress=state.block_stress[b0:b1].copy(),
+            block_accel=state.block_accel[b0:b1].copy(), block_rotation=state.block_rotation[b0:b1].copy(),
+            fixed_point_xy=part("fixed_point_xy", "fixed_point_block") - back,
+            load_xy=part("load_xy", "load_block") - back,
+            measured_xy=part("measured_xy", "measured_block") - back,
+            dt=state.dt, accel=state.accel, memory=memory, energy=None, **extra))
+    return out

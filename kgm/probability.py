@@ -304,10 +304,10 @@ def _screen(job: _Job, item: tuple) -> tuple:
 def _evaluate_batch(job: _Job, items: tuple) -> list:
     """[(index, (fs, failed, critical))] of DDA verdicts of several samples (``dda_fs`` off):
     each sample screened on its own, then the samples whose critical groups are the same blocks
-    of the same geometry judged side by side in one run (`kgm.dda.judge_members`; the verdict
+    of the same geometry judged side by side in one run (`kgm.batched.judge_members`; the verdict
     of each is the one a run of its own gives). Errors name the sample."""
     from .blocks import build_block_system
-    from .dda import Member, judge_members
+    from .batched import Member, judge_members
 
     rows, groups = {}, {}
     for item in items:
@@ -411,7 +411,7 @@ def probabilistic(build, variables: Mapping, n: int, *, method: str = "sarma",
     # script whose workers could not import what the study needs is told what to add
     workers = plan(functools.partial(_evaluate, job), client=client, workers=workers,
                    cost="heavy" if method == "dda" else "light", caller="kgm.probabilistic")
-    # DDA verdicts: samples judged side by side, a batch of them per item (kgm.dda.judge_members)
+    # DDA verdicts: samples judged side by side, a batch of them per item (kgm.batched.judge_members)
     from .settings import DdaSettings
 
     size = (settings.dda if settings is not None else DdaSettings()).sample_batch \

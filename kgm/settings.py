@@ -75,12 +75,12 @@ class DdaSettings:
     whole_steps: int = 100
     """Steps of the timing runs of the sub-model and the whole slope [-]."""
     batch: int = 16
-    """Probes judged side by side in one run (`kgm.dda.judge_many`): the verdict and the probes
+    """Probes judged side by side in one run (`kgm.batched.judge_many`): the verdict and the probes
     of a round of the F and φ searches, each bracket cut into as many pieces as it has probes;
     1: one run a probe and bisections (docs/guide/performance.md, "Batched studies") [-]."""
     sample_batch: int = 128
     """Samples of a DDA-judged probabilistic study (verdicts only) judged side by side in one
-    run (`kgm.dda.judge_members`, exact: the table is the one of one run a sample), at most so
+    run (`kgm.batched.judge_members`, exact: the table is the one of one run a sample), at most so
     many that every worker gets two batches; 1: one run a sample [-]. Large batches pay: a
     member-step costs 1.6 ms alone, 0.17 ms among 16 and 0.036 ms among 128 (Example II's group,
     docs/guide/performance.md "Batched studies")."""

@@ -17,7 +17,8 @@ from ddatai.model import build_model
 from ddatai.start import settle
 from ddatai.step import Stepper
 from kgm.blocks import build_block_system
-from kgm.dda import Member, judge, judge_many, judge_members
+from kgm.batched import Member, judge_many, judge_members
+from kgm.dda import judge
 
 G = 9.81
 THETA = 30.0
@@ -147,3 +148,28 @@ def test_probabilistic_table_does_not_depend_on_the_batch():
     assert all(np.array_equal(a[k], b[k], equal_nan=a[k].dtype.kind == "f") for k in a.dtype.names)
     clear = np.abs(a["friction"] - THETA) > 1.0
     assert np.array_equal(a["failed"][clear], a["friction"][clear] < THETA)
+
+
+def test_member_states_cut_out_what_combined_state_put_in():
+    """A batch's state split into its members' states (to go on without the decided ones) gives
+    back each member's own state: positions, contact memory (identities renumbered), stresses."""
+    from ddatai.batch import member_states
+
+    params = dd.Params(dt=2e-3)
+    scenes = [sliding_scene(THETA, phi)[0] for phi in (15.0, 45.0, 25.0)]
+    models = [build_model(s, params) for s in scenes]
+    (w0, penalty), = {member_constants(m) for m in models}
+    batch = side_by_side(scenes, gap=50.0)
+    model = batch_model(batch, params, w0=w0, penalty=penalty)
+    states = [settle(Stepper(m), m.initial_state())[0] for m in models]
+    for _ in range(3):
+        states = [Stepper(m).step(s)[0] for m, s in zip(models, states)]
+    assert all(len(s.memory.key) for s in states)
+    back = member_states(batch, model, models, combined_state(batch, model, models, states), which=[2, 0])
+    for k, s in zip([2, 0], back):
+        own = states[k]
+        assert np.allclose(s.vertex_xy, own.vertex_xy, rtol=0, atol=1e-12)
+        assert np.array_equal(s.memory.key, own.memory.key)
+        assert np.array_equal(s.memory.state, own.memory.state)
+        assert np.array_equal(s.memory.omega, own.memory.omega)
+        assert np.array_equal(s.block_stress, own.block_stress) and s.time == own.time

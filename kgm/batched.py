@@ -1,0 +1,210 @@
+"""Many DDA judgements in one run (docs/guide/performance.md, "Batched studies"): the probes of
+a bisection round or the samples of a probabilistic study, each a sub-model of a few blocks that
+differs from the others only in its joints, run side by side (`ddatai.batch`) with the verdict
+of each taken as `kgm.dda.judge` takes it.
+
+Like `kgm.dda`, this module imports Taichi (through `ddatai.simulate`) only inside the
+functions that run a simulation.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+
+from ddatai.params import Params
+from ddatai.scene import Scene
+
+from .blocks import BlockSystem
+from .dda import _StopRun, _verdict, group_size, judge, run_params, sub_scene
+from .settings import DdaSettings
+
+
+class _Cut(Exception):
+    """Raised from the progress callback of an exact batch whose step had its Δt cut."""
+
+
+def _initial_xy(models, active, batch, model) -> np.ndarray:
+    """Initial vertex positions of the members ``active`` in the batch's coordinates."""
+    return np.concatenate([models[k].vertex_xy0 + (models[k].origin + batch.shift[i] - model.origin)
+                           for i, k in enumerate(active)])
+
+
+# ---------------------------------------------------------------------- many judgements in one run
+@dataclass(frozen=True, kw_only=True, eq=False)
+class Member:
+    """One judgement of a batched run (`judge_members`): the group in ``scene`` (its
+    ``system``), with every joint's friction angle ``friction`` [degrees] if given and tanφ, c
+    divided by ``reduction`` [-], as `judge` takes them."""
+
+    scene: Scene
+    system: BlockSystem
+    friction: Optional[float] = None
+    reduction: float = 1.0
+
+
+def judge_many(scene: Scene, system: BlockSystem, blocks: frozenset, probes, *, settings: DdaSettings,
+               params: Optional[Params] = None, removed: frozenset = frozenset()) -> list:
+    """Judge the group at several strengths ``probes`` (a sequence of ``(friction, reduction)``
+    as `judge` takes them) in one run (`judge_members`). Returns the judgements in the order of
+    ``probes``."""
+    members = [Member(scene=scene, system=system, friction=None if f is None else float(f), reduction=float(r))
+               for f, r in probes]
+    return judge_members(members, blocks, settings=settings, params=params, removed=removed)
+
+
+def judge_members(members, blocks: frozenset, *, settings: DdaSettings, params: Optional[Params] = None,
+                  removed: frozenset = frozenset(), exact: bool = False) -> list:
+    """Judge the same group in several members — the scene at several strengths, or the scenes
+    of a probabilistic study's samples, which differ only in their joints — in one run: the
+    sub-models side by side (`ddatai.batch`), each with the constants of its own model, so that
+    each verdict is the one `judge` gives (the members share the step's Δt: a fixed Δt stays;
+    the automatic one follows the fastest member, a shorter step than it needs alone). The run
+    ends when every member has moved past ``stop_ratio``·δ, or at T. A step of a few blocks costs
+    its fixed overhead, so the members share it (docs/guide/performance.md, "Batched studies").
+
+    ``exact``: every verdict is the one its own run gives, not only as a rule: with a fixed Δt
+    (`ddatai.Params.dt`) the members take the same steps as alone until one of them makes the
+    run cut Δt (a member that fails and falls); the run stops there and the members not yet
+    decided are judged again without the ones that were (a probabilistic study's table does
+    not depend on how its samples were grouped). With the automatic Δt, one run a member.
+
+    Falls back to one `judge` a member where members cannot share a run (a water table, shaking,
+    sub-models whose geometry, δ or model constants differ, a single member), and for the
+    members that had not failed when a batched run diverged. Returns the judgements in the order
+    of ``members``.
+    """
+    from ddatai.batch import batch_model, combined_state, member_constants, member_states, side_by_side
+    from ddatai.model import build_model
+    from ddatai.results import SimulationError
+    from ddatai.run import simulate
+    from ddatai.start import settle
+    from ddatai.step import Stepper
+
+    def alone(which):
+        return {k: judge(members[k].scene, members[k].system, blocks, settings=settings, params=params,
+                         removed=removed, friction=members[k].friction, reduction=members[k].reduction)
+                for k in which}
+
+    def one_by_one():
+        done = alone(range(len(members)))
+        return [done[k] for k in range(len(members))]
+
+    prm = run_params(params, settings)
+    if len(members) < 2 or any(m.scene.water is not None or m.scene.ground_acceleration is not None
+                               for m in members) or (exact and prm.dt is None):
+        return one_by_one()
+    subs = []
+    for m in members:
+        sub, ids = sub_scene(m.scene, m.system, blocks, removed=removed, free_neighbours=settings.free_neighbours,
+                             friction=m.friction, reduction=m.reduction)
+        subs.append((sub, ids))
+    deltas = {settings.displacement_ratio * group_size(m.system, blocks) for m in members}
+    shapes = {tuple(ids) for _, ids in subs}
+    geometry = {np.concatenate([b.vertices for b in sub.blocks]).tobytes() for sub, _ in subs}
+    if len(deltas) != 1 or len(shapes) != 1 or len(geometry) != 1:
+        return one_by_one()
+    models = [build_model(sub, prm) for sub, _ in subs]
+    constants = {member_constants(m) for m in models}
+    if len(constants) != 1:
+        return one_by_one()
+    ((w0, penalty),), (delta,), (ids,) = constants, deltas, shapes
+    duration = settings.duration or math.sqrt(2.0 * delta / settings.acceleration_resolution)
+    # a member that fails keeps moving until the run ends: at most ½·g·T² of free fall, and
+    # the speed it left its support with (≤ g·T) for T: members farther apart cannot meet
+    first = subs[0][0]
+    xy = np.concatenate([b.vertices for b in first.blocks])
+    gap = float(np.max(xy.max(axis=0) - xy.min(axis=0))) + 1.5 * first.gravity * duration ** 2
+    # each member settled by its own equilibrium stage: the stage decides per model what it
+    # holds, releases or welds (`ddatai.batch.combined_state`)
+    start = time.perf_counter()
+    states = [settle(Stepper(m), m.initial_state())[0] if prm.initial_equilibrium else m.initial_state()
+              for m in models]
+    pos = [list(ids).index(b) for b in sorted(blocks)]
+    stop_at = settings.stop_ratio * delta
+    n_members = len(members)
+    times = [[0.0] for _ in members]   # each member's history: time [s] ...
+    disp = [[0.0] for _ in members]    # ... and the largest displacement of its group [m]
+    decided = np.zeros(n_members, bool)  # moved past stop_at (unstable, stopped early)
+    cut = False      # (exact) a step's Δt was cut: the members not decided are judged again
+    failure = None
+    active = list(range(n_members))
+    while active:
+        # the members not decided, side by side; once half of them are decided the others go
+        # on without them, from where they are (`ddatai.batch.member_states`)
+        batch = side_by_side([subs[k][0] for k in active], gap=gap)
+        model = batch_model(batch, prm, w0=w0, penalty=penalty)
+        own = [models[k] for k in active]
+        initial = combined_state(batch, model, own, [states[k] for k in active])
+        member_blocks = (batch.block_offset[:-1, None] + np.array(pos)[None, :]).ravel()
+        counts = np.diff(model.vertex_offset)[member_blocks]
+        vidx = np.concatenate([np.arange(model.vertex_offset[b], model.vertex_offset[b + 1])
+                               for b in member_blocks])
+        starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+        x0 = _initial_xy(models, active, batch, model)[vidx]
+        last = [None]
+
+        def progress(state, record):
+            if exact and record.dt_cuts > 0:
+                raise _Cut
+            # as `judge`: a member block's displacement is the mean of its vertices'; a
+            # member's the largest of its group's blocks
+            u = np.add.reduceat(state.vertex_xy[vidx] - x0, starts, axis=0) / counts[:, None]
+            d = np.hypot(u[:, 0], u[:, 1]).reshape(len(active), len(pos)).max(axis=1)
+            for i, k in enumerate(active):
+                if not decided[k]:
+                    times[k].append(state.time)
+                    disp[k].append(float(d[i]))
+                    decided[k] = d[i] > stop_at
+            left = [k for k in active if not decided[k]]
+            if not left:
+                raise _StopRun
+            if 2 * len(left) <= len(active) and len(active) > 1:
+                last[0] = state
+                raise _StopRun
+
+        try:
+            simulate(batch.scene, model.params, duration=duration, progress=progress, record_every=10 ** 9,
+                     model=model, initial_state=initial)
+            active = []
+        except _StopRun:
+            if last[0] is None:
+                active = []
+            else:
+                left = [i for i, k in enumerate(active) if not decided[k]]
+                for i, s in zip(left, member_states(batch, model, own, last[0], which=left)):
+                    states[active[i]] = s
+                active = [active[i] for i in left]
+        except _Cut:
+            cut, active = True, []
+        except SimulationError as err:
+            failure, active = err, []
+    wall = time.perf_counter() - start
+    out, rerun = {}, []
+    for k, m in enumerate(members):
+        note = "stopped early" if decided[k] else ""
+        if cut and not decided[k]:
+            rerun.append(k)  # not decided when the run left the steps it takes alone
+            continue
+        if failure is not None and not note:
+            if max(disp[k]) < delta:
+                rerun.append(k)  # it had not failed when the run diverged: judged on its own
+                continue
+            note = f"diverged after failing: {failure}"
+        out[k] = _verdict(np.array(times[k]), np.array(disp[k]), delta=delta, duration=duration, note=note,
+                          wall_time=wall, friction=m.friction, reduction=m.reduction, model_blocks=len(ids),
+                          moving_blocks=sum(not b.fixed for b in first.blocks), scene_blocks=m.scene.n_blocks,
+                          batch=n_members)
+        if settings.progress is not None:
+            settings.progress(out[k])
+    if cut and rerun:
+        again = judge_members([members[k] for k in rerun], blocks, settings=settings, params=params,
+                              removed=removed, exact=True)
+        out.update(zip(rerun, again))
+    else:
+        out.update(alone(rerun))
+    return [out[k] for k in range(len(members))]
