@@ -1,7 +1,7 @@
 """Many DDA judgements in one run (docs/guide/performance.md, "Batched studies"): the probes of
 a bisection round or the samples of a probabilistic study, each a sub-model of a few blocks that
 differs from the others only in its joints, run side by side (`ddatai.batch`) with the verdict
-of each taken as `kgm.dda.judge` takes it.
+of each taken as `kgm.judgement.judge` takes it.
 
 Like `kgm.dda`, this module imports Taichi (through `ddatai.simulate`) only inside the
 functions that run a simulation.
@@ -20,7 +20,7 @@ from ddatai.params import Params
 from ddatai.scene import Scene
 
 from .blocks import BlockSystem
-from .dda import _StopRun, _verdict, group_size, judge, run_params, sub_scene
+from .judgement import _StopRun, _verdict, group_size, judge, run_params, sub_scene
 from .settings import DdaSettings
 
 

@@ -4,10 +4,11 @@ seed paper's developed method; docs/kgm/method.md §6).
 A judgement simulates only what it needs: the group and the blocks it touches, which are held
 fixed (KGM's "non-members stay in place"); blocks farther away are left out
 (`DdaSettings.free_neighbours` lets the touching blocks move and fixes the next ring). The
-verdict follows the displacement and velocity criteria documented on `kgm.DdaSettings`. The
-factor of safety is found by strength reduction (tanφ/F and c/F on every joint, bisection on F)
-and the critical friction angle by bisection on the friction angle of every joint with
-cohesion held (§6.4).
+verdict follows the displacement and velocity criteria documented on `kgm.DdaSettings`
+(`kgm.judgement`). The factor of safety is found by strength reduction (tanφ/F and c/F on every
+joint) and the critical friction angle on the friction angle of every joint with cohesion held
+(§6.4), each by bisection on verdicts, or by K-sections whose probes run side by side
+(`kgm.batched`).
 
 This module imports Taichi (through `ddatai.simulate`) only inside the functions that run a
 simulation, so `import kgm` stays light.
@@ -17,53 +18,19 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np
 
-from ddatai.params import Joint, Params
+from ddatai.params import Params
 from ddatai.scene import Scene
 
 from .blocks import BlockSystem
+from .batched import judge_many
+# the single judgement and its sub-model live in kgm.judgement; their names stay here too
+from .judgement import DdaJudgement, group_size, judge, run_params, sub_scene  # noqa: F401
 from .settings import DdaSettings
-
-
-@dataclass(frozen=True, kw_only=True, eq=False)
-class DdaJudgement:
-    """One DDA run of a group and its verdict."""
-
-    stable: bool
-    """Verdict: False if the group is still moving with d(T) ≥ δ (see `kgm.DdaSettings`)."""
-    displacement: float
-    """Largest member displacement at the end of the run [m]."""
-    speed: float
-    """Mean speed of that displacement over the last quarter of the run [m/s]."""
-    threshold: float
-    """δ: the displacement criterion [m]."""
-    duration: float
-    """Planned simulated time T [s]."""
-    simulated: float
-    """Simulated time actually run (less than T when stopped early) [s]."""
-    steps: int
-    """Time steps taken [-]."""
-    wall_time: float
-    """Wall-clock time of the run [s]."""
-    friction: Optional[float]
-    """Friction angle given to every joint [degrees], or None (the scene's joints)."""
-    reduction: float
-    """Strength-reduction factor F: tanφ/F and c/F on every joint [-]."""
-    model_blocks: int
-    """Blocks in the simulated sub-model [-]."""
-    moving_blocks: int
-    """Free blocks in the sub-model [-]."""
-    scene_blocks: int
-    """Blocks in the whole scene [-]."""
-    note: str = ""
-    """'stopped early' or the cause of a divergence after the group had failed."""
-    batch: int = 1
-    """Members of the run it was judged in (`judge_many`: several strengths side by side in one
-    model; ``wall_time`` is then that run's) [-]."""
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -105,141 +72,6 @@ class DdaEvaluation:
     """Sub-model vs whole slope per-step timing (if `DdaSettings.compare_whole`)."""
 
 
-class _StopRun(Exception):
-    """Raised from the progress callback to end a run that has clearly failed."""
-
-
-# ---------------------------------------------------------------------- sub-model
-def sub_scene(scene: Scene, system: BlockSystem, blocks: frozenset, *, removed: frozenset = frozenset(),
-              free_neighbours: bool = False, friction: Optional[float] = None,
-              reduction: float = 1.0) -> tuple[Scene, list[int]]:
-    """The part of the scene a judgement needs: the group (free), the blocks touching it
-    (fixed, or free with ``free_neighbours`` and then the next ring fixed); removed blocks
-    and everything farther away left out. Every joint gets the friction angle ``friction``
-    [degrees] if given, and tanφ and c divided by ``reduction``.
-
-    The scene's water table comes along, and so does every bolt with an end in a moving block
-    (its other block held fixed if it is not already in the sub-scene), its capacity divided
-    by ``reduction`` like the joints' strength (docs/method/water_bolts.md).
-
-    Returns the sub-scene and the original id of each of its blocks.
-    """
-    ring1 = system.neighbours(blocks, removed)
-    moving = set(blocks)
-    held = set(ring1)
-    if free_neighbours:
-        moving |= {b for b in ring1 if not system.block_fixed[b]}
-        held = system.neighbours(moving, removed) | {b for b in ring1 if system.block_fixed[b]}
-    bolts = [b for b in scene.bolts if b.block1 in moving or b.block2 in moving]
-    held |= {blk for b in bolts for blk in (b.block1, b.block2) if blk not in moving}
-    sub, ids = scene.subset(sorted(moving | held), held=sorted(held))
-    sub.joints = [_reduced(j, friction, reduction) for j in scene.joints]
-    # only the bolts that hold a moving block act; their capacity is reduced like the joints
-    sub.bolts = [replace(b, capacity=b.capacity / reduction) for b in sub.bolts
-                 if ids[b.block1] in moving or ids[b.block2] in moving]
-    return sub, ids
-
-
-def _reduced(joint: Joint, friction: Optional[float], reduction: float) -> Joint:
-    from ddatai.params import BartonBandis
-
-    if isinstance(joint, BartonBandis) and friction is None:
-        # tan φ(σn)/F at each contact's own stress, c/F (docs/method/barton_bandis.md)
-        return replace(joint, reduction=joint.reduction * reduction, cohesion=joint.cohesion / reduction)
-    phi = joint.friction if friction is None else float(friction)
-    tan_phi = math.tan(math.radians(phi)) / reduction
-    return Joint(friction=math.degrees(math.atan(tan_phi)), cohesion=joint.cohesion / reduction,
-                 tensile=joint.tensile)
-
-
-def run_params(params: Optional[Params], settings: DdaSettings) -> Params:
-    """The DDA parameters of a judgement: the given ones with the cohesion rule of the settings,
-    started from gravitational equilibrium (`ddatai.Params.initial_equilibrium`): switched on at
-    once, gravity overshoots the static contact forces and a group near its limit slips in the
-    first steps, so the verdict would follow that transient instead of the strength."""
-    params = settings.params or params or Params()
-    return replace(params, bond_breaks_on_slip=not settings.cohesion_held, initial_equilibrium=True)
-
-
-def group_size(system: BlockSystem, blocks: frozenset) -> float:
-    """√(area of the group) [m], the length the displacement criterion scales with."""
-    return math.sqrt(float(system.block_area[sorted(blocks)].sum()))
-
-
-# ---------------------------------------------------------------------- one judgement
-def judge(scene: Scene, system: BlockSystem, blocks: frozenset, *, settings: DdaSettings,
-          params: Optional[Params] = None, removed: frozenset = frozenset(),
-          friction: Optional[float] = None, reduction: float = 1.0,
-          record_every: Optional[int] = None):
-    """Simulate the group's sub-model once and decide stable / unstable.
-
-    With ``record_every`` the run is not stopped early and its `ddatai.Results` (of the
-    sub-model) are returned too: ``(judgement, results, ids)``; otherwise the judgement alone.
-    """
-    from ddatai.model import build_model
-    from ddatai.results import SimulationError
-    from ddatai.run import simulate  # starts Taichi
-
-    sub, ids = sub_scene(scene, system, blocks, removed=removed, free_neighbours=settings.free_neighbours,
-                         friction=friction, reduction=reduction)
-    prm = run_params(params, settings)
-    delta = settings.displacement_ratio * group_size(system, blocks)
-    duration = settings.duration or math.sqrt(2.0 * delta / settings.acceleration_resolution)
-    model = build_model(sub, prm)  # built once: its origin maps the positions, simulate runs it
-    origin = model.origin
-    pos = [ids.index(b) for b in sorted(blocks)]
-    counts = np.array([len(s.vertices) for s in sub.blocks])
-    offset = np.concatenate([[0], np.cumsum(counts)])
-    vidx = np.concatenate([np.arange(offset[p], offset[p + 1]) for p in pos])
-    starts = np.concatenate([[0], np.cumsum(counts[pos])[:-1]])
-    x0 = np.concatenate([sub.blocks[p].vertices for p in pos]) - origin
-    stop_at = settings.stop_ratio * delta if record_every is None else math.inf
-    times, disp = [0.0], [0.0]
-
-    def progress(state, record):
-        # displacement of each member = mean displacement of its vertices (its centroid's for a
-        # rigid translation); the group's = the largest
-        u = np.add.reduceat(state.vertex_xy[vidx] - x0, starts, axis=0) / counts[pos][:, None]
-        times.append(state.time)
-        disp.append(float(np.max(np.hypot(u[:, 0], u[:, 1]))))
-        if disp[-1] > stop_at:
-            raise _StopRun
-
-    t0 = time.perf_counter()
-    note = ""
-    results = None
-    try:
-        results = simulate(sub, prm, duration=duration, progress=progress,
-                           record_every=record_every or 10 ** 9, model=model)
-    except _StopRun:
-        note = "stopped early"
-    except SimulationError as err:
-        if max(disp) < delta:
-            raise
-        note = f"diverged after failing: {err}"
-        results = err.results
-    wall = time.perf_counter() - t0
-    j = _verdict(np.array(times), np.array(disp), delta=delta, duration=duration, note=note, wall_time=wall,
-                 friction=friction, reduction=reduction, model_blocks=len(ids),
-                 moving_blocks=sum(not s.fixed for s in sub.blocks), scene_blocks=scene.n_blocks)
-    if settings.progress is not None:
-        settings.progress(j)
-    if record_every is not None:
-        return j, results, ids
-    return j
-
-
-def _verdict(t: np.ndarray, d: np.ndarray, *, delta: float, duration: float, note: str, **fields) -> DdaJudgement:
-    """The verdict of a run from its displacement history d(t) (`kgm.DdaSettings`): unstable if
-    it was stopped or failed after moving, or if d(T) ≥ δ while its mean speed over the last
-    quarter of the run is ≥ δ/T."""
-    tq = 0.75 * t[-1]
-    speed = float((d[-1] - np.interp(tq, t, d)) / max(t[-1] - tq, 1e-300))
-    unstable = bool(note) or (d[-1] >= delta and speed >= delta / duration)
-    return DdaJudgement(stable=not unstable, displacement=float(d[-1]), speed=speed, threshold=delta,
-                        duration=duration, simulated=float(t[-1]), steps=len(t) - 1, note=note, **fields)
-
-
 # ---------------------------------------------------------------------- bisections
 def evaluate_dda(scene: Scene, system: BlockSystem, blocks: frozenset, *, settings: DdaSettings,
                  params: Optional[Params] = None, removed: frozenset = frozenset(),
@@ -253,8 +85,6 @@ def evaluate_dda(scene: Scene, system: BlockSystem, blocks: frozenset, *, settin
     side by side in one model (`judge_many`) and each bracket is cut into as many pieces as it
     has probes (a K-section instead of a bisection): the same final brackets, to the same
     tolerances, in a few runs instead of a dozen."""
-    from .batched import judge_many
-
     runs: list[DdaJudgement] = []
     cache: dict[tuple, DdaJudgement] = {}
 

@@ -1,5 +1,5 @@
 """Independent models run side by side in one (`ddatai.batch`) and the kgm judgements that use
-it (`kgm.dda.judge_members`): each member moves as it does alone, each verdict is the one its
+it (`kgm.batched.judge_members`): each member moves as it does alone, each verdict is the one its
 own run gives, and a batched bisection finds the closed-form limit."""
 
 import math
