@@ -30,8 +30,11 @@ Measured (2-core AMD EPYC, default `DdaSettings`, the whole run 64 s): Goodman &
 φc = 38.28° by DDA (39 s) against 38.15°; Alejano & Alonso's DDA FS = 0.779 with the base plane
 daylighting (stable at 0.773, unstable at 0.784; 7 runs, 9 s; with --fs-tolerance 0.005:
 0.773–0.776) against the recursion's 0.7734, and 1.044 with the bench (1.037–1.051; 8 runs,
-15 s): the bench holds the toe (docs/kgm/method.md §4.5). A benchmark, not a test: the DDA
-bisections take about a minute.
+15 s): the bench holds the toe (docs/kgm/method.md §4.5). With the batched K-section (the default
+since, 16 probes a run; a loaded 2-core Intel Xeon): φc = 38.27° (42 s), FS 0.779 (0.773 –
+0.785, 12 s) and, with the bench, 1.024: DDA's verdicts alternate between F = 1.004 and 1.049
+there (the printed bracket turns over; docs/kgm/method.md §6.4). A benchmark, not a test: the
+DDA searches take about a minute.
 """
 
 import argparse

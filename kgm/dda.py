@@ -59,7 +59,7 @@ class DdaEvaluation:
     """DDA verdict, strength-reduction FS and critical friction angle of a group."""
 
     fs: float
-    """Strength-reduction factor of safety [-] (midpoint of the final bisection bracket)."""
+    """Strength-reduction factor of safety [-] (midpoint of the final bracket, geometric)."""
     critical_friction: float
     """Friction angle of all joints (cohesion held) at the stability limit [degrees]."""
     judgement: DdaJudgement
@@ -70,6 +70,23 @@ class DdaEvaluation:
     """Wall-clock time of all runs [s]."""
     timing: Optional[DdaTiming] = None
     """Sub-model vs whole slope per-step timing (if `DdaSettings.compare_whole`)."""
+
+    def bracket(self, what: str = "fs") -> tuple[float, float]:
+        """The runs around the limit: for ``"fs"`` (largest F judged stable, smallest F judged
+        unstable), for ``"friction"`` (largest φ judged unstable, smallest φ judged stable); nan
+        where no run was on that side. The first exceeds the second where DDA's verdicts are not
+        monotone near the limit — the band in which a run's verdict depends on details of its
+        dynamics (docs/kgm/method.md §6.4); ``fs`` and ``critical_friction`` are then its middle."""
+        if what == "fs":
+            stable = [j.reduction for j in self.runs if j.friction is None and j.stable]
+            unstable = [j.reduction for j in self.runs if j.friction is None and not j.stable]
+            return (max(stable, default=math.nan), min(unstable, default=math.nan))
+        if what == "friction":
+            stable = [j.friction for j in self.runs if j.friction is not None and j.reduction == 1.0 and j.stable]
+            unstable = [j.friction for j in self.runs if j.friction is not None and j.reduction == 1.0
+                        and not j.stable]
+            return (max(unstable, default=math.nan), min(stable, default=math.nan))
+        raise ValueError(f"DdaEvaluation.bracket: what must be 'fs' or 'friction', got {what!r}")
 
 
 # ---------------------------------------------------------------------- bisections
@@ -156,7 +173,9 @@ class _Bracket:
     [lower, upper]: each round proposes points that cut the bracket (largest unstable x,
     smallest stable x) into equal pieces, or, while one side is missing, points stepping away
     from what is known (the step doubling each round); done when the bracket is at most
-    ``tolerance`` wide or the limit lies outside [lower, upper]."""
+    ``tolerance`` wide or the limit lies outside [lower, upper]. Where DDA's verdicts are not
+    monotone near the limit (a stable run below an unstable one), the bracket turns over: the
+    search stops and the limit is the middle of that band (`DdaEvaluation.bracket`)."""
 
     def __init__(self, *, guess: float, lower: float, upper: float, tolerance: float, step: float):
         self.guess, self.lower, self.upper = guess, lower, upper

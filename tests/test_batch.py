@@ -173,3 +173,39 @@ def test_member_states_cut_out_what_combined_state_put_in():
         assert np.array_equal(s.memory.state, own.memory.state)
         assert np.array_equal(s.memory.omega, own.memory.omega)
         assert np.array_equal(s.block_stress, own.block_stress) and s.time == own.time
+
+
+@pytest.mark.parametrize("limit", [0.0, 3.3, 11.02, 40.0, 88.9, 89.5])
+def test_k_section_closes_on_a_monotone_limit(limit):
+    """The batched search alone, on a verdict stable for φ ≥ limit: it ends within the tolerance
+    of the limit (0 and 90 where the limit lies outside [0°, 89°]), 16 probes a round."""
+    from kgm.dda import _Bracket
+
+    b = _Bracket(guess=20.0, lower=0.0, upper=89.0, tolerance=0.25, step=2.0)
+    rounds = 0
+    while not b.done:
+        xs = b.proposals(16, share_next=16)
+        assert xs and len(xs) <= 16
+        for x in xs:
+            b.record(x, x >= limit)
+        rounds += 1
+    got = b.limit(lambda x: x, below=0.0, above=90.0)
+    if limit <= 0.0:
+        assert got == 0.0
+    elif limit > 89.0:
+        assert got == 90.0
+    else:
+        assert abs(got - limit) <= 0.125 + 1e-12
+    assert rounds <= 6
+
+
+def test_k_section_stops_on_verdicts_that_turn_over():
+    """Verdicts that are not monotone near the limit (stable at 10.4°, unstable at 10.6°): the
+    bracket turns over, the search stops, the limit is the middle of the band."""
+    from kgm.dda import _Bracket
+
+    b = _Bracket(guess=10.0, lower=0.0, upper=89.0, tolerance=0.25, step=2.0)
+    for x, stable in [(9.0, False), (10.4, True), (10.6, False), (12.0, True)]:
+        b.record(x, stable)
+    assert b.done
+    assert b.limit(lambda x: x, below=0.0, above=90.0) == pytest.approx(10.5)
