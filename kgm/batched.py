@@ -70,8 +70,9 @@ def judge_members(members, blocks: frozenset, *, settings: DdaSettings, params: 
     ``exact``: every verdict is the one its own run gives, not only as a rule: with a fixed Δt
     (`ddatai.Params.dt`) the members take the same steps as alone until one of them makes the
     run cut Δt (a member that fails and falls); the run stops there and the members not yet
-    decided are judged again without the ones that were (a probabilistic study's table does
-    not depend on how its samples were grouped). With the automatic Δt, one run a member.
+    decided are judged again, in two halves (halved again where a half cuts Δt again, down to
+    one member a run), so that a probabilistic study's table does not depend on how its samples
+    were grouped. With the automatic Δt, one run a member.
 
     Falls back to one `judge` a member where members cannot share a run (a water table, shaking,
     sub-models whose geometry, δ or model constants differ, a single member), and for the
@@ -201,10 +202,13 @@ def judge_members(members, blocks: frozenset, *, settings: DdaSettings, params: 
                           batch=n_members)
         if settings.progress is not None:
             settings.progress(out[k])
-    if cut and rerun:
-        again = judge_members([members[k] for k in rerun], blocks, settings=settings, params=params,
-                              removed=removed, exact=True)
-        out.update(zip(rerun, again))
+    if cut and len(rerun) > 1:
+        # which member made the step cut Δt is not known: the undecided ones are judged again
+        # in two halves (a half that cuts again is halved again, down to runs of one member)
+        for part in (rerun[:len(rerun) // 2], rerun[len(rerun) // 2:]):
+            again = judge_members([members[k] for k in part], blocks, settings=settings, params=params,
+                                  removed=removed, exact=True)
+            out.update(zip(part, again))
     else:
         out.update(alone(rerun))
     return [out[k] for k in range(len(members))]

@@ -209,3 +209,23 @@ def test_k_section_stops_on_verdicts_that_turn_over():
         b.record(x, stable)
     assert b.done
     assert b.limit(lambda x: x, below=0.0, above=90.0) == pytest.approx(10.5)
+
+
+def test_a_batch_whose_step_cuts_dt_judges_its_members_again():
+    """With a fixed Δt of 40 ms the block at φ = 5° accelerates until a step moves it too far and
+    Δt is cut: its batch no longer takes the steps the others take alone, so the members not yet
+    decided are judged again (in halves): every verdict, step count and displacement is still its
+    own run's."""
+    scene, _, b = kgm_cases.block_on_incline(theta=THETA, width=2.0, height=1.0, friction=35.0, cohesion=0.0)
+    system = build_block_system(scene)
+    settings = kgm.DdaSettings(duration=1.5, stop_ratio=400.0)
+    params = dd.Params(dt=0.04)
+    probes = [(5.0, 1.0), (29.5, 1.0), (40.0, 1.0), (25.0, 1.0)]
+    many = judge_members([Member(scene=scene, system=system, friction=f, reduction=r) for f, r in probes],
+                         frozenset([b]), settings=settings, params=params, exact=True)
+    assert min(j.batch for j in many) < len(probes)  # judged again, in smaller batches
+    for (f, r), j in zip(probes, many):
+        alone = judge(scene, system, frozenset([b]), settings=settings, params=params, friction=f, reduction=r)
+        assert (j.stable, j.steps, j.note) == (alone.stable, alone.steps, alone.note)
+        assert j.displacement == pytest.approx(alone.displacement, rel=1e-9, abs=1e-12)
+    assert [j.stable for j in many] == [False, False, True, False]
