@@ -417,8 +417,9 @@ def probabilistic(build, variables: Mapping, n: int, *, method: str = "sarma",
     size = (settings.dda if settings is not None else DdaSettings()).sample_batch \
         if method == "dda" and not dda_fs else 1
     if size > 1:
-        # two batches a worker or more keep them all busy to the end; none larger than asked
-        sharing = 1 if client is None and workers == 1 else 2 * _n_workers(client, workers)
+        # one batch a worker or more (a larger batch shares a step among more samples: per
+        # sample a batch of 128 costs a fifth of one of 16); none larger than asked
+        sharing = 1 if client is None and workers == 1 else _n_workers(client, workers)
         size = max(1, min(size, -(-len(items) // sharing)))
         batches = [tuple(items[i:i + size]) for i in range(0, len(items), size)]
         results = run(functools.partial(_evaluate_batch, job), [(b[0][0], b) for b in batches],

@@ -81,7 +81,7 @@ class DdaSettings:
     sample_batch: int = 128
     """Samples of a DDA-judged probabilistic study (verdicts only) judged side by side in one
     run (`kgm.batched.judge_members`, exact: the table is the one of one run a sample), at most so
-    many that every worker gets two batches; 1: one run a sample [-]. Large batches pay: a
+    many that every worker gets a batch; 1: one run a sample [-]. Large batches pay: a
     member-step costs 1.6 ms alone, 0.17 ms among 16 and 0.036 ms among 128 (Example II's group,
     docs/guide/performance.md "Batched studies")."""
     progress: Optional[Callable[..., None]] = None
