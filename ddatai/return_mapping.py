@@ -43,16 +43,17 @@ STALL_ITERATIONS = 20
 MAX_FINISH_SOLVES = 8
 #: a pseudo-step that has not found its equilibrium in this many solves gives up (the welded
 #: start follows, module docstring 6.)
-MAX_STAGE_SOLVES = 150
+MAX_STAGE_SOLVES = 300
 #: the line search halves its interval this many times (`_line_search`)
 LINE_SEARCH_BISECTIONS = 30
 #: Anderson acceleration of the slips keeps this many past iterates (`_anderson`), and starts
 #: again when the largest out-of-balance force has not halved in this many iterations
 ANDERSON_DEPTH = 8
 ANDERSON_RESTART = 4
-#: a vertex-edge contact that opened or closed this many times in an iteration opens by the
-#: return mapping of its normal spring from then on (`_iterate`)
-CHATTER_FLIPS = 4
+#: once an iteration has stalled, it goes on from there with each vertex-edge contact that has
+#: opened or closed this many times opening by the return mapping of its normal spring
+#: (`_iterate`, ``freeze``)
+CHATTER_FLIPS = 2
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -125,20 +126,26 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
     out = released.copy()
     solves = 0
     guess = None
+    freeze = False
     while solves < MAX_STAGE_SOLVES:
         keep = ~(out[contacts.block_a] | out[contacts.block_b])
         if frame is None or not keep.all():
             contacts = subset_contacts(contacts, keep)
             guess = guess.subset(keep) if guess is not None else None
             frame = Frame.build(stepper, state, geom, contacts, dt)
-        outcome, guess = _iterate(stepper, frame, contacts, geom, out, size, guess)
+        outcome, raw = _iterate(stepper, frame, contacts, geom, out, size, guess, freeze)
         solves += outcome.solves
         if outcome.disp is None:
             return None, solves, out & ~released, contacts
-        guess = _opened(guess, outcome.law)  # the contacts as handed over
+        guess = _opened(raw.copy(), outcome.law)  # the contacts as handed over
         contacts.state[:] = np.where(guess.closed, contacts.state, OPEN)
         contacts.dn[:] = outcome.law.dn_now
         mechanism = mechanisms(stepper, state.vertex_xy, geom, contacts, outcome.disp, out, size)
+        if not mechanism.any() and not outcome.converged and not freeze:
+            # stalled: once more from there, contacts whose states flip back and forth opening
+            # by the return mapping of their normal springs (`_iterate`)
+            freeze, guess = True, raw
+            continue
         if not mechanism.any() and not outcome.converged:
             # out of balance after the iteration: those blocks that move away in the open-close
             # iteration, their contacts at the strength sliding, are mechanisms
@@ -182,7 +189,7 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
 
 
 def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndarray,
-             size: np.ndarray, guess: Optional[Guess]) -> tuple[Outcome, Guess]:
+             size: np.ndarray, guess: Optional[Guess], freeze: bool = False) -> tuple[Outcome, Guess]:
     """The return-mapping iteration of one pseudo-step (module docstring, 1.–2.). Every closed
     contact is a spring — normal, and for a vertex-edge one shear from its lock point moved by
     its slip — so that no block loses its stiffness while the iteration finds which contacts
@@ -193,9 +200,10 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
       reuse), and move D towards the solution as far as the energy falls (`_line_search`);
     - a contact opens where it pulls beyond its tensile strength, closes where it overlaps, and
       a vertex-vertex one changes line where the other is less penetrated — each only where
-      that changes a force by more than the tolerance (below); a vertex-edge contact that has
-      opened or closed CHATTER_FLIPS times opens from then on by the return mapping of its
-      normal spring (its rest point moved by how far it opens, ``Guess.gap``; K kept);
+      that changes a force by more than the tolerance (below); with ``freeze`` (an iteration
+      that stalled, going on), a vertex-edge contact that has opened or closed CHATTER_FLIPS
+      times opens from then on by the return mapping of its normal spring (its rest point
+      moved by how far it opens, ``Guess.gap``; K kept);
     - the slip of a closed vertex-edge contact grows by what its shear spring carries beyond the
       Coulomb strength N·tanφ + c·L of its own normal force (the return mapping of elastic,
       perfectly plastic friction, which keeps its cohesion while sliding), Anderson-accelerated
@@ -262,10 +270,10 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
         # both where that moves a force by more than ``Params.oc_state_tolerance`` of the load
         state_loose = p.oc_state_tolerance * carried + model.force_roundoff
         closes = ~guess.closed & law.closed & (law.fn > state_loose)
-        # a contact opens (K changes) — but a vertex-edge one that has already opened or closed
-        # CHATTER_FLIPS times in this iteration opens by the return mapping of its normal
-        # spring (below), K kept: states that flip back and forth do not settle
-        frozen = ve & (flips >= CHATTER_FLIPS)
+        # a contact opens (K changes) — but, going on from a stall, a vertex-edge one that has
+        # already opened or closed CHATTER_FLIPS times opens by the return mapping of its
+        # normal spring (below), K kept: states that flip back and forth do not settle
+        frozen = ve & (flips >= CHATTER_FLIPS) & freeze
         opens = ~frozen & guess.closed & ~law.closed & (pen * law.dn - tensile > loose)
         flips += closes | opens
         switch = vv & guess.closed & law.closed & (law.line != guess.line) & \

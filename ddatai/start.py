@@ -22,10 +22,11 @@ solve of the model under its weight, the point loads at t = 0 and its initial st
    strength grows by the excess (the return mapping of elastic, perfectly plastic friction,
    Anderson-accelerated), and a contact opens where it pulls beyond its tensile strength or
    closes where it overlaps (K changes only then; otherwise the last factor solves the next
-   iterate, and where states change the step stops where the energy stops falling) — a
-   vertex-edge contact that has opened or closed CHATTER_FLIPS times opens from then on by the
-   return mapping of its normal spring (tension cut-off, K kept), as corner contacts of blocks
-   cut by persistent joints otherwise do by turns for the whole iteration. It ends
+   iterate, and where states change the step stops where the energy stops falling); an
+   iteration that stalls goes on from there with each vertex-edge contact that has opened or
+   closed CHATTER_FLIPS times opening by the return mapping of its normal spring (tension
+   cut-off, K kept), as corner contacts of blocks cut by persistent joints otherwise do by
+   turns for the whole iteration. It ends
    when no state changes and every contact force is the contact law's within
    ``Params.oc_force_tolerance`` × the load its blocks carry — the law's forces then balance
    every block within that much —, or, where the iteration stalls before, within
