@@ -16,7 +16,7 @@ import numpy as np
 from scipy.sparse import csr_matrix
 
 from .assembly import BlockPattern, assemble_blocks, assemble_contacts, contact_vectors
-from .contact_law import contact_law, internal_force
+from .contact_law import contact_law
 from .contacts import Contacts
 from .kinematics import block_displacement
 from .layout import KIND, LOCK, OPEN, S_E0, S_E1, S_ES, S_G0, S_G1, S_GS, SLIDE, VE, VV
@@ -43,16 +43,17 @@ STALL_ITERATIONS = 20
 MAX_FINISH_SOLVES = 8
 #: a pseudo-step that has not found its equilibrium in this many solves gives up (the welded
 #: start follows, module docstring 6.)
-MAX_STAGE_SOLVES = 150
+MAX_STAGE_SOLVES = 300
 #: the line search halves its interval this many times (`_line_search`)
 LINE_SEARCH_BISECTIONS = 30
 #: Anderson acceleration of the slips keeps this many past iterates (`_anderson`), and starts
 #: again when the largest out-of-balance force has not halved in this many iterations
 ANDERSON_DEPTH = 8
 ANDERSON_RESTART = 4
-#: round-off of the balance of the settled geometry that ends the pseudo-steps (`balanced`), as a
-#: fraction of the load that a contact's blocks carry
-BALANCE_ROUNDOFF = 1e-12
+#: once an iteration has stalled, it goes on from there with each vertex-edge contact that has
+#: opened or closed this many times opening by the return mapping of its normal spring
+#: (`_iterate`, ``freeze``)
+CHATTER_FLIPS = 2
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -82,15 +83,21 @@ class Frame:
 class Guess:
     """The return-mapping iteration's contact unknowns besides D: which contacts are closed,
     the entrance line of a vertex-vertex one, and how far each vertex-edge one has slid (its
-    lock point moved that far along the edge) [m]."""
+    lock point moved that far along the edge) [m], and how far each vertex-edge one has opened
+    by the return mapping of its normal spring (`_iterate`) [m]."""
 
     closed: np.ndarray
     line: np.ndarray
     slip: np.ndarray
+    gap: np.ndarray
 
     @staticmethod
     def start(contacts: Contacts) -> "Guess":
-        return Guess(closed=contacts.state != OPEN, line=contacts.line.copy(), slip=np.zeros(contacts.n))
+        return Guess(closed=contacts.state != OPEN, line=contacts.line.copy(), slip=np.zeros(contacts.n),
+                     gap=np.zeros(contacts.n))
+
+    def copy(self) -> "Guess":
+        return Guess(**{k: v.copy() for k, v in vars(self).items()})
 
     def subset(self, keep: np.ndarray) -> "Guess":
         return Guess(**{k: v[keep] for k, v in vars(self).items()})
@@ -119,19 +126,26 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
     out = released.copy()
     solves = 0
     guess = None
+    freeze = False
     while solves < MAX_STAGE_SOLVES:
         keep = ~(out[contacts.block_a] | out[contacts.block_b])
         if frame is None or not keep.all():
             contacts = subset_contacts(contacts, keep)
             guess = guess.subset(keep) if guess is not None else None
             frame = Frame.build(stepper, state, geom, contacts, dt)
-        outcome, guess = _iterate(stepper, frame, contacts, geom, out, size, guess)
+        outcome, raw = _iterate(stepper, frame, contacts, geom, out, size, guess, freeze)
         solves += outcome.solves
         if outcome.disp is None:
             return None, solves, out & ~released, contacts
+        guess = _opened(raw.copy(), outcome.law)  # the contacts as handed over
         contacts.state[:] = np.where(guess.closed, contacts.state, OPEN)
         contacts.dn[:] = outcome.law.dn_now
         mechanism = mechanisms(stepper, state.vertex_xy, geom, contacts, outcome.disp, out, size)
+        if not mechanism.any() and not outcome.converged and not freeze:
+            # stalled: once more from there, contacts whose states flip back and forth opening
+            # by the return mapping of their normal springs (`_iterate`)
+            freeze, guess = True, raw
+            continue
         if not mechanism.any() and not outcome.converged:
             # out of balance after the iteration: those blocks that move away in the open-close
             # iteration, their contacts at the strength sliding, are mechanisms
@@ -175,7 +189,7 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
 
 
 def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndarray,
-             size: np.ndarray, guess: Optional[Guess]) -> tuple[Outcome, Guess]:
+             size: np.ndarray, guess: Optional[Guess], freeze: bool = False) -> tuple[Outcome, Guess]:
     """The return-mapping iteration of one pseudo-step (module docstring, 1.–2.). Every closed
     contact is a spring — normal, and for a vertex-edge one shear from its lock point moved by
     its slip — so that no block loses its stiffness while the iteration finds which contacts
@@ -186,7 +200,10 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
       reuse), and move D towards the solution as far as the energy falls (`_line_search`);
     - a contact opens where it pulls beyond its tensile strength, closes where it overlaps, and
       a vertex-vertex one changes line where the other is less penetrated — each only where
-      that changes a force by more than the tolerance (below);
+      that changes a force by more than the tolerance (below); with ``freeze`` (an iteration
+      that stalled, going on), a vertex-edge contact that has opened or closed CHATTER_FLIPS
+      times opens from then on by the return mapping of its normal spring (its rest point
+      moved by how far it opens, ``Guess.gap``; K kept);
     - the slip of a closed vertex-edge contact grows by what its shear spring carries beyond the
       Coulomb strength N·tanφ + c·L of its own normal force (the return mapping of elastic,
       perfectly plastic friction, which keeps its cohesion while sliding), Anderson-accelerated
@@ -210,6 +227,7 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
     pen, ks = model.penalty, model.shear_penalty
     disp = np.zeros((model.n_blocks, 6))
     history: list = []
+    flips = np.zeros(contacts.n, np.int64)  # how often each contact opened or closed
     changed = True  # the closed contacts changed: K is factorised
     best, best_at = np.inf, 0
     outcome = Outcome()
@@ -220,6 +238,7 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
         contacts.coupled[:] = False
         sca = frame.sca.copy()
         sca[:, 2] -= guess.slip  # ds from the lock point moved by the slip
+        sca[:, 0] -= guess.gap   # dn from the spring's rest point moved by the opening
         data, rhs = frame.data.copy(), frame.rhs.copy()
         assemble_contacts(stepper.model, contacts, frame.pattern, frame.vec, sca, data, rhs, stepper.serial_scatter)
         target = solve(stepper, frame.pattern, data, rhs, reuse=not changed)
@@ -232,7 +251,7 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
         alpha = _line_search(stepper, frame, contacts, sca, disp, target - disp, shearing) \
             if changed and it > 1 else 1.0
         disp = target if alpha == 1.0 else disp + alpha * (target - disp)
-        law = contact_law(stepper.model, _coupled(contacts), frame.vec, sca, disp)
+        law = contact_law(stepper.model, coupled(contacts), frame.vec, sca, disp)
         outcome.disp, outcome.law = disp, law
         moved = block_displacement(stepper.model, frame.vertex_xy, geom, disp)
         far = free & ~out & (moved > MECHANISM_SIZE * size)
@@ -251,21 +270,36 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
         # both where that moves a force by more than ``Params.oc_state_tolerance`` of the load
         state_loose = p.oc_state_tolerance * carried + model.force_roundoff
         closes = ~guess.closed & law.closed & (law.fn > state_loose)
-        opens = guess.closed & ~law.closed & (pen * law.dn - tensile > loose)
+        # a contact opens (K changes) — but, going on from a stall, a vertex-edge one that has
+        # already opened or closed CHATTER_FLIPS times opens by the return mapping of its
+        # normal spring (below), K kept: states that flip back and forth do not settle
+        frozen = ve & (flips >= CHATTER_FLIPS) & freeze
+        opens = ~frozen & guess.closed & ~law.closed & (pen * law.dn - tensile > loose)
+        flips += closes | opens
         switch = vv & guess.closed & law.closed & (law.line != guess.line) & \
             (pen * np.abs(law.dn - law.dn_now) > state_loose)
         changed = bool(np.any(closes | opens | switch))
         guess.closed = (guess.closed | closes) & ~opens
         guess.line = np.where(closes | switch, law.line, guess.line).astype(np.int8)
+        # normal: the return mapping of the tension cut-off — a closed vertex-edge contact
+        # pulled beyond its tensile strength opens by the excess (its spring's rest point moves
+        # by ``gap``), and an opened one closes again as far as it is pressed (gap ≥ 0)
+        allowance = tensile / pen
+        gapping = frozen & guess.closed & ((law.dn > allowance) | (guess.gap > 0.0))
+        new_gap = np.where(gapping, np.maximum(guess.gap + law.dn - allowance, 0.0), 0.0)
+        normal_excess = pen * np.abs(new_gap - guess.gap)
         # shear: the return mapping
         trial = ks * law.ds
         excess = np.where(shearing & guess.closed, np.abs(trial) - law.strength, -np.inf)
+        excess = np.maximum(excess, np.where(gapping, normal_excess, -np.inf))
         outcome.excess = excess
-        dslip = np.where(excess > 0, np.maximum(excess, 0.0) / ks * np.sign(trial), 0.0)
+        dslip = np.where(excess > 0, np.maximum(np.abs(trial) - law.strength, 0.0) / ks * np.sign(trial), 0.0)
+        dslip = np.where(shearing & guess.closed, dslip, 0.0)
         if not changed and alpha == 1.0 and np.all(excess <= state_loose):
             # within the looser tolerance: kept in case the strict one is not reached
             accepted = (replace(outcome, disp=disp.copy(), converged=True),
-                        Guess(closed=guess.closed.copy(), line=guess.line.copy(), slip=guess.slip + dslip),
+                        Guess(closed=guess.closed.copy(), line=guess.line.copy(), slip=guess.slip + dslip,
+                              gap=guess.gap.copy()),
                         dslip)
             if np.all(excess <= loose):
                 # the last correction brings each spring to at most its strength; the forces it
@@ -284,45 +318,32 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
             break  # the slips no longer converge: out-of-balance blocks are tested
         elif (it - best_at) % ANDERSON_RESTART == 0:
             history.clear()  # the acceleration has stagnated: start it again from here
-        guess.slip = _anderson(history, guess.slip, guess.slip + dslip)
+        n = contacts.n
+        mixed = _anderson(history, np.concatenate([guess.slip, guess.gap]),
+                          np.concatenate([guess.slip + dslip, new_gap]))
+        guess.slip, guess.gap = mixed[:n], np.maximum(mixed[n:], 0.0)
     if accepted is not None:
         outcome, guess, dslip = accepted
         outcome.law.ds[:] = outcome.law.ds - dslip
     return outcome, guess
 
 
-def balanced(stepper, frame: Frame, contacts: Contacts, geom: dict, size: np.ndarray) -> bool:
-    """Whether the contacts as the last pseudo-step handed them over hold every block at this
-    (settled) geometry to round-off: at D = 0 each keeps its state by the contact law, no shear
-    spring exceeds its strength, and the contact law's forces balance each block's loads (force
-    and moment rows), each within BALANCE_ROUNDOFF of the load its blocks carry (a block held
-    by a weak spring, a bolt, must not keep a residual of the tolerance of `_iterate`)."""
-    model = stepper.model
-    c = _coupled(contacts)
-    law = contact_law(stepper.model, c, frame.vec, frame.sca, np.zeros((model.n_blocks, 6)))
-    ve = c.cint[:, KIND] == VE
-    closed = c.state != OPEN
-    weight = model.block_density * geom["area"] * float(np.hypot(*model.gravity))
-    level = weight.copy()
-    np.maximum.at(level, c.block_a, np.abs(law.fn))
-    np.maximum.at(level, c.block_b, np.abs(law.fn))
-    loose = BALANCE_ROUNDOFF * np.maximum(level[c.block_a], level[c.block_b])
-    tensile = np.where(c.bond, c.tensile * c.length, 0.0)
-    if np.any(closed & ~law.closed & (model.penalty * law.dn - tensile > loose)) or \
-            np.any(~closed & law.closed & (law.fn > loose)):
-        return False
-    locked = ve & closed & (c.state == LOCK)
-    excess = np.where(locked, model.shear_penalty * np.abs(law.ds) - law.strength, 0.0)
-    if np.any(excess > loose):
-        return False
-    residual = np.abs((frame.rhs - internal_force(stepper.model, c, frame.vec, law, stepper.serial_scatter)).reshape(-1, 6))
-    rows = stepper.free_idx
-    allowed = BALANCE_ROUNDOFF * level[rows]
-    return bool(np.all(residual[:, :2] <= allowed[:, None]) and
-                np.all(residual[:, 2:] <= (allowed * size[rows])[:, None]))
+def _opened(guess: Guess, law) -> Guess:
+    """The guess with each vertex-edge contact that the normal return mapping opened (gap > 0)
+    open, and the law's distances of those contacts measured from the contact again, in
+    place."""
+    if law is not None and np.any(guess.gap > 0.0):
+        gapped = guess.gap > 0.0
+        law.dn[gapped] += guess.gap[gapped]
+        law.dn_now[gapped] += guess.gap[gapped]
+        law.closed[gapped] = False
+        law.fn[gapped] = 0.0
+    guess.closed = guess.closed & ~(guess.gap > 0.0)
+    guess.gap = np.zeros_like(guess.gap)
+    return guess
 
 
-def _coupled(contacts: Contacts) -> Contacts:
+def coupled(contacts: Contacts) -> Contacts:
     """A copy whose friction follows the normal force of the solve it is evaluated at."""
     c = contacts.copy()
     c.coupled[:] = True

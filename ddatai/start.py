@@ -22,7 +22,11 @@ solve of the model under its weight, the point loads at t = 0 and its initial st
    strength grows by the excess (the return mapping of elastic, perfectly plastic friction,
    Anderson-accelerated), and a contact opens where it pulls beyond its tensile strength or
    closes where it overlaps (K changes only then; otherwise the last factor solves the next
-   iterate, and where states change the step stops where the energy stops falling). It ends
+   iterate, and where states change the step stops where the energy stops falling); an
+   iteration that stalls goes on from there with each vertex-edge contact that has opened or
+   closed CHATTER_FLIPS times opening by the return mapping of its normal spring (tension
+   cut-off, K kept), as corner contacts of blocks cut by persistent joints otherwise do by
+   turns for the whole iteration. It ends
    when no state changes and every contact force is the contact law's within
    ``Params.oc_force_tolerance`` × the load its blocks carry — the law's forces then balance
    every block within that much —, or, where the iteration stalls before, within
@@ -81,17 +85,20 @@ import numpy as np
 
 
 from .assembly import BlockPattern, assemble_blocks, assemble_contacts, contact_vectors, load_forces
-from .contact_law import contact_law, friction_force
+from .contact_law import contact_law, friction_force, internal_force
 from .contacts import Contacts
 from .kinematics import block_displacement, settle_points
 from .layout import E0, KIND, LOCK, OPEN, SLIDE, VE
 from .model import ContactMemory, State
 from .open_close import solve
 from .mechanisms import FALL_IN_SIZES, mechanisms
-from .return_mapping import STAGE_BETA, Frame, balanced, return_mapping, subset_contacts
+from .return_mapping import STAGE_BETA, Frame, coupled, return_mapping, subset_contacts
 #: at most this many pseudo-steps (each re-solves the increment at the settled geometry; the
 #: second is ~strain × the first, the third round-off)
 MAX_PSEUDO_STEPS = 8
+#: round-off of the balance of the settled geometry that ends the pseudo-steps (`balanced`), as a
+#: fraction of the load that a contact's blocks carry
+BALANCE_ROUNDOFF = 1e-12
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -222,6 +229,37 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
                          at_strength=len(at_strength & set(memory.key.tolist())),
                          wall_time=_time.perf_counter() - t0, welded=welded)
     return state.replace(memory=memory), record, True
+
+
+def balanced(stepper, frame: Frame, contacts: Contacts, geom: dict, size: np.ndarray) -> bool:
+    """Whether the contacts as the last pseudo-step handed them over hold every block at this
+    (settled) geometry to round-off: at D = 0 each keeps its state by the contact law, no shear
+    spring exceeds its strength, and the contact law's forces balance each block's loads (force
+    and moment rows), each within BALANCE_ROUNDOFF of the load its blocks carry (a block held
+    by a weak spring, a bolt, must not keep a residual of the tolerance of `_iterate`)."""
+    model = stepper.model
+    c = coupled(contacts)
+    law = contact_law(stepper.model, c, frame.vec, frame.sca, np.zeros((model.n_blocks, 6)))
+    ve = c.cint[:, KIND] == VE
+    closed = c.state != OPEN
+    weight = model.block_density * geom["area"] * float(np.hypot(*model.gravity))
+    level = weight.copy()
+    np.maximum.at(level, c.block_a, np.abs(law.fn))
+    np.maximum.at(level, c.block_b, np.abs(law.fn))
+    loose = BALANCE_ROUNDOFF * np.maximum(level[c.block_a], level[c.block_b])
+    tensile = np.where(c.bond, c.tensile * c.length, 0.0)
+    if np.any(closed & ~law.closed & (model.penalty * law.dn - tensile > loose)) or \
+            np.any(~closed & law.closed & (law.fn > loose)):
+        return False
+    locked = ve & closed & (c.state == LOCK)
+    excess = np.where(locked, model.shear_penalty * np.abs(law.ds) - law.strength, 0.0)
+    if np.any(excess > loose):
+        return False
+    residual = np.abs((frame.rhs - internal_force(stepper.model, c, frame.vec, law, stepper.serial_scatter)).reshape(-1, 6))
+    rows = stepper.free_idx
+    allowed = BALANCE_ROUNDOFF * level[rows]
+    return bool(np.all(residual[:, :2] <= allowed[:, None]) and
+                np.all(residual[:, 2:] <= (allowed * size[rows])[:, None]))
 
 
 def _restore(model, state: State, initial: State, blocks: np.ndarray) -> State:

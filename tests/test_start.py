@@ -158,3 +158,25 @@ def test_welded_start_opens_a_contact_pulled_beyond_its_tensile_strength(tensile
         assert drop == pytest.approx(0.5 * G * 0.2 ** 2, rel=0.005)
     else:
         assert abs(drop) < 1e-5
+
+
+def test_the_kgm_slope_scene_starts_from_its_frictional_equilibrium():
+    """`scenes/kgm_slope.py` (39 free blocks cut by two persistent joint sets, φ = 30°,
+    c = 20 kPa): corner contacts at the joints' junctions open and close by turns in the
+    return mapping (the stage used to stall and start welded); with those contacts opening by
+    the return mapping of their normal springs the stage converges, holds every block, and its
+    equilibrium is one: every contact force within its Mohr–Coulomb strength and every block
+    balanced (`start.balanced`), so that the first steps from it move no block by more than
+    round-off (1e-9 m; sudden gravity moves the blocks by millimetres in that time)."""
+    from scenes.kgm_slope import build
+
+    scene, params = build()[:2]
+    model = build_model(scene, params)
+    stepper = Stepper(model)
+    state, record = settle(stepper, model.initial_state())
+    assert not record.welded and record.held == model.n_free and record.released == 0
+    start = model.block_geometry(state.vertex_xy)["centroid"]
+    for _ in range(3):
+        state, _ = stepper.step(state)
+    moved = np.hypot(*(model.block_geometry(state.vertex_xy)["centroid"] - start).T)
+    assert moved.max() < 1e-9
