@@ -706,12 +706,15 @@ def contact_law(cint: I32_2, cstate: I8_2, cvalue: F64_2, block_a: I32_1, block_
 
 @ti.kernel
 def violations(cint: I32_2, cstate: I8_2, cvalue: F64_2, block_a: I32_1, block_b: I32_1,
-               law_f: F64_2, law_i: I8_2, level: F64_1, penalty: ti.f64, force_tolerance: ti.f64,
-               by_load: ti.i32, state_tolerance: ti.f64, roundoff: ti.f64, bad: I8_1):
+               law_f: F64_2, law_i: I8_2, level: F64_1, fixed: I8_1, penalty: ti.f64,
+               force_tolerance: ti.f64, by_load: ti.i32, state_tolerance: ti.f64, roundoff: ti.f64,
+               bad: I8_1):
     """Contacts whose assumed state must change given the law at the solution
     (``ddatai.contact_law.violations`` documents the rules; the NumPy twin is ``violations_numpy``).
     ``level`` enters as each block's weight and leaves as the load the block carries (its
-    weight or its largest contact force)."""
+    weight or its largest contact force). ``by_load``: the force tolerance is a fraction of
+    that load, of the contact's free blocks only (1; ``fixed``: each block's flag), or of the
+    contact's own strength (0; ``Params.oc_force_reference``)."""
     for c in range(cint.shape[0]):
         f = ti.abs(law_f[LAW_FN, c])
         ti.atomic_max(level[block_a[c]], f)
@@ -727,7 +730,12 @@ def violations(cint: I32_2, cstate: I8_2, cvalue: F64_2, block_a: I32_1, block_b
         strict = force_tolerance * strength + roundoff
         strict_tension = force_tolerance * tensile + roundoff
         if by_load != 0:
-            strict = force_tolerance * carried + roundoff
+            free_carried = 0.0
+            if fixed[block_a[c]] == 0:
+                free_carried = level[block_a[c]]
+            if fixed[block_b[c]] == 0:
+                free_carried = ti.max(free_carried, level[block_b[c]])
+            strict = force_tolerance * free_carried + roundoff
             strict_tension = strict
         out = False
         if not vv and now == STATE_LOCK:

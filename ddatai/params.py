@@ -237,14 +237,15 @@ class Params:
     above). The default, 1e-3 of the load the contact's blocks carry, moves a critical tanφ by
     at most ~1e-3 (~0.05°; docs/method/dda.md §4.3)."""
     oc_force_reference: Literal["load", "strength"] = "load"
-    """What ``oc_force_tolerance`` is a fraction of: "load" (the default), the load the
-    contact's blocks carry — their weight or their largest contact force, as for
-    ``oc_state_tolerance``; "strength", the contact's own strength (N·tanφ + c·L for Coulomb,
-    T·L for tension). The strict setting of earlier versions is ``oc_force_reference="strength",
-    oc_force_tolerance=1e-6`` (`STRICT_CONVERGENCE`): every contact at its own strength to
-    1e-6, at the cost of more open-close solves on large models (a contact that carries almost
-    nothing flips between sticking and sliding for a force far below anything that moves its
-    blocks)."""
+    """What ``oc_force_tolerance`` is a fraction of: "load", the load the contact's blocks carry
+    (their weight or largest contact force, as for ``oc_state_tolerance``), or "strength", the
+    contact's own (N·tanφ + c·L, T·L): the strict test of earlier versions, with 1e-6
+    (`STRICT_CONVERGENCE`)."""
+    oc_friction: Literal["coupled", "lagged"] = "coupled"
+    """Friction of sliding contacts within a step: "coupled", N = −p·dn of the same solve (a
+    non-symmetric K, an LU); "lagged", N of the last solve as a load (K symmetric, Cholesky,
+    falling back to coupled where it stalls). Both accept the same law; lagged took 1.5–2× the
+    solves on the benchmark models, more than its cheaper factor saves (`ddatai.open_close`)."""
     oc_state_tolerance: float = 1e-3
     """Open-close convergence, state and motion [-]: a contact's state may differ from what its
     motion calls for (open but overlapping, sliding where it would stick) while the force that
@@ -316,6 +317,8 @@ class Params:
         _require(self.oc_force_tolerance < 0.1,
                  f"Params.oc_force_tolerance must be < 0.1 (a fraction of a contact's load or strength), "
                  f"got {self.oc_force_tolerance!r}")
+        _require(self.oc_friction in ("lagged", "coupled"),
+                 f"Params.oc_friction must be 'lagged' or 'coupled', got {self.oc_friction!r}")
         _require(self.oc_force_reference in ("load", "strength"),
                  f"Params.oc_force_reference must be 'load' or 'strength', got {self.oc_force_reference!r}")
         _require(self.dt_min_ratio < 1.0, f"Params.dt_min_ratio must be < 1, got {self.dt_min_ratio!r}")

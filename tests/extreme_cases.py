@@ -152,8 +152,8 @@ class Outcome:
     steps: int = 0
 
 
-def run_case(spec: CaseSpec) -> Outcome:
-    """Run a case with the default parameters and check the properties of the run:
+def run_case(spec: CaseSpec, params: "dict | None" = None) -> Outcome:
+    """Run a case with the default parameters (or these ``Params`` fields) and check the properties of the run:
     every recorded value finite; no accepted step with a penetration above the limit; no
     energy created (the balance's rest, friction + integrator work, is ≥ 0 within the energy
     that penalty springs can hold at the recorded penetrations); Coulomb's law at every closed
@@ -166,7 +166,7 @@ def run_case(spec: CaseSpec) -> Outcome:
         scene, steps = build(spec)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            model = dd.build_model(scene)
+            model = dd.build_model(scene, dd.Params(**params) if params else None)
     except ValueError as err:
         return Outcome("refused", str(err))
     # a model warned for block strains beyond what a first-order block carries accurately
