@@ -411,7 +411,7 @@ class Config:
 
 
 DEFAULT_LABEL = "defaults"
-CONTACT_GROUPS = ("penalty", "state", "open")
+CONTACT_GROUPS = ("penalty", "state", "open", "convergence")
 WRONG_ANSWER_ERROR = 0.5
 """An error this large is a wrong answer (the block did not move, did not topple): such runs
 are listed and drawn but kept off the best curve."""
@@ -429,6 +429,10 @@ def sweep_configs(quick: bool) -> list[Config]:
     configs += [Config("state", f"state tol {v:g}", {"oc_state_tolerance": v})
                 for v in (1e-5, 1e-4, 1e-2)]
     configs += [Config("start", "sudden gravity", {"initial_equilibrium": False})]
+    # the strict open-close test of earlier versions (Coulomb within 1e-6 of each contact's
+    # strength) against the default (1e-3 of the load carried; docs/method/dda.md §4.3)
+    configs += [Config("convergence", "strict convergence", {"oc_force_reference": "strength",
+                                                             "oc_force_tolerance": 1e-6})]
     configs += [Config("open", f"open tol {v:g} w0", {"open_tolerance": v})
                 for v in (1e-14, 1e-12, 1e-11, 1e-10)]  # larger values are rejected: they act
     #                                           as tension and shear allowances (docs/guide/accuracy.md)

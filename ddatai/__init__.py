@@ -36,7 +36,7 @@ __version__ = "0.1.0"
 
 # public name -> module that defines it (PEP 562 lazy attributes)
 _EXPORTS = {
-    "Material": "params", "Joint": "params", "BartonBandis": "params", "Params": "params", "UnitWarning": "params",
+    "Material": "params", "Joint": "params", "BartonBandis": "params", "Params": "params", "STRICT_CONVERGENCE": "params", "UnitWarning": "params",
     "Scene": "scene",
     "Model": "model", "State": "model", "ContactState": "layout", "ContactKind": "layout",
     "build_model": "model",

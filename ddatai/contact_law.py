@@ -216,39 +216,49 @@ def violations(model: Model, contacts: Contacts, law: ContactLaw, block_load: np
     cstate, cvalue = law_inputs(contacts)
     bad = np.empty(contacts.n, np.int8)
     K.violations(contacts.cint, cstate, cvalue, contacts.block_a, contacts.block_b, law.packed[0],
-                 law.packed[1], block_load.copy(), model.penalty, p.oc_force_tolerance,
-                 p.oc_state_tolerance, model.force_roundoff, bad)
+                 law.packed[1], block_load.copy(), model.block_fixed.view(np.int8), model.penalty,
+                 p.oc_force_tolerance, int(p.oc_force_reference == "load"), p.oc_state_tolerance,
+                 model.force_roundoff, bad)
     return bad.view(bool)
 
 
 def violations_numpy(model: Model, contacts: Contacts, law: ContactLaw, block_load: np.ndarray) -> np.ndarray:
     """Contacts whose assumed state must change, given the law at the solution.
 
-    Strict, within ``oc_force_tolerance`` of the contact's own strength (plus the round-off
-    force p·open_tolerance·w0): Coulomb's law (a locked contact's shear force ≤ S, a
-    sliding one's friction = S of this solve) and the tensile strength (a closed contact
-    pulls at most T·L while bonded, else not at all). Within ``oc_state_tolerance`` × the
-    load its blocks carry (their weight or their largest contact force): the match of state
+    Within ``oc_force_tolerance`` × the load its free blocks carry (their weight or their
+    largest contact force; ``oc_force_reference="load"``, the default) or × the contact's own strength
+    (``"strength"``, the strict test), plus the round-off force p·open_tolerance·w0: Coulomb's
+    law (a locked contact's shear force ≤ S, a sliding one's friction = S of this solve) and
+    the tensile strength (a closed contact pulls at most T·L while bonded, else not at all).
+    Within ``oc_state_tolerance`` × the load its blocks carry: the match of state
     and motion — an open contact that overlaps, a sliding one that would stick or slide
     the other way. A contact that carries almost nothing (a head joint of a loaded grid)
     then does not keep the iteration flipping it between open and closed, or between
-    sticking and sliding, at forces far below anything that moves its blocks."""
+    sticking and sliding, at forces far below anything that moves its blocks (§4.3)."""
     m, p = model, model.params
     vv = contacts.cint[:, KIND] == VV
     now = contacts.state
     atol = m.force_roundoff
-    strict = p.oc_force_tolerance * law.strength + atol
-    locked = (now == LOCK) & ~vv
-    sliding = (now == SLIDE) & ~vv & law.closed
-    coulomb = locked & (np.abs(law.ft_now) > law.strength + strict)
-    friction = sliding & (np.abs(law.friction_now - law.strength) > strict)
-    tensile = np.where(contacts.bond, contacts.tensile * contacts.length, 0.0)
-    tension = (now != OPEN) & (-law.fn_now > tensile + p.oc_force_tolerance * tensile + atol)
     # the load each block carries: its weight, or its largest contact force
     level = block_load.copy()
     np.maximum.at(level, contacts.block_a, np.abs(law.fn))
     np.maximum.at(level, contacts.block_b, np.abs(law.fn))
-    loose = p.oc_state_tolerance * np.maximum(level[contacts.block_a], level[contacts.block_b]) + atol
+    carried = np.maximum(level[contacts.block_a], level[contacts.block_b])
+    tensile = np.where(contacts.bond, contacts.tensile * contacts.length, 0.0)
+    by_load = p.oc_force_reference == "load"
+    if by_load:
+        # the force tests: the load of the contact's free blocks only (a fixed block's weight
+        # and the forces on it are held by its support, not by the contact)
+        free_level = np.where(m.block_fixed, 0.0, level)
+        reference = np.maximum(free_level[contacts.block_a], free_level[contacts.block_b])
+    strict = p.oc_force_tolerance * (reference if by_load else law.strength) + atol
+    strict_tension = p.oc_force_tolerance * (reference if by_load else tensile) + atol
+    locked = (now == LOCK) & ~vv
+    sliding = (now == SLIDE) & ~vv & law.closed
+    coulomb = locked & (np.abs(law.ft_now) > law.strength + strict)
+    friction = sliding & (np.abs(law.friction_now - law.strength) > strict)
+    tension = (now != OPEN) & (-law.fn_now > tensile + strict_tension)
+    loose = p.oc_state_tolerance * carried + atol
     state = (np.abs(law.fn_now - law.fn) > loose) | (np.abs(law.ft_now - law.ft) > loose)
     # a VV contact whose other line is clearly less penetrated switches
     state |= vv & (now != OPEN) & (law.line != contacts.line) & (m.penalty * np.abs(law.dn - law.dn_now) > loose)
@@ -256,7 +266,7 @@ def violations_numpy(model: Model, contacts: Contacts, law: ContactLaw, block_lo
 
 
 def judge(model: Model, contacts: Contacts, law: ContactLaw, bad: np.ndarray,
-          break_bonds: bool = True) -> Judgement:
+          break_bonds: bool = True, couple: bool = True) -> Judgement:
     """Open-close judgement (§4.2–4.3) in place on ``contacts``.
 
     The solve assumed a state for each contact; ``law`` (`contact_law` at the solution)
@@ -266,8 +276,9 @@ def judge(model: Model, contacts: Contacts, law: ContactLaw, bad: np.ndarray,
     a closed one pulling harder than its tensile strength — or if its state does not match
     its motion by more than a small force (an open contact that overlaps, a sliding one
     that would stick). Such a contact takes the law's state, a sliding one with its friction
-    from the solve it is in (it becomes `coupled`: implicit friction), and the step
-    iterates again. When none must change, every contact obeys no-tension and Coulomb's
+    from the solve it is in (it becomes `coupled`: implicit friction; with ``couple=False``, the
+    lagged friction of ``Params.oc_friction``, from the normal force of this solve in the next),
+    and the step iterates again. When none must change, every contact obeys no-tension and Coulomb's
     law at the solution.
     """
     p = model.params
@@ -291,7 +302,8 @@ def judge(model: Model, contacts: Contacts, law: ContactLaw, bad: np.ndarray,
         slide = bad & (law.state == SLIDE) & ~vv
         # friction from the same solve from now on: the normal force of the last solve is
         # stale for a contact that was locked or open in it, or whose force moved
-        contacts.coupled |= slide
+        if couple:
+            contacts.coupled |= slide
         contacts.shear_dir[slide] = law.direction[slide]
         contacts.state[bad] = law.state[bad]
         contacts.line[bad] = law.line[bad]

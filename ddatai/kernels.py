@@ -706,12 +706,15 @@ def contact_law(cint: I32_2, cstate: I8_2, cvalue: F64_2, block_a: I32_1, block_
 
 @ti.kernel
 def violations(cint: I32_2, cstate: I8_2, cvalue: F64_2, block_a: I32_1, block_b: I32_1,
-               law_f: F64_2, law_i: I8_2, level: F64_1, penalty: ti.f64, force_tolerance: ti.f64,
-               state_tolerance: ti.f64, roundoff: ti.f64, bad: I8_1):
+               law_f: F64_2, law_i: I8_2, level: F64_1, fixed: I8_1, penalty: ti.f64,
+               force_tolerance: ti.f64, by_load: ti.i32, state_tolerance: ti.f64, roundoff: ti.f64,
+               bad: I8_1):
     """Contacts whose assumed state must change given the law at the solution
     (``ddatai.contact_law.violations`` documents the rules; the NumPy twin is ``violations_numpy``).
     ``level`` enters as each block's weight and leaves as the load the block carries (its
-    weight or its largest contact force)."""
+    weight or its largest contact force). ``by_load``: the force tolerance is a fraction of
+    that load, of the contact's free blocks only (1; ``fixed``: each block's flag), or of the
+    contact's own strength (0; ``Params.oc_force_reference``)."""
     for c in range(cint.shape[0]):
         f = ti.abs(law_f[LAW_FN, c])
         ti.atomic_max(level[block_a[c]], f)
@@ -720,7 +723,20 @@ def violations(cint: I32_2, cstate: I8_2, cvalue: F64_2, block_a: I32_1, block_b
         vv = cint[c, 0] == KIND_VV
         now = ti.cast(cstate[IN_STATE, c], ti.i32)
         strength = law_f[LAW_STRENGTH, c]
+        carried = ti.max(level[block_a[c]], level[block_b[c]])
+        tensile = 0.0
+        if cstate[IN_BOND, c] != 0:
+            tensile = cvalue[IN_TENSILE, c] * cvalue[IN_LENGTH, c]
         strict = force_tolerance * strength + roundoff
+        strict_tension = force_tolerance * tensile + roundoff
+        if by_load != 0:
+            free_carried = 0.0
+            if fixed[block_a[c]] == 0:
+                free_carried = level[block_a[c]]
+            if fixed[block_b[c]] == 0:
+                free_carried = ti.max(free_carried, level[block_b[c]])
+            strict = force_tolerance * free_carried + roundoff
+            strict_tension = strict
         out = False
         if not vv and now == STATE_LOCK:
             # Coulomb: a locked contact holds at most its strength
@@ -728,12 +744,9 @@ def violations(cint: I32_2, cstate: I8_2, cvalue: F64_2, block_a: I32_1, block_b
         if not vv and now == STATE_SLIDE and law_i[LAW_CLOSED, c] != 0:
             # a sliding contact's friction is the strength of this solve
             out = out or ti.abs(law_f[LAW_FRICTION_NOW, c] - strength) > strict
-        tensile = 0.0
-        if cstate[IN_BOND, c] != 0:
-            tensile = cvalue[IN_TENSILE, c] * cvalue[IN_LENGTH, c]
         if now != STATE_OPEN:
-            out = out or -law_f[LAW_FN_NOW, c] > tensile + force_tolerance * tensile + roundoff
-        loose = state_tolerance * ti.max(level[block_a[c]], level[block_b[c]]) + roundoff
+            out = out or -law_f[LAW_FN_NOW, c] > tensile + strict_tension
+        loose = state_tolerance * carried + roundoff
         out = out or ti.abs(law_f[LAW_FN_NOW, c] - law_f[LAW_FN, c]) > loose or \
             ti.abs(law_f[LAW_FT_NOW, c] - law_f[LAW_FT, c]) > loose
         if vv and now != STATE_OPEN and law_i[LAW_LINE, c] != cstate[IN_LINE, c]:

@@ -29,6 +29,10 @@ DENSITY_RANGE = (100.0, 2.0e4)      # kg/m³
 YOUNG_MIN = 1.0e5                   # Pa
 STRENGTH_MIN = 100.0                # Pa, a cohesion or tensile strength that is not 0
 FRICTION_RADIANS = math.pi / 2      # degrees: a friction angle at or below this looks like radians
+#: The strict open-close convergence test (``dataclasses.replace(params, **STRICT_CONVERGENCE)``):
+#: Coulomb's law and the tensile strength within 1e-6 of each contact's own strength, the test
+#: of earlier versions (`Params.oc_force_reference`).
+STRICT_CONVERGENCE = {"oc_force_reference": "strength", "oc_force_tolerance": 1e-6}
 
 
 def unit_hint(name: str, value: float) -> Optional[str]:
@@ -225,11 +229,23 @@ class Params:
     tensile strength T·L of a bonded joint). It only absorbs round-off: a tolerance like
     ntdda's f0 = 2e-7 would let contacts carry tensions of p·f0·w0 (thousands of kN at rock
     penalties) and blocks could never topple."""
-    oc_force_tolerance: float = 1e-6
+    oc_force_tolerance: float = 1e-3
     """Open-close convergence, the contact law [-]: in an accepted step every locked contact's
     shear force is at most its Coulomb strength S = N·tanφ + c·L, every sliding contact's
     friction is S of that step, and no contact pulls harder than its tensile strength — each
-    within this fraction of the contact's own strength (plus the round-off force above)."""
+    within this fraction of the force named by ``oc_force_reference`` (plus the round-off force
+    above). The default, 1e-3 of the load the contact's blocks carry, moves a critical tanφ by
+    at most ~1e-3 (~0.05°; docs/method/dda.md §4.3)."""
+    oc_force_reference: Literal["load", "strength"] = "load"
+    """What ``oc_force_tolerance`` is a fraction of: "load", the load the contact's blocks carry
+    (their weight or largest contact force, as for ``oc_state_tolerance``), or "strength", the
+    contact's own (N·tanφ + c·L, T·L): the strict test of earlier versions, with 1e-6
+    (`STRICT_CONVERGENCE`)."""
+    oc_friction: Literal["coupled", "lagged"] = "coupled"
+    """Friction of sliding contacts within a step: "coupled", N = −p·dn of the same solve (a
+    non-symmetric K, an LU); "lagged", N of the last solve as a load (K symmetric, Cholesky,
+    falling back to coupled where it stalls). Both accept the same law; lagged took 1.5–2× the
+    solves on the benchmark models, more than its cheaper factor saves (`ddatai.open_close`)."""
     oc_state_tolerance: float = 1e-3
     """Open-close convergence, state and motion [-]: a contact's state may differ from what its
     motion calls for (open but overlapping, sliding where it would stick) while the force that
@@ -299,8 +315,12 @@ class Params:
                  f"Params.oc_state_tolerance must be < 0.1 (a fraction of a block's load), "
                  f"got {self.oc_state_tolerance!r}")
         _require(self.oc_force_tolerance < 0.1,
-                 f"Params.oc_force_tolerance must be < 0.1 (a fraction of each contact force), "
+                 f"Params.oc_force_tolerance must be < 0.1 (a fraction of a contact's load or strength), "
                  f"got {self.oc_force_tolerance!r}")
+        _require(self.oc_friction in ("lagged", "coupled"),
+                 f"Params.oc_friction must be 'lagged' or 'coupled', got {self.oc_friction!r}")
+        _require(self.oc_force_reference in ("load", "strength"),
+                 f"Params.oc_force_reference must be 'load' or 'strength', got {self.oc_force_reference!r}")
         _require(self.dt_min_ratio < 1.0, f"Params.dt_min_ratio must be < 1, got {self.dt_min_ratio!r}")
         _require(self.solver in ("auto", "scipy", "pardiso", "dense"),
                  f"Params.solver must be 'auto', 'scipy', 'pardiso' or 'dense', got {self.solver!r}")

@@ -33,7 +33,8 @@ STEP_DTYPE = np.dtype([
     ("integrator_work", "f8"),  # the rest of the balance: dissipated by the integrator (>= 0)
     ("coulomb", "f8"),          # largest |shear force| − Coulomb strength N·tanφ + c·L of a closed
                                 # contact in the accepted solve [N/m]; at most oc_force_tolerance ×
-                                # its strength + p·open_tolerance·w0 (Coulomb's law holds)
+                                # its blocks' load (or its strength: Params.oc_force_reference)
+                                # + p·open_tolerance·w0 (Coulomb's law holds)
     ("t_time_step", "f8"),      # wall time: the choice of Δt [s]
     ("t_judge", "f8"),          # wall time: contact law, line search and open-close judgement [s]
     ("t_accept", "f8"),         # wall time: the acceptance checks of the solution [s]

@@ -140,3 +140,20 @@ def biplanar_critical_friction(**geometry) -> float:
         return e * ((np.cos(a) + mu * np.sin(a)) / (np.sin(a) - mu * np.cos(a)) + mu) - w_a
 
     return float(np.degrees(np.arctan(brentq(f, 1e-9, min(np.tan(a), 1.0) - 1e-9))))
+
+
+def law_slack(model, stepper, contacts) -> np.ndarray:
+    """(m,) how far an accepted step's contact forces may miss Coulomb's law: the open-close
+    force tolerance × the load of the contact's free blocks (their weight or largest contact
+    force; `ddatai.contact_law.violations_numpy`), or × the contact's strength under the strict
+    test, plus the round-off force p·open_tolerance·w0."""
+    p = model.params
+    strength = contacts.normal_force * contacts.tan_phi + contacts.cohesion * contacts.length * contacts.bond
+    if p.oc_force_reference == "strength":
+        return p.oc_force_tolerance * strength + model.force_roundoff
+    level = stepper.block_load.copy()
+    np.maximum.at(level, contacts.block_a, np.abs(contacts.normal_force))
+    np.maximum.at(level, contacts.block_b, np.abs(contacts.normal_force))
+    level[model.block_fixed] = 0.0
+    carried = np.maximum(level[contacts.block_a], level[contacts.block_b])
+    return p.oc_force_tolerance * carried + model.force_roundoff

@@ -152,8 +152,8 @@ class Outcome:
     steps: int = 0
 
 
-def run_case(spec: CaseSpec) -> Outcome:
-    """Run a case with the default parameters and check the properties of the run:
+def run_case(spec: CaseSpec, params: "dict | None" = None) -> Outcome:
+    """Run a case with the default parameters (or these ``Params`` fields) and check the properties of the run:
     every recorded value finite; no accepted step with a penetration above the limit; no
     energy created (the balance's rest, friction + integrator work, is ≥ 0 within the energy
     that penalty springs can hold at the recorded penetrations); Coulomb's law at every closed
@@ -166,7 +166,7 @@ def run_case(spec: CaseSpec) -> Outcome:
         scene, steps = build(spec)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            model = dd.build_model(scene)
+            model = dd.build_model(scene, dd.Params(**params) if params else None)
     except ValueError as err:
         return Outcome("refused", str(err))
     # a model warned for block strains beyond what a first-order block carries accurately
@@ -206,7 +206,7 @@ def check(res, model, energy: bool = True) -> list[str]:
     # Allowance: the energy of every closed contact's penalty spring at the step's deepest
     # penetration (an open-close change within a step can release at most that), summed, plus
     # the open-close tolerances: a spring's energy at the opening tolerance per contact, and
-    # oc_force_tolerance (1e-6) of the energies and of the external work (a contact's forces
+    # oc_force_tolerance of the energies and of the external work (a contact's forces
     # obey the law to that fraction, so the work they do does too)
     p = model.penalty
     rest = np.cumsum(s["friction_work"] + s["integrator_work"])
@@ -227,10 +227,15 @@ def check(res, model, energy: bool = True) -> list[str]:
     if energy and np.any(created > 0):
         k = int(np.argmax(created))
         out.append(f"energy created by step {k + 1}: {-rest[k]:.3g} J/m, allowance {allowance[k]:.3g} J/m")
-    # Coulomb: |shear| − S ≤ oc_force_tolerance·S + round-off, S ≤ p·pen·tanφ + c·L
+    # Coulomb: |shear| − S ≤ oc_force_tolerance × the load carried (at most the largest contact
+    # force p·pen or the heaviest block's weight) or × S (the strict test), + round-off;
+    # S ≤ p·pen·tanφ + c·L
     params = model.params
     strength = p * s["max_penetration"] * float(np.max(model.joint_tan_phi, initial=0.0)) + \
         float(np.max(model.joint_cohesion, initial=0.0)) * 2.0 * model.w0
+    if params.oc_force_reference == "load":
+        weight = model.block_density * model.block_geometry(model.vertex_xy0)["area"] * float(np.hypot(*model.gravity))
+        strength = np.maximum(p * s["max_penetration"], float(np.max(weight, initial=0.0)))
     bound = params.oc_force_tolerance * strength + 10.0 * model.force_roundoff
     if np.any(s["coulomb"] > bound):
         k = int(np.argmax(s["coulomb"] - bound))

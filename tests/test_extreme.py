@@ -57,10 +57,10 @@ def cases(draw, regime: str, steps: int = 25):
     return CaseSpec(kind="cut", joints=joints, **base)
 
 
-def _holds(spec: CaseSpec, refuse_ok: bool) -> None:
+def _holds(spec: CaseSpec, refuse_ok: bool, params: "dict | None" = None) -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # strain and precision warnings are part of the contract
-        out = run_case(spec)
+        out = run_case(spec, params)
     if out.status == "refused":
         # a refusal must say what to change, and is allowed only where the regime allows it
         assert refuse_ok, f"refused a rock-like scene: {out.message}\n{spec!r}"
@@ -121,12 +121,14 @@ def test_frictionless_wedge_under_a_tilting_block_creates_no_energy():
     joint slides apart under gravity — the wedge under the 22° joint and the small triangle it
     cuts off the upper block slide right at ~1 m/s while the other two blocks tilt together —
     and the balance's rest falls to −1.76 J/m (kinetic energy 1,780 J/m), below the 1.4 J/m the
-    penalty springs and tolerances allow. Strict: it fails the day the cause is fixed."""
+    penalty springs and tolerances allow. Strict: it fails the day the cause is fixed. Run
+    under the strict open-close test (`ddatai.STRICT_CONVERGENCE`): the default's 1e-3 of the
+    load carried allows work of that fraction of the energies (1.8 J/m here), which hides it."""
     spec = CaseSpec(kind="cut", size=1.0, density=800.0, young=float(np.exp(22.0)), poisson=0.0,
                     friction=0.0, cohesion=0.0, tensile=0.0, gravity=9.81, shapes=(), aspects=(),
                     gaps=(), shifts=(), velocities=(), spins=(), joints=((0.5, 0.5, 0.0), (0.5, 0.25, 22.0)),
                     load=0.0, shaking=0.0, steps=25)
-    _holds(spec, refuse_ok=False)
+    _holds(spec, refuse_ok=False, params=dd.STRICT_CONVERGENCE)
 
 
 def _drop(speed: tuple, gravity: float, height: float = 0.5):

@@ -19,11 +19,12 @@ FLOAT_FIELDS = ("dn", "ds", "fn", "ft", "strength", "dn_now", "fn_now", "ft_now"
 STATE_FIELDS = ("line", "closed", "state", "direction")
 
 
-def _case(seed):
+def _case(seed, reference="load"):
     """A random jointed scene with random contact states, bonds, strengths, coupling, normal
     forces, and lines that a vertex was already behind at the step start."""
     scene = random_jointed_scene(seed)
-    model = build_model(scene, dd.Params(dt=1e-3, kernels="taichi"))
+    model = build_model(scene, dd.Params(dt=1e-3, kernels="taichi", oc_force_reference=reference,
+                                         oc_force_tolerance=1e-3 if reference == "load" else 1e-6))
     rng = np.random.default_rng(seed)
     xy = perturbed_vertices(model, seed, shift=0.2 * model.search_distance)
     cint, length = detect_contacts(model, xy)
@@ -51,7 +52,10 @@ def _case(seed):
 @pytest.mark.parametrize("seed", range(6))
 @pytest.mark.parametrize("serial", [True, False], ids=["serial-loop", "parallel-loop"])
 def test_judgement_kernels_equal_numpy(seed, serial):
-    model, load, c, vec, sca, rng = _case(seed)
+    # both convergence tests (Params.oc_force_reference), alternating with the seed
+    model, load, c, vec, sca, rng = _case(seed, "load" if seed % 2 else "strength")
+    # a heavy fixed block: its weight must not loosen the force tests of its contacts
+    load = np.where(model.block_fixed, 1e6 * load, load)
     assert c.n > 20
     scale = model.search_distance
     for trial in range(4):
@@ -111,3 +115,37 @@ def test_a_run_judged_by_the_kernels_follows_the_numpy_path(monkeypatch):
     assert np.abs(xy_k - xy_n).max() < 1e-9
     # the grid has fallen onto its base and moved
     assert np.abs(xy_k - build_model(scene(), params).vertex_xy0).max() > 4e-3
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_force_tests_measure_the_load_of_free_blocks(seed):
+    """The default force tests (``oc_force_reference = "load"``) take the load of a contact's
+    free blocks: a heavy fixed block does not loosen them. A locked contact on the fixed block
+    holding its strength + ½ tolerance passes, + 2 × tolerance is marked — by the kernel and its
+    NumPy twin alike."""
+    model, load, c, vec, sca, rng = _case(seed, "load")
+    load = np.where(model.block_fixed, 1e6 * load, load)
+    disp = np.zeros((model.n_blocks, 6))
+    law = contact_law(model, c, vec, sca, disp)
+    ref = contact_law_numpy(model, c, vec, sca, disp)
+    # the load of the free blocks, as the judgement computes it
+    level = load.copy()
+    np.maximum.at(level, c.block_a, np.abs(ref.fn))
+    np.maximum.at(level, c.block_b, np.abs(ref.fn))
+    level[model.block_fixed] = 0.0
+    free = np.maximum(level[c.block_a], level[c.block_b])
+    on_fixed = (model.block_fixed[c.block_a] | model.block_fixed[c.block_b]) & (c.cint[:, 0] == 0)
+    c.state[on_fixed] = dd.ContactState.LOCK
+    c.bond[on_fixed] = False
+    picked = np.flatnonzero(on_fixed)
+    assert len(picked) >= 2
+    tol = model.params.oc_force_tolerance
+    for factor, marked in ((0.5, False), (2.0, True)):
+        for lw in (law, ref):
+            # the law as the solve would find it: the locked spring at strength + factor × tol
+            lw.ft_now[picked] = lw.strength[picked] + factor * tol * free[picked]
+            lw.ft[picked] = lw.ft_now[picked]
+            lw.fn_now[picked] = lw.fn[picked]
+        np.testing.assert_array_equal(violations(model, c, law, load)[picked],
+                                      violations_numpy(model, c, ref, load)[picked])
+        assert np.all(violations_numpy(model, c, ref, load)[picked] == marked)

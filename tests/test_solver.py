@@ -215,3 +215,65 @@ def test_pardiso_runs_are_bit_for_bit_reproducible():
                           record_every=10**9)
         ends.append(res.vertices[-1])
     assert np.array_equal(ends[0], ends[1])
+
+
+def _changed_states(seed, changes):
+    """A system K, F and the same geometry with ``changes`` contacts' states changed (closed
+    ones opened, locked ones sliding; None: all closed ones): the later solves of an
+    open-close iteration."""
+    model = build_model(random_jointed_scene(seed))
+    xy = perturbed_vertices(model, seed, shift=0.1 * model.search_distance)
+    state = model.initial_state().replace(vertex_xy=xy)
+    cint, length = detect_contacts(model, xy)
+    c = Contacts.start(model, xy, cint, length, ContactMemory.empty(), True)
+    stepper = Stepper(model)
+    geom = model.block_geometry(xy)
+    pattern = BlockPattern.build(model, c)
+    vec, sca = contact_vectors(model, xy, geom, c)
+    data0, rhs0 = assemble_blocks(model, state, geom, pattern, 0.005, beta=0.5)
+    systems = []
+    rng = np.random.default_rng(seed)
+    closed = np.flatnonzero(c.state != dd.ContactState.OPEN)
+    changes = [len(closed) if n is None else n for n in changes]
+    assert len(closed) >= max(changes) >= 20, len(closed)
+    for n_changed in (0,) + tuple(changes):
+        k = c.copy()
+        pick = rng.choice(closed, size=n_changed, replace=False)
+        k.state[pick] = np.where(rng.random(n_changed) < 0.5, dd.ContactState.OPEN, dd.ContactState.SLIDE)
+        k.normal_force[pick] = 1e5
+        data, rhs = data0.copy(), rhs0.copy()
+        assemble_contacts(model, k, pattern, vec, sca, data, rhs, stepper.serial_scatter)
+        systems.append((data, rhs * (1.0 + 0.1 * rng.standard_normal(len(rhs)))))
+    return pattern, systems
+
+
+@pytest.mark.parametrize("backend", ["dense", *BACKENDS])
+def test_krylov_solve_with_the_last_factor_matches_the_direct_solve(backend):
+    """A later solve of a step (``krylov``): K differs from the matrix last factorised by a few
+    contacts' states; GMRES preconditioned by the old factor gives the direct solution (1e-10
+    relative) at a direct solve's residual, without a factorisation. Many changes exhaust its
+    iterations: the matrix is factorised, and the new factor serves the next solves."""
+    from ddatai.solver import KRYLOV_ACCEPT
+
+    pattern, systems = _changed_states(2, (1, 2, None))
+    (data0, rhs0), few, more, many = systems
+    n = len(rhs0)
+    solver = SparseSolver(backend)
+    solver.solve(data0, pattern.indices, pattern.indptr, rhs0, pattern=pattern)
+    for data, rhs in (few, more):
+        x = solver.solve(data, pattern.indices, pattern.indptr, rhs, pattern=pattern, krylov=True)
+        direct = SparseSolver(backend).solve(data, pattern.indices, pattern.indptr, rhs)
+        K = csr_matrix((data, pattern.indices, pattern.indptr), shape=(n, n))
+        assert np.abs(K @ x - rhs).max() <= KRYLOV_ACCEPT * np.abs(rhs).max()
+        assert np.abs(x - direct).max() < 1e-10 * np.abs(direct).max()
+    assert (solver.factorisations, solver.krylov) == (1, 2)
+    assert 0 < solver.krylov_iterations <= 2 * 12
+    data, rhs = many
+    x = solver.solve(data, pattern.indices, pattern.indptr, rhs, pattern=pattern, krylov=True)
+    assert (solver.factorisations, solver.krylov) == (2, 2)
+    direct = SparseSolver(backend).solve(data, pattern.indices, pattern.indptr, rhs)
+    assert np.abs(x - direct).max() < 1e-10 * np.abs(direct).max()
+    # the factor of the many changes preconditions the next solve (here: the same matrix)
+    x = solver.solve(data, pattern.indices, pattern.indptr, 0.5 * rhs, pattern=pattern, krylov=True)
+    assert (solver.factorisations, solver.krylov) == (2, 3)
+    assert np.abs(x - 0.5 * direct).max() < 1e-10 * np.abs(direct).max()

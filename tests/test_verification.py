@@ -107,16 +107,23 @@ def test_constant_point_load_on_frictionless_base():
     assert abs(res.centroid[-1, block, 1] - res.centroid[0, block, 1]) < 1e-5
 
 
-def test_time_dependent_point_load():
+@pytest.mark.parametrize("convergence", [{}, dd.STRICT_CONVERGENCE], ids=["default", "strict"])
+def test_time_dependent_point_load(convergence):
     """F(t) = F0·t gives x = F0 t³/(6m). The load is sampled at mid-step, so each step's
-    position carries a'Δt³/12 (a' = F0/m): relative error Δt²/(2T²) = 5e-5 at Δt = 0.01 s."""
+    position carries a'Δt³/12 (a' = F0/m): relative error Δt²/(2T²) = 5e-5 at Δt = 0.01 s.
+    Under the default open-close test (docs/method/dda.md §4.3) the contacts may hold up to
+    oc_force_tolerance × the block's weight W = m·g of shear beyond their strength (zero here),
+    against a push of F0·T at the end: a relative error up to tol·m·g/F0 = 2.5e-3 on top (the
+    strict test keeps the integrator's 2e-4).
+    """
     F0 = 10000.0
     scene, block = _pushed_block(lambda t: (F0 * t, 0.0))
-    res = dd.simulate(scene, duration=1.0)
+    res = dd.simulate(scene, duration=1.0, params=dd.Params(**convergence))
     m = ROCK.density * 1.0
     exact = F0 * 1.0 ** 3 / (6 * m)
     dx = res.centroid[-1, block, 0] - res.centroid[0, block, 0]
-    assert abs(dx - exact) < 2e-4 * exact
+    tol = 2e-4 if convergence else 2e-4 + dd.Params().oc_force_tolerance * m * G / F0
+    assert abs(dx - exact) < tol * exact
 
 
 def test_block_pinned_at_a_corner_swings_as_a_physical_pendulum():

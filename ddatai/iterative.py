@@ -1,0 +1,121 @@
+"""Iterative solves with a factor in hand (`ddatai.solver`): iterative refinement with the factor
+of a nearby matrix (a step's first solve, ``reuse``; a factor with perturbed pivots) and GMRES
+preconditioned by the factor of a matrix that differs in a few contacts' terms (the later solves
+of an open-close iteration, ``krylov``). Both stop at a direct solve's accuracy or give up, and
+the solver then factorises. The module docstring of `ddatai.solver` gives the rules and the
+costs measured."""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: relative residual |K x − b| / |b| above which a solve with perturbed pivots is refined
+REFINE_ABOVE = 1e-10
+#: a solve by refinement with an earlier factor (``reuse``) stops at this relative residual
+#: |K x − b|max / |b|max — what a direct solve reaches (PARDISO's LU, whose pivots may be
+#: perturbed by 1e-13, often less) ...
+REUSE_RESIDUAL = 1e-14
+#: ... or where a pass no longer reduces it by REUSE_RATE while it is below this (round-off of
+#: the residual itself: the solution then agrees with a direct solve to ~1e-14) ...
+REUSE_FLOOR = 1e-12
+#: ... and gives up (and factorises) when a pass reduces the residual by less than this factor
+#: above REUSE_FLOOR
+REUSE_RATE = 0.05
+#: ... or after this many corrections
+REUSE_PASSES = 5
+#: refinement where MKL perturbed a pivot makes at most this many corrections
+REFINE_PASSES = 3
+#: a Krylov solve (``krylov``) stops at this relative residual |K x − b|₂ / |b|₂ ...
+KRYLOV_RESIDUAL = 1e-13
+#: ... and is accepted when its true relative residual |K x − b|max / |b|max is at most this
+#: (what a direct solve reaches, `REUSE_FLOOR`) ...
+KRYLOV_ACCEPT = 1e-12
+#: ... and gives up (the matrix is factorised) after this many iterations (each one solve
+#: with the factor and one product with K) ...
+KRYLOV_ITERATIONS = 30
+#: a Krylov solve is tried only while the entries of K that differ from the factorised matrix
+#: lie in the rows of at most this many blocks, with a Cholesky factor (symmetric) and with an
+#: LU: GMRES takes about one iteration per changed block, and these are about half the cost of
+#: the factorisation in iterations (module docstring); it stops after twice as many
+KRYLOV_BLOCKS = {True: 5, False: 12}
+
+
+def gmres(k, b: np.ndarray, solve, tol: float = KRYLOV_RESIDUAL, max_iterations: int = KRYLOV_ITERATIONS
+          ) -> tuple[np.ndarray, int, bool]:
+    """GMRES for K x = b, right-preconditioned by ``solve`` (a factor of a matrix near K), from
+    x0 = solve(b): Arnoldi with classical Gram–Schmidt done twice (BLAS products; as accurate
+    as modified Gram–Schmidt), Givens rotations for the least-squares problem. Returns (x,
+    iterations, whether the residual estimate reached ``tol`` × |b|₂)."""
+    from scipy.linalg import solve_triangular
+
+    x0 = solve(b)
+    r = b - k @ x0
+    bnorm = float(np.linalg.norm(b))
+    beta = float(np.linalg.norm(r))
+    if not np.isfinite(beta):
+        return x0, 0, False
+    if beta <= tol * bnorm:
+        return x0, 0, True
+    n, m = len(b), max_iterations
+    basis = np.empty((m + 1, n))
+    precond = np.empty((m, n))
+    h = np.zeros((m + 1, m))
+    cs, sn = np.zeros(m), np.zeros(m)
+    g = np.zeros(m + 1)
+    g[0] = beta
+    basis[0] = r / beta
+    done, j = False, 0
+    for j in range(m):
+        precond[j] = solve(np.ascontiguousarray(basis[j]))
+        w = k @ precond[j]
+        v = basis[: j + 1]
+        c1 = v @ w
+        w = w - c1 @ v
+        c2 = v @ w
+        w = w - c2 @ v
+        h[: j + 1, j] = c1 + c2
+        h[j + 1, j] = float(np.linalg.norm(w))
+        if h[j + 1, j] > 0.0:
+            basis[j + 1] = w / h[j + 1, j]
+        for i in range(j):  # the earlier rotations on the new column
+            h[i, j], h[i + 1, j] = cs[i] * h[i, j] + sn[i] * h[i + 1, j], -sn[i] * h[i, j] + cs[i] * h[i + 1, j]
+        rho = float(np.hypot(h[j, j], h[j + 1, j]))
+        if rho == 0.0 or not np.isfinite(rho):
+            return x0, j + 1, False
+        cs[j], sn[j] = h[j, j] / rho, h[j + 1, j] / rho
+        h[j, j], h[j + 1, j] = rho, 0.0
+        g[j], g[j + 1] = cs[j] * g[j], -sn[j] * g[j]
+        estimate = abs(g[j + 1])
+        if estimate <= tol * bnorm:  # (a breakdown, h[j+1, j] = 0, is an exact solution: 0)
+            done = True
+            break
+    y = solve_triangular(h[: j + 1, : j + 1], g[: j + 1], check_finite=False)
+    return x0 + y @ precond[: j + 1], j + 1, done
+
+
+def _refinement(k, b: np.ndarray, x: np.ndarray, solve, target: float, passes: int,
+                rate: "float | None" = None) -> tuple[np.ndarray, float, bool]:
+    """Iterative refinement x ← x + solve(b − K x), ``solve`` applying the factor of a matrix
+    at or near K, with at most ``passes`` corrections. Returns (x, its relative residual
+    |b − K x|max / |b|max, whether it reached ``target``). With a ``rate``, it stops as soon
+    as a pass reduces the residual by less than that factor: done (the better of the last two
+    x) if both residuals are below `REUSE_FLOOR` — the residual's own round-off —, not done
+    otherwise."""
+    scale = max(float(np.abs(b).max()), 1e-300)
+    best, last = x, 1.0
+    for done in range(passes + 1):
+        if not np.all(np.isfinite(x)):
+            return best, last, False
+        r = b - k @ x
+        residual = float(np.abs(r).max()) / scale
+        if residual <= target:
+            return x, residual, True
+        if rate is not None and residual > rate * last:
+            if residual <= REUSE_FLOOR and last <= REUSE_FLOOR:
+                return (x, residual, True) if residual < last else (best, last, True)
+            return x, residual, False
+        if done == passes:
+            break
+        best, last = x, residual
+        x = x + solve(np.ascontiguousarray(r))
+    return x, residual, False
