@@ -28,7 +28,8 @@ solve of the model under its weight, the point loads at t = 0 and its initial st
    cut-off, K kept), as corner contacts of blocks cut by persistent joints otherwise do by
    turns for the whole iteration. It ends
    when no state changes and every contact force is the contact law's within
-   ``Params.oc_force_tolerance`` × the load its blocks carry — the law's forces then balance
+   `ddatai.return_mapping.STAGE_FORCE_TOLERANCE` (1e-6, stricter than a step's
+   ``Params.oc_force_tolerance``) × the load its blocks carry — the law's forces then balance
    every block within that much —, or, where the iteration stalls before, within
    ``Params.oc_state_tolerance``; in that case, and where a bonded contact ends at its strength
    (the run's first step would break its bond, Shi's rule, for the least excess), the
