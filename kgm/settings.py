@@ -74,7 +74,7 @@ class DdaSettings:
     """Also time the whole slope over ``whole_steps`` steps to report the time saved."""
     whole_steps: int = 100
     """Steps of the timing runs of the sub-model and the whole slope [-]."""
-    batch: int = 16
+    batch: int = 8
     """Probes judged side by side in one run (`kgm.batched.judge_many`): the verdict and the probes
     of a round of the F and φ searches, each bracket cut into as many pieces as it has probes;
     1: one run a probe and bisections (docs/guide/performance.md, "Batched studies") [-]."""
