@@ -95,6 +95,19 @@ def _convex(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), p):
 
 
 @ti.func
+def _nearer_exit(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), P, depth, a, c):
+    """Whether point P, at normal distance ``depth`` (< 0) from an edge, lies less deep behind
+    the line of edge a (or in front of it), projecting onto a, where a meets that edge at the
+    convex corner c (`vectorized._Geometry.nearer_exit`)."""
+    q0 = _pt(xy, a)
+    d = _pt(xy, vnext[a]) - q0
+    l = ti.max(d.norm(), EDGE_FLOOR)
+    t = (P - q0).dot(d) / (l * l)
+    dn = (P - q0).dot(ti.Vector([d[1], -d[0]]) / l)
+    return _convex(xy, vnext, vprev, c) and dn > depth and t >= 0.0 and t <= 1.0
+
+
+@ti.func
 def _ve_test(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), p, e,
              d0, d9, sin_h1, check_projection):
     """Distance and entrance-angle criteria for vertex p against edge e (§3.3, §3.4).
@@ -116,6 +129,13 @@ def _ve_test(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), p, e
             ok = 0
     if dn > d0 or dn < -d9:
         ok = 0
+    if dn < 0.0 and ok == 1:
+        # behind the edge's line, but nearer the line of the edge that meets it at a convex
+        # corner (or in front of it: outside the block): the vertex entered, or lies on, that
+        # edge, not this one (§3.3, the shortest exit)
+        if _nearer_exit(xy, vnext, vprev, P, dn, vprev[e], e) or \
+                _nearer_exit(xy, vnext, vprev, P, dn, vnext[e], vnext[e]):
+            ok = 0
     r1 = _pt(xy, vnext[p]) - P
     r2 = _pt(xy, vprev[p]) - P
     n1 = r1.norm()

@@ -120,6 +120,16 @@ class _Geometry:
         hi = np.minimum(1.0, np.maximum(ta, tb))
         return 0.5 * np.maximum(0.0, hi - lo) * np.sqrt(l2)
 
+    def nearer_exit(self, p: np.ndarray, depth: np.ndarray, a: np.ndarray, c: np.ndarray) -> np.ndarray:
+        """Whether vertices p, at normal distances ``depth`` (< 0) from their edges, lie less
+        deep behind the lines of edges a (or in front of them), projecting onto a, where a
+        meets that edge at the convex corner c (`kernels._nearer_exit`)."""
+        px, py = self.x[p] - self.x[a], self.y[p] - self.y[a]
+        l = self.length[a]
+        t = (px * self.dx[a] + py * self.dy[a]) / (l * l)
+        dn = px * self.nx[a] + py * self.ny[a]
+        return self.convex[c] & (dn > depth) & (t >= 0.0) & (t <= 1.0)
+
     def ve_test(self, p: np.ndarray, e: np.ndarray, check_projection: np.ndarray, d0: float,
                 d9: float, sin_h1: float) -> tuple[np.ndarray, np.ndarray]:
         """Distance and entrance-angle criteria of vertices p against edges e (§3.3, §3.4;
@@ -135,6 +145,15 @@ class _Geometry:
         # a collapsed edge has no normal; a concave vertex never contacts as a vertex
         k = ((l > EDGE_FLOOR) & (dn <= d0) & (dn >= -d9) & self.convex[p] &
                            (~check_projection | ((t >= 0.0) & (t <= 1.0)))).nonzero()[0]
+        # behind the edge's line, but nearer the line of the edge that meets it at a convex
+        # corner (or in front of it: outside the block): the vertex entered, or lies on, that
+        # edge, not this one (§3.3, the shortest exit)
+        behind = (dn[k] < 0.0).nonzero()[0]
+        if len(behind):
+            pb, eb, depth = p[k[behind]], e[k[behind]], dn[k[behind]]
+            out = self.nearer_exit(pb, depth, self.prv[eb], eb) | \
+                self.nearer_exit(pb, depth, self.nxt[eb], self.nxt[eb])
+            k = np.delete(k, behind[out])
         p, e, nx, ny = p[k], e[k], nx[k], ny[k]
         # the vertex's material wedge must lie on the outer side of the edge within h1
         r1n = self.r1x[p] * nx + self.r1y[p] * ny

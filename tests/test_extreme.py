@@ -364,3 +364,53 @@ def test_fast_collision_of_an_l_block_with_a_rectangle():
                     velocities=((0.0, 33.0), (31.0, -29.0)), spins=(0.0, 0.0), joints=(), load=0.0, shaking=0.0,
                     steps=100)
     _holds(spec, refuse_ok=False)
+
+
+def _acute_corner_model(tip_y: float):
+    """A block B with a 32° corner at the origin between a 0.1 m edge (x = 0, from (0, 0.1)
+    down to the corner) and a 20 m edge at 58°, and a sliver A whose tip lies 0.7 mm left of
+    the short edge at height ``tip_y`` (outside B), its edges pointing down."""
+    rock = dd.Material(density=2500.0, young=10e9, poisson=0.25)
+    c, s = math.cos(math.radians(58.0)), math.sin(math.radians(58.0))
+    scene = dd.Scene(gravity=0.0)
+    b = scene.add_block([(0.0, 0.0), (20.0 * c, 20.0 * s), (-2.0, 17.0), (0.0, 0.1)], material=rock)
+    a = scene.add_block([(-0.0007, tip_y), (-0.3, -1.0), (-0.0007, -1.0)], material=rock)
+    return dd.build_model(scene), a, b
+
+
+@pytest.mark.parametrize("twin", ["vectorized", "reference"])
+def test_sliver_tip_at_an_acute_corner_is_no_penetration(twin):
+    """A cut domain (`extreme_cases.random_domain`, seed 1 of the cut campaign: 28 blocks of
+    26 m under 30 m/s²) ran away at step 30 "even with Δt = 3e-6 s": a sliver's tip lying 0.7
+    mm off the short edge of a block with a 32° corner sat 0.049 m behind the long edge's
+    line — inside the penetration band d9 and projecting onto the long edge, but outside the
+    block — and the narrow phase took it for a contact of the long edge already 3.7× the
+    penetration limit deep. The tip's shortest exit is the short edge (docs/method/dda.md
+    §3.3 rule 3): it is a contact of the short edge, never of the long one."""
+    from ddatai import reference, vectorized
+
+    model, a, b = _acute_corner_model(tip_y=0.06)
+    off = model.vertex_offset
+    tip, long_edge, short_edge = off[a], off[b], off[b] + 3
+    xy = model.vertex_xy0
+    # the case the rule is about: the tip projects onto the long edge, within d9 behind its line
+    d = xy[long_edge + 1] - xy[long_edge]
+    rel = xy[tip] - xy[long_edge]
+    depth = float(rel @ np.array([d[1], -d[0]])) / float(np.hypot(*d))
+    assert -model.max_penetration < depth < -0.5 * model.max_penetration
+    assert 0.0 <= float(rel @ d) / float(d @ d) <= 1.0
+    cint, _ = getattr(vectorized if twin == "vectorized" else reference, "detect_contacts")(model, xy)
+    pairs = {(int(v), int(e)) for v, e in cint[:, 1:3]}
+    assert (tip, long_edge) not in pairs
+    assert (tip, short_edge) in pairs or any(int(r[1]) == tip or int(r[3]) == tip for r in cint)
+
+
+@pytest.mark.slow
+def test_cut_domain_with_a_sliver_at_an_acute_corner_runs():
+    """The run behind `test_sliver_tip_at_an_acute_corner_is_no_penetration` (cut campaign seed
+    1): 28 blocks under 30 m/s², diverged at step 30 with runaway penetration; it runs its 60
+    steps now (~15 s)."""
+    from extreme_cases import random_domain
+
+    spec = random_domain(np.random.default_rng(1), steps=60)
+    _holds(spec, refuse_ok=False)
