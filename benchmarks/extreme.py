@@ -66,12 +66,16 @@ def main() -> None:
     tally = collections.Counter()
     lines = []
     t0 = time.perf_counter()
+    sink = a.out.open("w") if a.out else None  # each case written as it finishes
     with ThreadPoolExecutor(max_workers=max(1, a.jobs)) as pool:
         for row in pool.map(lambda k: _run(a, k), range(a.seed, a.seed + a.n)):
             tally[row["status"]] += 1
             if row["problems"]:
                 tally["broke a property"] += 1
             lines.append(row)
+            if sink:
+                sink.write(json.dumps(row) + "\n")
+                sink.flush()
             if row["status"] not in ("ok",) or row["problems"]:
                 print(f"seed {row['seed']}: {row['status']} {row['message'][:300]} {row['problems']}", flush=True)
     wall = time.perf_counter() - t0
@@ -79,8 +83,8 @@ def main() -> None:
     print(dict(tally))
     print(f"wall time {wall:.0f} s for {a.n} cases ({a.jobs} at a time); per case median "
           f"{per_case[len(per_case) // 2]:.1f} s, longest {per_case[-1]:.1f} s")
-    if a.out:
-        a.out.write_text("\n".join(json.dumps(r) for r in lines) + "\n")
+    if sink:
+        sink.close()
 
 
 if __name__ == "__main__":

@@ -108,6 +108,25 @@ def _nearer_exit(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), 
 
 
 @ti.func
+def _outside_convex(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), P, e):
+    """Whether point P lies in front of some edge of the convex block of edge e: outside it
+    (`vectorized._Geometry.outside_convex`)."""
+    convex = _convex(xy, vnext, vprev, e)
+    front = 0
+    j = vnext[e]
+    while j != e:
+        q0 = _pt(xy, j)
+        d = _pt(xy, vnext[j]) - q0
+        l = ti.max(d.norm(), EDGE_FLOOR)
+        if (P - q0).dot(ti.Vector([d[1], -d[0]]) / l) > 0.0:
+            front = 1
+        if not _convex(xy, vnext, vprev, j):
+            convex = 0
+        j = vnext[j]
+    return convex and front == 1
+
+
+@ti.func
 def _ve_test(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), p, e,
              d0, d9, sin_h1, check_projection):
     """Distance and entrance-angle criteria for vertex p against edge e (§3.3, §3.4).
@@ -134,7 +153,8 @@ def _ve_test(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), p, e
         # corner (or in front of it: outside the block): the vertex entered, or lies on, that
         # edge, not this one (§3.3, the shortest exit)
         if _nearer_exit(xy, vnext, vprev, P, dn, vprev[e], e) or \
-                _nearer_exit(xy, vnext, vprev, P, dn, vnext[e], vnext[e]):
+                _nearer_exit(xy, vnext, vprev, P, dn, vnext[e], vnext[e]) or \
+                _outside_convex(xy, vnext, vprev, P, e):
             ok = 0
     r1 = _pt(xy, vnext[p]) - P
     r2 = _pt(xy, vprev[p]) - P

@@ -78,6 +78,19 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray) -> tupl
         r1, r2 = xy[nxt[p]] - xy[p], xy[prv[p]] - xy[p]
         return r1[0] * r2[1] - r1[1] * r2[0] > 0
 
+    def outside_convex(P, e):
+        # P in front of some edge of the convex block of edge e: outside it
+        b = model.vertex_block[e]
+        edges = range(off[b], off[b + 1])
+        if not all(convex(j) for j in edges):
+            return False
+        for j in edges:
+            d = xy[nxt[j]] - xy[j]
+            l = max(float(np.linalg.norm(d)), EDGE_FLOOR)
+            if float(np.dot(P - xy[j], np.array([d[1], -d[0]]) / l)) > 0.0:
+                return True
+        return False
+
     def nearer_exit(P, depth, a, c):
         # P less deep behind edge a than ``depth`` (projecting onto a); a meets the edge at
         # the convex corner c
@@ -100,7 +113,8 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray) -> tupl
             return False, 0.0
         if dn > d0 or dn < -d9 or not convex(p):
             return False, 0.0
-        if dn < 0.0 and (nearer_exit(P, dn, prv[e], e) or nearer_exit(P, dn, nxt[e], nxt[e])):
+        if dn < 0.0 and (nearer_exit(P, dn, prv[e], e) or nearer_exit(P, dn, nxt[e], nxt[e])
+                         or outside_convex(P, e)):
             # behind the edge's line, but nearer (or in front of) the line of the edge that
             # meets it at a convex corner: it entered, or lies on, that edge (the shortest exit)
             return False, 0.0

@@ -99,6 +99,8 @@ class _Geometry:
         self.n1 = np.sqrt(self.r1x * self.r1x + self.r1y * self.r1y)
         self.n2 = np.sqrt(self.r2x * self.r2x + self.r2y * self.r2y)
         self.convex = self.r1x * self.r2y - self.r1y * self.r2x > 0.0
+        self.vblock, self.off = model.vertex_block, model.vertex_offset.astype(np.int64)
+        self.block_convex = np.logical_and.reduceat(self.convex, self.off[:-1])
         # edge k = (k, next[k]): direction d, squared length, clamped length, outward normal
         self.dx, self.dy = self.r1x, self.r1y
         self.dd = self.dx * self.dx + self.dy * self.dy
@@ -119,6 +121,24 @@ class _Geometry:
         lo = np.maximum(0.0, np.minimum(ta, tb))
         hi = np.minimum(1.0, np.maximum(ta, tb))
         return 0.5 * np.maximum(0.0, hi - lo) * np.sqrt(l2)
+
+    def outside_convex(self, p: np.ndarray, e: np.ndarray) -> np.ndarray:
+        """Whether vertices p lie in front of some edge of the convex block of their edge e:
+        outside it (`kernels._outside_convex`)."""
+        block = self.vblock[e]
+        convex = self.block_convex[block]
+        out = np.zeros(len(p), bool)
+        k = convex.nonzero()[0]
+        if not len(k):
+            return out
+        owner, rank = _expand(self.off[block[k] + 1] - self.off[block[k]])
+        j = self.off[block[k]][owner] + rank
+        v = p[k][owner]
+        dn = (self.x[v] - self.x[j]) * self.nx[j] + (self.y[v] - self.y[j]) * self.ny[j]
+        front = np.zeros(len(k), bool)
+        np.logical_or.at(front, owner, dn > 0.0)
+        out[k] = front
+        return out
 
     def nearer_exit(self, p: np.ndarray, depth: np.ndarray, a: np.ndarray, c: np.ndarray) -> np.ndarray:
         """Whether vertices p, at normal distances ``depth`` (< 0) from their edges, lie less
@@ -152,7 +172,7 @@ class _Geometry:
         if len(behind):
             pb, eb, depth = p[k[behind]], e[k[behind]], dn[k[behind]]
             out = self.nearer_exit(pb, depth, self.prv[eb], eb) | \
-                self.nearer_exit(pb, depth, self.nxt[eb], self.nxt[eb])
+                self.nearer_exit(pb, depth, self.nxt[eb], self.nxt[eb]) | self.outside_convex(pb, eb)
             k = np.delete(k, behind[out])
         p, e, nx, ny = p[k], e[k], nx[k], ny[k]
         # the vertex's material wedge must lie on the outer side of the edge within h1

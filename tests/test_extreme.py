@@ -85,14 +85,13 @@ def test_rock_like_scenes_run_through(seed):
 
 
 #: seed 20: a 0.75 m domain of dense stiff rock (ρ 10,675 kg/m³, E 54 GPa, c 8.8 MPa) cut by
-#: three joints, under a point load of 4.5 × its weight: the open-close iteration of a cut
-#: domain keeps one contact changing state for 20 iterations at step 4 (NumPy path) or 7
-#: (kernels), even at Δt = 1e-6 s — the stuck open-close class of randomly cut domains
-STUCK_CUT_DOMAIN = pytest.mark.xfail(strict=True, reason="known: a cut domain whose open-close iteration "
-                                     "does not converge (1 contact still changing)")
-
-
-@pytest.mark.parametrize("seed", [pytest.param(s, marks=STUCK_CUT_DOMAIN) if s == 20 else s for s in range(25)])
+#: three joints, under a point load of 4.5 × its weight, with a crumb of 2.3e-7 m² (0.24 mm
+#: thick) between three blocks: its neighbours' vertices lay 0.6 mm behind its edges' lines —
+#: beyond the crumb, outside it — and were taken for contacts, which the open-close iteration
+#: closed and opened for 20 iterations at every Δt down to 2e-9 s, until the crumb turned inside
+#: out. A vertex in front of any edge of a convex block is no contact of it (docs/method/dda.md
+#: §3.3 rule 3); the scene runs
+@pytest.mark.parametrize("seed", range(25))
 def test_extreme_scenes_run_through_or_are_refused(seed):
     _holds(random_spec(np.random.default_rng(2000 + seed), "extreme", steps=25), refuse_ok=True)
 
@@ -414,3 +413,26 @@ def test_cut_domain_with_a_sliver_at_an_acute_corner_runs():
 
     spec = random_domain(np.random.default_rng(1), steps=60)
     _holds(spec, refuse_ok=False)
+
+
+@pytest.mark.parametrize("twin", ["vectorized", "reference"])
+def test_vertex_beyond_a_crumb_is_no_contact(twin):
+    """Extreme seed 20 (`test_extreme_scenes_run_through_or_are_refused`): a crumb 0.24 mm
+    thick, and a neighbour's vertex 0.5 mm behind its bottom edge's line, projecting onto it —
+    past the crumb, in front of its other edges: outside the convex block, no contact of the
+    bottom edge (docs/method/dda.md §3.3 rule 3; before, a contact 0.5 mm deep)."""
+    from ddatai import reference, vectorized
+
+    rock = dd.Material(density=2500.0, young=10e9, poisson=0.25)
+    scene = dd.Scene(gravity=0.0)
+    crumb = scene.add_block([(0.0, 0.0), (2e-3, 0.0), (1e-3, 2.4e-4)], material=rock)
+    tip = [(1e-3, -0.1), (-1.0, -3.0), (1.0, -3.0)]  # built 0.1 m below, then moved up through it
+    a = scene.add_block(tip, material=rock)
+    model = dd.build_model(scene)
+    xy = model.vertex_xy0.copy()
+    off = model.vertex_offset
+    xy[off[a]:off[a + 1], 1] += 0.1005
+    bottom = off[crumb]
+    assert 0.5e-3 < model.max_penetration  # within the penetration band of the bottom edge
+    cint, _ = getattr(vectorized if twin == "vectorized" else reference, "detect_contacts")(model, xy)
+    assert (off[a], bottom) not in {(int(v), int(e)) for v, e in cint[:, 1:3]}
