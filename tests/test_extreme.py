@@ -436,3 +436,26 @@ def test_vertex_beyond_a_crumb_is_no_contact(twin):
     assert 0.5e-3 < model.max_penetration  # within the penetration band of the bottom edge
     cint, _ = getattr(vectorized if twin == "vectorized" else reference, "detect_contacts")(model, xy)
     assert (off[a], bottom) not in {(int(v), int(e)) for v, e in cint[:, 1:3]}
+
+
+def test_failure_message_names_a_sliver_and_a_contact_that_entered_too_deep():
+    """A run that cannot go on says which input: a block thinner than the contacts'
+    penetration band d9 (which the contact rules cannot resolve), and a contact that entered
+    its step already deeper than the limit (which no Δt can undo)."""
+    from types import SimpleNamespace
+
+    from ddatai.diagnosis import failure_message
+
+    rock = dd.Material(density=2500.0, young=10e9, poisson=0.25)
+    scene = dd.Scene(gravity=9.81)
+    crumb = scene.add_block([(0.0, 0.0), (2e-3, 0.0), (1e-3, 2.4e-4)], material=rock)
+    big = scene.add_block([(1e-3, -0.1), (-1.0, -3.0), (1.0, -3.0)], material=rock)
+    model = dd.build_model(scene)
+    limit = model.penetration_limit
+    attempt = SimpleNamespace(cause="penetration", culprits=((big, crumb),), culprit_force=1e9,
+                              max_penetration=3 * limit, culprit_start=2 * limit)
+    msg = failure_message(model, attempt, 5, 0.1, 1e-6)
+    assert f"block {crumb} is a sliver" in msg and f"block {big} is a sliver" not in msg
+    assert "entered the step already" in msg and "slivers='merge'" in msg
+    attempt = SimpleNamespace(cause="open-close", culprits=((big, crumb),), changing=1)
+    assert f"block {crumb} is a sliver" in failure_message(model, attempt, 5, 0.1, 1e-6)
