@@ -36,6 +36,7 @@ from .model import Model
 EDGE_FLOOR = 1e-150
 EDGE_FLOOR2 = EDGE_FLOOR * EDGE_FLOOR
 TIE = 1e-3
+SLACK = 1e-9
 TWO_PI = 2.0 * math.pi
 #: the wedges of a vertex pair do not overlap iff their angles and the two gaps sum to 2π
 #: within this (`kernels._vertex_vertex`)
@@ -122,9 +123,9 @@ class _Geometry:
         hi = np.minimum(1.0, np.maximum(ta, tb))
         return 0.5 * np.maximum(0.0, hi - lo) * np.sqrt(l2)
 
-    def outside_convex(self, p: np.ndarray, e: np.ndarray) -> np.ndarray:
-        """Whether vertices p lie in front of some edge of the convex block of their edge e:
-        outside it (`kernels._outside_convex`)."""
+    def outside_convex(self, p: np.ndarray, e: np.ndarray, slack: float) -> np.ndarray:
+        """Whether vertices p lie in front of some edge of the convex block of their edge e (or
+        on its line, within ``slack``): outside it, or on its boundary (`kernels._outside_convex`)."""
         block = self.vblock[e]
         convex = self.block_convex[block]
         out = np.zeros(len(p), bool)
@@ -136,7 +137,7 @@ class _Geometry:
         v = p[k][owner]
         dn = (self.x[v] - self.x[j]) * self.nx[j] + (self.y[v] - self.y[j]) * self.ny[j]
         front = np.zeros(len(k), bool)
-        np.logical_or.at(front, owner, dn > 0.0)
+        np.logical_or.at(front, owner, dn > -slack)
         out[k] = front
         return out
 
@@ -148,7 +149,7 @@ class _Geometry:
         l = self.length[a]
         t = (px * self.dx[a] + py * self.dy[a]) / (l * l)
         dn = px * self.nx[a] + py * self.ny[a]
-        return self.convex[c] & (dn > depth) & (t >= 0.0) & (t <= 1.0)
+        return self.convex[c] & (dn > depth) & (t >= -SLACK) & (t <= 1.0 + SLACK)
 
     def ve_test(self, p: np.ndarray, e: np.ndarray, check_projection: np.ndarray, d0: float,
                 d9: float, sin_h1: float) -> tuple[np.ndarray, np.ndarray]:
@@ -168,11 +169,12 @@ class _Geometry:
         # behind the edge's line, but nearer the line of the edge that meets it at a convex
         # corner (or in front of it: outside the block): the vertex entered, or lies on, that
         # edge, not this one (§3.3, the shortest exit)
-        behind = (dn[k] < 0.0).nonzero()[0]
+        behind = (dn[k] < -SLACK * d9).nonzero()[0]
         if len(behind):
             pb, eb, depth = p[k[behind]], e[k[behind]], dn[k[behind]]
             out = self.nearer_exit(pb, depth, self.prv[eb], eb) | \
-                self.nearer_exit(pb, depth, self.nxt[eb], self.nxt[eb]) | self.outside_convex(pb, eb)
+                self.nearer_exit(pb, depth, self.nxt[eb], self.nxt[eb]) | \
+                self.outside_convex(pb, eb, SLACK * d9)
             k = np.delete(k, behind[out])
         p, e, nx, ny = p[k], e[k], nx[k], ny[k]
         # the vertex's material wedge must lie on the outer side of the edge within h1

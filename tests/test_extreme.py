@@ -459,3 +459,26 @@ def test_failure_message_names_a_sliver_and_a_contact_that_entered_too_deep():
     assert "entered the step already" in msg and "slivers='merge'" in msg
     attempt = SimpleNamespace(cause="open-close", culprits=((big, crumb),), changing=1)
     assert f"block {crumb} is a sliver" in failure_message(model, attempt, 5, 0.1, 1e-6)
+
+
+@pytest.mark.parametrize("seed", [3, 4, 6, 10, 17, 25, 36, 37])
+def test_cut_domain_starts_without_false_penetrations(seed):
+    """Cut campaign seeds (`extreme_cases.random_domain`) whose blocks, as cut, do not overlap,
+    but whose detection at t = 0 found 1–8 contacts "penetrated" 1.1–3.1× the penetration limit:
+    a sliver's vertex shared with, or lying on, a neighbour's edge sat behind the line of
+    that neighbour's next edge (docs/method/dda.md §3.3 rule 3). Seed 4, without gravity or
+    loads, was pushed apart by them and stopped at step 11; seed 3 (a vertex at the far end of
+    the neighbouring edge, on it to round-off) kept one until the rule allowed round-off."""
+    from ddatai import vectorized
+    from extreme_cases import random_domain
+
+    scene, _ = build(random_domain(np.random.default_rng(seed)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model = dd.build_model(scene)
+    xy = model.vertex_xy0
+    cint, _ = vectorized.detect_contacts(model, xy)
+    v, e = cint[cint[:, 0] == 0, 1], cint[cint[:, 0] == 0, 2]
+    d = xy[model.vertex_next[e]] - xy[e]
+    dn = np.einsum("ij,ij->i", xy[v] - xy[e], np.stack([d[:, 1], -d[:, 0]], axis=1)) / np.hypot(d[:, 0], d[:, 1])
+    assert len(dn) and dn.min() > -1e-9 * model.w0
