@@ -19,7 +19,7 @@ hypothesis = pytest.importorskip("hypothesis", reason="the property suite needs 
 from hypothesis import HealthCheck, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
-from extreme_cases import REGIMES, SHAPES, CaseSpec, build, check, random_spec, run_case  # noqa: E402
+from extreme_cases import REGIMES, SHAPES, CaseSpec, build, check, random_domain, random_spec, run_case  # noqa: E402
 
 import ddatai as dd  # noqa: E402
 
@@ -94,6 +94,18 @@ def test_rock_like_scenes_run_through(seed):
 @pytest.mark.parametrize("seed", range(25))
 def test_extreme_scenes_run_through_or_are_refused(seed):
     _holds(random_spec(np.random.default_rng(2000 + seed), "extreme", steps=25), refuse_ok=True)
+
+
+#: cut campaign seeds (`extreme_cases.random_domain`, `benchmarks/extreme.py --regime cut`) of
+#: at most 64 free blocks (the NumPy path: no kernel compile in the default run), a few seconds
+#: each; 14 ran away at step 30 on a false corner contact (docs/method/dda.md §3.3 rule 3), as
+#: did 1 (`test_cut_domain_with_a_sliver_at_an_acute_corner_runs`, slow)
+CUT_SEEDS = (0, 2, 5, 14)
+
+
+@pytest.mark.parametrize("seed", CUT_SEEDS)
+def test_cut_domains_run_through(seed):
+    _holds(random_domain(np.random.default_rng(seed), steps=35), refuse_ok=False)
 
 
 @pytest.mark.slow
@@ -408,7 +420,7 @@ def test_sliver_tip_at_an_acute_corner_is_no_penetration(twin):
 def test_cut_domain_with_a_sliver_at_an_acute_corner_runs():
     """The run behind `test_sliver_tip_at_an_acute_corner_is_no_penetration` (cut campaign seed
     1): 28 blocks under 30 m/s², diverged at step 30 with runaway penetration; it runs its 60
-    steps now (~15 s)."""
+    steps now (30 s on an idle core, 2–3 min on a loaded 2-core machine)."""
     from extreme_cases import random_domain
 
     spec = random_domain(np.random.default_rng(1), steps=60)
