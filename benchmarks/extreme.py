@@ -15,7 +15,7 @@ import json
 import subprocess
 import sys
 import time
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
 
 import numpy as np
@@ -68,7 +68,8 @@ def main() -> None:
     t0 = time.perf_counter()
     sink = a.out.open("w") if a.out else None  # each case written as it finishes
     with ThreadPoolExecutor(max_workers=max(1, a.jobs)) as pool:
-        for row in pool.map(lambda k: _run(a, k), range(a.seed, a.seed + a.n)):
+        futures = [pool.submit(_run, a, k) for k in range(a.seed, a.seed + a.n)]
+        for row in (f.result() for f in as_completed(futures)):
             tally[row["status"]] += 1
             if row["problems"]:
                 tally["broke a property"] += 1
