@@ -95,6 +95,44 @@ def _convex(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), p):
 
 
 @ti.func
+def _nearer_exit(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), P, depth, a, c):
+    """Whether point P, at normal distance ``depth`` (< 0) from an edge, lies less deep behind
+    the line of edge a (or in front of it), projecting onto a, where a meets that edge at the
+    convex corner c (`vectorized._Geometry.nearer_exit`)."""
+    q0 = _pt(xy, a)
+    d = _pt(xy, vnext[a]) - q0
+    l = ti.max(d.norm(), EDGE_FLOOR)
+    t = (P - q0).dot(d) / (l * l)
+    dn = (P - q0).dot(ti.Vector([d[1], -d[0]]) / l)
+    return _convex(xy, vnext, vprev, c) and dn > depth and t >= -SLACK and t <= 1.0 + SLACK
+
+
+#: round-off slack of the shortest-exit rule (§3.3 rule 3): of d9 for a vertex on an edge's
+#: line, of the edge for its projection (a cut's shared vertex lies on its neighbours' lines
+#: and at their ends, to round-off)
+SLACK = 1e-9
+
+
+@ti.func
+def _outside_convex(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), P, e, slack):
+    """Whether point P lies in front of some edge of the convex block of edge e (or on its line,
+    within ``slack``): outside it, or on its boundary (`vectorized._Geometry.outside_convex`)."""
+    convex = _convex(xy, vnext, vprev, e)
+    front = 0
+    j = vnext[e]
+    while j != e:
+        q0 = _pt(xy, j)
+        d = _pt(xy, vnext[j]) - q0
+        l = ti.max(d.norm(), EDGE_FLOOR)
+        if (P - q0).dot(ti.Vector([d[1], -d[0]]) / l) > -slack:
+            front = 1
+        if not _convex(xy, vnext, vprev, j):
+            convex = 0
+        j = vnext[j]
+    return convex and front == 1
+
+
+@ti.func
 def _ve_test(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), p, e,
              d0, d9, sin_h1, check_projection):
     """Distance and entrance-angle criteria for vertex p against edge e (§3.3, §3.4).
@@ -116,6 +154,14 @@ def _ve_test(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), p, e
             ok = 0
     if dn > d0 or dn < -d9:
         ok = 0
+    if dn < -SLACK * d9 and ok == 1:
+        # behind the edge's line, but nearer the line of the edge that meets it at a convex
+        # corner (or in front of it: outside the block): the vertex entered, or lies on, that
+        # edge, not this one (§3.3, the shortest exit)
+        if _nearer_exit(xy, vnext, vprev, P, dn, vprev[e], e) or \
+                _nearer_exit(xy, vnext, vprev, P, dn, vnext[e], vnext[e]) or \
+                _outside_convex(xy, vnext, vprev, P, e, SLACK * d9):
+            ok = 0
     r1 = _pt(xy, vnext[p]) - P
     r2 = _pt(xy, vprev[p]) - P
     n1 = r1.norm()

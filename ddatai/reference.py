@@ -21,6 +21,7 @@ EDGE_FLOOR = 1e-150
 EDGE_FLOOR2 = EDGE_FLOOR * EDGE_FLOOR
 
 TIE = 1e-3  # same as ddatai.kernels.TIE
+SLACK = 1e-9  # same as ddatai.kernels.SLACK
 
 
 # --------------------------------------------------------------------------- broad phase
@@ -78,6 +79,28 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray) -> tupl
         r1, r2 = xy[nxt[p]] - xy[p], xy[prv[p]] - xy[p]
         return r1[0] * r2[1] - r1[1] * r2[0] > 0
 
+    def outside_convex(P, e, slack):
+        # P in front of some edge of the convex block of edge e (or on its line): outside it
+        b = model.vertex_block[e]
+        edges = range(off[b], off[b + 1])
+        if not all(convex(j) for j in edges):
+            return False
+        for j in edges:
+            d = xy[nxt[j]] - xy[j]
+            l = max(float(np.linalg.norm(d)), EDGE_FLOOR)
+            if float(np.dot(P - xy[j], np.array([d[1], -d[0]]) / l)) > -slack:
+                return True
+        return False
+
+    def nearer_exit(P, depth, a, c):
+        # P less deep behind edge a than ``depth`` (projecting onto a); a meets the edge at
+        # the convex corner c
+        d = xy[nxt[a]] - xy[a]
+        l = max(float(np.linalg.norm(d)), EDGE_FLOOR)
+        t = float(np.dot(P - xy[a], d)) / l ** 2
+        dn = float(np.dot(P - xy[a], np.array([d[1], -d[0]]) / l))
+        return convex(c) and dn > depth and -SLACK <= t <= 1.0 + SLACK
+
     def ve_test(p, e, check_projection):
         q0, q1, P = xy[e], xy[nxt[e]], xy[p]
         d = q1 - q0
@@ -90,6 +113,11 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray) -> tupl
         if check_projection and not 0.0 <= t <= 1.0:
             return False, 0.0
         if dn > d0 or dn < -d9 or not convex(p):
+            return False, 0.0
+        if dn < -SLACK * d9 and (nearer_exit(P, dn, prv[e], e) or nearer_exit(P, dn, nxt[e], nxt[e])
+                         or outside_convex(P, e, SLACK * d9)):
+            # behind the edge's line, but nearer (or in front of) the line of the edge that
+            # meets it at a convex corner: it entered, or lies on, that edge (the shortest exit)
             return False, 0.0
         r1, r2 = xy[nxt[p]] - P, xy[prv[p]] - P
         n1, n2 = np.linalg.norm(r1), np.linalg.norm(r2)

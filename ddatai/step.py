@@ -68,6 +68,7 @@ class Attempt:
     coulomb: float = 0.0                   # largest (|shear force| − S) of a closed contact [N/m]
     culprits: tuple = ()                   # (block a, block b) of the contacts behind a failure
     culprit_force: float = 0.0             # normal force of the deepest contact [N/m]
+    culprit_start: float = 0.0             # penetration of the deepest contact at the step's start [m]
     changing: int = 0                      # contacts still changing state (open-close failure)
 
 
@@ -213,13 +214,16 @@ class Stepper:
             return Attempt(ok=False, cause="open-close", iterations=oc.iterations, culprits=pairs,
                            changing=len(bad))
         t0 = _time.perf_counter()
-        accepted = self.accept(state, geom, contacts, vec, oc)
+        accepted = self.accept(state, geom, contacts, vec, oc, start_dn=contacts0.dn)
         timer.add("accept", t0)
         return accepted
 
-    def accept(self, state: State, geom: dict, contacts: Contacts, vec: np.ndarray, oc) -> Attempt:
+    def accept(self, state: State, geom: dict, contacts: Contacts, vec: np.ndarray, oc,
+               start_dn: Optional[np.ndarray] = None) -> Attempt:
         """The acceptance checks of a converged solution (§4.5): the step displacement at most
-        ``displacement_reject`` × g2·w0, no contact deeper than the penetration limit."""
+        ``displacement_reject`` × g2·w0, no contact deeper than the penetration limit.
+        ``start_dn``: the contacts' normal distances at the step's start (for the message of a
+        contact that entered the step already too deep, which no Δt can help)."""
         p, m = self.params, self.model
         disp = oc.displacement
         umax = max_vertex_displacement(m, state.vertex_xy, geom, disp)
@@ -236,7 +240,8 @@ class Stepper:
         if pen > m.penetration_limit:
             return replace(result, ok=False, cause="penetration",
                            culprits=((int(contacts.block_a[deepest]), int(contacts.block_b[deepest])),),
-                           culprit_force=float(contacts.normal_force[deepest]))
+                           culprit_force=float(contacts.normal_force[deepest]),
+                           culprit_start=0.0 if start_dn is None else max(-float(start_dn[deepest]), 0.0))
         return result
 
     def shorter_time_step(self, attempt: Attempt, state: State, dt: float) -> float:

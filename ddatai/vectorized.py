@@ -36,6 +36,7 @@ from .model import Model
 EDGE_FLOOR = 1e-150
 EDGE_FLOOR2 = EDGE_FLOOR * EDGE_FLOOR
 TIE = 1e-3
+SLACK = 1e-9
 TWO_PI = 2.0 * math.pi
 #: the wedges of a vertex pair do not overlap iff their angles and the two gaps sum to 2π
 #: within this (`kernels._vertex_vertex`)
@@ -99,6 +100,8 @@ class _Geometry:
         self.n1 = np.sqrt(self.r1x * self.r1x + self.r1y * self.r1y)
         self.n2 = np.sqrt(self.r2x * self.r2x + self.r2y * self.r2y)
         self.convex = self.r1x * self.r2y - self.r1y * self.r2x > 0.0
+        self.vblock, self.off = model.vertex_block, model.vertex_offset.astype(np.int64)
+        self.block_convex = np.logical_and.reduceat(self.convex, self.off[:-1])
         # edge k = (k, next[k]): direction d, squared length, clamped length, outward normal
         self.dx, self.dy = self.r1x, self.r1y
         self.dd = self.dx * self.dx + self.dy * self.dy
@@ -120,6 +123,34 @@ class _Geometry:
         hi = np.minimum(1.0, np.maximum(ta, tb))
         return 0.5 * np.maximum(0.0, hi - lo) * np.sqrt(l2)
 
+    def outside_convex(self, p: np.ndarray, e: np.ndarray, slack: float) -> np.ndarray:
+        """Whether vertices p lie in front of some edge of the convex block of their edge e (or
+        on its line, within ``slack``): outside it, or on its boundary (`kernels._outside_convex`)."""
+        block = self.vblock[e]
+        convex = self.block_convex[block]
+        out = np.zeros(len(p), bool)
+        k = convex.nonzero()[0]
+        if not len(k):
+            return out
+        owner, rank = _expand(self.off[block[k] + 1] - self.off[block[k]])
+        j = self.off[block[k]][owner] + rank
+        v = p[k][owner]
+        dn = (self.x[v] - self.x[j]) * self.nx[j] + (self.y[v] - self.y[j]) * self.ny[j]
+        front = np.zeros(len(k), bool)
+        np.logical_or.at(front, owner, dn > -slack)
+        out[k] = front
+        return out
+
+    def nearer_exit(self, p: np.ndarray, depth: np.ndarray, a: np.ndarray, c: np.ndarray) -> np.ndarray:
+        """Whether vertices p, at normal distances ``depth`` (< 0) from their edges, lie less
+        deep behind the lines of edges a (or in front of them), projecting onto a, where a
+        meets that edge at the convex corner c (`kernels._nearer_exit`)."""
+        px, py = self.x[p] - self.x[a], self.y[p] - self.y[a]
+        l = self.length[a]
+        t = (px * self.dx[a] + py * self.dy[a]) / (l * l)
+        dn = px * self.nx[a] + py * self.ny[a]
+        return self.convex[c] & (dn > depth) & (t >= -SLACK) & (t <= 1.0 + SLACK)
+
     def ve_test(self, p: np.ndarray, e: np.ndarray, check_projection: np.ndarray, d0: float,
                 d9: float, sin_h1: float) -> tuple[np.ndarray, np.ndarray]:
         """Distance and entrance-angle criteria of vertices p against edges e (§3.3, §3.4;
@@ -135,6 +166,16 @@ class _Geometry:
         # a collapsed edge has no normal; a concave vertex never contacts as a vertex
         k = ((l > EDGE_FLOOR) & (dn <= d0) & (dn >= -d9) & self.convex[p] &
                            (~check_projection | ((t >= 0.0) & (t <= 1.0)))).nonzero()[0]
+        # behind the edge's line, but nearer the line of the edge that meets it at a convex
+        # corner (or in front of it: outside the block): the vertex entered, or lies on, that
+        # edge, not this one (§3.3, the shortest exit)
+        behind = (dn[k] < -SLACK * d9).nonzero()[0]
+        if len(behind):
+            pb, eb, depth = p[k[behind]], e[k[behind]], dn[k[behind]]
+            out = self.nearer_exit(pb, depth, self.prv[eb], eb) | \
+                self.nearer_exit(pb, depth, self.nxt[eb], self.nxt[eb]) | \
+                self.outside_convex(pb, eb, SLACK * d9)
+            k = np.delete(k, behind[out])
         p, e, nx, ny = p[k], e[k], nx[k], ny[k]
         # the vertex's material wedge must lie on the outer side of the edge within h1
         r1n = self.r1x[p] * nx + self.r1y[p] * ny

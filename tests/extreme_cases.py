@@ -25,6 +25,12 @@ REGIMES = {
     "extreme": dict(size=(0.01, 100.0), density=(800.0, 20000.0), young=(1e6, 300e9),
                     poisson=(0.0, 0.45), friction=(0.0, 60.0), strength=(0.0, 1e7), speed=20.0,
                     spin=5.0),
+    # whole rock-like domains cut by random joints, the way sections are made (`random_domain`):
+    # outline size across [m], joint strength (c, T) 0 or log-uniform in `strength`, a user Δt
+    # in `user_dt` in 30 % of the scenes
+    "cut": dict(size=(0.2, 2000.0), density=(1800.0, 3200.0), young=(0.3e9, 100e9),
+                poisson=(0.1, 0.35), friction=(10.0, 50.0), strength=(100.0, 1e6),
+                gravity=(0.0, 9.81, 30.0), traces=(2, 13), user_dt=(1e-6, 0.1)),
 }
 SHAPES = ("rect", "polygon", "ell")
 
@@ -33,7 +39,7 @@ SHAPES = ("rect", "polygon", "ell")
 class CaseSpec:
     """One random scene. Lengths in block sizes unless stated."""
 
-    kind: str                    # "stack" or "cut"
+    kind: str                    # "stack", "cut" or "domain"
     size: float                  # block size L [m]
     density: float               # [kg/m³]
     young: float                 # [Pa]
@@ -48,7 +54,9 @@ class CaseSpec:
     shifts: tuple = ()           # stack: horizontal offset of each block [L]
     velocities: tuple = ()       # stack: (vx, vy) per block [m/s]
     spins: tuple = ()            # stack: angular velocity per block [rad/s]
-    joints: tuple = ()           # cut: (x0, y0, dip [degrees]) per joint, position in domain sizes
+    joints: tuple = ()           # cut, domain: (x0, y0, dip [degrees]) per joint, position in domain sizes
+    outline: tuple = ()          # domain: the outline's vertices, in domain sizes (size = its width)
+    dt: float = 0.0              # a user time step Params.dt [s]; 0: automatic
     load: float = 0.0            # point load on the first free block, in its weight at 9.81 m/s² [-]
     shaking: float = 0.0         # ground acceleration amplitude [m/s²] (horizontal, 2 Hz)
     steps: int = 30
@@ -85,6 +93,23 @@ def build(spec: CaseSpec):
             poly = [(shift * L + px, y + py) for px, py in _polygon(shape, width, height)]
             free.append(scene.add_block(poly, material=rock, velocity=tuple(v), angular_velocity=w))
             y += height
+    elif spec.kind == "domain":
+        outline = [(L * x, L * y) for x, y in spec.outline]
+        h = max(y for _, y in spec.outline)
+        lines = []
+        for x0, y0, dip in spec.joints:
+            c, s = math.cos(math.radians(dip)), math.sin(math.radians(dip))
+            p = np.array([x0 * L, y0 * h * L])
+            d = np.array([c, s]) * 3.0 * L * (1.0 + h)
+            lines.append((np.array([p - d, p + d]), joint))
+        import warnings
+
+        with warnings.catch_warnings():
+            # slivers are kept, as a user who ignores the warning keeps them
+            warnings.simplefilter("ignore")
+            free = scene.cut(outline, lines, material=rock)
+        scene.set_fixed(free[0])  # the lowest block (`Scene.cut` orders them bottom to top)
+        free = free[1:]
     else:
         width, height = 4.0 * L, 3.0 * L
         scene.add_block([(-L, -L), (width + L, -L), (width + L, 0), (-L, 0)], material=rock, fixed=True)
@@ -140,6 +165,34 @@ def random_spec(rng: np.random.Generator, regime: str, steps: int = 30) -> CaseS
                                               float(rng.uniform(0, 180))) for _ in range(n)), **base)
 
 
+def random_domain(rng: np.random.Generator, steps: int = 400) -> CaseSpec:
+    """A rock-like domain cut by random joints (the "cut" regime): a five-sided outline (a
+    slope section: base, back, crest, face, toe) 0.2 m to 2 km across, cut by 2–13 straight
+    traces of random position and dip, its lowest block fixed; gravity 0, 9.81 or 30 m/s²;
+    joints with φ 10–50° and c, T each either 0 or 100 Pa–1 MPa; the default `Params`, or in
+    30 % of the scenes a user Δt of 1 µs–0.1 s."""
+    r = REGIMES["cut"]
+
+    def log(lo_hi):
+        lo, hi = lo_hi
+        return float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
+
+    height = float(rng.uniform(0.4, 1.0))
+    crest = float(rng.uniform(0.2, 0.8))     # where the crest ends and the face begins
+    toe = float(rng.uniform(0.1, 0.6)) * height   # height of the toe on the front
+    outline = ((0.0, 0.0), (1.0, 0.0), (1.0, height), (crest, height), (0.0, toe))
+    n = int(rng.integers(r["traces"][0], r["traces"][1] + 1))
+    joints = tuple((float(rng.uniform(0.05, 0.95)), float(rng.uniform(0.05, 0.95)),
+                    float(rng.uniform(0.0, 180.0))) for _ in range(n))
+    return CaseSpec(kind="domain", outline=outline, joints=joints, size=log(r["size"]),
+                    density=float(rng.uniform(*r["density"])), young=log(r["young"]),
+                    poisson=float(rng.uniform(*r["poisson"])), friction=float(rng.uniform(*r["friction"])),
+                    cohesion=0.0 if rng.random() < 0.5 else log(r["strength"]),
+                    tensile=0.0 if rng.random() < 0.5 else log(r["strength"]),
+                    gravity=float(rng.choice(r["gravity"])),
+                    dt=log(r["user_dt"]) if rng.random() < 0.3 else 0.0, steps=steps)
+
+
 @dataclass
 class Outcome:
     """What a case did: ``status`` is "ok", "refused" (ValueError before any work), "diverged"
@@ -173,7 +226,7 @@ def run_case(spec: CaseSpec, params: "dict | None" = None) -> Outcome:
     # (docs/method/limits.md) is held to everything but the energy balance
     strained = any("elastic strain" in str(w.message) for w in caught)
     try:
-        res = dd.simulate(scene, steps=steps)
+        res = dd.simulate(scene, dd.Params(dt=spec.dt) if spec.dt else None, steps=steps)
     except dd.SimulationError as err:
         return Outcome("diverged", str(err), steps=0 if err.results is None else len(err.results.steps))
     except ValueError as err:  # refused before any step

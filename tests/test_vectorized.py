@@ -290,10 +290,11 @@ def test_vertices_exactly_d0_apart_are_a_close_pair():
 
 
 def test_constants_agree_with_the_kernels():
-    from ddatai import kernels
+    from ddatai import kernels, reference
 
     assert vectorized.EDGE_FLOOR == kernels.EDGE_FLOOR
     assert vectorized.TIE == kernels.TIE
+    assert vectorized.SLACK == kernels.SLACK == reference.SLACK
     assert vectorized.TWO_PI == kernels.TWO_PI
 
 
