@@ -29,6 +29,11 @@ from .params import Params
 from .scene import Scene
 
 
+#: "auto" solves a batch of at most this many unknowns densely (8 members of 2 free blocks:
+#: 96), a larger one sparsely (docs/guide/performance.md, "Batched studies")
+BATCH_DENSE_UNKNOWNS = 200
+
+
 @dataclass(frozen=True, kw_only=True, eq=False)
 class Batch:
     """Independent members in one scene (`side_by_side`)."""
@@ -112,8 +117,10 @@ def batch_model(batch: Batch, params: Params, *, w0: float, penalty: float) -> M
 
     if params.solver == "auto":
         # K is block-diagonal, one block a member: a sparse factorisation costs about the sum
-        # of the members', a dense one the cube of their total (11 ms a solve at 600 unknowns)
-        params = replace(params, solver=resolve("auto"))
+        # of the members', a dense one the cube of their total (11 ms a solve at 600 unknowns);
+        # below BATCH_DENSE_UNKNOWNS the dense solve's fewer calls still win
+        unknowns = 6 * sum(not b.fixed for b in batch.scene.blocks)
+        params = replace(params, solver="dense" if unknowns <= BATCH_DENSE_UNKNOWNS else resolve("auto"))
     return build_model(batch.scene, replace(params, penalty=float(penalty)), length_scale=w0)
 
 
