@@ -111,8 +111,8 @@ def member_constants(model: Model) -> tuple[float, float]:
 def batch_model(batch: Batch, params: Params, *, w0: float, penalty: float) -> Model:
     """The model of the combined scene with a member's own constants: the length scale ``w0``
     [m] (and every tolerance that follows from it) and the ``penalty`` [N/m] of the members'
-    models (`member_constants`; all members must have the same). ``solver="auto"`` takes the
-    sparse solver whatever the size."""
+    models (`member_constants`; all members must have the same). ``solver="auto"`` solves
+    densely up to BATCH_DENSE_UNKNOWNS, sparsely above."""
     from .solver import resolve
 
     if params.solver == "auto":
@@ -124,12 +124,21 @@ def batch_model(batch: Batch, params: Params, *, w0: float, penalty: float) -> M
     return build_model(batch.scene, replace(params, penalty=float(penalty)), length_scale=w0)
 
 
-def check_member(k: int, constants: tuple[float, float], reference: tuple[float, float]) -> Optional[str]:
-    """Why member ``k`` cannot share a batch whose members have ``reference`` constants, or None."""
-    if constants != reference:
-        return (f"member {k}: its own model has w0 = {constants[0]:.6g} m and penalty {constants[1]:.6g} N/m, "
-                f"the batch's {reference[0]:.6g} m and {reference[1]:.6g} N/m")
-    return None
+def _key_parts(memory, n_vertices: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The two vertex numbers (vertex and edge, or both vertices) of each contact identity
+    (`ddatai.contacts.contact_keys`) in a model of ``n_vertices``, and which are vertex-vertex."""
+    from .layout import ContactKind
+
+    n = np.int64(n_vertices)
+    vv = memory.kind == ContactKind.VV
+    key = np.where(vv, memory.key - n * n, memory.key)
+    return key // n, key % n, vv
+
+
+def _key(first: np.ndarray, second: np.ndarray, vv: np.ndarray, n_vertices: int) -> np.ndarray:
+    """Contact identities (`ddatai.contacts.contact_keys`) from their two vertex numbers."""
+    n = np.int64(n_vertices)
+    return np.where(vv, n * n, 0) + first * n + second
 
 
 def combined_state(batch: Batch, model: Model, members: Sequence[Model], states: Sequence) -> State:
@@ -138,7 +147,6 @@ def combined_state(batch: Batch, model: Model, members: Sequence[Model], states:
     the batch as it would start alone — the stage decides per model whether a part is held,
     released or welded, so a batch of members settled together would not. Positions move to the
     batch's coordinates, contact identities to its vertex numbers; energies add up."""
-    from .layout import ContactKind
     from .model import ContactMemory
 
     if len(members) != batch.n_members or len(states) != batch.n_members:
@@ -154,16 +162,10 @@ def combined_state(batch: Batch, model: Model, members: Sequence[Model], states:
     def cat(name):
         return np.concatenate([getattr(s, name) for s in states])
 
-    total = model.n_vertices
     memory = []
     for k, (m, s) in enumerate(zip(members, states)):
-        mem = s.memory
-        n = np.int64(m.n_vertices)
-        vv = mem.kind == ContactKind.VV
-        key = np.where(vv, mem.key - n * n, mem.key)
-        first, second = key // n + v_offset[k], key % n + v_offset[k]  # (vertex, edge or vertex)
-        new_key = np.where(vv, np.int64(total) * total, 0) + first * np.int64(total) + second
-        memory.append(replace(mem, key=new_key))
+        first, second, vv = _key_parts(s.memory, m.n_vertices)
+        memory.append(replace(s.memory, key=_key(first + v_offset[k], second + v_offset[k], vv, model.n_vertices)))
     fields = [f for f in ContactMemory.__dataclass_fields__ if f != "key"]
     key = np.concatenate([m.key for m in memory])
     order = np.argsort(key, kind="stable")
@@ -193,7 +195,6 @@ def member_states(batch: Batch, model: Model, members: Sequence[Model], state: S
     have been decided goes on with the others alone (`side_by_side` of those, `combined_state`
     of these states). The mechanical energy of a member is not known apart: None (a step
     computes it again)."""
-    from .layout import ContactKind
     from .model import ContactMemory
 
     which = range(batch.n_members) if which is None else which
@@ -204,11 +205,8 @@ def member_states(batch: Batch, model: Model, members: Sequence[Model], state: S
         return np.concatenate([[0], np.cumsum([len(getattr(m, name)) for m in members])])
 
     points = {name: offsets(name) for name in ("fixed_point_block", "load_block", "measured_block", "bolt_block")}
-    total = np.int64(model.n_vertices)
     mem = state.memory
-    vv = mem.kind == ContactKind.VV
-    key = np.where(vv, mem.key - total * total, mem.key)
-    first, second = key // total, key % total
+    first, second, vv = _key_parts(mem, model.n_vertices)
     owner = np.searchsorted(v_offset, first, side="right") - 1
     fields = [f for f in ContactMemory.__dataclass_fields__ if f != "key"]
     out = []
@@ -223,8 +221,7 @@ def member_states(batch: Batch, model: Model, members: Sequence[Model], state: S
             return getattr(state, name)[p[k]:p[k + 1]]
 
         rows = np.flatnonzero(owner == k)
-        n = np.int64(m.n_vertices)
-        new_key = np.where(vv[rows], n * n, 0) + (first[rows] - lo) * n + (second[rows] - lo)
+        new_key = _key(first[rows] - lo, second[rows] - lo, vv[rows], m.n_vertices)
         order = np.argsort(new_key, kind="stable")
         memory = ContactMemory(key=new_key[order], **{
             f: (getattr(mem, f)[rows][order] if len(getattr(mem, f)) == len(mem.key) else np.zeros(0))

@@ -20,18 +20,12 @@ from ddatai.params import Params
 from ddatai.scene import Scene
 
 from .blocks import BlockSystem
-from .judgement import _StopRun, _verdict, group_size, judge, run_params, sub_scene
+from .judgement import _StopRun, _verdict, block_displacements, group_size, judge, run_params, sub_scene
 from .settings import DdaSettings
 
 
 class _Cut(Exception):
     """Raised from the progress callback of an exact batch whose step had its Δt cut."""
-
-
-def _initial_xy(models, active, batch, model) -> np.ndarray:
-    """Initial vertex positions of the members ``active`` in the batch's coordinates."""
-    return np.concatenate([models[k].vertex_xy0 + (models[k].origin + batch.shift[i] - model.origin)
-                           for i, k in enumerate(active)])
 
 
 # ---------------------------------------------------------------------- many judgements in one run
@@ -133,7 +127,7 @@ def judge_members(members, blocks: frozenset, *, settings: DdaSettings, params: 
     decided = np.zeros(n_members, bool)  # moved past stop_at (unstable, stopped early)
     cut = False      # (exact) a step's Δt was cut: the members not decided are judged again
     failure = None
-    active = list(range(n_members))
+    active = list(range(n_members))  # the members not decided
     while active:
         # the members not decided, side by side; once half of them are decided the others go
         # on without them, from where they are (`ddatai.batch.member_states`)
@@ -141,49 +135,48 @@ def judge_members(members, blocks: frozenset, *, settings: DdaSettings, params: 
         model = batch_model(batch, prm, w0=w0, penalty=penalty)
         own = [models[k] for k in active]
         initial = combined_state(batch, model, own, [states[k] for k in active])
-        member_blocks = (batch.block_offset[:-1, None] + np.array(pos)[None, :]).ravel()
-        counts = np.diff(model.vertex_offset)[member_blocks]
-        vidx = np.concatenate([np.arange(model.vertex_offset[b], model.vertex_offset[b + 1])
-                               for b in member_blocks])
-        starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-        x0 = _initial_xy(models, active, batch, model)[vidx]
+        moved = block_displacements(model, (batch.block_offset[:-1, None] + np.array(pos)[None, :]).ravel())
+        run_t, run_d = [], []  # this run's times and its members' displacements
+        passed = np.full(len(active), -1)  # the record of this run at which each passed stop_at
         last = [None]
 
         def progress(state, record):
             if exact and record.dt_cuts > 0:
                 raise _Cut
-            # as `judge`: a member block's displacement is the mean of its vertices'; a
-            # member's the largest of its group's blocks
-            u = np.add.reduceat(state.vertex_xy[vidx] - x0, starts, axis=0) / counts[:, None]
-            d = np.hypot(u[:, 0], u[:, 1]).reshape(len(active), len(pos)).max(axis=1)
-            for i, k in enumerate(active):
-                if not decided[k]:
-                    times[k].append(state.time)
-                    disp[k].append(float(d[i]))
-                    decided[k] = d[i] > stop_at
-            left = [k for k in active if not decided[k]]
+            # as `judge`: a member's displacement is the largest of its group's blocks'
+            d = moved(state.vertex_xy).reshape(len(active), len(pos)).max(axis=1)
+            run_t.append(state.time)
+            run_d.append(d)
+            passed[(passed < 0) & (d > stop_at)] = len(run_t) - 1
+            left = np.count_nonzero(passed < 0)
             if not left:
                 raise _StopRun
-            if 2 * len(left) <= len(active) and len(active) > 1:
+            if 2 * left <= len(active) and len(active) > 1:
                 last[0] = state
                 raise _StopRun
 
         try:
             simulate(batch.scene, model.params, duration=duration, progress=progress, record_every=10 ** 9,
                      model=model, initial_state=initial)
-            active = []
         except _StopRun:
-            if last[0] is None:
-                active = []
-            else:
-                left = [i for i, k in enumerate(active) if not decided[k]]
-                for i, s in zip(left, member_states(batch, model, own, last[0], which=left)):
-                    states[active[i]] = s
-                active = [active[i] for i in left]
+            pass
         except _Cut:
-            cut, active = True, []
+            cut = True
         except SimulationError as err:
-            failure, active = err, []
+            failure = err
+        # each member's history of this run, up to the record at which it was decided
+        run_d = np.array(run_d).reshape(len(run_t), len(active))
+        for i, k in enumerate(active):
+            end = passed[i] + 1 if passed[i] >= 0 else len(run_t)
+            times[k] += run_t[:end]
+            disp[k] += run_d[:end, i].tolist()
+            decided[k] = passed[i] >= 0
+        left = [i for i, k in enumerate(active) if not decided[k]]
+        if last[0] is None or not left:
+            break
+        for i, s in zip(left, member_states(batch, model, own, last[0], which=left)):
+            states[active[i]] = s
+        active = [active[i] for i in left]
     wall = time.perf_counter() - start
     out, rerun = {}, []
     for k, m in enumerate(members):

@@ -118,6 +118,8 @@ def evaluate_dda(scene: Scene, system: BlockSystem, blocks: frozenset, *, settin
 
     t0 = time.perf_counter()
     fs = phi = math.nan
+    if friction_guess is None:
+        friction_guess = float(np.mean(system.contact_friction))
     if settings.batch > 1:
         searches = {}
         if with_fs:
@@ -126,30 +128,18 @@ def evaluate_dda(scene: Scene, system: BlockSystem, blocks: frozenset, *, settin
             searches["fs"] = _Bracket(guess=-math.log(f), lower=-math.log(50.0), upper=-math.log(0.02),
                                       tolerance=math.log1p(settings.fs_tolerance), step=math.log(1.25))
         if with_friction:
-            g = friction_guess if friction_guess is not None else float(np.mean(system.contact_friction))
-            searches["phi"] = _Bracket(guess=min(max(g, 0.0), 85.0), lower=0.0, upper=89.0,
+            searches["phi"] = _Bracket(guess=min(max(friction_guess, 0.0), 85.0), lower=0.0, upper=89.0,
                                        tolerance=settings.friction_tolerance, step=2.0)
-        first = True
-        while first or any(not b.done for b in searches.values()):
-            active = [n for n, b in searches.items() if not b.done]
-            probes = [(None, 1.0)] if first else []
-            share = max(1, (settings.batch - len(probes)) // max(len(active), 1))
-            asked = {n: searches[n].proposals(share, share_next=max(1, settings.batch // max(len(active), 1)))
-                     for n in active}
-            for n, xs in asked.items():
-                probes += [(None, math.exp(-x)) if n == "fs" else (x, 1.0) for x in xs]
+
+        def judge_round(probes):
             todo = [p for p in dict.fromkeys(probes) if key(*p) not in cache]
             for p, j in zip(todo, judge_many(scene, system, blocks, todo, settings=settings, params=params,
                                              removed=removed)):
                 cache[key(*p)] = j
                 runs.append(j)
-            for n, xs in asked.items():
-                for x in xs:
-                    p = (None, math.exp(-x)) if n == "fs" else (x, 1.0)
-                    searches[n].record(x, cache[key(*p)].stable)
-            if first and "fs" in searches:  # the verdict is the probe F = 1
-                searches["fs"].record(0.0, cache[(None, 1.0)].stable)
-            first = False
+            return [cache[key(*p)].stable for p in probes]
+
+        _k_sections(searches, judge_round, settings.batch)
         if with_fs:
             fs = searches["fs"].limit(lambda x: math.exp(-x), below=math.inf, above=0.0)
         if with_friction:
@@ -159,13 +149,36 @@ def evaluate_dda(scene: Scene, system: BlockSystem, blocks: frozenset, *, settin
         if with_fs:
             fs = _bisect_reduction(run, fs_guess, settings.fs_tolerance)
         if with_friction:
-            guess = friction_guess if friction_guess is not None else float(np.mean(system.contact_friction))
-            phi = _bisect_friction(run, guess, settings.friction_tolerance)
+            phi = _bisect_friction(run, friction_guess, settings.friction_tolerance)
     timing = None
     if settings.compare_whole:
         timing = time_sub_and_whole(scene, system, blocks, settings=settings, params=params, removed=removed)
     return DdaEvaluation(fs=fs, critical_friction=phi, judgement=cache[(None, 1.0)], runs=tuple(runs),
                          wall_time=time.perf_counter() - t0, timing=timing)
+
+
+def _k_sections(searches: dict, judge_round, batch: int) -> None:
+    """Rounds of the searches ``searches`` ("fs": x = −ln F, "phi": x = φ; `_Bracket`) until all
+    are done: each round, the verdict at the scene's strength (the first) and the active
+    searches' probes, ``batch`` in all, judged together by ``judge_round`` (a list of
+    (friction, reduction) -> a list of verdicts)."""
+
+    def probe(name, x):  # (friction, reduction) of a probe
+        return (None, math.exp(-x)) if name == "fs" else (x, 1.0)
+
+    first = True
+    while first or any(not b.done for b in searches.values()):
+        active = [n for n, b in searches.items() if not b.done]
+        fixed = [(None, 1.0)] if first else []
+        share = max(1, (batch - len(fixed)) // max(len(active), 1))
+        asked = [(n, x) for n in active
+                 for x in searches[n].proposals(share, share_next=max(1, batch // max(len(active), 1)))]
+        stable = judge_round(fixed + [probe(n, x) for n, x in asked])
+        for (n, x), verdict in zip(asked, stable[len(fixed):]):
+            searches[n].record(x, verdict)
+        if first and "fs" in searches:  # the verdict is the probe F = 1
+            searches["fs"].record(0.0, stable[0])
+        first = False
 
 
 class _Bracket:

@@ -121,6 +121,23 @@ def group_size(system: BlockSystem, blocks: frozenset) -> float:
 
 
 # ---------------------------------------------------------------------- one judgement
+def block_displacements(model, blocks):
+    """A function of the vertex positions (of ``model``) giving the displacement of each block
+    in ``blocks`` (ids in the model) from where it started: the mean displacement of its vertices
+    (its centroid's for a rigid translation) [m]."""
+    offset = model.vertex_offset
+    counts = np.diff(offset)[blocks]
+    vidx = np.concatenate([np.arange(offset[b], offset[b + 1]) for b in blocks])
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    x0 = model.vertex_xy0[vidx]
+
+    def moved(vertex_xy: np.ndarray) -> np.ndarray:
+        u = np.add.reduceat(vertex_xy[vidx] - x0, starts, axis=0) / counts[:, None]
+        return np.hypot(u[:, 0], u[:, 1])
+
+    return moved
+
+
 def judge(scene: Scene, system: BlockSystem, blocks: frozenset, *, settings: DdaSettings,
           params: Optional[Params] = None, removed: frozenset = frozenset(),
           friction: Optional[float] = None, reduction: float = 1.0,
@@ -140,22 +157,14 @@ def judge(scene: Scene, system: BlockSystem, blocks: frozenset, *, settings: Dda
     delta = settings.displacement_ratio * group_size(system, blocks)
     duration = settings.duration or math.sqrt(2.0 * delta / settings.acceleration_resolution)
     model = build_model(sub, prm)  # built once: its origin maps the positions, simulate runs it
-    origin = model.origin
-    pos = [ids.index(b) for b in sorted(blocks)]
-    counts = np.array([len(s.vertices) for s in sub.blocks])
-    offset = np.concatenate([[0], np.cumsum(counts)])
-    vidx = np.concatenate([np.arange(offset[p], offset[p + 1]) for p in pos])
-    starts = np.concatenate([[0], np.cumsum(counts[pos])[:-1]])
-    x0 = np.concatenate([sub.blocks[p].vertices for p in pos]) - origin
+    moved = block_displacements(model, [ids.index(b) for b in sorted(blocks)])
     stop_at = settings.stop_ratio * delta if record_every is None else math.inf
     times, disp = [0.0], [0.0]
 
     def progress(state, record):
-        # displacement of each member = mean displacement of its vertices (its centroid's for a
-        # rigid translation); the group's = the largest
-        u = np.add.reduceat(state.vertex_xy[vidx] - x0, starts, axis=0) / counts[pos][:, None]
+        # the group's displacement: the largest of its members'
         times.append(state.time)
-        disp.append(float(np.max(np.hypot(u[:, 0], u[:, 1]))))
+        disp.append(float(np.max(moved(state.vertex_xy))))
         if disp[-1] > stop_at:
             raise _StopRun
 

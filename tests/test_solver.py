@@ -19,7 +19,9 @@ from ddatai.step import Stepper
 HAS_PARDISO = importlib.util.find_spec("pypardiso") is not None
 
 
-def _system(seed):
+def _blocks_and_contacts(seed):
+    """A random jointed scene with perturbed vertices: its model, contacts, stepper, pattern,
+    contact vectors and the block terms of K and F."""
     model = build_model(random_jointed_scene(seed))
     xy = perturbed_vertices(model, seed, shift=0.1 * model.search_distance)
     state = model.initial_state().replace(vertex_xy=xy)
@@ -30,6 +32,11 @@ def _system(seed):
     pattern = BlockPattern.build(model, c)
     vec, sca = contact_vectors(model, xy, geom, c)
     data, rhs = assemble_blocks(model, state, geom, pattern, 0.005, beta=0.5)
+    return model, c, stepper, pattern, vec, sca, data, rhs
+
+
+def _system(seed):
+    model, c, stepper, pattern, vec, sca, data, rhs = _blocks_and_contacts(seed)
     assemble_contacts(model, c, pattern, vec, sca, data, rhs, stepper.serial_scatter)
     return pattern, data, rhs
 
@@ -221,16 +228,7 @@ def _changed_states(seed, changes):
     """A system K, F and the same geometry with ``changes`` contacts' states changed (closed
     ones opened, locked ones sliding; None: all closed ones): the later solves of an
     open-close iteration."""
-    model = build_model(random_jointed_scene(seed))
-    xy = perturbed_vertices(model, seed, shift=0.1 * model.search_distance)
-    state = model.initial_state().replace(vertex_xy=xy)
-    cint, length = detect_contacts(model, xy)
-    c = Contacts.start(model, xy, cint, length, ContactMemory.empty(), True)
-    stepper = Stepper(model)
-    geom = model.block_geometry(xy)
-    pattern = BlockPattern.build(model, c)
-    vec, sca = contact_vectors(model, xy, geom, c)
-    data0, rhs0 = assemble_blocks(model, state, geom, pattern, 0.005, beta=0.5)
+    model, c, stepper, pattern, vec, sca, data0, rhs0 = _blocks_and_contacts(seed)
     systems = []
     rng = np.random.default_rng(seed)
     closed = np.flatnonzero(c.state != dd.ContactState.OPEN)
