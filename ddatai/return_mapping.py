@@ -21,6 +21,7 @@ from .contacts import Contacts
 from .kinematics import block_displacement
 from .layout import KIND, LOCK, OPEN, S_E0, S_E1, S_ES, S_G0, S_G1, S_GS, SLIDE, VE, VV
 from .model import State
+from .limit_equilibrium import unsupported_blocks
 from .open_close import solve
 from .mechanisms import MECHANISM_SIZE, anchored, driven, mechanisms, out_of_balance, test_unbalanced
 
@@ -49,7 +50,7 @@ STALL_ITERATIONS = 20
 MAX_FINISH_SOLVES = 8
 #: a pseudo-step that has not found its equilibrium in this many solves gives up (the welded
 #: start follows, module docstring 6.)
-MAX_STAGE_SOLVES = 300
+MAX_STAGE_SOLVES = 1000
 #: the line search halves its interval this many times (`_line_search`)
 LINE_SEARCH_BISECTIONS = 30
 #: Anderson acceleration of the slips keeps this many past iterates (`_anderson`), and starts
@@ -125,50 +126,74 @@ class Outcome:
 def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: float,
                     released: np.ndarray, size: np.ndarray, frame: "Optional[Frame]" = None):
     """One pseudo-step (module docstring, 1.–3.): the return-mapping iteration (`_iterate`);
-    blocks that move away in it, or that it leaves out of balance and that then move away in
-    the open-close test (`test_unbalanced`), are released, and the rest iterated again from
-    where they were. Returns (D, or None when no equilibrium was found; solves; the newly
-    released blocks; the contacts as handed over, `_hand_over`)."""
+    blocks that move away in it, or that it leaves out of balance and that limit equilibrium
+    then lets move (`limit_equilibrium.unsupported_blocks`; where that does not apply, those
+    that move away in the open-close test, `test_unbalanced`), are released, and the rest
+    iterated again from where they were. Where limit equilibrium holds every block left but the
+    iteration has stalled, the pseudo-step ends there (*stalled*: its contacts handed over at
+    most at their strength). Returns (D, or None when no equilibrium was found; solves; the
+    newly released blocks; the contacts as handed over, `_hand_over`; whether it stalled)."""
     out = released.copy()
     solves = 0
     guess = None
     freeze = False
+    stalled = False
+    touching = contacts.state != OPEN  # the contacts that limit equilibrium may count on
     while solves < MAX_STAGE_SOLVES:
         keep = ~(out[contacts.block_a] | out[contacts.block_b])
         if frame is None or not keep.all():
             contacts = subset_contacts(contacts, keep)
+            touching = touching[keep]
             guess = guess.subset(keep) if guess is not None else None
             frame = Frame.build(stepper, state, geom, contacts, dt)
         outcome, raw = _iterate(stepper, frame, contacts, geom, out, size, guess, freeze)
         solves += outcome.solves
         if outcome.disp is None:
-            return None, solves, out & ~released, contacts
+            return None, solves, out & ~released, contacts, False
         guess = _opened(raw.copy(), outcome.law)  # the contacts as handed over
         contacts.state[:] = np.where(guess.closed, contacts.state, OPEN)
         contacts.dn[:] = outcome.law.dn_now
         mechanism = mechanisms(stepper, state.vertex_xy, geom, contacts, outcome.disp, out, size)
-        if not mechanism.any() and not outcome.converged and not freeze:
-            # stalled: once more from there, contacts whose states flip back and forth opening
-            # by the return mapping of their normal springs (`_iterate`)
-            freeze, guess = True, raw
-            continue
         if not mechanism.any() and not outcome.converged:
-            # out of balance after the iteration: those blocks that move away in the open-close
-            # iteration, their contacts at the strength sliding, are mechanisms
-            unbalanced = out_of_balance(stepper.model, contacts, outcome)
-            tested, n = test_unbalanced(stepper, state, geom, frame, contacts, outcome, guess, unbalanced)
-            solves += n
-            if tested is not None:
-                moving = unbalanced & mechanisms(stepper, state.vertex_xy, geom, tested[1], tested[0],
-                                                  out, size)
-                mechanism = driven(stepper, state, geom, tested[1], tested[0], moving)
+            # out of balance where the iteration stopped. Blocks for which rigid-block limit
+            # equilibrium finds no admissible contact forces cannot be held: mechanisms
+            # (`limit_equilibrium`; None where it does not apply: bolts, water)
+            unsupported = unsupported_blocks(stepper.model, state.vertex_xy, geom, contacts, touching, out)
+            if unsupported is not None and np.any(unsupported & ~out):
+                # released, and the rest iterated from there with the chatter of its contacts
+                # suppressed from the start (it stalled once already)
+                mechanism = unsupported & ~out
+                freeze = True
+            elif not freeze:
+                # once more from there, contacts whose states flip back and forth opening by the
+                # return mapping of their normal springs (`_iterate`)
+                freeze, guess = True, raw
+                continue
+            else:
+                # admissible forces do not prove a block held (Coulomb friction is not
+                # associated: toppling columns have them): those out of balance that move away
+                # in the open-close iteration, their contacts at the strength sliding, as their
+                # loads drive them, are mechanisms — where that iteration converges (its
+                # unconverged iterate throws blocks that a converged one holds), or where limit
+                # equilibrium does not apply
+                unbalanced = out_of_balance(stepper.model, contacts, outcome)
+                tested, n = test_unbalanced(stepper, state, geom, frame, contacts, outcome, guess, unbalanced)
+                solves += n
+                if tested is not None and (tested[2] or unsupported is None):
+                    moving = unbalanced & mechanisms(stepper, state.vertex_xy, geom, tested[1], tested[0],
+                                                      out, size)
+                    mechanism = driven(stepper, state, geom, tested[1], tested[0], moving)
+                # where limit equilibrium holds the rest and the test moves nothing, the
+                # pseudo-step ends here, its forces out of balance by a fraction of the load,
+                # which the run's first steps settle (docs/method/dda.md §8.12)
+                stalled = unsupported is not None and not mechanism.any()
         if not mechanism.any():
-            if not outcome.converged:
-                return None, solves, out & ~released, contacts
+            if not outcome.converged and not stalled:
+                return None, solves, out & ~released, contacts, False
             break
         out |= mechanism
     else:
-        return None, solves, out & ~released, contacts
+        return None, solves, out & ~released, contacts, False
     law = outcome.law
     ve = contacts.cint[:, KIND] == VE
     at_strength = guess.closed & ve & \
@@ -189,9 +214,9 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
             disp, contacts = finished[0], finished[1]
             _shift_lock_points(stepper, state.vertex_xy, contacts, guess.slip)
             contacts.coupled[:] = False
-            return disp, solves, out & ~released, contacts
+            return disp, solves, out & ~released, contacts, False
     _hand_over(stepper, state.vertex_xy, contacts, outcome.law, guess)
-    return outcome.disp, solves, out & ~released, contacts
+    return outcome.disp, solves, out & ~released, contacts, stalled
 
 
 def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndarray,

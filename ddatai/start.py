@@ -180,6 +180,7 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
         contacts = subset_contacts(contacts, ~(released[contacts.block_a] | released[contacts.block_b]))
         if not np.any(contacts.state != OPEN):
             break  # nothing (left) touches: nothing to hold
+        stalled = False
         if welded:
             disp, n, found, contacts = _welded_step(stepper, state, geom, contacts, dt, released, size)
         else:
@@ -188,8 +189,8 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
                 # the settled geometry holds: its contact forces balance every block (a second
                 # pseudo-step first, which takes the first one's linearisation error out)
                 break
-            disp, n, found, contacts = return_mapping(stepper, state, geom, contacts, dt, released, size,
-                                                       frame)
+            disp, n, found, contacts, stalled = return_mapping(stepper, state, geom, contacts, dt, released,
+                                                                size, frame)
         solves += n
         if disp is None:  # no equilibrium found
             return initial, StartRecord(solves=solves, held=0, released=int(np.count_nonzero(free)),
@@ -211,6 +212,10 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
         memory = contacts.memory(bond_breaks_on_slip=False)
         if step <= model.open_tol:
             break  # the increment is round-off: an equilibrium of the settled geometry
+        if stalled:
+            # the return mapping stalled where limit equilibrium holds every block: another
+            # pseudo-step would stall the same way; the first steps settle what is left
+            break
     if solves == 0:
         return initial, NOTHING, True
     at_strength: set = set()
