@@ -44,11 +44,13 @@ HELD = 1e-5
 MOVING = 1e-3
 #: at most this many programs (each releases one more layer of blocks)
 MAX_PROGRAMS = 12
-#: interior-point iterations of one program, and its tolerance on the scaled residuals and the
-#: mean complementarity gap (the Newton systems lose accuracy below ~1e-9: the identification
-#: of the moving blocks needs far less)
+#: interior-point iterations of one program; its tolerances on the mean complementarity gap
+#: and the scaled equilibrium residual, and on the dual residual (of unit costs). The Newton
+#: systems lose accuracy as the gap falls below ~1e-9, the dual residual first (it stalls near
+#: 1e-5 on a block at its limit): the identification of the moving blocks needs far less
 MAX_IPM_ITERATIONS = 80
-IPM_TOLERANCE = 1e-7
+IPM_TOLERANCE = 1e-8
+DUAL_TOLERANCE = 1e-4
 
 
 def applicable(model) -> bool:
@@ -166,6 +168,13 @@ def _interior_point(a, b, tan_phi, cohesion, tensile):
     (a·H⁻¹·aᵀ + diag(s/z of r⁺ and r⁻))·dy = r, positive definite whatever the contacts (the
     out-of-balance forces keep it so where a mechanism leaves a·H⁻¹·aᵀ singular). Returns
     (Σ(r⁺ + r⁻), y), or None if it does not converge."""
+    # the last iterates may overflow where round-off takes over: they are judged finite or not
+    with np.errstate(all="ignore"):
+        return _mehrotra(a, b, tan_phi, cohesion, tensile)
+
+
+def _mehrotra(a, b, tan_phi, cohesion, tensile):
+    """`_interior_point`'s iteration."""
     from scipy.sparse import diags
     from scipy.sparse.linalg import splu
 
@@ -187,6 +196,7 @@ def _interior_point(a, b, tan_phi, cohesion, tensile):
     z = np.ones_like(s)
     y = np.zeros(n)
     size = 1.0 + float(np.abs(b).max(initial=0.0))
+    best = None  # the iterate of smallest gap among those close to feasible
     for _ in range(MAX_IPM_ITERATIONS):
         aty = at @ y
         ctz = ct_times(z)
@@ -194,19 +204,24 @@ def _interior_point(a, b, tan_phi, cohesion, tensile):
         re = a @ np.concatenate([nn, ss]) + rp - rm + b
         ri = c_times(nn, ss, rp, rm) + d - s
         gap = float(s @ z) / len(s)
-        if max(np.abs(re).max(initial=0.0), np.abs(ri).max(initial=0.0)) < IPM_TOLERANCE * size and \
-                max(np.abs(r).max(initial=0.0) for r in rd) < IPM_TOLERANCE and gap < IPM_TOLERANCE:
+        primal = max(np.abs(re).max(initial=0.0), np.abs(ri).max(initial=0.0)) / size
+        dual = max(np.abs(r).max(initial=0.0) for r in rd)
+        if not np.isfinite(gap + primal + dual):
+            break
+        if primal < 100.0 * IPM_TOLERANCE and dual < 10.0 * DUAL_TOLERANCE and (best is None or gap < best[0]):
+            best = (gap, float(rp.sum() + rm.sum()), y.copy())
+        if primal < IPM_TOLERANCE and dual < DUAL_TOLERANCE and gap < IPM_TOLERANCE:
             return float(rp.sum() + rm.sum()), y
         q = z / s
         q1, q2, q3, q4, q5 = q[:m], q[m:2 * m], q[2 * m:3 * m], q[3 * m:3 * m + n], q[3 * m + n:]
         # H per contact [[q1 + μ²(q2 + q3), μ(q3 − q2)], [μ(q3 − q2), q2 + q3]], inverted
         h11, h12, h22 = q1 + mu_ * mu_ * (q2 + q3), mu_ * (q3 - q2), q2 + q3
-        det = h11 * h22 - h12 * h12
+        det = np.maximum(q1 * h22 + 4.0 * mu_ * mu_ * q2 * q3, 1e-300)  # h11·h22 − h12², without cancellation
         i11, i12, i22 = h22 / det, -h12 / det, h11 / det
         try:
             lu = splu((a @ _block_inverse(i11, i12, i22) @ at + diags(1.0 / q4 + 1.0 / q5)).tocsc())
-        except RuntimeError:  # round-off ended the iteration: its iterate if it is close enough
-            return (float(rp.sum() + rm.sum()), y) if gap < 100.0 * IPM_TOLERANCE else None
+        except RuntimeError:  # round-off ended the iteration
+            break
 
         def newton(rc):
             # q_x = −r_d + Cᵀ·S⁻¹·(r_c − Z·r_i); M·dy = −r_e − E·H⁻¹·q_x; dx = H⁻¹·(q_x + Eᵀ·dy)
@@ -229,7 +244,8 @@ def _interior_point(a, b, tan_phi, cohesion, tensile):
         a_p, a_d = 0.99 * _step(s, dslack), 0.99 * _step(z, dz)
         nn, ss, rp, rm, s = nn + a_p * dn, ss + a_p * dsh, rp + a_p * dp, rm + a_p * dm, s + a_p * dslack
         y, z = y + a_d * dy, z + a_d * dz
-    return None
+    # round-off ended it short of the tolerances: its best iterate, if close enough
+    return (best[1], best[2]) if best is not None and best[0] < 1e3 * IPM_TOLERANCE else None
 
 
 def _block_inverse(i11, i12, i22):

@@ -150,3 +150,17 @@ def anchored(stepper, vertex_xy, geom, contacts: Contacts, disp: np.ndarray, siz
     ground = model.block_fixed.copy()
     ground[model.fixed_point_block] = True
     return np.isin(label, label[ground])
+
+
+def loaded_away(stepper, state: State, geom: dict, frame, contacts: Contacts, outcome, guess,
+                out: np.ndarray, size: np.ndarray, converged_only: bool = False) -> tuple[np.ndarray, int]:
+    """The blocks out of balance where the return mapping stopped (`out_of_balance`) that move
+    away in the open-close test (`test_unbalanced`) as their loads drive them (`driven`):
+    mechanisms. ``converged_only``: only where that iteration converged (an unconverged iterate
+    throws blocks that a converged one holds). Returns (mechanism, solves)."""
+    unbalanced = out_of_balance(stepper.model, contacts, outcome)
+    tested, solves = test_unbalanced(stepper, state, geom, frame, contacts, outcome, guess, unbalanced)
+    if tested is None or (converged_only and not tested[2]):
+        return np.zeros(stepper.model.n_blocks, bool), solves
+    moving = unbalanced & mechanisms(stepper, state.vertex_xy, geom, tested[1], tested[0], out, size)
+    return driven(stepper, state, geom, tested[1], tested[0], moving), solves

@@ -109,6 +109,7 @@ START_DTYPE = np.dtype([
     ("wall_time", "f8"),        # wall time of the stage [s]
     ("welded", "?"),            # started from the welded equilibrium (no frictional one found)
     ("factorisations", "i4"),   # factorisations of K among the solves
+    ("stalled", "?"),           # its last pseudo-step stalled where limit equilibrium holds every block
 ])
 
 #: a rock bolt that broke (docs/method/water_bolts.md), one record per broken bolt

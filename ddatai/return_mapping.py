@@ -23,7 +23,7 @@ from .layout import KIND, LOCK, OPEN, S_E0, S_E1, S_ES, S_G0, S_G1, S_GS, SLIDE,
 from .model import State
 from .limit_equilibrium import unsupported_blocks
 from .open_close import solve
-from .mechanisms import MECHANISM_SIZE, anchored, driven, mechanisms, out_of_balance, test_unbalanced
+from .mechanisms import MECHANISM_SIZE, anchored, loaded_away, mechanisms, test_unbalanced
 
 #: Newmark's β of the stage's system: that of a first step (the stage's pseudo-steps have no
 #: acceleration history; `kinematics.newmark_beta`)
@@ -48,8 +48,7 @@ MAX_ITERATIONS = 120
 STALL_ITERATIONS = 20
 #: ... and in finishing an iteration that stalled within the looser tolerance only
 MAX_FINISH_SOLVES = 8
-#: a pseudo-step that has not found its equilibrium in this many solves gives up (the welded
-#: start follows, module docstring 6.)
+#: a pseudo-step that has not found its equilibrium in this many solves gives up (welded start)
 MAX_STAGE_SOLVES = 1000
 #: the line search halves its interval this many times (`_line_search`)
 LINE_SEARCH_BISECTIONS = 30
@@ -138,7 +137,7 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
     guess = None
     freeze = False
     stalled = False
-    touching = contacts.state != OPEN  # the contacts that limit equilibrium may count on
+    touching = contacts.state != OPEN  # the contacts limit equilibrium counts on
     while solves < MAX_STAGE_SOLVES:
         keep = ~(out[contacts.block_a] | out[contacts.block_b])
         if frame is None or not keep.all():
@@ -155,37 +154,25 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
         contacts.dn[:] = outcome.law.dn_now
         mechanism = mechanisms(stepper, state.vertex_xy, geom, contacts, outcome.disp, out, size)
         if not mechanism.any() and not outcome.converged:
-            # out of balance where the iteration stopped. Blocks for which rigid-block limit
-            # equilibrium finds no admissible contact forces cannot be held: mechanisms
+            # out of balance: blocks with no admissible contact forces are mechanisms
             # (`limit_equilibrium`; None where it does not apply: bolts, water)
             unsupported = unsupported_blocks(stepper.model, state.vertex_xy, geom, contacts, touching, out)
             if unsupported is not None and np.any(unsupported & ~out):
-                # released, and the rest iterated from there with the chatter of its contacts
-                # suppressed from the start (it stalled once already)
+                # released; the rest goes on with its contacts' chatter suppressed (`_iterate`)
                 mechanism = unsupported & ~out
                 freeze = True
             elif not freeze:
-                # once more from there, contacts whose states flip back and forth opening by the
-                # return mapping of their normal springs (`_iterate`)
-                freeze, guess = True, raw
+                freeze, guess = True, raw  # once more, flipping contacts opening by return mapping
                 continue
             else:
                 # admissible forces do not prove a block held (Coulomb friction is not
-                # associated: toppling columns have them): those out of balance that move away
-                # in the open-close iteration, their contacts at the strength sliding, as their
-                # loads drive them, are mechanisms — where that iteration converges (its
-                # unconverged iterate throws blocks that a converged one holds), or where limit
-                # equilibrium does not apply
-                unbalanced = out_of_balance(stepper.model, contacts, outcome)
-                tested, n = test_unbalanced(stepper, state, geom, frame, contacts, outcome, guess, unbalanced)
+                # associated: toppling columns have them): the open-close test decides, from a
+                # converged iteration only where limit equilibrium applies; where nothing moves
+                # the pseudo-step ends here, its forces out of balance by a fraction of the
+                # load, which the first steps settle (docs/method/dda.md §8.12)
+                mechanism, n = loaded_away(stepper, state, geom, frame, contacts, outcome, guess, out, size,
+                                           converged_only=unsupported is not None)
                 solves += n
-                if tested is not None and (tested[2] or unsupported is None):
-                    moving = unbalanced & mechanisms(stepper, state.vertex_xy, geom, tested[1], tested[0],
-                                                      out, size)
-                    mechanism = driven(stepper, state, geom, tested[1], tested[0], moving)
-                # where limit equilibrium holds the rest and the test moves nothing, the
-                # pseudo-step ends here, its forces out of balance by a fraction of the load,
-                # which the run's first steps settle (docs/method/dda.md §8.12)
                 stalled = unsupported is not None and not mechanism.any()
         if not mechanism.any():
             if not outcome.converged and not stalled:

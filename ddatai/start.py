@@ -47,11 +47,19 @@ solve of the model under its weight, the point loads at t = 0 and its initial st
    it": the block is not tied to the ground (fixed blocks, fixed points) through a chain of
    closed contacts across which the two blocks move alike — a tall, soft column settles by
    more than a quarter of a block at its top, every block with its neighbours, and is held. A
-   block that slides as a mechanism keeps the return mapping out of balance: the blocks still
-   out of balance when it stalls are tested by the open-close iteration of a static step with
-   their contacts at the strength sliding (``test_unbalanced``), and those that move away in it
-   on which their loads do positive work are mechanisms (friction only resists: a block that
-   friction pushed away against its loads is held). A mechanism is *released*: its contacts
+   block that slides as a mechanism keeps the return mapping out of balance: where it stalls,
+   rigid-block limit equilibrium (`ddatai.limit_equilibrium`, a linear program over the
+   contacts touching at t = 0) releases the blocks for which no admissible contact forces
+   exist. Admissible forces do not prove a block held (Coulomb friction is not associated:
+   toppling columns have them), so the blocks still out of balance are then tested by the
+   open-close iteration of a static step with their contacts at the strength sliding
+   (``test_unbalanced``); where it converges, those that move away in it on which their loads
+   do positive work are mechanisms (friction only resists: a block that friction pushed away
+   against its loads is held). Where nothing more is released and the return mapping still
+   stalls, the stage ends there (``StartRecord.stalled``): its contacts are handed over at
+   most at their strength, and the first steps settle the forces left out of balance, a
+   fraction of the load. Models with bolts or a water table, whose forces the program does
+   not carry, are tested by the open-close iteration alone. A mechanism is *released*: its contacts
    leave the stage and it starts at t = 0 from its initial position under sudden gravity (as
    without the stage), and the others are solved again from where they were.
 5. The held blocks move by the solution (their elastic settlement), their stresses and contact
@@ -59,8 +67,8 @@ solve of the model under its weight, the point loads at t = 0 and its initial st
    each contact is handed over locked, its lock point moved by its slip, and a contact at its
    strength starts locked at it with its bond intact. The stage repeats at the settled
    geometry until the contact forces there balance every block (``balanced``).
-6. If no frictional equilibrium is found (a pseudo-step out of iterations, or out-of-balance
-   blocks that the test does not move), the model starts from its *welded* equilibrium: the
+6. If no frictional equilibrium is found (a pseudo-step out of solves, or, with bolts or water,
+   out-of-balance blocks that the test does not move), the model starts from its *welded* equilibrium: the
    same static solve with every touching contact held as it is (normal and shear springs, no
    open-close judgement), repeated at the settled geometry until the increment is round-off;
    blocks that move as mechanisms even so are released. Then each contact takes the joint law
@@ -124,6 +132,10 @@ class StartRecord:
     equilibrium with each contact then at most at its strength (module docstring, 6.)."""
     factorisations: int = 0
     """Factorisations of K among the solves (the others reuse the last factor) [-]."""
+    stalled: bool = False
+    """The return mapping stalled where rigid-block limit equilibrium holds every block left:
+    the stage ended there, its contacts at most at their strength and its forces out of
+    balance by a fraction of the load, which the first steps settle (module docstring, 4.)."""
 
 
 #: the record of a model with nothing to settle
@@ -173,6 +185,7 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
     memory = ContactMemory.empty()
     last = None  # the contacts of the last pseudo-step
     solves = 0
+    stalled = False
     for pseudo_steps in range(MAX_PSEUDO_STEPS):
         geom = state.geometry if state.geometry is not None else model.block_geometry(state.vertex_xy)
         cint, length = stepper.detect(state.vertex_xy)
@@ -233,7 +246,7 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
     record = StartRecord(solves=solves, held=int(np.count_nonzero(held)),
                          released=int(np.count_nonzero(free & released)), settlement=settlement,
                          at_strength=len(at_strength & set(memory.key.tolist())),
-                         wall_time=_time.perf_counter() - t0, welded=welded)
+                         wall_time=_time.perf_counter() - t0, welded=welded, stalled=stalled)
     return state.replace(memory=memory), record, True
 
 
