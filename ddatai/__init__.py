@@ -5,6 +5,7 @@ Data flows one way::
     Scene (blocks, joints, points, loads, shaking)      ddatai.scene
       -> Model (static arrays) + State                  ddatai.model
       -> equilibrium at t = 0                           ddatai.start
+           (return mapping; at a stall, limit equilibrium)  ddatai.return_mapping, ddatai.limit_equilibrium
       -> step, phase by phase                           ddatai.step
            Δt                                           ddatai.time_step
            contacts (detection, memory)                 ddatai.contacts, ddatai.layout
