@@ -133,6 +133,30 @@ def _outside_convex(xy: ti.template(), vnext: ti.template(), vprev: ti.template(
 
 
 @ti.func
+def _far_exit(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), p, e, partner, d9):
+    """Whether vertex p, put on edge e by the edge-edge rule of a vertex pair (its partner an
+    end of e), lies behind e's line (beyond round-off) but less deep behind the line of the
+    edge meeting e at its other, convex corner (or in front of it): it entered that edge, whose
+    own test finds it, not e (§3.3 rule 3; `vectorized._Geometry.far_exit`). The edge at the
+    partner's corner is no exit: the vertex is never tested against it."""
+    q0 = _pt(xy, e)
+    d = _pt(xy, vnext[e]) - q0
+    l = ti.max(d.norm(), EDGE_FLOOR)
+    P = _pt(xy, p)
+    dn = (P - q0).dot(ti.Vector([d[1], -d[0]]) / l)
+    a = vprev[e]
+    c = e
+    if partner == e:
+        a = vnext[e]
+        c = vnext[e]
+    out = 0
+    if dn < -SLACK * d9:
+        if _nearer_exit(xy, vnext, vprev, P, dn, a, c):
+            out = 1
+    return out
+
+
+@ti.func
 def _ve_test(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), p, e,
              d0, d9, sin_h1, check_projection):
     """Distance and entrance-angle criteria for vertex p against edge e (§3.3, §3.4).
@@ -246,13 +270,16 @@ def _vertex_vertex(xy: ti.template(), vnext: ti.template(), vprev: ti.template()
         if ti.abs(wA + wB + e5 + e6 - TWO_PI) < 1e-6:
             if e5 < h1:
                 # A's edge (prev[ia], ia) is parallel to B's edge (ib, next[ib]): edge-edge;
-                # the contact vertex is whichever lies inside the other's edge (ties: A's)
+                # the contact vertex is whichever lies inside the other's edge (ties: A's),
+                # unless it entered the edge at the far corner
+                # (§3.3 rule 3)
                 tP = _edge_param(xy, vnext, ib, ia)
                 tQ = _edge_param(xy, vnext, vprev[ia], ib)
                 if ti.min(tP, 1.0 - tP) >= ti.min(tQ, 1.0 - tQ) - TIE:
-                    _emit(out_int, out_len, count, KIND_VE, ia, ib, -1, -1,
-                          _half_overlap(xy, vnext, ib, ia, vprev[ia]))
-                else:
+                    if _far_exit(xy, vnext, vprev, ia, ib, ib, d9) == 0:
+                        _emit(out_int, out_len, count, KIND_VE, ia, ib, -1, -1,
+                              _half_overlap(xy, vnext, ib, ia, vprev[ia]))
+                elif _far_exit(xy, vnext, vprev, ib, vprev[ia], ia, d9) == 0:
                     _emit(out_int, out_len, count, KIND_VE, ib, vprev[ia], -1, -1,
                           _half_overlap(xy, vnext, vprev[ia], ib, vnext[ib]))
             elif e6 < h1:
@@ -260,9 +287,10 @@ def _vertex_vertex(xy: ti.template(), vnext: ti.template(), vprev: ti.template()
                 tP = _edge_param(xy, vnext, vprev[ib], ia)
                 tQ = _edge_param(xy, vnext, ia, ib)
                 if ti.min(tP, 1.0 - tP) >= ti.min(tQ, 1.0 - tQ) - TIE:
-                    _emit(out_int, out_len, count, KIND_VE, ia, vprev[ib], -1, -1,
-                          _half_overlap(xy, vnext, vprev[ib], ia, vnext[ia]))
-                else:
+                    if _far_exit(xy, vnext, vprev, ia, vprev[ib], ib, d9) == 0:
+                        _emit(out_int, out_len, count, KIND_VE, ia, vprev[ib], -1, -1,
+                              _half_overlap(xy, vnext, vprev[ib], ia, vnext[ia]))
+                elif _far_exit(xy, vnext, vprev, ib, ia, ia, d9) == 0:
                     _emit(out_int, out_len, count, KIND_VE, ib, ia, -1, -1,
                           _half_overlap(xy, vnext, ia, ib, vprev[ib]))
             elif e5 <= e6 + h1:

@@ -101,6 +101,19 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray) -> tupl
         dn = float(np.dot(P - xy[a], np.array([d[1], -d[0]]) / l))
         return convex(c) and dn > depth and -SLACK <= t <= 1.0 + SLACK
 
+    def edge_edge(v, e, partner, end):
+        # the edge-edge contact of a vertex pair (the partner an end of e), unless the vertex
+        # lies behind e's line but less deep behind (or in front of) the edge meeting e at
+        # its far, convex corner: it entered that edge, whose own test finds it (the shortest
+        # exit; the edge at the partner's corner is never tested against it, so no exit)
+        d = xy[nxt[e]] - xy[e]
+        l = max(float(np.linalg.norm(d)), EDGE_FLOOR)
+        P = xy[v]
+        dn = float(np.dot(P - xy[e], np.array([d[1], -d[0]]) / l))
+        a, c = (nxt[e], nxt[e]) if partner == e else (prv[e], e)
+        if not (dn < -SLACK * d9 and nearer_exit(P, dn, a, c)):
+            emit(VE, v, e, length=half_overlap(e, v, end))
+
     def ve_test(p, e, check_projection):
         q0, q1, P = xy[e], xy[nxt[e]], xy[p]
         d = q1 - q0
@@ -162,15 +175,15 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray) -> tupl
                 if e5 < h1:
                     tP, tQ = param(ib, ia), param(prv[ia], ib)
                     if min(tP, 1 - tP) >= min(tQ, 1 - tQ) - TIE:
-                        emit(VE, ia, ib, length=half_overlap(ib, ia, prv[ia]))
+                        edge_edge(ia, ib, ib, prv[ia])
                     else:
-                        emit(VE, ib, prv[ia], length=half_overlap(prv[ia], ib, nxt[ib]))
+                        edge_edge(ib, prv[ia], ia, nxt[ib])
                 elif e6 < h1:
                     tP, tQ = param(prv[ib], ia), param(ia, ib)
                     if min(tP, 1 - tP) >= min(tQ, 1 - tQ) - TIE:
-                        emit(VE, ia, prv[ib], length=half_overlap(prv[ib], ia, nxt[ia]))
+                        edge_edge(ia, prv[ib], ib, nxt[ia])
                     else:
-                        emit(VE, ib, ia, length=half_overlap(ia, ib, prv[ib]))
+                        edge_edge(ib, ia, ia, prv[ib])
                 elif e5 <= e6 + h1:
                     emit(VV, ia, ib, ib, prv[ia])
                 else:

@@ -151,6 +151,17 @@ class _Geometry:
         dn = px * self.nx[a] + py * self.ny[a]
         return self.convex[c] & (dn > depth) & (t >= -SLACK) & (t <= 1.0 + SLACK)
 
+    def far_exit(self, p: np.ndarray, e: np.ndarray, partner: np.ndarray, d9: float) -> np.ndarray:
+        """Whether vertices p, put on edges e by the edge-edge rule of vertex pairs (partner an
+        end of e), lie behind e's line but less deep behind (or in front of) the edge meeting e
+        at its far, convex corner: they entered that edge, not e (§3.3 rule 3;
+        `kernels._far_exit`)."""
+        dn = (self.x[p] - self.x[e]) * self.nx[e] + (self.y[p] - self.y[e]) * self.ny[e]
+        at_start = partner == e
+        a = np.where(at_start, self.nxt[e], self.prv[e])
+        c = np.where(at_start, self.nxt[e], e)
+        return (dn < -SLACK * d9) & self.nearer_exit(p, dn, a, c)
+
     def ve_test(self, p: np.ndarray, e: np.ndarray, check_projection: np.ndarray, d0: float,
                 d9: float, sin_h1: float) -> tuple[np.ndarray, np.ndarray]:
         """Distance and entrance-angle criteria of vertices p against edges e (§3.3, §3.4;
@@ -322,6 +333,9 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray
                 e = np.where(keep, edge_p, edge_q)
                 # the far end of the vertex's edge that lies along the line
                 end = np.where(s5, np.where(keep, prv[p], nxt[q]), np.where(keep, nxt[p], prv[q]))
+                # unless the vertex entered the edge at the far corner (§3.3 rule 3)
+                stay = ~geo.far_exit(v, e, np.where(keep, q, p), d9)
+                v, e, end = v[stay], e[stay], end[stay]
                 out_v.append(v)
                 out_e.append(e)
                 out_len.append(geo.half_overlap(e, v, end))
