@@ -133,12 +133,13 @@ def _outside_convex(xy: ti.template(), vnext: ti.template(), vprev: ti.template(
 
 
 @ti.func
-def _far_exit(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), p, e, partner, d9):
-    """Whether vertex p, put on edge e by the edge-edge rule of a vertex pair (its partner an
-    end of e), lies behind e's line (beyond round-off) but less deep behind the line of the
-    edge meeting e at its other, convex corner (or in front of it): it entered that edge, whose
-    own test finds it, not e (§3.3 rule 3; `vectorized._Geometry.far_exit`). The edge at the
-    partner's corner is no exit: the vertex is never tested against it."""
+def _edge_edge_exit(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), p, e, w, d9):
+    """Whether vertex p, put on edge e by the edge-edge rule of the vertex pair (p, w), w an end
+    of e, lies behind e's line (beyond round-off) but less deep behind (or in front of) the
+    line of the edge meeting e at its far, convex corner, projecting onto it (it entered that
+    edge: §3.3 rule 3), or deeper than d9 (the window of rule 2): no contact of e
+    (`vectorized._Geometry.edge_edge_exit`). The edge at w is no exit: p's own edge lies along
+    e, so p cannot have entered that edge."""
     q0 = _pt(xy, e)
     d = _pt(xy, vnext[e]) - q0
     l = ti.max(d.norm(), EDGE_FLOOR)
@@ -146,12 +147,12 @@ def _far_exit(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), p, 
     dn = (P - q0).dot(ti.Vector([d[1], -d[0]]) / l)
     a = vprev[e]
     c = e
-    if partner == e:
+    if w == e:
         a = vnext[e]
         c = vnext[e]
     out = 0
     if dn < -SLACK * d9:
-        if _nearer_exit(xy, vnext, vprev, P, dn, a, c):
+        if _nearer_exit(xy, vnext, vprev, P, dn, a, c) or dn < -d9:
             out = 1
     return out
 
@@ -268,31 +269,34 @@ def _vertex_vertex(xy: ti.template(), vnext: ti.template(), vprev: ti.template()
         e6 = _wrap(a1 - b2, -h1)  # free gap between B's edge (prev->Q) and A's edge (P->next)
         # the two wedges do not overlap (beyond h1) iff the four angles go once around
         if ti.abs(wA + wB + e5 + e6 - TWO_PI) < 1e-6:
-            if e5 < h1:
-                # A's edge (prev[ia], ia) is parallel to B's edge (ib, next[ib]): edge-edge;
-                # the contact vertex is whichever lies inside the other's edge (ties: A's),
-                # unless it entered the edge at the far corner
-                # (§3.3 rule 3)
-                tP = _edge_param(xy, vnext, ib, ia)
-                tQ = _edge_param(xy, vnext, vprev[ia], ib)
-                if ti.min(tP, 1.0 - tP) >= ti.min(tQ, 1.0 - tQ) - TIE:
-                    if _far_exit(xy, vnext, vprev, ia, ib, ib, d9) == 0:
-                        _emit(out_int, out_len, count, KIND_VE, ia, ib, -1, -1,
-                              _half_overlap(xy, vnext, ib, ia, vprev[ia]))
-                elif _far_exit(xy, vnext, vprev, ib, vprev[ia], ia, d9) == 0:
-                    _emit(out_int, out_len, count, KIND_VE, ib, vprev[ia], -1, -1,
-                          _half_overlap(xy, vnext, vprev[ia], ib, vnext[ib]))
-            elif e6 < h1:
-                # A's edge (ia, next[ia]) is parallel to B's edge (prev[ib], ib)
-                tP = _edge_param(xy, vnext, vprev[ib], ia)
-                tQ = _edge_param(xy, vnext, ia, ib)
-                if ti.min(tP, 1.0 - tP) >= ti.min(tQ, 1.0 - tQ) - TIE:
-                    if _far_exit(xy, vnext, vprev, ia, vprev[ib], ib, d9) == 0:
-                        _emit(out_int, out_len, count, KIND_VE, ia, vprev[ib], -1, -1,
-                              _half_overlap(xy, vnext, vprev[ib], ia, vnext[ia]))
-                elif _far_exit(xy, vnext, vprev, ib, ia, ia, d9) == 0:
-                    _emit(out_int, out_len, count, KIND_VE, ib, ia, -1, -1,
-                          _half_overlap(xy, vnext, ia, ib, vprev[ib]))
+            if e5 < h1 or e6 < h1:
+                # edge-edge: A's edge (prev[ia], ia) parallel to B's edge (ib, next[ib]) (e5),
+                # or A's edge (ia, next[ia]) parallel to B's edge (prev[ib], ib) (e6); the
+                # contact vertex v is whichever lies inside the other's edge e (ties: A's),
+                # its partner w an end of e, and `end` the far end of v's edge along the line
+                v, e, end, w = ia, ib, vprev[ia], ib
+                if e5 < h1:
+                    tP = _edge_param(xy, vnext, ib, ia)
+                    tQ = _edge_param(xy, vnext, vprev[ia], ib)
+                    if ti.min(tP, 1.0 - tP) < ti.min(tQ, 1.0 - tQ) - TIE:
+                        v, e, end, w = ib, vprev[ia], vnext[ib], ia
+                else:
+                    tP = _edge_param(xy, vnext, vprev[ib], ia)
+                    tQ = _edge_param(xy, vnext, ia, ib)
+                    if ti.min(tP, 1.0 - tP) >= ti.min(tQ, 1.0 - tQ) - TIE:
+                        v, e, end, w = ia, vprev[ib], vnext[ia], ib
+                    else:
+                        v, e, end, w = ib, ia, vprev[ib], ia
+                if _edge_edge_exit(xy, vnext, vprev, v, e, w, d9) == 0:
+                    _emit(out_int, out_len, count, KIND_VE, v, e, -1, -1, _half_overlap(xy, vnext, e, v, end))
+                else:
+                    # parallel, but v entered the edge at the far corner or lies deeper than d9
+                    # (§3.3): v against both edges meeting at w, by the vertex-edge rules
+                    for s in ti.static(range(2)):
+                        e2 = vprev[w] if s == 0 else w
+                        ok, length = _ve_test(xy, vnext, vprev, v, e2, d0, d9, sin_h1, 0)
+                        if ok == 1:
+                            _emit(out_int, out_len, count, KIND_VE, v, e2, -1, -1, length)
             elif e5 <= e6 + h1:
                 # genuine vertex-vertex: the entrance lines are the edges across the smaller gap
                 # (e5 unless e6 is clearly smaller, so equal gaps do not flip between steps)

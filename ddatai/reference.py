@@ -102,17 +102,22 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray) -> tupl
         return convex(c) and dn > depth and -SLACK <= t <= 1.0 + SLACK
 
     def edge_edge(v, e, partner, end):
-        # the edge-edge contact of a vertex pair (the partner an end of e), unless the vertex
-        # lies behind e's line but less deep behind (or in front of) the edge meeting e at
-        # its far, convex corner: it entered that edge, whose own test finds it (the shortest
-        # exit; the edge at the partner's corner is never tested against it, so no exit)
+        # the edge-edge contact of a vertex pair (the partner an end of e), unless v lies
+        # behind e's line but less deep behind (or in front of) the edge meeting e at its far,
+        # convex corner (the shortest exit; the edge at the partner is no exit: v's own edge
+        # lies along e), or deeper than d9: then v against both edges at its partner
         d = xy[nxt[e]] - xy[e]
         l = max(float(np.linalg.norm(d)), EDGE_FLOOR)
         P = xy[v]
         dn = float(np.dot(P - xy[e], np.array([d[1], -d[0]]) / l))
         a, c = (nxt[e], nxt[e]) if partner == e else (prv[e], e)
-        if not (dn < -SLACK * d9 and nearer_exit(P, dn, a, c)):
+        if not (dn < -SLACK * d9 and (nearer_exit(P, dn, a, c) or dn < -d9)):
             emit(VE, v, e, length=half_overlap(e, v, end))
+            return
+        for e2 in (prv[partner], partner):
+            ok, L = ve_test(v, e2, False)
+            if ok:
+                emit(VE, v, e2, length=L)
 
     def ve_test(p, e, check_projection):
         q0, q1, P = xy[e], xy[nxt[e]], xy[p]

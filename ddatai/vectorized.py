@@ -151,16 +151,19 @@ class _Geometry:
         dn = px * self.nx[a] + py * self.ny[a]
         return self.convex[c] & (dn > depth) & (t >= -SLACK) & (t <= 1.0 + SLACK)
 
-    def far_exit(self, p: np.ndarray, e: np.ndarray, partner: np.ndarray, d9: float) -> np.ndarray:
-        """Whether vertices p, put on edges e by the edge-edge rule of vertex pairs (partner an
-        end of e), lie behind e's line but less deep behind (or in front of) the edge meeting e
-        at its far, convex corner: they entered that edge, not e (§3.3 rule 3;
-        `kernels._far_exit`)."""
+    def edge_edge_exit(self, p: np.ndarray, e: np.ndarray, w: np.ndarray, d9: float) -> np.ndarray:
+        """Whether vertices p, put on edges e by the edge-edge rule of vertex pairs (p, w), w an
+        end of e, lie behind e's line but less deep behind (or in front of) the edge meeting e
+        at its far, convex corner, or deeper than d9 (§3.3 for vertex pairs;
+        `kernels._edge_edge_exit`)."""
         dn = (self.x[p] - self.x[e]) * self.nx[e] + (self.y[p] - self.y[e]) * self.ny[e]
-        at_start = partner == e
-        a = np.where(at_start, self.nxt[e], self.prv[e])
-        c = np.where(at_start, self.nxt[e], e)
-        return (dn < -SLACK * d9) & self.nearer_exit(p, dn, a, c)
+        out = dn < -SLACK * d9
+        k = out.nonzero()[0]
+        pb, eb, depth, at_start = p[k], e[k], dn[k], w[k] == e[k]
+        a = np.where(at_start, self.nxt[eb], self.prv[eb])
+        c = np.where(at_start, self.nxt[eb], eb)
+        out[k] = self.nearer_exit(pb, depth, a, c) | (depth < -d9)
+        return out
 
     def ve_test(self, p: np.ndarray, e: np.ndarray, check_projection: np.ndarray, d0: float,
                 d9: float, sin_h1: float) -> tuple[np.ndarray, np.ndarray]:
@@ -333,9 +336,16 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray
                 e = np.where(keep, edge_p, edge_q)
                 # the far end of the vertex's edge that lies along the line
                 end = np.where(s5, np.where(keep, prv[p], nxt[q]), np.where(keep, nxt[p], prv[q]))
-                # unless the vertex entered the edge at the far corner (§3.3 rule 3)
-                stay = ~geo.far_exit(v, e, np.where(keep, q, p), d9)
-                v, e, end = v[stay], e[stay], end[stay]
+                # parallel, but a vertex that entered the edge at the far corner, or lies deeper
+                # than d9 (§3.3), goes against both edges meeting at its partner w, by the
+                # vertex-edge rules
+                w = np.where(keep, q, p)
+                elsewhere = geo.edge_edge_exit(v, e, w, d9)
+                w = w[elsewhere]
+                ve_v += [v[elsewhere], v[elsewhere]]
+                ve_e += [prv[w], w]
+                ve_check.append(np.zeros(2 * len(w), bool))
+                v, e, end = v[~elsewhere], e[~elsewhere], end[~elsewhere]
                 out_v.append(v)
                 out_e.append(e)
                 out_len.append(geo.half_overlap(e, v, end))
