@@ -297,12 +297,28 @@ def _vertex_vertex(xy: ti.template(), vnext: ti.template(), vprev: ti.template()
                         ok, length = _ve_test(xy, vnext, vprev, v, e2, d0, d9, sin_h1, 0)
                         if ok == 1:
                             _emit(out_int, out_len, count, KIND_VE, v, e2, -1, -1, length)
-            elif e5 <= e6 + h1:
+            else:
                 # genuine vertex-vertex: the entrance lines are the edges across the smaller gap
                 # (e5 unless e6 is clearly smaller, so equal gaps do not flip between steps)
-                _emit(out_int, out_len, count, KIND_VV, ia, ib, ib, vprev[ia], 0.0)
-            else:
-                _emit(out_int, out_len, count, KIND_VV, ia, vprev[ib], ib, ia, 0.0)
+                eA = ib
+                eB = vprev[ia]
+                if e5 > e6 + h1:
+                    eA = vprev[ib]
+                    eB = ia
+                if _edge_edge_exit(xy, vnext, vprev, ia, eA, ib, d9) == 0 and \
+                        _edge_edge_exit(xy, vnext, vprev, ib, eB, ia, d9) == 0:
+                    _emit(out_int, out_len, count, KIND_VV, ia, eA, ib, eB, 0.0)
+                else:
+                    # a vertex behind its entrance line entered the edge at the line's far
+                    # corner, or lies beyond d9 (§3.3 rule 3): each vertex against both edges
+                    # meeting at the other, by the vertex-edge rules
+                    for s in ti.static(range(4)):
+                        v = ia if s < 2 else ib
+                        w = ib if s < 2 else ia
+                        e2 = vprev[w] if s % 2 == 0 else w
+                        ok, length = _ve_test(xy, vnext, vprev, v, e2, d0, d9, sin_h1, 0)
+                        if ok == 1:
+                            _emit(out_int, out_len, count, KIND_VE, v, e2, -1, -1, length)
 
 
 # --------------------------------------------------------------------------- broad phase

@@ -160,9 +160,8 @@ class _Geometry:
         out = dn < -SLACK * d9
         k = out.nonzero()[0]
         pb, eb, depth, at_start = p[k], e[k], dn[k], w[k] == e[k]
-        a = np.where(at_start, self.nxt[eb], self.prv[eb])
-        c = np.where(at_start, self.nxt[eb], eb)
-        out[k] = self.nearer_exit(pb, depth, a, c) | (depth < -d9)
+        far = np.where(at_start, self.nxt[eb], self.prv[eb])  # the edge at e's far corner
+        out[k] = self.nearer_exit(pb, depth, far, np.where(at_start, far, eb)) | (depth < -d9)
         return out
 
     def ve_test(self, p: np.ndarray, e: np.ndarray, check_projection: np.ndarray, d0: float,
@@ -339,9 +338,8 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray
                 # parallel, but a vertex that entered the edge at the far corner, or lies deeper
                 # than d9 (§3.3), goes against both edges meeting at its partner w, by the
                 # vertex-edge rules
-                w = np.where(keep, q, p)
-                elsewhere = geo.edge_edge_exit(v, e, w, d9)
-                w = w[elsewhere]
+                elsewhere = geo.edge_edge_exit(v, e, np.where(keep, q, p), d9)
+                w = np.where(keep, q, p)[elsewhere]
                 ve_v += [v[elsewhere], v[elsewhere]]
                 ve_e += [prv[w], w]
                 ve_check.append(np.zeros(2 * len(w), bool))
@@ -355,13 +353,16 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray
                 # gap (e5 unless e6 is clearly smaller)
                 p, q = P[k], Q[k]
                 small5 = e5[k] <= e6[k] + h1
-                rows = np.empty((len(k), 5), np.int32)
-                rows[:, 0] = VV
-                rows[:, 1] = p
-                rows[:, 2] = np.where(small5, q, prv[q])
-                rows[:, 3] = q
-                rows[:, 4] = np.where(small5, prv[p], p)
-                vv_rows.append(rows)
+                e_p, e_q = np.where(small5, q, prv[q]), np.where(small5, prv[p], p)
+                # a vertex behind its entrance line that entered the edge at the line's far
+                # corner, or lies beyond d9 (§3.3 rule 3): each vertex against both edges at
+                # the other, by the vertex-edge rules
+                out = geo.edge_edge_exit(p, e_p, q, d9) | geo.edge_edge_exit(q, e_q, p, d9)
+                ve_v += [p[out], p[out], q[out], q[out]]
+                ve_e += [prv[q[out]], q[out], prv[p[out]], p[out]]
+                ve_check.append(np.zeros(4 * int(out.sum()), bool))
+                p, q, e_p, e_q = p[~out], q[~out], e_p[~out], e_q[~out]
+                vv_rows.append(np.stack([np.full(len(p), VV), p, e_p, q, e_q], axis=1).astype(np.int32))
 
     # 2., 3. every near vertex against every edge of the other block, except the edges that
     # end at its mutual-nearest partner

@@ -555,6 +555,38 @@ def test_edge_edge_contact_of_a_vertex_that_entered_the_far_edge_is_none(twin):
     assert dn.min() > -model.penetration_limit, list(zip(v.tolist(), e.tolist(), dn.tolist()))
 
 
+@pytest.mark.parametrize("twin", ["kernels", "vectorized", "reference"])
+def test_vertex_vertex_contact_of_a_vertex_that_entered_the_far_edge_is_none(twin):
+    """Cut seed 54 at step 18 (blocks 11 and 17, to 0.1 mm): corners 2 and 4 are mutual nearest
+    with wedges apart, a vertex-vertex contact whose entrance line for vertex 2 is B's 11 mm
+    edge 3→4 — vertex 2 lies 15 mm behind it (7× the limit), yet 7 mm in front of B's edge 7→3,
+    which meets that edge at its far corner: it entered that edge, whose contact it keeps. The
+    run stopped at step 18 ("entered the step already 0.0152 m deep"). The vertex pair gives
+    way to the vertex-edge tests (docs/method/dda.md §3.3 rule 3)."""
+    from ddatai import reference, vectorized
+
+    rock = dd.Material(density=2968.0, young=16.3e9, poisson=0.18)
+    scene = dd.Scene(gravity=0.0)
+    scene.add_block([(-2.0194, -0.8919), (-1.7371, -0.8098), (-1.6491, -0.5755)], material=rock)
+    scene.add_block([(-1.6478, -0.5923), (-1.6385, -0.5869), (-1.4, -0.3831), (-1.4688, -0.2648),
+                     (-1.5532, -0.3405)], material=rock)
+    model = dd.build_model(scene, length_scale=2.0923)  # the domain's w0
+    xy = model.vertex_xy0
+    if twin == "kernels":
+        from ddatai.contacts import _Buffers, detect_contacts
+
+        cint, _ = detect_contacts(model, xy, _Buffers())
+    else:
+        cint, _ = (vectorized if twin == "vectorized" else reference).detect_contacts(model, xy)
+    rows = {tuple(int(x) for x in r) for r in cint}
+    assert (0, 2, 7, -1, -1) in rows and not any(r[0] == 1 for r in rows), rows
+    v = np.concatenate([cint[:, 1], cint[cint[:, 0] == 1, 3]])
+    e = np.concatenate([cint[:, 2], cint[cint[:, 0] == 1, 4]])
+    d = xy[model.vertex_next[e]] - xy[e]
+    dn = np.einsum("ij,ij->i", xy[v] - xy[e], np.stack([d[:, 1], -d[:, 0]], axis=1)) / np.hypot(d[:, 0], d[:, 1])
+    assert dn.min() > -model.penetration_limit
+
+
 def test_load_that_outgrows_the_automatic_penalty_raises_it_once_said():
     """Cut campaign seed 170 (`extreme_cases.random_domain`; ~2 s): a 366 m domain under
     30 m/s² whose deepest contact sat at 0.013 of the penetration limit for 350 steps, then
