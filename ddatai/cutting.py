@@ -307,6 +307,9 @@ def cut(boundary, joints: Sequence, *, snap: float | None = None,
         `SliverWarning` naming the worst; ``"merge"`` merges each into the neighbour it shares
         the longest boundary with (the joint piece between them disappears; the union must be a
         simple polygon, else the sliver stays and is warned about); ``"keep"`` says nothing.
+        With "warn" or "merge", blocks thinner than the contacts' penetration band
+        (`contact_band`, 2·area/perimeter) are merged too, with a `SliverWarning`: contacts
+        cannot resolve them; "keep" keeps them.
     snap_ends : a trace end that stops at most this far [m] short of another trace or of the
         outline is extended onto it (`snap_trace_ends`); default `SNAP_ENDS` × the domain size
         (1e-6: coordinates typed to six decimals), 0: never. Ends short by more, up to

@@ -92,12 +92,13 @@ def solve(stepper, pattern: BlockPattern, data: np.ndarray, rhs: np.ndarray,
 def open_close(stepper, state: State, geom: dict, contacts: Contacts, pattern: BlockPattern,
                vec: np.ndarray, sca: np.ndarray, data0: np.ndarray, rhs0: np.ndarray,
                rotation: np.ndarray, timer: "StepTimer", max_iterations: int, break_bonds: bool = True,
-               reuse_first: bool = True) -> OpenClose:
+               reuse_first: bool = True, hold_cycles: bool = False) -> OpenClose:
     """The open-close iteration (§4) in place on ``contacts``, from the block terms ``data0``,
     ``rhs0`` (`assembly.assemble_blocks`) and the rotation predicted for the step (for the
     second-order terms). ``reuse_first``: the first solve may try the last factor (the states
     are the ones it was made with; `solve`). ``break_bonds``: bonds fail by the joint law
-    (off in the equilibrium stage, whose joints are Mohr–Coulomb)."""
+    (off in the equilibrium stage, whose joints are Mohr–Coulomb). ``hold_cycles``: a cycle of
+    states holds its contacts closed (`hold_cycling`; the step's last try, at the shortest Δt)."""
     model = stepper.model
     n = 6 * pattern.n_rows
     block_k = None   # K of the block terms, for the line search (built when first needed)
@@ -154,7 +155,8 @@ def open_close(stepper, state: State, geom: dict, contacts: Contacts, pattern: B
             return OpenClose(displacement=disp, iterations=it, converged=True, changing=verdict.bad,
                              friction=verdict.friction, coulomb=verdict.coulomb)
         previous = disp
-        hold_cycling(contacts, seen, history, held)
+        if hold_cycles:
+            hold_cycling(contacts, seen, history, held)
         if lagged:
             changing = int(np.count_nonzero(verdict.bad))
             fewest, since = (changing, 0) if changing < fewest else (fewest, since + 1)

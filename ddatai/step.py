@@ -158,7 +158,10 @@ class Stepper:
 
         cuts = oc_total = 0
         while True:
-            attempt = self.attempt(state, geom, contacts, vec, sca, dt, timer)
+            # the last try before the run would stop: an open-close cycle holds its contacts
+            # closed (`open_close.hold_cycling`) instead of giving up
+            last = dt * self.params.dt_cut < self.shortest_time_step()
+            attempt = self.attempt(state, geom, contacts, vec, sca, dt, timer, hold_cycles=last)
             oc_total += attempt.iterations
             if attempt.ok:
                 break
@@ -238,7 +241,7 @@ class Stepper:
         return detect_contacts(self.model, vertex_xy, self.buffers)
 
     def attempt(self, state: State, geom: dict, contacts0: Contacts, vec0: np.ndarray, sca0: np.ndarray,
-                dt: float, timer: StepTimer) -> Attempt:
+                dt: float, timer: StepTimer, hold_cycles: bool = False) -> Attempt:
         """Block terms, then the open-close iteration, then the acceptance checks (§4.4–4.5)."""
         p, m = self.params, self.model
         t0 = _time.perf_counter()
@@ -255,7 +258,7 @@ class Stepper:
         # the inertia 2M/Δt² is a large part of K (`ddatai.solver`, reuse)
         reuse, self.factored_at = (dt, beta) == self.factored_at, (dt, beta)
         oc = open_close(self, state, geom, contacts, self.pattern, vec, sca, data0, rhs0,
-                        rotation, timer, p.oc_max_iterations, reuse_first=reuse)
+                        rotation, timer, p.oc_max_iterations, reuse_first=reuse, hold_cycles=hold_cycles)
         if oc.displacement is None:
             return Attempt(ok=False, cause="nan", iterations=oc.iterations)
         if not oc.converged:
@@ -304,6 +307,11 @@ class Stepper:
                            culprit_start=0.0 if start_dn is None else max(-float(start_dn[deepest]), 0.0))
         return result
 
+    def shortest_time_step(self) -> float:
+        """The shortest Δt a step may be cut to, ``dt_min_ratio`` × the step limit [s]."""
+        p = self.params
+        return (p.dt if p.dt is not None else p.dt_max) * p.dt_min_ratio
+
     def shorter_time_step(self, attempt: Attempt, state: State, dt: float) -> float:
         """The Δt of the next try after a rejected attempt (§4.4–4.5); a step that fails even at
         ``dt_min_ratio`` × the step limit raises `SimulationError` with its cause."""
@@ -312,7 +320,7 @@ class Stepper:
             new_dt = dt / math.sqrt(attempt.ratio)
         else:
             new_dt = dt * p.dt_cut
-        if new_dt < (p.dt if p.dt is not None else p.dt_max) * p.dt_min_ratio:
+        if new_dt < self.shortest_time_step():
             raise SimulationError(failure_message(self.model, attempt, state.step + 1, state.time, dt),
                                   step=state.step + 1, time=state.time, cause=attempt.cause)
         return new_dt

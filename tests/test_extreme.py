@@ -587,6 +587,73 @@ def test_vertex_vertex_contact_of_a_vertex_that_entered_the_far_edge_is_none(twi
     assert dn.min() > -model.penetration_limit
 
 
+def test_cut_merges_blocks_thinner_than_the_penetration_band():
+    """A block thinner than the contacts' penetration band d9 (2·area/perimeter) cannot be
+    resolved by penalty contact; `Scene.cut` merges it into a neighbour by default, saying so
+    (7 of 200 random cut domains stopped at such blocks, docs/method/choices.md §8c), and keeps
+    it with ``slivers="keep"``. The band is the one `build_model` gives a model of the blocks."""
+    import shapely
+
+    from ddatai.cutting import SliverWarning, contact_band
+
+    rock = dd.Material(density=2500.0, young=10e9, poisson=0.25)
+    joint = dd.Joint(friction=30.0)
+    box = [(0.0, 0.0), (10.0, 0.0), (10.0, 10.0), (0.0, 10.0)]
+    traces = [([(5.0, -1.0), (5.0, 11.0)], joint), ([(-1.0, 0.01), (11.0, 0.01)], joint)]  # 1 cm strips
+    kept = dd.Scene()
+    assert len(kept.cut(box, traces, material=rock, slivers="keep")) == 4
+    model = dd.build_model(kept)
+    off = model.vertex_offset
+    faces = [shapely.Polygon(model.vertex_xy0[off[b]:off[b + 1]]) for b in range(model.n_blocks)]
+    assert contact_band(faces) == pytest.approx(model.max_penetration, rel=1e-12)
+    assert 0.01 < model.max_penetration  # the strips are thinner than the band
+    merged = dd.Scene()
+    with pytest.warns(SliverWarning, match="merged 2 block\\(s\\) thinner than the contacts' penetration band"):
+        ids = merged.cut(box, traces, material=rock)
+    assert len(ids) == 2 and all(abs(b.area - 50.0) < 1e-9 for b in (shapely.Polygon(merged.blocks[i].vertices)
+                                                                     for i in ids))
+
+
+def test_open_close_cycle_holds_its_contacts_closed():
+    """The open-close iteration of cut seeds 6 and 103 went round a cycle of three sets of
+    states for 20 iterations at every Δt (two contacts of one block, 1e-11 m from touching:
+    one open → it closes; both closed → both pull free; both open → one closes). When the set
+    of states comes back, the contacts that change around the cycle are held closed (an open one
+    locks); the law then only chooses between sticking and sliding for them, and one it would
+    open slides — never opens (docs/method/choices.md §6a)."""
+    from types import SimpleNamespace
+
+    from ddatai.layout import LOCK, OPEN, SLIDE
+    from ddatai.open_close import hold_closed, hold_cycling
+
+    states = [np.array([LOCK, OPEN, SLIDE], np.int8), np.array([LOCK, LOCK, SLIDE], np.int8),
+              np.array([LOCK, OPEN, OPEN], np.int8), np.array([LOCK, OPEN, SLIDE], np.int8)]
+    contacts = SimpleNamespace(state=states[0].copy(), n=3)
+    seen, history, held = {contacts.state.tobytes(): 0}, [contacts.state.copy()], np.zeros(3, bool)
+    for k, st in enumerate(states[1:], start=1):
+        contacts.state[:] = st
+        hold_cycling(contacts, seen, history, held)
+        assert held.any() == (k == 3)  # only when a set comes back
+    assert held.tolist() == [False, True, True]
+    assert contacts.state.tolist() == [LOCK, LOCK, SLIDE]  # the open one locks, the sliding one stays
+    law = SimpleNamespace(state=np.array([OPEN, OPEN, OPEN], np.int8))
+    bad = hold_closed(contacts, law, np.array([True, True, True]), held)
+    # the free contact opens as the law says; the held locked one must change, to sliding; the
+    # held sliding one stays as it is
+    assert law.state.tolist() == [OPEN, SLIDE, SLIDE] and bad.tolist() == [True, True, False]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [6, 103])
+def test_cut_domain_open_close_cycle_runs_through(seed):
+    """Cut campaign seeds 6 and 103 (`extreme_cases.random_domain`; ~10 s idle each) stopped at
+    steps 256 and 262: the open-close cycle of `test_open_close_cycle_holds_its_contacts_closed`.
+    They run their 400 steps now."""
+    from extreme_cases import random_domain
+
+    _holds(random_domain(np.random.default_rng(seed), steps=400), refuse_ok=False)
+
+
 def test_load_that_outgrows_the_automatic_penalty_raises_it_once_said():
     """Cut campaign seed 170 (`extreme_cases.random_domain`; ~2 s): a 366 m domain under
     30 m/s² whose deepest contact sat at 0.013 of the penetration limit for 350 steps, then
