@@ -204,7 +204,7 @@ def hold_closed(contacts: Contacts, law: ContactLaw, bad: np.ndarray, held: np.n
     """The contacts that must change (``bad``, `violations`) with the held ones (`hold_cycling`)
     kept closed: where the law opens a held contact it slides instead (friction at its Coulomb
     strength from N ≥ 0, so never more than Coulomb's law allows; the normal spring may pull
-    it), in place on ``law``; a held contact changes only between locked and sliding. A held
+    it), in place on ``law``; a held contact changes only from locked to sliding. A held
     contact that pulls takes its friction from the last solve's normal force (zero, not the
     tension: `uncouple_pulling`)."""
     if not held.any():
@@ -212,6 +212,11 @@ def hold_closed(contacts: Contacts, law: ContactLaw, bad: np.ndarray, held: np.n
     pull = held & (law.state == OPEN)
     law.state[pull] = SLIDE
     bad[pull] &= contacts.state[pull] != SLIDE
+    # one that cycles between sticking and sliding at its strength (its N, and so S, moves with
+    # the state) stays sliding once it slides: its friction is S, within Coulomb's law
+    stick = held & (contacts.state == SLIDE) & (law.state == LOCK)
+    law.state[stick] = SLIDE
+    bad[stick] = False
     return bad
 
 

@@ -641,14 +641,19 @@ def test_open_close_cycle_holds_its_contacts_closed():
     # the free contact opens as the law says; the held locked one must change, to sliding; the
     # held sliding one stays as it is
     assert law.state.tolist() == [OPEN, SLIDE, SLIDE] and bad.tolist() == [True, True, False]
+    # a held contact sliding at its strength that the law would lock stays sliding (seed 162:
+    # one contact flipping between sticking and sliding, its N and S moving with the state)
+    law = SimpleNamespace(state=np.array([LOCK, LOCK, LOCK], np.int8))
+    bad = hold_closed(contacts, law, np.array([True, True, True]), held)
+    assert law.state.tolist() == [LOCK, LOCK, SLIDE] and bad.tolist() == [True, True, False]
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("seed", [6, 103])
+@pytest.mark.parametrize("seed", [6, 103, 162])
 def test_cut_domain_open_close_cycle_runs_through(seed):
-    """Cut campaign seeds 6 and 103 (`extreme_cases.random_domain`; ~10 s idle each) stopped at
-    steps 256 and 262: the open-close cycle of `test_open_close_cycle_holds_its_contacts_closed`.
-    They run their 400 steps now."""
+    """Cut campaign seeds 6, 103 and 162 (`extreme_cases.random_domain`; ~5-10 s idle each)
+    stopped at steps 256, 262 and 25: the open-close cycles of
+    `test_open_close_cycle_holds_its_contacts_closed`. They run their 400 steps now."""
     from extreme_cases import random_domain
 
     _holds(random_domain(np.random.default_rng(seed), steps=400), refuse_ok=False)
