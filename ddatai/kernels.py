@@ -97,14 +97,20 @@ def _convex(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), p):
 @ti.func
 def _nearer_exit(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), P, depth, a, c):
     """Whether point P, at normal distance ``depth`` (< 0) from an edge, lies less deep behind
-    the line of edge a (or in front of it), projecting onto a, where a meets that edge at the
-    convex corner c (`vectorized._Geometry.nearer_exit`)."""
+    the line of edge a (or in front of it), projecting onto a, or nearer than |depth| to an end
+    of a, where a meets that edge at the convex corner c (`vectorized._Geometry.nearer_exit`)."""
     q0 = _pt(xy, a)
-    d = _pt(xy, vnext[a]) - q0
+    q1 = _pt(xy, vnext[a])
+    d = q1 - q0
     l = ti.max(d.norm(), EDGE_FLOOR)
     t = (P - q0).dot(d) / (l * l)
     dn = (P - q0).dot(ti.Vector([d[1], -d[0]]) / l)
-    return _convex(xy, vnext, vprev, c) and dn > depth and t >= -SLACK and t <= 1.0 + SLACK
+    r0 = P - q0
+    r1 = P - q1
+    # or nearer than ``depth`` to an end of a (past it: a cut's shared corner, moved a hair)
+    near = (t < 0.0 and r0[0] * r0[0] + r0[1] * r0[1] < depth * depth) or \
+        (t > 1.0 and r1[0] * r1[0] + r1[1] * r1[1] < depth * depth)
+    return _convex(xy, vnext, vprev, c) and ((dn > depth and t >= -SLACK and t <= 1.0 + SLACK) or near)
 
 
 #: round-off slack of the shortest-exit rule (§3.3 rule 3): of d9 for a vertex on an edge's

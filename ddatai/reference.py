@@ -99,7 +99,11 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray) -> tupl
         l = max(float(np.linalg.norm(d)), EDGE_FLOOR)
         t = float(np.dot(P - xy[a], d)) / l ** 2
         dn = float(np.dot(P - xy[a], np.array([d[1], -d[0]]) / l))
-        return convex(c) and dn > depth and -SLACK <= t <= 1.0 + SLACK
+        # or nearer than |depth| to an end of a (past it: a cut's shared corner, moved a hair)
+        r0, r1 = P - xy[a], P - xy[nxt[a]]
+        near = (t < 0.0 and r0[0] * r0[0] + r0[1] * r0[1] < depth * depth) or \
+            (t > 1.0 and r1[0] * r1[0] + r1[1] * r1[1] < depth * depth)
+        return convex(c) and ((dn > depth and -SLACK <= t <= 1.0 + SLACK) or near)
 
     def line_exit(v, e, partner):
         # v, put on edge e by a vertex pair (the partner an end of e), lies behind e's line

@@ -143,19 +143,20 @@ class _Geometry:
 
     def nearer_exit(self, p: np.ndarray, depth: np.ndarray, a: np.ndarray, c: np.ndarray) -> np.ndarray:
         """Whether vertices p, at normal distances ``depth`` (< 0) from their edges, lie less
-        deep behind the lines of edges a (or in front of them), projecting onto a, where a
-        meets that edge at the convex corner c (`kernels._nearer_exit`)."""
+        deep behind the lines of edges a (or in front of them), projecting onto a, or nearer
+        than |depth| to an end of a, where a meets that edge at the convex corner c
+        (`kernels._nearer_exit`)."""
         px, py = self.x[p] - self.x[a], self.y[p] - self.y[a]
         l = self.length[a]
         t = (px * self.dx[a] + py * self.dy[a]) / (l * l)
         dn = px * self.nx[a] + py * self.ny[a]
-        return self.convex[c] & (dn > depth) & (t >= -SLACK) & (t <= 1.0 + SLACK)
+        qx, qy = self.x[p] - self.x[self.nxt[a]], self.y[p] - self.y[self.nxt[a]]
+        near = ((t < 0.0) & (px * px + py * py < depth * depth)) | ((t > 1.0) & (qx * qx + qy * qy < depth * depth))
+        return self.convex[c] & (((dn > depth) & (t >= -SLACK) & (t <= 1.0 + SLACK)) | near)
 
     def edge_edge_exit(self, p: np.ndarray, e: np.ndarray, w: np.ndarray, d9: float) -> np.ndarray:
-        """Whether vertices p, put on edges e by the edge-edge rule of vertex pairs (p, w), w an
-        end of e, lie behind e's line but less deep behind (or in front of) the edge meeting e
-        at its far, convex corner, or deeper than d9 (§3.3 for vertex pairs;
-        `kernels._edge_edge_exit`)."""
+        """Whether vertices p, put on edges e by vertex pairs (p, w), w an end of e, exit by the
+        edge at e's far corner, or lie deeper than d9 (§3.3; `kernels._edge_edge_exit`)."""
         dn = (self.x[p] - self.x[e]) * self.nx[e] + (self.y[p] - self.y[e]) * self.ny[e]
         out = dn < -SLACK * d9
         k = out.nonzero()[0]
@@ -335,9 +336,8 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray
                 e = np.where(keep, edge_p, edge_q)
                 # the far end of the vertex's edge that lies along the line
                 end = np.where(s5, np.where(keep, prv[p], nxt[q]), np.where(keep, nxt[p], prv[q]))
-                # parallel, but a vertex that entered the edge at the far corner, or lies deeper
-                # than d9 (§3.3), goes against both edges meeting at its partner w, by the
-                # vertex-edge rules
+                # parallel, but a vertex that exits by the edge at the far corner, or lies deeper
+                # than d9 (§3.3), goes against both edges at its partner w by the vertex-edge rules
                 elsewhere = geo.edge_edge_exit(v, e, np.where(keep, q, p), d9)
                 w = np.where(keep, q, p)[elsewhere]
                 ve_v += [v[elsewhere], v[elsewhere]]
