@@ -651,9 +651,11 @@ def test_open_close_cycle_holds_its_contacts_closed():
 @pytest.mark.slow
 @pytest.mark.parametrize("seed", [6, 103, 162])
 def test_cut_domain_open_close_cycle_runs_through(seed):
-    """Cut campaign seeds 6, 103 and 162 (`extreme_cases.random_domain`; ~5-10 s idle each)
-    stopped at steps 256, 262 and 25: the open-close cycles of
-    `test_open_close_cycle_holds_its_contacts_closed`. They run their 400 steps now."""
+    """Cut campaign seeds 6, 103 and 162 (`extreme_cases.random_domain`; 7-11 s each on a
+    loaded 2-core machine) stopped at steps 256, 262 and 25: the open-close cycles of
+    `test_open_close_cycle_holds_its_contacts_closed`. They run their 400 steps now: 162 by the
+    hold on the last try (without it, it stops at step 25 still); 6 and 103, whose cycles came
+    from a shared corner's false depth, also without it (docs/method/dda.md §3.3)."""
     from extreme_cases import random_domain
 
     _holds(random_domain(np.random.default_rng(seed), steps=400), refuse_ok=False)
