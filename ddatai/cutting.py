@@ -118,16 +118,43 @@ def _slivers(faces) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return (aspect >= SLIVER_ASPECT) | (area < SLIVER_AREA * np.median(area)), aspect, area
 
 
-def _merge_slivers(faces: list, scale: float) -> tuple[list, int]:
-    """Merge every sliver (`SLIVER_ASPECT`, `SLIVER_AREA`) into the neighbour with which it
-    shares the longest boundary (the joint piece between them disappears), thinnest first,
-    while the union is a simple polygon. Returns (faces, merged)."""
+def contact_band(faces) -> float:
+    """The contacts' penetration band d9 [m] of a model of these faces with the default
+    `Params` (`build_model`: max(0.3·2.5·g2, 3·g3)·w0, w0 half the larger side of the model, at
+    most 10 × the median √area of its blocks)."""
+    import shapely
+
+    from .params import Params
+
+    p = Params()
+    lo_x, lo_y, hi_x, hi_y = shapely.total_bounds(faces)
+    w0 = min(0.5 * max(hi_x - lo_x, hi_y - lo_y), 10.0 * float(np.median(np.sqrt(shapely.area(faces)))))
+    return max(0.75 * p.max_displacement_ratio, 3.0 * p.penetration_ratio) * w0
+
+
+def _thickness(faces) -> np.ndarray:
+    """2·area/perimeter of faces (a triangle's inradius, half a strip's width) [m]: what
+    `ddatai.diagnosis.slivers` compares with the penetration band."""
+    import shapely
+
+    return 2.0 * shapely.area(faces) / np.maximum(shapely.length(faces), 1e-300)
+
+
+def _merge_slivers(faces: list, scale: float, band: float | None = None) -> tuple[list, int]:
+    """Merge every sliver (`SLIVER_ASPECT`, `SLIVER_AREA`) — or, given ``band``, every face
+    thinner than it (`_thickness`) — into the neighbour with which it shares the longest
+    boundary (the joint piece between them disappears), thinnest first, while the union is a
+    simple polygon. Returns (faces, merged)."""
     import shapely
 
     faces = list(faces)
     merged = 0
     while True:
-        sliver, aspect, _ = _slivers(faces)
+        if band is None:
+            sliver, aspect, _ = _slivers(faces)
+        else:
+            thickness = _thickness(faces)
+            sliver, aspect = thickness < band, 1.0 / np.maximum(thickness, 1e-300)
         if not sliver.any() or len(faces) < 2:
             return faces, merged
         order = np.argsort(-aspect)
@@ -280,6 +307,9 @@ def cut(boundary, joints: Sequence, *, snap: float | None = None,
         `SliverWarning` naming the worst; ``"merge"`` merges each into the neighbour it shares
         the longest boundary with (the joint piece between them disappears; the union must be a
         simple polygon, else the sliver stays and is warned about); ``"keep"`` says nothing.
+        With "warn" or "merge", blocks thinner than the contacts' penetration band
+        (`contact_band`, 2·area/perimeter) are merged too, with a `SliverWarning`: contacts
+        cannot resolve them; "keep" keeps them.
     snap_ends : a trace end that stops at most this far [m] short of another trace or of the
         outline is extended onto it (`snap_trace_ends`); default `SNAP_ENDS` × the domain size
         (1e-6: coordinates typed to six decimals), 0: never. Ends short by more, up to
@@ -335,6 +365,24 @@ def cut(boundary, joints: Sequence, *, snap: float | None = None,
         raise ValueError(f"cut: slivers must be 'warn', 'merge' or 'keep', got {slivers!r}")
     if slivers == "merge":
         inside, _ = _merge_slivers(inside, scale)
+    if slivers != "keep" and len(inside) > 1:
+        # a block thinner than the contacts' penetration band cannot be resolved by the
+        # contact rules at all (a vertex may sit legally deeper than the whole block): merged
+        # even where the user left the slivers to a warning (docs/method/limits.md)
+        band = contact_band(inside)
+        thickness = _thickness(inside)
+        if np.any(thickness < band):
+            thinnest = int(np.argmin(thickness))
+            where, thin = inside[thinnest].centroid, float(thickness[thinnest])
+            inside, merged = _merge_slivers(inside, scale, band=band)
+            if merged:
+                import warnings
+
+                warnings.warn(f"cut: merged {merged} block(s) thinner than the contacts' penetration band "
+                              f"{band:.3g} m (2·area/perimeter; the thinnest {thin:.3g} m, near ({where.x:.3g}, "
+                              f"{where.y:.3g}) m) into a neighbour each: contacts cannot resolve them "
+                              f"(docs/method/limits.md); cut(..., slivers='keep') keeps them",
+                              SliverWarning, stacklevel=4)
     if slivers != "keep" and len(inside) > 1:
         sliver, aspect, area = _slivers(inside)
         thin = np.flatnonzero(sliver)

@@ -35,6 +35,10 @@ def failure_message(model: Model, attempt, step: int, time: float, dt: float) ->
             what += (f"; the contact entered the step already {attempt.culprit_start:.4g} m deep, "
                      f"which no time step can undo")
         advice += slivers(model, {a, b})
+    elif attempt.cause == "inverted":
+        (b, _), strain = attempt.culprits[0], attempt.culprit_force
+        what = f"block {b} is turned inside out by the step (strain {strain:.3g})"
+        advice = "lower the time step, or merge the block into a neighbour" + slivers(model, {b})
     else:
         what = (f"the step displacement {attempt.max_displacement:.4g} m exceeds "
                 f"{p.displacement_reject:g} × g2·w0 = {p.displacement_reject * m.max_step:.4g} m")

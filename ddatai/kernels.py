@@ -97,14 +97,20 @@ def _convex(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), p):
 @ti.func
 def _nearer_exit(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), P, depth, a, c):
     """Whether point P, at normal distance ``depth`` (< 0) from an edge, lies less deep behind
-    the line of edge a (or in front of it), projecting onto a, where a meets that edge at the
-    convex corner c (`vectorized._Geometry.nearer_exit`)."""
+    the line of edge a (or in front of it), projecting onto a, or nearer than |depth| to an end
+    of a, where a meets that edge at the convex corner c (`vectorized._Geometry.nearer_exit`)."""
     q0 = _pt(xy, a)
-    d = _pt(xy, vnext[a]) - q0
+    q1 = _pt(xy, vnext[a])
+    d = q1 - q0
     l = ti.max(d.norm(), EDGE_FLOOR)
     t = (P - q0).dot(d) / (l * l)
     dn = (P - q0).dot(ti.Vector([d[1], -d[0]]) / l)
-    return _convex(xy, vnext, vprev, c) and dn > depth and t >= -SLACK and t <= 1.0 + SLACK
+    r0 = P - q0
+    r1 = P - q1
+    # or nearer than ``depth`` to an end of a (past it: a cut's shared corner, moved a hair)
+    near = (t < 0.0 and r0[0] * r0[0] + r0[1] * r0[1] < depth * depth) or \
+        (t > 1.0 and r1[0] * r1[0] + r1[1] * r1[1] < depth * depth)
+    return _convex(xy, vnext, vprev, c) and ((dn > depth and t >= -SLACK and t <= 1.0 + SLACK) or near)
 
 
 #: round-off slack of the shortest-exit rule (§3.3 rule 3): of d9 for a vertex on an edge's
@@ -130,6 +136,31 @@ def _outside_convex(xy: ti.template(), vnext: ti.template(), vprev: ti.template(
             convex = 0
         j = vnext[j]
     return convex and front == 1
+
+
+@ti.func
+def _edge_edge_exit(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), p, e, w, d9):
+    """Whether vertex p, put on edge e by the edge-edge rule of the vertex pair (p, w), w an end
+    of e, lies behind e's line (beyond round-off) but less deep behind (or in front of) the
+    line of the edge meeting e at its far, convex corner, projecting onto it (it entered that
+    edge: §3.3 rule 3), or deeper than d9 (the window of rule 2): no contact of e
+    (`vectorized._Geometry.edge_edge_exit`). The edge at w is no exit: p's own edge lies along
+    e, so p cannot have entered that edge."""
+    q0 = _pt(xy, e)
+    d = _pt(xy, vnext[e]) - q0
+    l = ti.max(d.norm(), EDGE_FLOOR)
+    P = _pt(xy, p)
+    dn = (P - q0).dot(ti.Vector([d[1], -d[0]]) / l)
+    a = vprev[e]
+    c = e
+    if w == e:
+        a = vnext[e]
+        c = vnext[e]
+    out = 0
+    if dn < -SLACK * d9:
+        if _nearer_exit(xy, vnext, vprev, P, dn, a, c) or dn < -d9:
+            out = 1
+    return out
 
 
 @ti.func
@@ -244,33 +275,56 @@ def _vertex_vertex(xy: ti.template(), vnext: ti.template(), vprev: ti.template()
         e6 = _wrap(a1 - b2, -h1)  # free gap between B's edge (prev->Q) and A's edge (P->next)
         # the two wedges do not overlap (beyond h1) iff the four angles go once around
         if ti.abs(wA + wB + e5 + e6 - TWO_PI) < 1e-6:
-            if e5 < h1:
-                # A's edge (prev[ia], ia) is parallel to B's edge (ib, next[ib]): edge-edge;
-                # the contact vertex is whichever lies inside the other's edge (ties: A's)
-                tP = _edge_param(xy, vnext, ib, ia)
-                tQ = _edge_param(xy, vnext, vprev[ia], ib)
-                if ti.min(tP, 1.0 - tP) >= ti.min(tQ, 1.0 - tQ) - TIE:
-                    _emit(out_int, out_len, count, KIND_VE, ia, ib, -1, -1,
-                          _half_overlap(xy, vnext, ib, ia, vprev[ia]))
+            if e5 < h1 or e6 < h1:
+                # edge-edge: A's edge (prev[ia], ia) parallel to B's edge (ib, next[ib]) (e5),
+                # or A's edge (ia, next[ia]) parallel to B's edge (prev[ib], ib) (e6); the
+                # contact vertex v is whichever lies inside the other's edge e (ties: A's),
+                # its partner w an end of e, and `end` the far end of v's edge along the line
+                v, e, end, w = ia, ib, vprev[ia], ib
+                if e5 < h1:
+                    tP = _edge_param(xy, vnext, ib, ia)
+                    tQ = _edge_param(xy, vnext, vprev[ia], ib)
+                    if ti.min(tP, 1.0 - tP) < ti.min(tQ, 1.0 - tQ) - TIE:
+                        v, e, end, w = ib, vprev[ia], vnext[ib], ia
                 else:
-                    _emit(out_int, out_len, count, KIND_VE, ib, vprev[ia], -1, -1,
-                          _half_overlap(xy, vnext, vprev[ia], ib, vnext[ib]))
-            elif e6 < h1:
-                # A's edge (ia, next[ia]) is parallel to B's edge (prev[ib], ib)
-                tP = _edge_param(xy, vnext, vprev[ib], ia)
-                tQ = _edge_param(xy, vnext, ia, ib)
-                if ti.min(tP, 1.0 - tP) >= ti.min(tQ, 1.0 - tQ) - TIE:
-                    _emit(out_int, out_len, count, KIND_VE, ia, vprev[ib], -1, -1,
-                          _half_overlap(xy, vnext, vprev[ib], ia, vnext[ia]))
+                    tP = _edge_param(xy, vnext, vprev[ib], ia)
+                    tQ = _edge_param(xy, vnext, ia, ib)
+                    if ti.min(tP, 1.0 - tP) >= ti.min(tQ, 1.0 - tQ) - TIE:
+                        v, e, end, w = ia, vprev[ib], vnext[ia], ib
+                    else:
+                        v, e, end, w = ib, ia, vprev[ib], ia
+                if _edge_edge_exit(xy, vnext, vprev, v, e, w, d9) == 0:
+                    _emit(out_int, out_len, count, KIND_VE, v, e, -1, -1, _half_overlap(xy, vnext, e, v, end))
                 else:
-                    _emit(out_int, out_len, count, KIND_VE, ib, ia, -1, -1,
-                          _half_overlap(xy, vnext, ia, ib, vprev[ib]))
-            elif e5 <= e6 + h1:
+                    # parallel, but v entered the edge at the far corner or lies deeper than d9
+                    # (§3.3): v against both edges meeting at w, by the vertex-edge rules
+                    for s in ti.static(range(2)):
+                        e2 = vprev[w] if s == 0 else w
+                        ok, length = _ve_test(xy, vnext, vprev, v, e2, d0, d9, sin_h1, 0)
+                        if ok == 1:
+                            _emit(out_int, out_len, count, KIND_VE, v, e2, -1, -1, length)
+            else:
                 # genuine vertex-vertex: the entrance lines are the edges across the smaller gap
                 # (e5 unless e6 is clearly smaller, so equal gaps do not flip between steps)
-                _emit(out_int, out_len, count, KIND_VV, ia, ib, ib, vprev[ia], 0.0)
-            else:
-                _emit(out_int, out_len, count, KIND_VV, ia, vprev[ib], ib, ia, 0.0)
+                eA = ib
+                eB = vprev[ia]
+                if e5 > e6 + h1:
+                    eA = vprev[ib]
+                    eB = ia
+                if _edge_edge_exit(xy, vnext, vprev, ia, eA, ib, d9) == 0 and \
+                        _edge_edge_exit(xy, vnext, vprev, ib, eB, ia, d9) == 0:
+                    _emit(out_int, out_len, count, KIND_VV, ia, eA, ib, eB, 0.0)
+                else:
+                    # a vertex behind its entrance line entered the edge at the line's far
+                    # corner, or lies beyond d9 (§3.3 rule 3): each vertex against both edges
+                    # meeting at the other, by the vertex-edge rules
+                    for s in ti.static(range(4)):
+                        v = ia if s < 2 else ib
+                        w = ib if s < 2 else ia
+                        e2 = vprev[w] if s % 2 == 0 else w
+                        ok, length = _ve_test(xy, vnext, vprev, v, e2, d0, d9, sin_h1, 0)
+                        if ok == 1:
+                            _emit(out_int, out_len, count, KIND_VE, v, e2, -1, -1, length)
 
 
 # --------------------------------------------------------------------------- broad phase

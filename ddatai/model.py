@@ -159,6 +159,15 @@ class Model:
     def n_free(self) -> int:
         return int(np.count_nonzero(~self.block_fixed))
 
+    def with_penalty(self, penalty: float) -> "Model":
+        """This model with the normal contact penalty p [Pa] and what follows from it (the
+        shear and fixed-point penalties, the force round-off) set anew (`ddatai.step`'s
+        penalty that follows the load)."""
+        p = self.params
+        return replace(self, penalty=float(penalty), shear_penalty=float(penalty) / p.shear_ratio,
+                       fixed_point_penalty=p.fixed_point_ratio * float(penalty),
+                       force_roundoff=p.open_tolerance * self.w0 * float(penalty))
+
     def initial_state(self) -> "State":
         """State at t = 0."""
         return State(

@@ -28,7 +28,7 @@ the model, the solver with its last factor, each block's weight and the scatter 
 from __future__ import annotations
 
 import time as _time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Optional
 
 import numpy as np
@@ -37,7 +37,7 @@ from scipy.sparse import csr_matrix
 from .assembly import BlockPattern, assemble_contacts, second_order
 from .contact_law import ContactLaw, contact_law, internal_force, judge, violations
 from .contacts import Contacts
-from .layout import KIND, SLIDE, VV
+from .layout import KIND, LOCK, OPEN, SLIDE, VV
 from .model import State
 from .records import StepTimer
 
@@ -92,12 +92,13 @@ def solve(stepper, pattern: BlockPattern, data: np.ndarray, rhs: np.ndarray,
 def open_close(stepper, state: State, geom: dict, contacts: Contacts, pattern: BlockPattern,
                vec: np.ndarray, sca: np.ndarray, data0: np.ndarray, rhs0: np.ndarray,
                rotation: np.ndarray, timer: "StepTimer", max_iterations: int, break_bonds: bool = True,
-               reuse_first: bool = True) -> OpenClose:
+               reuse_first: bool = True, hold_cycles: bool = False) -> OpenClose:
     """The open-close iteration (§4) in place on ``contacts``, from the block terms ``data0``,
     ``rhs0`` (`assembly.assemble_blocks`) and the rotation predicted for the step (for the
     second-order terms). ``reuse_first``: the first solve may try the last factor (the states
     are the ones it was made with; `solve`). ``break_bonds``: bonds fail by the joint law
-    (off in the equilibrium stage, whose joints are Mohr–Coulomb)."""
+    (off in the equilibrium stage, whose joints are Mohr–Coulomb). ``hold_cycles``: a cycle of
+    states holds its contacts closed (`hold_cycling`; the step's last try, at the shortest Δt)."""
     model = stepper.model
     n = 6 * pattern.n_rows
     block_k = None   # K of the block terms, for the line search (built when first needed)
@@ -108,6 +109,9 @@ def open_close(stepper, state: State, geom: dict, contacts: Contacts, pattern: B
     if lagged:
         contacts.coupled[:] = False  # friction from the last solve's N: K symmetric
     fewest, since = contacts.n + 1, 0  # the fewest contacts changing, solves since then
+    seen = {contacts.state.tobytes(): 0}  # each set of states tried, and when (`hold_cycling`)
+    history = [contacts.state.copy()]
+    held = np.zeros(contacts.n, bool)
     for it in range(1, max_iterations + 1):
         t0 = _time.perf_counter()
         data, rhs = data0.copy(), rhs0.copy()
@@ -127,7 +131,7 @@ def open_close(stepper, state: State, geom: dict, contacts: Contacts, pattern: B
             return OpenClose(displacement=None, iterations=it, converged=False,
                              changing=np.zeros(contacts.n, bool))
         law = contact_law(model, contacts, vec, sca, solution, shift)
-        bad = violations(model, contacts, law, stepper.block_load)
+        bad = hold_closed(contacts, law, violations(model, contacts, law, stepper.block_load), held)
         disp = solution
         if previous is not None and bad.any():
             if block_k is None:
@@ -138,16 +142,21 @@ def open_close(stepper, state: State, geom: dict, contacts: Contacts, pattern: B
             # the solution; if none has changed there yet, the states change as the
             # solution asks (the step then continues in the next piece)
             if damped is not solution:
-                damped_bad = violations(model, contacts, damped_law, stepper.block_load)
+                damped_bad = hold_closed(contacts, damped_law,
+                                         violations(model, contacts, damped_law, stepper.block_load), held)
                 if damped_bad.any():
                     disp, law, bad = damped, damped_law, damped_bad
         rotation = disp[:, 2].copy()
         verdict = judge(model, contacts, law, bad, break_bonds, couple=not lagged)
         timer.add("judge", t0)
+        if uncouple_pulling(contacts, law, held) and not verdict.changed:
+            verdict = replace(verdict, changed=True)  # solved again without the tension's friction
         if not verdict.changed and disp is solution:
             return OpenClose(displacement=disp, iterations=it, converged=True, changing=verdict.bad,
                              friction=verdict.friction, coulomb=verdict.coulomb)
         previous = disp
+        if hold_cycles:
+            hold_cycling(contacts, seen, history, held)
         if lagged:
             changing = int(np.count_nonzero(verdict.bad))
             fewest, since = (changing, 0) if changing < fewest else (fewest, since + 1)
@@ -157,6 +166,58 @@ def open_close(stepper, state: State, geom: dict, contacts: Contacts, pattern: B
                 couple_sliding(contacts)
     return OpenClose(displacement=disp, iterations=max_iterations, converged=False,
                      changing=verdict.bad if verdict is not None else np.zeros(contacts.n, bool))
+
+
+def hold_cycling(contacts: Contacts, seen: dict, history: list, held: np.ndarray) -> None:
+    """When the judgement has brought back a set of contact states already tried (the
+    iteration cycles: with a contact open the solve closes it, with it closed it pulls free,
+    as at the contacts of a crumb thinner than the penetration band, or of a block wedged among
+    many), the contacts that change around the cycle are held closed for the rest of the step
+    (an open one locks), in place on ``contacts`` and ``held``; `hold_closed` keeps them so.
+    ``seen`` maps each set of states to its place in ``history`` (docs/method/choices.md)."""
+    key = contacts.state.tobytes()
+    if key not in seen:
+        seen[key] = len(history)
+        history.append(contacts.state.copy())
+        return
+    loop = np.array(history[seen[key]:])
+    cycling = np.any(loop != loop[0], axis=0) & ~held
+    if not cycling.any():
+        return
+    contacts.state[cycling & (contacts.state == OPEN)] = LOCK
+    held |= cycling
+    seen[contacts.state.tobytes()] = len(history)
+    history.append(contacts.state.copy())
+
+
+def uncouple_pulling(contacts: Contacts, law: ContactLaw, held: np.ndarray) -> bool:
+    """Held contacts (`hold_cycling`) that slide and pull in this solve take their friction
+    from the last solve's normal force (`Contacts.coupled` off: N = 0, friction c·L), not from
+    the same solve's, which is the tension and gives a friction against Coulomb's law. In
+    place; returns whether any changed."""
+    pulling = held & contacts.coupled & (contacts.state == SLIDE) & (law.fn_now < 0)
+    contacts.coupled[pulling] = False
+    return bool(pulling.any())
+
+
+def hold_closed(contacts: Contacts, law: ContactLaw, bad: np.ndarray, held: np.ndarray) -> np.ndarray:
+    """The contacts that must change (``bad``, `violations`) with the held ones (`hold_cycling`)
+    kept closed: where the law opens a held contact it slides instead (friction at its Coulomb
+    strength from N ≥ 0, so never more than Coulomb's law allows; the normal spring may pull
+    it), in place on ``law``; a held contact changes only from locked to sliding. A held
+    contact that pulls takes its friction from the last solve's normal force (zero, not the
+    tension: `uncouple_pulling`)."""
+    if not held.any():
+        return bad
+    pull = held & (law.state == OPEN)
+    law.state[pull] = SLIDE
+    bad[pull] &= contacts.state[pull] != SLIDE
+    # one that cycles between sticking and sliding at its strength (its N, and so S, moves with
+    # the state) stays sliding once it slides: its friction is S, within Coulomb's law
+    stick = held & (contacts.state == SLIDE) & (law.state == LOCK)
+    law.state[stick] = SLIDE
+    bad[stick] = False
+    return bad
 
 
 def line_search(stepper, contacts: Contacts, vec: np.ndarray, sca: np.ndarray, shift: np.ndarray,

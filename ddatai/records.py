@@ -39,6 +39,8 @@ STEP_DTYPE = np.dtype([
     ("t_judge", "f8"),          # wall time: contact law, line search and open-close judgement [s]
     ("t_accept", "f8"),         # wall time: the acceptance checks of the solution [s]
     ("t_energy", "f8"),         # wall time: energy and work bookkeeping [s]
+    ("penalty", "f8"),          # normal contact penalty p of the step [Pa]: the automatic one is
+                                # raised in a run whose load outgrows it (ddatai.step.follow_load)
 ])
 
 #: the wall-time fields of a step record, one per phase of the step (`ddatai.step`) [s]
@@ -94,6 +96,7 @@ class StepRecord:
     t_judge: float
     t_accept: float
     t_energy: float
+    penalty: float
 
     def row(self) -> tuple:
         """The record as a tuple in the field order of `STEP_DTYPE`."""

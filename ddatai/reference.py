@@ -99,7 +99,34 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray) -> tupl
         l = max(float(np.linalg.norm(d)), EDGE_FLOOR)
         t = float(np.dot(P - xy[a], d)) / l ** 2
         dn = float(np.dot(P - xy[a], np.array([d[1], -d[0]]) / l))
-        return convex(c) and dn > depth and -SLACK <= t <= 1.0 + SLACK
+        # or nearer than |depth| to an end of a (past it: a cut's shared corner, moved a hair)
+        r0, r1 = P - xy[a], P - xy[nxt[a]]
+        near = (t < 0.0 and r0[0] * r0[0] + r0[1] * r0[1] < depth * depth) or \
+            (t > 1.0 and r1[0] * r1[0] + r1[1] * r1[1] < depth * depth)
+        return convex(c) and ((dn > depth and -SLACK <= t <= 1.0 + SLACK) or near)
+
+    def line_exit(v, e, partner):
+        # v, put on edge e by a vertex pair (the partner an end of e), lies behind e's line
+        # but less deep behind (or in front of) the edge meeting e at its far, convex corner
+        # (the shortest exit; the edge at the partner is no exit: v is never tested against
+        # it), or deeper than d9
+        d = xy[nxt[e]] - xy[e]
+        l = max(float(np.linalg.norm(d)), EDGE_FLOOR)
+        P = xy[v]
+        dn = float(np.dot(P - xy[e], np.array([d[1], -d[0]]) / l))
+        a, c = (nxt[e], nxt[e]) if partner == e else (prv[e], e)
+        return dn < -SLACK * d9 and (nearer_exit(P, dn, a, c) or dn < -d9)
+
+    def edge_edge(v, e, partner, end):
+        # the edge-edge contact of a vertex pair, unless v exits elsewhere (`line_exit`): then
+        # v against both edges at its partner
+        if not line_exit(v, e, partner):
+            emit(VE, v, e, length=half_overlap(e, v, end))
+            return
+        for e2 in (prv[partner], partner):
+            ok, L = ve_test(v, e2, False)
+            if ok:
+                emit(VE, v, e2, length=L)
 
     def ve_test(p, e, check_projection):
         q0, q1, P = xy[e], xy[nxt[e]], xy[p]
@@ -162,19 +189,27 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray) -> tupl
                 if e5 < h1:
                     tP, tQ = param(ib, ia), param(prv[ia], ib)
                     if min(tP, 1 - tP) >= min(tQ, 1 - tQ) - TIE:
-                        emit(VE, ia, ib, length=half_overlap(ib, ia, prv[ia]))
+                        edge_edge(ia, ib, ib, prv[ia])
                     else:
-                        emit(VE, ib, prv[ia], length=half_overlap(prv[ia], ib, nxt[ib]))
+                        edge_edge(ib, prv[ia], ia, nxt[ib])
                 elif e6 < h1:
                     tP, tQ = param(prv[ib], ia), param(ia, ib)
                     if min(tP, 1 - tP) >= min(tQ, 1 - tQ) - TIE:
-                        emit(VE, ia, prv[ib], length=half_overlap(prv[ib], ia, nxt[ia]))
+                        edge_edge(ia, prv[ib], ib, nxt[ia])
                     else:
-                        emit(VE, ib, ia, length=half_overlap(ia, ib, prv[ib]))
-                elif e5 <= e6 + h1:
-                    emit(VV, ia, ib, ib, prv[ia])
+                        edge_edge(ib, ia, ia, prv[ib])
                 else:
-                    emit(VV, ia, prv[ib], ib, ia)
+                    eA, eB = (ib, prv[ia]) if e5 <= e6 + h1 else (prv[ib], ia)
+                    if not (line_exit(ia, eA, ib) or line_exit(ib, eB, ia)):
+                        emit(VV, ia, eA, ib, eB)
+                        continue
+                    # a vertex behind its entrance line entered the edge at the line's far
+                    # corner, or lies beyond d9: each vertex against both edges at the other
+                    for v, w in ((ia, ib), (ib, ia)):
+                        for e2 in (prv[w], w):
+                            ok, L = ve_test(v, e2, False)
+                            if ok:
+                                emit(VE, v, e2, length=L)
         # vertex against edge, unless the vertex's mutual-nearest partner is an end of the edge
         # (that pair was handled above; kernels.narrow_phase)
         for (v_lo, v_hi), (e_lo, e_hi) in (((a0, a1), (b0, b1)), ((b0, b1), (a0, a1))):

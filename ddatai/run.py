@@ -136,10 +136,11 @@ def simulate(scene: Scene, params: Optional[Params] = None, duration: Optional[f
             with DeferInterrupt():
                 recorder.step(outcome.record)
                 state = outcome.state
+                # the stepper's model: its penalty may have been raised (`Stepper.follow_load`)
                 if state.step % record_every == 0 or finished(state):
-                    record_frame(recorder, model, outcome, record_contacts)
+                    record_frame(recorder, stepper.model, outcome, record_contacts)
                 if checkpoint_every is not None and state.step % checkpoint_every == 0:
-                    write_checkpoint(checkpoint, state=state, results=recorder.results(), model=model,
+                    write_checkpoint(checkpoint, state=state, results=recorder.results(), model=stepper.model,
                                      targets=targets)
                     # a resumed run starts with a new solver; so does this one, so that both go
                     # on with the same numbers (PARDISO keeps an analysis of an earlier matrix)
@@ -151,7 +152,7 @@ def simulate(scene: Scene, params: Optional[Params] = None, duration: Optional[f
         written = None
         if checkpoint is not None:
             with DeferInterrupt():
-                written = write_checkpoint(checkpoint, state=state, results=results, model=model,
+                written = write_checkpoint(checkpoint, state=state, results=results, model=stepper.model,
                                            targets=targets)
         raise SimulationInterrupted(step=state.step, time=state.time, results=results,
                                     checkpoint=written) from None

@@ -144,7 +144,9 @@ class Scene:
         can simulate is refused before cutting (`ddatai.cutting.ModelSizeError`, with the
         estimate; ``max_blocks`` sets the limit, inf: none; `ddatai.cutting.cut`). Sliver
         blocks (≥ 50:1, or < 1e-4 of the median block) are reported (``slivers="warn"``, a
-        `ddatai.cutting.SliverWarning`) or merged into a neighbour (``slivers="merge"``).
+        `ddatai.cutting.SliverWarning`) or merged into a neighbour (``slivers="merge"``);
+        blocks thinner than the contacts' penetration band are merged either way
+        (``slivers="keep"`` keeps every block).
         A trace end that stops at most ``snap_ends`` [m] short of another trace or of the
         boundary (default 1e-6 × the boundary's size: coordinates typed to six decimals) is
         extended onto it; one short by more, up to 1e-5 × the size, is warned about

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 import time as _time
+import warnings
 from dataclasses import dataclass, replace
 from typing import Optional
 
@@ -50,13 +51,27 @@ from .solver import SparseSolver
 from .time_step import choose_time_step, end_on
 
 
+class PenaltyWarning(UserWarning):
+    """The automatic penalty was raised during a run, the load having built up beyond what it
+    was chosen for (`Stepper.follow_load`)."""
+
+
+#: the automatic penalty is raised when a contact goes deeper than this share of the
+#: penetration limit [-] ...
+PENALTY_RAISE_AT = 0.5
+#: ... to carry the same force at this share [-] ...
+PENALTY_TARGET = 0.25
+#: ... and at most to this many times the penalty the run started with [-]
+PENALTY_RAISE_MAX = 100.0
+
+
 @dataclass(frozen=True, kw_only=True, eq=False)
 class Attempt:
     """One try at a step with a given Δt: its solution and the acceptance checks (§4.4–4.5)."""
 
     ok: bool
     cause: str = ""
-    """Why it was rejected: "nan", "open-close", "displacement" or "penetration"."""
+    """Why it was rejected: "nan", "open-close", "displacement", "inverted" or "penetration"."""
     displacement: Optional[np.ndarray] = None  # (B, 6) solution D, zero for fixed blocks
     contacts: Optional[Contacts] = None
     iterations: int = 0
@@ -67,7 +82,7 @@ class Attempt:
     vec: Optional[np.ndarray] = None       # contact vectors of the accepted solve
     coulomb: float = 0.0                   # largest (|shear force| − S) of a closed contact [N/m]
     culprits: tuple = ()                   # (block a, block b) of the contacts behind a failure
-    culprit_force: float = 0.0             # normal force of the deepest contact [N/m]
+    culprit_force: float = 0.0             # normal force of the deepest contact [N/m] (inverted: the block's largest step strain)
     culprit_start: float = 0.0             # penetration of the deepest contact at the step's start [m]
     changing: int = 0                      # contacts still changing state (open-close failure)
 
@@ -116,6 +131,7 @@ class Stepper:
             float(np.hypot(*model.gravity))
         # softening Barton–Bandis joints: contacts remember how far they have slid
         self.softening = bool(len(model.joint_barton)) and bool(np.any(~np.isnan(model.joint_barton[:, 5])))
+        self.start_penalty, self.penalty_warned = model.penalty, False  # `follow_load`
         self.pattern: Optional[BlockPattern] = None  # last step's, reused while the pairs stay
         self.factored_at = None  # (Δt, β) of the last attempt: its factor may serve the next
 
@@ -142,7 +158,10 @@ class Stepper:
 
         cuts = oc_total = 0
         while True:
-            attempt = self.attempt(state, geom, contacts, vec, sca, dt, timer)
+            # the last try before the run would stop: an open-close cycle holds its contacts
+            # closed (`open_close.hold_cycling`) instead of giving up
+            last = dt * self.params.dt_cut < self.shortest_time_step()
+            attempt = self.attempt(state, geom, contacts, vec, sca, dt, timer, hold_cycles=last)
             oc_total += attempt.iterations
             if attempt.ok:
                 break
@@ -162,8 +181,42 @@ class Stepper:
             max_penetration=attempt.max_penetration, max_displacement=attempt.max_displacement,
             kinetic=energy[0], gravitational=energy[1], strain=energy[2], contact=energy[3],
             external_work=work[0], friction_work=work[1], integrator_work=work[2], coulomb=attempt.coulomb,
-            **{f"t_{phase}": t for phase, t in timer.t.items()})
+            penalty=model.penalty, **{f"t_{phase}": t for phase, t in timer.t.items()})
+        if self.follow_load(attempt):
+            # the next step starts from the energy of its springs at the new penalty (the
+            # change is no work done in a step)
+            new_state = new_state.replace(energy=None)
         return StepOutcome(state=new_state, record=record, contacts=attempt.contacts, friction=attempt.friction)
+
+    def follow_load(self, attempt: Attempt) -> bool:
+        """Raise the automatic penalty (``Params.penalty = None``) for the rest of the run when
+        the accepted step's deepest contact went past `PENALTY_RAISE_AT` of the penetration limit:
+        the penalty chosen at the start from the blocks' weight and speed (`build_model`) does
+        not follow a load that builds up in the run (cut seed 170: a 366 m domain under 30 m/s²,
+        0.013 of the limit for 350 steps, then 0.56 and the limit). p × depth / (`PENALTY_TARGET`
+        × limit) takes the same force at that share of the limit; at most `PENALTY_RAISE_MAX` ×
+        the starting p. Said once in a `PenaltyWarning`, each step's p in ``Results.steps``.
+        Returns whether it raised it."""
+        m = self.model
+        limit = m.penetration_limit
+        if self.params.penalty is not None or attempt.max_penetration <= PENALTY_RAISE_AT * limit:
+            return False
+        new = min(m.penalty * attempt.max_penetration / (PENALTY_TARGET * limit),
+                  PENALTY_RAISE_MAX * self.start_penalty)
+        if new <= m.penalty:
+            return False
+        if not self.penalty_warned:
+            self.penalty_warned = True
+            c = attempt.contacts
+            k = int(np.argmax(np.where(c.state != OPEN, -c.dn, -np.inf)))
+            warnings.warn(f"the automatic penalty p = {m.penalty:.3g} Pa no longer holds the load: the contact "
+                          f"between blocks {int(c.block_a[k])} and {int(c.block_b[k])} is {attempt.max_penetration:.3g} m "
+                          f"deep, {attempt.max_penetration / limit:.2g} of the penetration limit {limit:.3g} m; p is "
+                          f"raised to {new:.3g} Pa for the rest of the run (each step's p: Results.steps['penalty'], "
+                          f"docs/method/limits.md)", PenaltyWarning, stacklevel=4)
+        self.model = m.with_penalty(new)
+        self.factored_at = None  # K has changed: the last factor no longer solves it
+        return True
 
     # ------------------------------------------------------------------ phases of a step
     def find_contacts(self, state: State, geom: dict) -> tuple[Contacts, np.ndarray, np.ndarray]:
@@ -188,7 +241,7 @@ class Stepper:
         return detect_contacts(self.model, vertex_xy, self.buffers)
 
     def attempt(self, state: State, geom: dict, contacts0: Contacts, vec0: np.ndarray, sca0: np.ndarray,
-                dt: float, timer: StepTimer) -> Attempt:
+                dt: float, timer: StepTimer, hold_cycles: bool = False) -> Attempt:
         """Block terms, then the open-close iteration, then the acceptance checks (§4.4–4.5)."""
         p, m = self.params, self.model
         t0 = _time.perf_counter()
@@ -205,7 +258,7 @@ class Stepper:
         # the inertia 2M/Δt² is a large part of K (`ddatai.solver`, reuse)
         reuse, self.factored_at = (dt, beta) == self.factored_at, (dt, beta)
         oc = open_close(self, state, geom, contacts, self.pattern, vec, sca, data0, rhs0,
-                        rotation, timer, p.oc_max_iterations, reuse_first=reuse)
+                        rotation, timer, p.oc_max_iterations, reuse_first=reuse, hold_cycles=hold_cycles)
         if oc.displacement is None:
             return Attempt(ok=False, cause="nan", iterations=oc.iterations)
         if not oc.converged:
@@ -221,7 +274,8 @@ class Stepper:
     def accept(self, state: State, geom: dict, contacts: Contacts, vec: np.ndarray, oc,
                start_dn: Optional[np.ndarray] = None) -> Attempt:
         """The acceptance checks of a converged solution (§4.5): the step displacement at most
-        ``displacement_reject`` × g2·w0, no contact deeper than the penetration limit.
+        ``displacement_reject`` × g2·w0, no block turned inside out,
+        no contact deeper than the penetration limit.
         ``start_dn``: the contacts' normal distances at the step's start (for the message of a
         contact that entered the step already too deep, which no Δt can help)."""
         p, m = self.params, self.model
@@ -237,12 +291,26 @@ class Stepper:
                          friction=oc.friction, vec=vec, coulomb=oc.coulomb)
         if ratio > p.displacement_reject:
             return replace(result, ok=False, cause="displacement")
+        # a block that the step turns inside out (its area (1+εx)(1+εy) − (γxy/2)² times the
+        # old one, ≤ 0) is no body: a thin block between heavy neighbours was inverted by a step
+        # whose largest vertex displacement, 1.6 m, passed the test above (cut seed 82)
+        strain = disp[:, 3:6]
+        area = np.where(m.block_fixed, 1.0, (1.0 + strain[:, 0]) * (1.0 + strain[:, 1]) - 0.25 * strain[:, 2] ** 2)
+        worst = int(np.argmin(area)) if len(area) else -1
+        if worst >= 0 and area[worst] <= 0.0:
+            return replace(result, ok=False, cause="inverted", culprits=((worst, worst),),
+                           culprit_force=float(np.max(np.abs(strain[worst]))))
         if pen > m.penetration_limit:
             return replace(result, ok=False, cause="penetration",
                            culprits=((int(contacts.block_a[deepest]), int(contacts.block_b[deepest])),),
                            culprit_force=float(contacts.normal_force[deepest]),
                            culprit_start=0.0 if start_dn is None else max(-float(start_dn[deepest]), 0.0))
         return result
+
+    def shortest_time_step(self) -> float:
+        """The shortest Δt a step may be cut to, ``dt_min_ratio`` × the step limit [s]."""
+        p = self.params
+        return (p.dt if p.dt is not None else p.dt_max) * p.dt_min_ratio
 
     def shorter_time_step(self, attempt: Attempt, state: State, dt: float) -> float:
         """The Δt of the next try after a rejected attempt (§4.4–4.5); a step that fails even at
@@ -252,7 +320,7 @@ class Stepper:
             new_dt = dt / math.sqrt(attempt.ratio)
         else:
             new_dt = dt * p.dt_cut
-        if new_dt < (p.dt if p.dt is not None else p.dt_max) * p.dt_min_ratio:
+        if new_dt < self.shortest_time_step():
             raise SimulationError(failure_message(self.model, attempt, state.step + 1, state.time, dt),
                                   step=state.step + 1, time=state.time, cause=attempt.cause)
         return new_dt

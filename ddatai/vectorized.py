@@ -143,13 +143,27 @@ class _Geometry:
 
     def nearer_exit(self, p: np.ndarray, depth: np.ndarray, a: np.ndarray, c: np.ndarray) -> np.ndarray:
         """Whether vertices p, at normal distances ``depth`` (< 0) from their edges, lie less
-        deep behind the lines of edges a (or in front of them), projecting onto a, where a
-        meets that edge at the convex corner c (`kernels._nearer_exit`)."""
+        deep behind the lines of edges a (or in front of them), projecting onto a, or nearer
+        than |depth| to an end of a, where a meets that edge at the convex corner c
+        (`kernels._nearer_exit`)."""
         px, py = self.x[p] - self.x[a], self.y[p] - self.y[a]
         l = self.length[a]
         t = (px * self.dx[a] + py * self.dy[a]) / (l * l)
         dn = px * self.nx[a] + py * self.ny[a]
-        return self.convex[c] & (dn > depth) & (t >= -SLACK) & (t <= 1.0 + SLACK)
+        qx, qy = self.x[p] - self.x[self.nxt[a]], self.y[p] - self.y[self.nxt[a]]
+        near = ((t < 0.0) & (px * px + py * py < depth * depth)) | ((t > 1.0) & (qx * qx + qy * qy < depth * depth))
+        return self.convex[c] & (((dn > depth) & (t >= -SLACK) & (t <= 1.0 + SLACK)) | near)
+
+    def edge_edge_exit(self, p: np.ndarray, e: np.ndarray, w: np.ndarray, d9: float) -> np.ndarray:
+        """Whether vertices p, put on edges e by vertex pairs (p, w), w an end of e, exit by the
+        edge at e's far corner, or lie deeper than d9 (§3.3; `kernels._edge_edge_exit`)."""
+        dn = (self.x[p] - self.x[e]) * self.nx[e] + (self.y[p] - self.y[e]) * self.ny[e]
+        out = dn < -SLACK * d9
+        k = out.nonzero()[0]
+        pb, eb, depth, at_start = p[k], e[k], dn[k], w[k] == e[k]
+        far = np.where(at_start, self.nxt[eb], self.prv[eb])  # the edge at e's far corner
+        out[k] = self.nearer_exit(pb, depth, far, np.where(at_start, far, eb)) | (depth < -d9)
+        return out
 
     def ve_test(self, p: np.ndarray, e: np.ndarray, check_projection: np.ndarray, d0: float,
                 d9: float, sin_h1: float) -> tuple[np.ndarray, np.ndarray]:
@@ -322,6 +336,14 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray
                 e = np.where(keep, edge_p, edge_q)
                 # the far end of the vertex's edge that lies along the line
                 end = np.where(s5, np.where(keep, prv[p], nxt[q]), np.where(keep, nxt[p], prv[q]))
+                # parallel, but a vertex that exits by the edge at the far corner, or lies deeper
+                # than d9 (§3.3), goes against both edges at its partner w by the vertex-edge rules
+                elsewhere = geo.edge_edge_exit(v, e, np.where(keep, q, p), d9)
+                w = np.where(keep, q, p)[elsewhere]
+                ve_v += [v[elsewhere], v[elsewhere]]
+                ve_e += [prv[w], w]
+                ve_check.append(np.zeros(2 * len(w), bool))
+                v, e, end = v[~elsewhere], e[~elsewhere], end[~elsewhere]
                 out_v.append(v)
                 out_e.append(e)
                 out_len.append(geo.half_overlap(e, v, end))
@@ -331,13 +353,16 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray
                 # gap (e5 unless e6 is clearly smaller)
                 p, q = P[k], Q[k]
                 small5 = e5[k] <= e6[k] + h1
-                rows = np.empty((len(k), 5), np.int32)
-                rows[:, 0] = VV
-                rows[:, 1] = p
-                rows[:, 2] = np.where(small5, q, prv[q])
-                rows[:, 3] = q
-                rows[:, 4] = np.where(small5, prv[p], p)
-                vv_rows.append(rows)
+                e_p, e_q = np.where(small5, q, prv[q]), np.where(small5, prv[p], p)
+                # a vertex behind its entrance line that entered the edge at the line's far
+                # corner, or lies beyond d9 (§3.3 rule 3): each vertex against both edges at
+                # the other, by the vertex-edge rules
+                out = geo.edge_edge_exit(p, e_p, q, d9) | geo.edge_edge_exit(q, e_q, p, d9)
+                ve_v += [p[out], p[out], q[out], q[out]]
+                ve_e += [prv[q[out]], q[out], prv[p[out]], p[out]]
+                ve_check.append(np.zeros(4 * int(out.sum()), bool))
+                p, q, e_p, e_q = p[~out], q[~out], e_p[~out], e_q[~out]
+                vv_rows.append(np.stack([np.full(len(p), VV), p, e_p, q, e_q], axis=1).astype(np.int32))
 
     # 2., 3. every near vertex against every edge of the other block, except the edges that
     # end at its mutual-nearest partner
