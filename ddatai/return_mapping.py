@@ -137,12 +137,12 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
     guess = None
     freeze = False
     stalled = False
-    touching = contacts.state != OPEN  # the contacts limit equilibrium counts on
+    touching, line0 = contacts.state != OPEN, contacts.line.copy()  # as limit equilibrium counts them
     while solves < MAX_STAGE_SOLVES:
         keep = ~(out[contacts.block_a] | out[contacts.block_b])
         if frame is None or not keep.all():
             contacts = subset_contacts(contacts, keep)
-            touching = touching[keep]
+            touching, line0 = touching[keep], line0[keep]
             guess = guess.subset(keep) if guess is not None else None
             frame = Frame.build(stepper, state, geom, contacts, dt)
         outcome, raw = _iterate(stepper, frame, contacts, geom, out, size, guess, freeze)
@@ -154,9 +154,9 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
         contacts.dn[:] = outcome.law.dn_now
         mechanism = mechanisms(stepper, state.vertex_xy, geom, contacts, outcome.disp, out, size)
         if not mechanism.any() and not outcome.converged:
-            # out of balance: blocks with no admissible contact forces are mechanisms
-            # (`limit_equilibrium`; None where it does not apply: bolts, water)
-            unsupported = unsupported_blocks(stepper.model, state.vertex_xy, geom, contacts, touching, out)
+            # out of balance: blocks with no admissible forces go (`limit_equilibrium`; None: n/a)
+            unsupported = unsupported_blocks(stepper.model, state.vertex_xy, geom,
+                                             Contacts(**{**vars(contacts), "line": line0}), touching, out)
             if unsupported is not None and np.any(unsupported & ~out):
                 # released; the rest goes on with its contacts' chatter suppressed (`_iterate`)
                 mechanism = unsupported & ~out
