@@ -217,6 +217,13 @@ def hold_closed(contacts: Contacts, law: ContactLaw, bad: np.ndarray, held: np.n
     stick = held & (contacts.state == SLIDE) & (law.state == LOCK)
     law.state[stick] = SLIDE
     bad[stick] = False
+    # one whose friction, taken from the last solve's normal force where it pulled
+    # (`uncouple_pulling`), is now below the strength of this solve's pressing N slides within
+    # Coulomb's cone: coupled again it would pull and be uncoupled again, a cycle of two solves
+    # at N ≈ 0 that no state change ends
+    under = held & (contacts.state == SLIDE) & (law.state == SLIDE) & ~contacts.coupled & \
+        (law.friction_now <= law.strength)
+    bad[under] = False
     return bad
 
 

@@ -628,7 +628,7 @@ def test_open_close_cycle_holds_its_contacts_closed():
 
     states = [np.array([LOCK, OPEN, SLIDE], np.int8), np.array([LOCK, LOCK, SLIDE], np.int8),
               np.array([LOCK, OPEN, OPEN], np.int8), np.array([LOCK, OPEN, SLIDE], np.int8)]
-    contacts = SimpleNamespace(state=states[0].copy(), n=3)
+    contacts = SimpleNamespace(state=states[0].copy(), n=3, coupled=np.array([False, False, True]))
     seen, history, held = {contacts.state.tobytes(): 0}, [contacts.state.copy()], np.zeros(3, bool)
     for k, st in enumerate(states[1:], start=1):
         contacts.state[:] = st
@@ -636,16 +636,26 @@ def test_open_close_cycle_holds_its_contacts_closed():
         assert held.any() == (k == 3)  # only when a set comes back
     assert held.tolist() == [False, True, True]
     assert contacts.state.tolist() == [LOCK, LOCK, SLIDE]  # the open one locks, the sliding one stays
-    law = SimpleNamespace(state=np.array([OPEN, OPEN, OPEN], np.int8))
+    unit = dict(friction_now=np.zeros(3), strength=np.ones(3))
+    law = SimpleNamespace(state=np.array([OPEN, OPEN, OPEN], np.int8), **unit)
     bad = hold_closed(contacts, law, np.array([True, True, True]), held)
     # the free contact opens as the law says; the held locked one must change, to sliding; the
     # held sliding one stays as it is
     assert law.state.tolist() == [OPEN, SLIDE, SLIDE] and bad.tolist() == [True, True, False]
     # a held contact sliding at its strength that the law would lock stays sliding (seed 162:
     # one contact flipping between sticking and sliding, its N and S moving with the state)
-    law = SimpleNamespace(state=np.array([LOCK, LOCK, LOCK], np.int8))
+    law = SimpleNamespace(state=np.array([LOCK, LOCK, LOCK], np.int8), **unit)
     bad = hold_closed(contacts, law, np.array([True, True, True]), held)
     assert law.state.tolist() == [LOCK, LOCK, SLIDE] and bad.tolist() == [True, True, False]
+    # a held sliding contact whose friction came from the last solve's N where it pulled
+    # (uncoupled) and is below this solve's strength slides within Coulomb's cone: it stays (cut
+    # seed 6 with two threads: coupled again it pulled, uncoupled it pressed, for 20 solves)
+    contacts.coupled[:] = False
+    law = SimpleNamespace(state=np.array([SLIDE, SLIDE, SLIDE], np.int8), friction_now=np.array([0.0, 0.0, 0.5]),
+                          strength=np.ones(3))
+    assert hold_closed(contacts, law, np.array([True, True, True]), held).tolist() == [True, True, False]
+    law.friction_now[2] = 1.5  # beyond the strength: it must change
+    assert hold_closed(contacts, law, np.array([True, True, True]), held).tolist() == [True, True, True]
 
 
 @pytest.mark.slow
