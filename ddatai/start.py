@@ -185,7 +185,7 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
     memory = ContactMemory.empty()
     last = None  # the contacts of the last pseudo-step
     solves = 0
-    stalled = False
+    stalled = False  # set by a pseudo-step that stalls, which then ends the stage
     for pseudo_steps in range(MAX_PSEUDO_STEPS):
         geom = state.geometry if state.geometry is not None else model.block_geometry(state.vertex_xy)
         cint, length = stepper.detect(state.vertex_xy)
@@ -193,7 +193,6 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
         contacts = subset_contacts(contacts, ~(released[contacts.block_a] | released[contacts.block_b]))
         if not np.any(contacts.state != OPEN):
             break  # nothing (left) touches: nothing to hold
-        stalled = False
         if welded:
             disp, n, found, contacts = _welded_step(stepper, state, geom, contacts, dt, released, size)
         else:

@@ -57,6 +57,25 @@ def cases(draw, regime: str, steps: int = 25):
     return CaseSpec(kind="cut", joints=joints, **base)
 
 
+def _twin_contacts(twin: str, model, xy):
+    """The contacts (cint) that the detection version ``twin`` finds at ``xy``: the Taichi
+    kernels, their NumPy twin or the brute-force reference."""
+    from ddatai import reference, vectorized
+
+    if twin == "kernels":
+        from ddatai.contacts import _Buffers, detect_contacts
+
+        return detect_contacts(model, xy, _Buffers())[0]
+    return (vectorized if twin == "vectorized" else reference).detect_contacts(model, xy)[0]
+
+
+def _depths(model, xy, vertex, edge):
+    """Signed distance of each vertex from its edge's line (negative: penetration)."""
+    from ddatai.contacts import signed_distance
+
+    return signed_distance(xy, model.vertex_next, vertex, edge)
+
+
 def _holds(spec: CaseSpec, refuse_ok: bool, params: "dict | None" = None) -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # strain and precision warnings are part of the contract
@@ -400,7 +419,6 @@ def test_sliver_tip_at_an_acute_corner_is_no_penetration(twin):
     block — and the narrow phase took it for a contact of the long edge already 3.7× the
     penetration limit deep. The tip's shortest exit is the short edge (docs/method/dda.md
     §3.3 rule 3): it is a contact of the short edge, never of the long one."""
-    from ddatai import reference, vectorized
 
     model, a, b = _acute_corner_model(tip_y=0.06)
     off = model.vertex_offset
@@ -412,7 +430,7 @@ def test_sliver_tip_at_an_acute_corner_is_no_penetration(twin):
     depth = float(rel @ np.array([d[1], -d[0]])) / float(np.hypot(*d))
     assert -model.max_penetration < depth < -0.5 * model.max_penetration
     assert 0.0 <= float(rel @ d) / float(d @ d) <= 1.0
-    cint, _ = getattr(vectorized if twin == "vectorized" else reference, "detect_contacts")(model, xy)
+    cint = _twin_contacts(twin, model, xy)
     pairs = {(int(v), int(e)) for v, e in cint[:, 1:3]}
     assert (tip, long_edge) not in pairs
     assert (tip, short_edge) in pairs or any(int(r[1]) == tip or int(r[3]) == tip for r in cint)
@@ -435,8 +453,6 @@ def test_vertex_beyond_a_crumb_is_no_contact(twin):
     thick, and a neighbour's vertex 0.5 mm behind its bottom edge's line, projecting onto it —
     past the crumb, in front of its other edges: outside the convex block, no contact of the
     bottom edge (docs/method/dda.md §3.3 rule 3; before, a contact 0.5 mm deep)."""
-    from ddatai import reference, vectorized
-
     rock = dd.Material(density=2500.0, young=10e9, poisson=0.25)
     scene = dd.Scene(gravity=0.0)
     crumb = scene.add_block([(0.0, 0.0), (2e-3, 0.0), (1e-3, 2.4e-4)], material=rock)
@@ -448,7 +464,7 @@ def test_vertex_beyond_a_crumb_is_no_contact(twin):
     xy[off[a]:off[a + 1], 1] += 0.1005
     bottom = off[crumb]
     assert 0.5e-3 < model.max_penetration  # within the penetration band of the bottom edge
-    cint, _ = getattr(vectorized if twin == "vectorized" else reference, "detect_contacts")(model, xy)
+    cint = _twin_contacts(twin, model, xy)
     assert (off[a], bottom) not in {(int(v), int(e)) for v, e in cint[:, 1:3]}
 
 
@@ -493,8 +509,7 @@ def test_cut_domain_starts_without_false_penetrations(seed):
     xy = model.vertex_xy0
     cint, _ = vectorized.detect_contacts(model, xy)
     v, e = cint[cint[:, 0] == 0, 1], cint[cint[:, 0] == 0, 2]
-    d = xy[model.vertex_next[e]] - xy[e]
-    dn = np.einsum("ij,ij->i", xy[v] - xy[e], np.stack([d[:, 1], -d[:, 0]], axis=1)) / np.hypot(d[:, 0], d[:, 1])
+    dn = _depths(model, xy, v, e)
     assert len(dn) and dn.min() > -1e-9 * model.w0
 
 
@@ -532,8 +547,6 @@ def test_edge_edge_contact_of_a_vertex_that_entered_the_far_edge_is_none(twin):
     edge 4→5 at its far corner: the vertex entered that edge, and touches it (docs/method/dda.md
     §3.3 rule 3). Every contact now lies within the penetration limit, and vertex 3 keeps its
     contact with edge 8→4."""
-    from ddatai import reference, vectorized
-
     rock = dd.Material(density=1830.0, young=4.25e9, poisson=0.24)
     scene = dd.Scene(gravity=0.0)
     scene.add_block([(-59.3207, -60.2677), (-29.2509, -49.5028), (-53.6087, -31.8197), (-55.6228, -30.9129)],
@@ -542,15 +555,9 @@ def test_edge_edge_contact_of_a_vertex_that_entered_the_far_edge_is_none(twin):
                      (-111.686, -5.5013)], material=rock)
     model = dd.build_model(scene, length_scale=228.66)  # the domain's w0
     xy = model.vertex_xy0
-    if twin == "kernels":
-        from ddatai.contacts import _Buffers, detect_contacts
-
-        cint, _ = detect_contacts(model, xy, _Buffers())
-    else:
-        cint, _ = (vectorized if twin == "vectorized" else reference).detect_contacts(model, xy)
+    cint = _twin_contacts(twin, model, xy)
     v, e = cint[cint[:, 0] == 0, 1], cint[cint[:, 0] == 0, 2]
-    d = xy[model.vertex_next[e]] - xy[e]
-    dn = np.einsum("ij,ij->i", xy[v] - xy[e], np.stack([d[:, 1], -d[:, 0]], axis=1)) / np.hypot(d[:, 0], d[:, 1])
+    dn = _depths(model, xy, v, e)
     assert (3, 8) in set(zip(v.tolist(), e.tolist()))
     assert dn.min() > -model.penetration_limit, list(zip(v.tolist(), e.tolist(), dn.tolist()))
 
@@ -563,8 +570,6 @@ def test_vertex_vertex_contact_of_a_vertex_that_entered_the_far_edge_is_none(twi
     which meets that edge at its far corner: it entered that edge, whose contact it keeps. The
     run stopped at step 18 ("entered the step already 0.0152 m deep"). The vertex pair gives
     way to the vertex-edge tests (docs/method/dda.md §3.3 rule 3)."""
-    from ddatai import reference, vectorized
-
     rock = dd.Material(density=2968.0, young=16.3e9, poisson=0.18)
     scene = dd.Scene(gravity=0.0)
     scene.add_block([(-2.0194, -0.8919), (-1.7371, -0.8098), (-1.6491, -0.5755)], material=rock)
@@ -572,18 +577,12 @@ def test_vertex_vertex_contact_of_a_vertex_that_entered_the_far_edge_is_none(twi
                      (-1.5532, -0.3405)], material=rock)
     model = dd.build_model(scene, length_scale=2.0923)  # the domain's w0
     xy = model.vertex_xy0
-    if twin == "kernels":
-        from ddatai.contacts import _Buffers, detect_contacts
-
-        cint, _ = detect_contacts(model, xy, _Buffers())
-    else:
-        cint, _ = (vectorized if twin == "vectorized" else reference).detect_contacts(model, xy)
+    cint = _twin_contacts(twin, model, xy)
     rows = {tuple(int(x) for x in r) for r in cint}
     assert (0, 2, 7, -1, -1) in rows and not any(r[0] == 1 for r in rows), rows
     v = np.concatenate([cint[:, 1], cint[cint[:, 0] == 1, 3]])
     e = np.concatenate([cint[:, 2], cint[cint[:, 0] == 1, 4]])
-    d = xy[model.vertex_next[e]] - xy[e]
-    dn = np.einsum("ij,ij->i", xy[v] - xy[e], np.stack([d[:, 1], -d[:, 0]], axis=1)) / np.hypot(d[:, 0], d[:, 1])
+    dn = _depths(model, xy, v, e)
     assert dn.min() > -model.penetration_limit
 
 
