@@ -159,15 +159,15 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
         contacts.state[:] = np.where(guess.closed, contacts.state, OPEN)
         contacts.dn[:] = outcome.law.dn_now
         mechanism = mechanisms(stepper, state.vertex_xy, geom, contacts, outcome.disp, out, size)
-        if newton_now and not mechanism.any() and not outcome.converged:
+        if outcome.steady:  # cut short for Newton: where it does not finish, the return mapping goes on
             newton = False
-            done, n = _finish(stepper, state, geom, frame, contacts, outcome, guess, out, size)
-            solves += n
-            if done is not None:
-                return done[0], solves, out & ~released, done[1], False
-            if outcome.steady:  # cut short for Newton: the return mapping goes on
-                guess = raw
-                continue
+            if not mechanism.any():
+                done, n = _finish(stepper, state, geom, frame, contacts, outcome, guess, out, size)
+                solves += n
+                if done is not None:
+                    return done[0], solves, out & ~released, done[1], False
+            guess = raw
+            continue
         if not mechanism.any() and not outcome.converged:
             # out of balance: blocks with no admissible forces go (`limit_equilibrium`; None: n/a)
             unsupported = unsupported_blocks(stepper.model, state.vertex_xy, geom,
