@@ -113,6 +113,7 @@ START_DTYPE = np.dtype([
     ("welded", "?"),            # started from the welded equilibrium (no frictional one found)
     ("factorisations", "i4"),   # factorisations of K among the solves
     ("stalled", "?"),           # its last pseudo-step stalled where limit equilibrium holds every block
+    ("unsettled", "?"),         # its pseudo-steps stopped contracting: ended at the last equilibrium
 ])
 
 #: a rock bolt that broke (docs/method/water_bolts.md), one record per broken bolt

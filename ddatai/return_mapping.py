@@ -19,10 +19,11 @@ from .assembly import BlockPattern, assemble_blocks, assemble_contacts, contact_
 from .contact_law import contact_law
 from .contacts import Contacts
 from .kinematics import block_displacement
-from .layout import KIND, LOCK, OPEN, S_E0, S_E1, S_ES, S_G0, S_G1, S_GS, SLIDE, VE, VV
+from .layout import KIND, LOCK, OPEN, SLIDE, VE
 from .model import State
 from .limit_equilibrium import unsupported_blocks
 from .open_close import solve
+from .return_steps import anderson, line_search
 from .mechanisms import MECHANISM_SIZE, anchored, loaded_away, mechanisms, test_unbalanced
 
 #: Newmark's β of the stage's system: that of a first step (the stage's pseudo-steps have no
@@ -48,13 +49,13 @@ MAX_ITERATIONS = 120
 STALL_ITERATIONS = 20
 #: ... and in finishing an iteration that stalled within the looser tolerance only
 MAX_FINISH_SOLVES = 8
+#: a pseudo-step's first iteration stops for Newton once no contact has changed state in this
+#: many iterations: the rest is the slips' linear convergence (`_iterate`, ``tail``)
+NEWTON_AFTER = 3
 #: a pseudo-step that has not found its equilibrium in this many solves gives up (welded start)
 MAX_STAGE_SOLVES = 1000
-#: the line search halves its interval this many times (`_line_search`)
-LINE_SEARCH_BISECTIONS = 30
-#: Anderson acceleration of the slips keeps this many past iterates (`_anderson`), and starts
-#: again when the largest out-of-balance force has not halved in this many iterations
-ANDERSON_DEPTH = 8
+#: Anderson acceleration (`return_steps.anderson`) starts again when the largest out-of-balance
+#: force has not halved in this many iterations
 ANDERSON_RESTART = 4
 #: once an iteration has stalled, it goes on from there with each vertex-edge contact that has
 #: opened or closed this many times opening by the return mapping of its normal spring
@@ -73,7 +74,7 @@ class Frame:
     pattern: BlockPattern
     data: np.ndarray
     rhs: np.ndarray
-    k_blocks: object  # the block part of K as a CSR matrix (the energy of `_line_search`)
+    k_blocks: object  # the block part of K as a CSR matrix (the energy of `return_steps.line_search`)
 
     @staticmethod
     def build(stepper, state: State, geom: dict, contacts: Contacts, dt: float) -> "Frame":
@@ -117,6 +118,7 @@ class Outcome:
     solves: int = 0
     converged: bool = False
     strict: bool = False                 # converged within ``Params.oc_force_tolerance``
+    steady: bool = False                 # stopped early: no state changed for NEWTON_AFTER iterations
     law: object = None                   # the contact law at D (`Stepper.contact_law`)
     excess: Optional[np.ndarray] = None  # shear spring force beyond the strength [N/m]
     loose: Optional[np.ndarray] = None   # each contact's force tolerance [N/m]
@@ -137,6 +139,7 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
     guess = None
     freeze = False
     stalled = False
+    newton = True
     touching, line0 = contacts.state != OPEN, contacts.line.copy()  # as limit equilibrium counts them
     while solves < MAX_STAGE_SOLVES:
         keep = ~(out[contacts.block_a] | out[contacts.block_b])
@@ -145,7 +148,10 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
             touching, line0 = touching[keep], line0[keep]
             guess = guess.subset(keep) if guess is not None else None
             frame = Frame.build(stepper, state, geom, contacts, dt)
-        outcome, raw = _iterate(stepper, frame, contacts, geom, out, size, guess, freeze)
+        # Newton from where the states settle, once a pseudo-step (module docstring)
+        newton_now = newton and not freeze and not np.any(out & ~released)
+        outcome, raw = _iterate(stepper, frame, contacts, geom, out, size, guess, freeze,
+                                tail=NEWTON_AFTER if newton_now else None)
         solves += outcome.solves
         if outcome.disp is None:
             return None, solves, out & ~released, contacts, False
@@ -153,6 +159,15 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
         contacts.state[:] = np.where(guess.closed, contacts.state, OPEN)
         contacts.dn[:] = outcome.law.dn_now
         mechanism = mechanisms(stepper, state.vertex_xy, geom, contacts, outcome.disp, out, size)
+        if outcome.steady:  # cut short for Newton: where it does not finish, the return mapping goes on
+            newton = False
+            if not mechanism.any():
+                done, n = _finish(stepper, state, geom, frame, contacts, outcome, guess, out, size)
+                solves += n
+                if done is not None:
+                    return done[0], solves, out & ~released, done[1], False
+            guess = raw
+            continue
         if not mechanism.any() and not outcome.converged:
             # out of balance: blocks with no admissible forces go (`limit_equilibrium`; None: n/a)
             unsupported = unsupported_blocks(stepper.model, state.vertex_xy, geom,
@@ -193,21 +208,33 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
         # break (Shi's rule) for the least excess beyond it: the open-close iteration from
         # here, its contacts at their strength sliding without springs, finishes the
         # equilibrium to the step's own tolerances where it converges and moves nothing away
-        finished, n = test_unbalanced(stepper, state, geom, frame, contacts, outcome, guess,
-                                       ~stepper.model.block_fixed, MAX_FINISH_SOLVES)
+        done, n = _finish(stepper, state, geom, frame, contacts, outcome, guess, out, size)
         solves += n
-        if finished is not None and finished[2] and \
-                not mechanisms(stepper, state.vertex_xy, geom, finished[1], finished[0], out, size).any():
-            disp, contacts = finished[0], finished[1]
-            _shift_lock_points(stepper, state.vertex_xy, contacts, guess.slip)
-            contacts.coupled[:] = False
-            return disp, solves, out & ~released, contacts, False
+        if done is not None:
+            return done[0], solves, out & ~released, done[1], False
     _hand_over(stepper, state.vertex_xy, contacts, outcome.law, guess)
     return outcome.disp, solves, out & ~released, contacts, stalled
 
 
+def _finish(stepper, state: State, geom: dict, frame: Frame, contacts: Contacts, outcome: "Outcome",
+            guess: Guess, out: np.ndarray, size: np.ndarray):
+    """The open-close iteration of a static step from where `_iterate` stopped (`test_unbalanced`:
+    every contact at or beyond its strength sliding, the others locked at their slip): where it
+    converges and moves no block away, ((D, the contacts with their lock points moved by the
+    slips), solves), else (None, solves)."""
+    finished, n = test_unbalanced(stepper, state, geom, frame, contacts, outcome, guess,
+                                  ~stepper.model.block_fixed, MAX_FINISH_SOLVES)
+    if finished is None or not finished[2] or \
+            mechanisms(stepper, state.vertex_xy, geom, finished[1], finished[0], out, size).any():
+        return None, n
+    _shift_lock_points(stepper, state.vertex_xy, finished[1], guess.slip)
+    finished[1].coupled[:] = False
+    return (finished[0], finished[1]), n
+
+
 def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndarray,
-             size: np.ndarray, guess: Optional[Guess], freeze: bool = False) -> tuple[Outcome, Guess]:
+             size: np.ndarray, guess: Optional[Guess], freeze: bool = False,
+             tail: Optional[int] = None) -> tuple[Outcome, Guess]:
     """The return-mapping iteration of one pseudo-step (module docstring, 1.–2.). Every closed
     contact is a spring — normal, and for a vertex-edge one shear from its lock point moved by
     its slip — so that no block loses its stiffness while the iteration finds which contacts
@@ -215,7 +242,7 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
 
     - solve K D = F with the closed contacts and slips of this iterate (K changes only when a
       contact opens or closes, and the last factor solves it otherwise: `ddatai.solver`,
-      reuse), and move D towards the solution as far as the energy falls (`_line_search`);
+      reuse), and move D towards the solution as far as the energy falls (`return_steps.line_search`);
     - a contact opens where it pulls beyond its tensile strength, closes where it overlaps, and
       a vertex-vertex one changes line where the other is less penetrated — each only where
       that changes a force by more than the tolerance (below); with ``freeze`` (an iteration
@@ -225,7 +252,7 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
     - the slip of a closed vertex-edge contact grows by what its shear spring carries beyond the
       Coulomb strength N·tanφ + c·L of its own normal force (the return mapping of elastic,
       perfectly plastic friction, which keeps its cohesion while sliding), Anderson-accelerated
-      (`_anderson`).
+      (`return_steps.anderson`).
 
     Converged when no contact opens, closes or changes line and no spring exceeds its strength
     by more than the tolerance, ``STAGE_FORCE_TOLERANCE`` (or ``Params.oc_force_tolerance`` if
@@ -250,6 +277,7 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
     best, best_at = np.inf, 0
     outcome = Outcome()
     accepted = None  # the last iterate within ``Params.oc_state_tolerance``
+    steady = 0
     for it in range(1, MAX_ITERATIONS + 1):
         contacts.state[:] = np.where(guess.closed, np.where(shearing, LOCK, SLIDE), OPEN)
         contacts.line[:] = guess.line
@@ -266,7 +294,7 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
             return outcome, guess
         # where contacts opened or closed, the step stops where the energy stops falling (slips
         # alone change only F: the solution is the minimiser)
-        alpha = _line_search(stepper, frame, contacts, sca, disp, target - disp, shearing) \
+        alpha = line_search(stepper, frame, contacts, sca, disp, target - disp, shearing) \
             if changed and it > 1 else 1.0
         disp = target if alpha == 1.0 else disp + alpha * (target - disp)
         law = contact_law(stepper.model, coupled(contacts), frame.vec, sca, disp)
@@ -327,6 +355,11 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
                 outcome.converged = outcome.strict = True
                 return outcome, guess
         unbalance = float(np.max(np.maximum(excess, 0.0) / loose, initial=0.0))
+        steady = 0 if (changed or alpha < 1.0) else steady + 1
+        if tail is not None and steady >= tail and it > 1:
+            outcome.steady = True
+            guess.slip = guess.slip + dslip
+            return outcome, guess
         if changed or alpha < 1.0:
             history.clear()
             best, best_at = np.inf, it
@@ -337,7 +370,7 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
         elif (it - best_at) % ANDERSON_RESTART == 0:
             history.clear()  # the acceleration has stagnated: start it again from here
         n = contacts.n
-        mixed = _anderson(history, np.concatenate([guess.slip, guess.gap]),
+        mixed = anderson(history, np.concatenate([guess.slip, guess.gap]),
                           np.concatenate([guess.slip + dslip, new_gap]))
         guess.slip, guess.gap = mixed[:n], np.maximum(mixed[n:], 0.0)
     if accepted is not None:
@@ -366,74 +399,6 @@ def coupled(contacts: Contacts) -> Contacts:
     c = contacts.copy()
     c.coupled[:] = True
     return c
-
-
-def _measures(vec: np.ndarray, sca: Optional[np.ndarray], contacts: Contacts, disp: np.ndarray):
-    """(dn of line 0, dn of line 1 (−∞ for a vertex-edge contact), ds) at ``disp`` (with the
-    constant parts ``sca``), or their rates along ``disp`` (``sca`` None): §2.8.1, linear in D."""
-    da, db = disp[contacts.block_a], disp[contacts.block_b]
-    vv = contacts.cint[:, KIND] == VV
-    dn0 = np.einsum("ij,ij->i", vec[:, S_E0], da) + np.einsum("ij,ij->i", vec[:, S_G0], db)
-    dn1 = np.einsum("ij,ij->i", vec[:, S_E1], db) + np.einsum("ij,ij->i", vec[:, S_G1], da)
-    ds = np.einsum("ij,ij->i", vec[:, S_ES], da) + np.einsum("ij,ij->i", vec[:, S_GS], db)
-    if sca is not None:
-        dn0, dn1, ds = dn0 + sca[:, 0], dn1 + sca[:, 1], ds + sca[:, 2]
-    return dn0, np.where(vv, dn1, -np.inf if sca is not None else 0.0), np.where(vv, 0.0, ds)
-
-
-def _line_search(stepper, frame: Frame, contacts: Contacts, sca: np.ndarray, disp: np.ndarray,
-                 step: np.ndarray, shearing: np.ndarray) -> float:
-    """α ∈ (0, 1] that minimises along ``disp`` + α·``step`` the energy of the iterate: the
-    blocks' ½DᵀKD − FᵀD, ½p·dn² of each contact closed there (the less penetrated line of a
-    vertex-vertex one, up to the tensile allowance), ½k_s·(ds − slip)² of each closed
-    vertex-edge one with friction or cohesion (``shearing``). The solution of the iterate's K
-    minimises it as long as no contact opens or closes on the way; where some do, the energy's
-    slope, piecewise linear in α, has its root before 1 (bisection), and the iterate stops
-    there: contacts that all flip together cannot flip back and forth."""
-    model = stepper.model
-    rows = stepper.free_idx
-    x, v = disp[rows].ravel(), step[rows].ravel()
-    kv = frame.k_blocks @ v
-    curvature = float(v @ kv)
-    slope0 = float(kv @ x) - float(frame.rhs @ v)  # vᵀ(K x − F), K symmetric
-    dn0, dn1, ds = _measures(frame.vec, sca, contacts, disp)
-    r0, r1, rs = _measures(frame.vec, None, contacts, step)
-    allowance = np.where(contacts.bond, contacts.tensile * contacts.length / model.penalty, 0.0)
-
-    def slope(a: float) -> float:
-        n0, n1 = dn0 + a * r0, dn1 + a * r1
-        one = n1 > n0
-        dn = np.where(one, n1, n0)
-        closed = dn <= allowance
-        normal = np.where(closed, model.penalty * dn, 0.0)
-        shear = np.where(closed & shearing, model.shear_penalty * (ds + a * rs), 0.0)
-        return curvature * a + slope0 + float(normal @ np.where(one, r1, r0)) + float(shear @ rs)
-
-    if slope(1.0) <= 0.0:
-        return 1.0
-    lo, hi = 0.0, 1.0
-    for _ in range(LINE_SEARCH_BISECTIONS):
-        mid = 0.5 * (lo + hi)
-        if slope(mid) < 0.0:
-            lo = mid
-        else:
-            hi = mid
-    return max(lo, 1.0 / 2 ** LINE_SEARCH_BISECTIONS)
-
-
-def _anderson(history: list, x: np.ndarray, g: np.ndarray) -> np.ndarray:
-    """Anderson acceleration (depth ANDERSON_DEPTH) of the fixed point x = g(x) of the slips:
-    the combination of the last iterates whose residuals g − x cancel best (least squares)."""
-    history.append((x, g))
-    if len(history) > ANDERSON_DEPTH + 1:
-        history.pop(0)
-    if len(history) < 2:
-        return g
-    f = np.array([gi - xi for xi, gi in history])
-    gs = np.array([gi for _, gi in history])
-    df, dg = (f[1:] - f[:-1]).T, (gs[1:] - gs[:-1]).T
-    gamma = np.linalg.lstsq(df, f[-1], rcond=None)[0]
-    return g - dg @ gamma
 
 
 def _hand_over(stepper, vertex_xy: np.ndarray, contacts: Contacts, law, guess: Guess) -> None:

@@ -22,7 +22,11 @@ solve of the model under its weight, the point loads at t = 0 and its initial st
    strength grows by the excess (the return mapping of elastic, perfectly plastic friction,
    Anderson-accelerated), and a contact opens where it pulls beyond its tensile strength or
    closes where it overlaps (K changes only then; otherwise the last factor solves the next
-   iterate, and where states change the step stops where the energy stops falling); an
+   iterate, and where states change the step stops where the energy stops falling). Once no
+   state has changed for NEWTON_AFTER iterations, what is left is the slips' linear
+   convergence: the open-close iteration of a static step (semismooth Newton, the contacts at
+   their strength sliding) finishes it from there in a few solves where it converges and moves
+   no block away, once a pseudo-step (`return_mapping`); an
    iteration that stalls goes on from there with each vertex-edge contact that has opened or
    closed CHATTER_FLIPS times opening by the return mapping of its normal spring (tension
    cut-off, K kept), as corner contacts of blocks cut by persistent joints otherwise do by
@@ -66,7 +70,11 @@ solve of the model under its weight, the point loads at t = 0 and its initial st
    springs carry the equilibrium forces, and their velocities are the scene's initial ones:
    each contact is handed over locked, its lock point moved by its slip, and a contact at its
    strength starts locked at it with its bond intact. The stage repeats at the settled
-   geometry until the contact forces there balance every block (``balanced``).
+   geometry until the contact forces there balance every block (``balanced``), a fixed-point
+   iteration on the geometry: where an increment is as large as the one before (a tall, soft
+   stack whose load grows with its deflection faster than its stiffness, P-delta), it does not
+   converge and going on throws held blocks away, so the stage ends at the last pseudo-step's
+   equilibrium (``StartRecord.unsettled``) and the run's dynamics takes the deflection on.
 6. If no frictional equilibrium is found (a pseudo-step out of solves, or, with bolts or water,
    out-of-balance blocks that the test does not move), the model starts from its *welded* equilibrium: the
    same static solve with every touching contact held as it is (normal and shear springs, no
@@ -108,6 +116,9 @@ MAX_PSEUDO_STEPS = 8
 #: round-off of the balance of the settled geometry that ends the pseudo-steps (`balanced`), as a
 #: fraction of the load that a contact's blocks carry
 BALANCE_ROUNDOFF = 1e-12
+#: a pseudo-step whose increment is at least this fraction of the last one's does not contract:
+#: the stage ends at the last one's equilibrium (`_stage`)
+GEOMETRY_CONTRACTION = 1.0
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -136,6 +147,11 @@ class StartRecord:
     """The return mapping stalled where rigid-block limit equilibrium holds every block left:
     the stage ended there, its contacts at most at their strength and its forces out of
     balance by a fraction of the load, which the first steps settle (module docstring, 4.)."""
+    unsettled: bool = False
+    """The pseudo-steps stopped contracting (an increment at the settled geometry as large as the
+    one before: a tall, soft stack whose load grows with its deflection faster than its
+    stiffness): the stage ended at the last pseudo-step's equilibrium and the run's dynamics
+    takes the deflection from there (module docstring, 5.)."""
 
 
 #: the record of a model with nothing to settle
@@ -186,6 +202,8 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
     last = None  # the contacts of the last pseudo-step
     solves = 0
     stalled = False  # set by a pseudo-step that stalls, which then ends the stage
+    increment = np.inf  # the last pseudo-step's largest displacement [m]
+    unsettled = False
     for pseudo_steps in range(MAX_PSEUDO_STEPS):
         geom = state.geometry if state.geometry is not None else model.block_geometry(state.vertex_xy)
         cint, length = stepper.detect(state.vertex_xy)
@@ -216,6 +234,16 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
         held = free & ~released
         disp[~held] = 0.0
         step = float(block_displacement(stepper.model, state.vertex_xy, geom, disp).max(initial=0.0))
+        if last is not None and not found.any() and step >= GEOMETRY_CONTRACTION * increment:
+            # the pseudo-steps are a fixed-point iteration on the geometry (each solves the
+            # static increment at the last one's settled shape); where an increment does not
+            # shrink, the iteration does not converge — the load grows with the deflection
+            # (a tall, soft column's P-delta) faster than the stiffness — and going on throws
+            # held blocks away: the stage ends at the last pseudo-step's equilibrium and the
+            # run's dynamics takes the deflection from there (docs/method/dda.md §8.12)
+            unsettled = True
+            break
+        increment = step
         state = settle_points(stepper.model, state, geom, disp)
         last = contacts
         # the contacts go on into the next pseudo-step as they ended: locked ones with their
@@ -245,7 +273,8 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
     record = StartRecord(solves=solves, held=int(np.count_nonzero(held)),
                          released=int(np.count_nonzero(free & released)), settlement=settlement,
                          at_strength=len(at_strength & set(memory.key.tolist())),
-                         wall_time=_time.perf_counter() - t0, welded=welded, stalled=stalled)
+                         wall_time=_time.perf_counter() - t0, welded=welded, stalled=stalled,
+                         unsettled=unsettled)
     return state.replace(memory=memory), record, True
 
 

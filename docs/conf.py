@@ -51,7 +51,7 @@ default_role = "obj"  # `Results` in a docstring links to its page
 nitpick_ignore_regex = [
     (r"py:.*", r"(enum|numpy|np|scipy|pickle|multiprocessing|concurrent|collections|typing|pathlib)(\..*)?"),
 ]
-nitpick_ignore = [("py:obj", "coupled"), ("py:obj", "_line_search"), ("py:obj", "slot_ab"), ("py:obj", "slot_ba"),
+nitpick_ignore = [("py:obj", "coupled"), ("py:obj", "line_search"), ("py:obj", "slot_ab"), ("py:obj", "slot_ba"),
                   ("py:obj", "spsolve"), ("py:obj", "BlockPattern"), ("py:obj", "_anchored"),
                   ("py:obj", "REUSE_RESIDUAL"), ("py:obj", "REUSE_FLOOR")]
 

@@ -12,7 +12,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 #: the engine: what a simulation runs through
 CORE = ("assembly", "backend", "contact_law", "contacts", "cutting", "diagnosis", "energy", "geometry", "iterative", "kernels",
-        "limit_equilibrium", "mechanisms", "return_mapping",
+        "limit_equilibrium", "mechanisms", "return_mapping", "return_steps",
         "recorder", "records",
         "kinematics", "layout", "model", "model_checks", "open_close", "params", "reference", "results", "scene",
         "solver", "start", "step", "support", "time_step", "water")

@@ -180,3 +180,61 @@ def test_the_kgm_slope_scene_starts_from_its_frictional_equilibrium():
         state, _ = stepper.step(state)
     moved = np.hypot(*(model.block_geometry(state.vertex_xy)["centroid"] - start).T)
     assert moved.max() < 1e-9
+
+
+def soft_stack(width: int, height: int) -> tuple[dd.Scene, dd.Params]:
+    """ntdda's grid (docs/ntdda.md §5): ``width`` × ``height`` fitted 1 m blocks, ρ = 2000 kg/m³,
+    E = 100 MPa, ν = 0.25, plane stress, p = 1e9 N/m, φ = 30°, on a fixed base."""
+    scene = dd.Scene(gravity=G)
+    rock = dd.Material(density=2000.0, young=1e8, poisson=0.25)
+    scene.add_block([(-1, -1), (width + 1, -1), (width + 1, 0), (-1, 0)], material=rock, fixed=True)
+    for j in range(height):
+        for i in range(width):
+            scene.add_block([(i, j), (i + 1, j), (i + 1, j + 1), (i, j + 1)], material=rock)
+    scene.set_joint(dd.Joint(friction=30.0))
+    return scene, dd.Params(dt=1e-3, penalty=1e9, plane="stress")
+
+
+def test_the_return_mapping_is_finished_by_newton_and_the_start_is_at_rest(monkeypatch):
+    """ntdda's soft grid (20 × 20, E = 100 MPa: 4 cm of settlement): once the return mapping's
+    contact states stop changing, the rest is the slips' linear convergence, and the open-close
+    iteration of a static step (semismooth Newton) finishes it from there
+    (`return_mapping._finish`). The equilibrium it hands over is one: three steps from it move
+    no block by more than round-off (1e-9 m; sudden gravity moves them by centimetres)."""
+    from ddatai import return_mapping
+
+    finished = []
+    finish = return_mapping._finish
+
+    def counted(*args):
+        done, n = finish(*args)
+        finished.append(done is not None)
+        return done, n
+
+    monkeypatch.setattr(return_mapping, "_finish", counted)
+    scene, params = soft_stack(20, 20)
+    model = build_model(scene, params)
+    stepper = Stepper(model)
+    state, record = settle(stepper, model.initial_state())
+    assert any(finished)
+    assert not record.welded and not record.unsettled and record.held == model.n_free
+    start = model.block_geometry(state.vertex_xy)["centroid"]
+    for _ in range(3):
+        state, _ = stepper.step(state)
+    moved = np.hypot(*(model.block_geometry(state.vertex_xy)["centroid"] - start).T)
+    assert moved.max() < 1e-9
+
+
+def test_a_soft_stack_whose_geometry_does_not_settle_keeps_its_blocks():
+    """A stack of ntdda's soft grid 8 blocks wide and 80 high (slenderness 10): each pseudo-step
+    at the settled geometry moves it further than the one before (0.15 m, then 0.38 m: its load
+    grows with its deflection faster than its stiffness), so the pseudo-steps, a fixed-point
+    iteration on the geometry, do not converge, and going on threw 617 of its 640 blocks away
+    as mechanisms (they started under sudden gravity). The stage ends at the last pseudo-step
+    that contracted, holds every block and says so (``unsettled``); the run's dynamics takes
+    the deflection from there."""
+    scene, params = soft_stack(8, 80)
+    model = build_model(scene, params)
+    state, record = settle(Stepper(model), model.initial_state())
+    assert record.unsettled and not record.welded
+    assert record.held == model.n_free and record.released == 0
