@@ -26,6 +26,7 @@ from .contacts import Contacts
 from .geometry import displacement_matrix, mass_matrix
 from .layout import KIND, LOCK, N_SLOTS, OPEN, S_E0, S_ES, S_G0, S_GS, SLIDE, VE
 from .model import Model, State
+from .reference import second_order_shift
 
 
 @dataclass(kw_only=True, eq=False)
@@ -260,8 +261,6 @@ def second_order(model: Model, contacts: Contacts, state: State, geom: dict, rot
         # q of every vertex once (a vertex appears in several contacts), then ∂Δ/∂P·q and
         # ∂s/∂P·q per contact line
         if model.numpy_path:
-            from .reference import second_order_shift
-
             shift[:] = second_order_shift(model, xy, q(xy, vb), contacts.cint, contacts.omega)
         else:
             from . import kernels as K
