@@ -14,7 +14,7 @@ in `ddatai.reference` (dense assembly), and tests compare them.
 
 from __future__ import annotations
 
-import dataclasses
+import copy
 from dataclasses import dataclass
 from typing import Optional
 
@@ -26,6 +26,7 @@ from .contacts import Contacts
 from .geometry import displacement_matrix, mass_matrix
 from .layout import KIND, LOCK, N_SLOTS, OPEN, S_E0, S_ES, S_G0, S_GS, SLIDE, VE
 from .model import Model, State
+from .reference import second_order_shift
 
 
 @dataclass(kw_only=True, eq=False)
@@ -89,8 +90,10 @@ class BlockPattern:
         if (previous is not None and previous.n_rows == nr and len(previous.pair_key) == len(pair)
                 and np.array_equal(previous.pair_key, pair)):
             key, at = previous.block_key, previous.block_slot
-            return dataclasses.replace(previous, slot_ab=_block_slots(key, at, nr, ra, rb),
-                                       slot_ba=_block_slots(key, at, nr, rb, ra))
+            # a shallow copy with the contacts' slots (dataclasses.replace re-runs __init__)
+            reused = copy.copy(previous)
+            reused.slot_ab, reused.slot_ba = _block_slots(key, at, nr, ra, rb), _block_slots(key, at, nr, rb, ra)
+            return reused
         lo, hi = pair // nr, pair % nr
         diag = np.arange(nr, dtype=np.int64)
         rows = np.concatenate([diag, lo, hi])
@@ -248,15 +251,16 @@ def second_order(model: Model, contacts: Contacts, state: State, geom: dict, rot
     def q(points, blocks):
         X = points - centroid[blocks]
         r = rotation[blocks]
-        jx = np.stack([-X[:, 1], X[:, 0]], axis=1)
-        return (np.cos(r) - 1.0)[:, None] * X + (np.sin(r) - r)[:, None] * jx
+        cos_1, sin_r = np.cos(r) - 1.0, np.sin(r) - r
+        out = np.empty_like(X)
+        out[:, 0] = cos_1 * X[:, 0] + sin_r * -X[:, 1]
+        out[:, 1] = cos_1 * X[:, 1] + sin_r * X[:, 0]
+        return out
 
     if contacts.n:
         # q of every vertex once (a vertex appears in several contacts), then ∂Δ/∂P·q and
         # ∂s/∂P·q per contact line
         if model.numpy_path:
-            from .reference import second_order_shift
-
             shift[:] = second_order_shift(model, xy, q(xy, vb), contacts.cint, contacts.omega)
         else:
             from . import kernels as K
@@ -320,30 +324,44 @@ def point_terms_numpy(point_block, point_xy, point_force, stiffness, dof, centro
     np.add.at(rhs, (6 * r)[:, None] + _SIX, np.einsum("nia,ni->na", t, point_force[on]))
 
 
-def _add_outer(pattern: BlockPattern, rows_i, rows_j, slot_ij, slot_ji, k, u, w, u2, w2, data) -> None:
-    """Add k·[u; w][u2; w2]ᵀ of each contact (u, u2 on block-row/column i, w, w2 on j) to the
-    CSR data: the diagonal blocks of free i and j, and the off-diagonal ones where both are free."""
-    for r, r_other, slot, a, own, other in ((rows_i, rows_j, slot_ij, u, u2, w2),
-                                            (rows_j, rows_i, slot_ji, w, w2, u2)):
-        on = r >= 0
-        if not on.any():
-            continue
-        ka = k[on, None] * a[on]
-        np.add.at(data, _diagonal_positions(pattern.diag_slot, pattern.stride, r[on]),
-                  ka[:, :, None] * own[on][:, None, :])
-        both = on & (r_other >= 0)
-        if both.any():
-            kb = k[both, None] * a[both]
-            idx = (slot[both].astype(np.int64)[:, None, None] + _SIX[None, :, None] *
-                   pattern.stride[r[both]].astype(np.int64)[:, None, None] + _SIX[None, None, :])
-            np.add.at(data, idx, kb[:, :, None] * other[both][:, None, :])
+class _Scatter:
+    """The additions of a set of contacts to the CSR data and to the right-hand side, gathered
+    as (positions, values) pieces and added with one ``np.add.at`` each: ``np.add.at`` adds its
+    entries one after another in their order, so one call over the pieces in order gives the
+    floats of one call per piece, without the fixed cost of a call per piece and block side."""
 
+    def __init__(self, pattern: BlockPattern):
+        self.pattern = pattern
+        self.data_at, self.data_add, self.rhs_at, self.rhs_add = [], [], [], []
 
-def _add_force(rows_i, rows_j, f_i, f_j, rhs) -> None:
-    for r, f in ((rows_i, f_i), (rows_j, f_j)):
-        on = r >= 0
-        if on.any():
-            np.add.at(rhs, (6 * r[on].astype(np.int64))[:, None] + _SIX, f[on])
+    def outer(self, rows_i, rows_j, slot_ij, slot_ji, k, u, w, u2, w2) -> None:
+        """k·[u; w][u2; w2]ᵀ of each contact (u, u2 on block-row/column i, w, w2 on j): the
+        diagonal blocks of free i and j, and the off-diagonal ones where both are free."""
+        diag_slot, stride = self.pattern.diag_slot, self.pattern.stride
+        on_i, on_j = rows_i >= 0, rows_j >= 0
+        both = on_i & on_j
+        for r, on, slot, a, own, other in ((rows_i, on_i, slot_ij, u, u2, w2), (rows_j, on_j, slot_ji, w, w2, u2)):
+            ka = (k[:, None] * a)[:, :, None]
+            rows = r[on]
+            within_block = stride[rows].astype(np.int64)[:, None, None] * _SIX[None, :, None] + _SIX[None, None, :]
+            self.data_at.append((diag_slot[rows].astype(np.int64)[:, None, None] + within_block).ravel())
+            self.data_add.append((ka[on] * own[on][:, None, :]).ravel())
+            pair = both[on]
+            self.data_at.append((slot[both].astype(np.int64)[:, None, None] + within_block[pair]).ravel())
+            self.data_add.append((ka[both] * other[both][:, None, :]).ravel())
+
+    def force(self, rows_i, rows_j, f_i, f_j) -> None:
+        """Forces f_i on the rows of free blocks i, f_j on those of free blocks j."""
+        for r, f in ((rows_i, f_i), (rows_j, f_j)):
+            on = r >= 0
+            self.rhs_at.append(((6 * r[on])[:, None] + _SIX).ravel())
+            self.rhs_add.append(f[on].ravel())
+
+    def add_to(self, data: np.ndarray, rhs: np.ndarray) -> None:
+        if self.data_at:
+            np.add.at(data, np.concatenate(self.data_at), np.concatenate(self.data_add))
+        if self.rhs_at:
+            np.add.at(rhs, np.concatenate(self.rhs_at), np.concatenate(self.rhs_add))
 
 
 def contact_terms_numpy(cint, state, line, vblock, dof, vec, sca, friction_const, friction_slope, shear_dir,
@@ -364,28 +382,30 @@ def contact_terms_numpy(cint, state, line, vblock, dof, vec, sca, friction_const
     u, w = vec[closed, S_E0 + 2 * q], vec[closed, S_G0 + 2 * q]   # the active line's gradients
     d0 = sca[closed, q]
     k = np.full(len(closed), penalty)
-    _add_outer(pattern, ri, rj, sij, sji, k, u, w, u, w, data)
-    _add_force(ri, rj, (-penalty * d0)[:, None] * u, (-penalty * d0)[:, None] * w, rhs)
+    scatter = _Scatter(pattern)
+    scatter.outer(ri, rj, sij, sji, k, u, w, u, w)
+    scatter.force(ri, rj, (-penalty * d0)[:, None] * u, (-penalty * d0)[:, None] * w)
     ve = kinds == VE
     locked = ve & (state[closed] == LOCK)
     sliding = ve & (state[closed] == SLIDE)
     if locked.any():
         c = closed[locked]
         es, gs = vec[c, S_ES], vec[c, S_GS]
-        _add_outer(pattern, ri[locked], rj[locked], sij[locked], sji[locked],
-                   np.full(len(c), shear_penalty), es, gs, es, gs, data)
+        scatter.outer(ri[locked], rj[locked], sij[locked], sji[locked], np.full(len(c), shear_penalty),
+                      es, gs, es, gs)
         f = (-shear_penalty * sca[c, 2])[:, None]
-        _add_force(ri[locked], rj[locked], f * es, f * gs, rhs)
+        scatter.force(ri[locked], rj[locked], f * es, f * gs)
     if sliding.any():
         c = closed[sliding]
         sgn = shear_dir[c].astype(np.float64)
         # internal force sgn·S(D)·∇ds with S = a − b·(dn0 + ∇dnᵀD)
         f = (sgn * (friction_const[c] - friction_slope[c] * sca[c, 0]))[:, None]
         es, gs = vec[c, S_ES], vec[c, S_GS]
-        _add_force(ri[sliding], rj[sliding], -f * es, -f * gs, rhs)
+        scatter.force(ri[sliding], rj[sliding], -f * es, -f * gs)
         coupled = friction_slope[c] != 0.0
         if coupled.any():
             cc = c[coupled]
             sel = np.flatnonzero(sliding)[coupled]
-            _add_outer(pattern, ri[sel], rj[sel], sij[sel], sji[sel], -sgn[coupled] * friction_slope[cc],
-                       vec[cc, S_ES], vec[cc, S_GS], vec[cc, S_E0], vec[cc, S_G0], data)
+            scatter.outer(ri[sel], rj[sel], sij[sel], sji[sel], -sgn[coupled] * friction_slope[cc],
+                          vec[cc, S_ES], vec[cc, S_GS], vec[cc, S_E0], vec[cc, S_G0])
+    scatter.add_to(data, rhs)

@@ -14,7 +14,9 @@ from typing import Optional
 
 import numpy as np
 
-from .layout import E0, E1, KIND, V0, V1, ContactKind, ContactState
+# the states and kinds as plain ints: a NumPy comparison with an IntEnum member costs ~5× one with
+# an int (the member is converted on every call)
+from .layout import E0, E1, KIND, LOCK, OPEN, SLIDE, V0, V1, VE
 from .model import ContactMemory, Model
 
 
@@ -120,7 +122,7 @@ def contact_keys(cint: np.ndarray, n_vertices: int) -> np.ndarray:
     vertex-edge contact, (vertex, vertex) for a vertex-vertex contact."""
     v = np.int64(n_vertices)
     k = cint[:, V0].astype(np.int64) * v
-    ve = cint[:, KIND] == ContactKind.VE
+    ve = cint[:, KIND] == VE
     return np.where(ve, k + cint[:, E0], v * v + k + cint[:, V1])
 
 
@@ -212,7 +214,7 @@ class Contacts:
             hit = model.pair_key[pos] == pk
             joint[hit] = model.pair_joint[pos[hit]]
         kind = cint[:, KIND]
-        ve = kind == ContactKind.VE
+        ve = kind == VE
         dn0 = signed_distance(vertex_xy, model.vertex_next, cint[:, V0], cint[:, E0])
         state = np.zeros(m, np.int8)
         line = np.zeros(m, np.int8)
@@ -230,7 +232,7 @@ class Contacts:
             bond[found] = memory.bond[src]
             shear_dir[found] = memory.shear_dir[src]
             closed = found.copy()
-            closed[found] = memory.state[src] != ContactState.OPEN
+            closed[found] = memory.state[src] != OPEN
             normal_force[closed] = memory.normal_force[pos[closed]]
         slip = np.zeros(m)
         if len(memory.slip) and m:
@@ -241,9 +243,9 @@ class Contacts:
             tan_phi[bb] = barton_tan(model, joint[bb], normal_force[bb], length[bb], slip[bb])
         if len(memory.key) and m:
             locked = found.copy()
-            locked[found] = memory.state[src] == ContactState.LOCK
+            locked[found] = memory.state[src] == LOCK
             omega[locked] = memory.omega[pos[locked]]
-            sliding = found & (state == ContactState.SLIDE) & ve
+            sliding = found & (state == SLIDE) & ve
             if sliding.any():
                 # A sliding contact carries the friction force S opposite to its sliding
                 # direction. Its lock point is placed S/ks behind the vertex, so that if it
@@ -266,8 +268,8 @@ class Contacts:
             if vv.any():
                 dn1[vv] = signed_distance(vertex_xy, model.vertex_next, cint[vv, V1], cint[vv, E1])
             touching = (np.maximum(dn0, dn1) <= model.open_tol) & new
-            state[touching & ve] = ContactState.LOCK
-            state[touching & vv] = ContactState.SLIDE
+            state[touching & ve] = LOCK
+            state[touching & vv] = SLIDE
             line[vv & new] = (dn1[vv & new] > dn0[vv & new]).astype(np.int8)
             bond[touching & ve & (length > 0)] = True
         return Contacts(
@@ -276,14 +278,14 @@ class Contacts:
             cohesion=model.joint_cohesion[joint], tensile=model.joint_tensile[joint],
             state=state, line=line, omega=omega, bond=bond, shear_dir=shear_dir,
             dn=dn0, ds=np.zeros(m), normal_force=normal_force,
-            coupled=(state == ContactState.SLIDE) & ve & (tan_phi > 0))
+            coupled=(state == SLIDE) & ve & (tan_phi > 0))
 
     def memory(self, bond_breaks_on_slip: bool = True) -> ContactMemory:
         """What this step hands to the next. The bond survives on locked contacts, and also on
         sliding ones when ``bond_breaks_on_slip`` is False (`Params.bond_breaks_on_slip`)."""
-        locked = self.state == ContactState.LOCK
+        locked = self.state == LOCK
         if not bond_breaks_on_slip:  # "locked" then means: keeps its bond
-            locked = locked | (self.state == ContactState.SLIDE)
+            locked = locked | (self.state == SLIDE)
         return ContactMemory(key=self.key.copy(), state=self.state.copy(), line=self.line.copy(),
                              omega=self.omega.copy(), bond=self.bond & locked,
                              shear_dir=self.shear_dir.copy(), dn=self.dn.copy(),

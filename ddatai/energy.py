@@ -32,7 +32,7 @@ def mechanical_energy(model, geom: dict, velocity: np.ndarray, stress: np.ndarra
     v = velocity[free]
     kinetic = 0.5 * float(np.einsum("b,bi,bij,bj->", rho, v, mass, v))
     gravitational = -float(np.sum(rho * area * (geom["centroid"][free] @ model.gravity)))
-    compliance = np.linalg.inv(model.block_elastic[free])
+    compliance = model.block_compliance[free]
     s = stress[free]
     strain = 0.5 * float(np.einsum("b,bi,bij,bj->", area, s, compliance, s))
     springs = 0.0

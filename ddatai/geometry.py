@@ -8,6 +8,8 @@ offsets (``xy[offset[b]:offset[b+1]]`` is block b), the layout the rest of the c
 
 from __future__ import annotations
 
+from typing import Optional
+
 import numpy as np
 
 #: Relative tolerance below which a vertex is treated as lying on the line of its neighbours
@@ -86,13 +88,17 @@ def signed_area(xy: np.ndarray) -> float:
     return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
 
 
-def polygon_integrals(xy: np.ndarray, offset: np.ndarray) -> dict[str, np.ndarray]:
+def polygon_integrals(xy: np.ndarray, offset: np.ndarray, block: Optional[np.ndarray] = None,
+                      nxt_idx: Optional[np.ndarray] = None) -> dict[str, np.ndarray]:
     """Area, centroid and central second moments of many CCW polygons (docs/method/dda.md §1.2).
 
     Parameters
     ----------
     xy : (V, 2) float64 vertices of all blocks, CCW per block.
     offset : (B+1,) int; block b owns ``xy[offset[b]:offset[b+1]]``.
+    block, nxt_idx : (V,) int, optional; the block of each vertex and the next vertex of its
+        block (a `Model`'s ``vertex_block`` and ``vertex_next``), derived from ``offset`` when
+        not given.
 
     Returns
     -------
@@ -103,12 +109,14 @@ def polygon_integrals(xy: np.ndarray, offset: np.ndarray) -> dict[str, np.ndarra
     from the origin loses no precision (docs/method/dda.md §1.2, numerical tip).
     """
     offset = np.asarray(offset)
-    counts = np.diff(offset)
-    block = np.repeat(np.arange(len(counts)), counts)
+    if block is None:
+        counts = np.diff(offset)
+        block = np.repeat(np.arange(len(counts)), counts)
+    if nxt_idx is None:
+        nxt_idx = np.arange(len(xy)) + 1
+        nxt_idx[offset[1:] - 1] = offset[:-1]
     origin = xy[offset[:-1]]
     local = xy - origin[block]
-    nxt_idx = np.arange(len(xy)) + 1
-    nxt_idx[offset[1:] - 1] = offset[:-1]
     x1, y1 = local[:, 0], local[:, 1]
     x2, y2 = local[nxt_idx, 0], local[nxt_idx, 1]
     f = x1 * y2 - x2 * y1
@@ -125,9 +133,12 @@ def polygon_integrals(xy: np.ndarray, offset: np.ndarray) -> dict[str, np.ndarra
     sxy = total(f * (2 * x1 * y1 + x1 * y2 + x2 * y1 + 2 * x2 * y2)) / 24.0
     xc = sx / s
     yc = sy / s
+    centroid = np.empty_like(origin)
+    centroid[:, 0] = origin[:, 0] + xc
+    centroid[:, 1] = origin[:, 1] + yc
     return {
         "area": s,
-        "centroid": origin + np.stack([xc, yc], axis=1),
+        "centroid": centroid,
         "s1": sxx - xc * sx,
         "s2": syy - yc * sy,
         "s3": sxy - xc * sy,

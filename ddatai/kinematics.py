@@ -6,6 +6,8 @@ blocks with the same functions.
 
 from __future__ import annotations
 
+from typing import Optional
+
 import numpy as np
 
 from .contacts import Contacts
@@ -23,18 +25,21 @@ def move_points(xy: np.ndarray, block: np.ndarray, centroid: np.ndarray, disp: n
     X = xy[:, 0] - centroid[block, 0]
     Y = xy[:, 1] - centroid[block, 1]
     c, s = np.cos(d[:, 2]), np.sin(d[:, 2])
-    ux = d[:, 0] + d[:, 3] * X + 0.5 * d[:, 5] * Y + X * (c - 1.0) - Y * s
-    uy = d[:, 1] + d[:, 4] * Y + 0.5 * d[:, 5] * X + X * s + Y * (c - 1.0)
-    return xy + np.stack([ux, uy], axis=1)
+    out = np.empty_like(xy)
+    out[:, 0] = xy[:, 0] + (d[:, 0] + d[:, 3] * X + 0.5 * d[:, 5] * Y + X * (c - 1.0) - Y * s)
+    out[:, 1] = xy[:, 1] + (d[:, 1] + d[:, 4] * Y + 0.5 * d[:, 5] * X + X * s + Y * (c - 1.0))
+    return out
 
 
 def rotate_stress(stress: np.ndarray, angle: np.ndarray) -> np.ndarray:
     """Rotate the stress tensor with the block (objective update, §5.4)."""
     c, s = np.cos(angle), np.sin(angle)
     sx, sy, t = stress[:, 0], stress[:, 1], stress[:, 2]
-    return np.stack([c * c * sx - 2 * c * s * t + s * s * sy,
-                     s * s * sx + 2 * c * s * t + c * c * sy,
-                     c * s * (sx - sy) + (c * c - s * s) * t], axis=1)
+    out = np.empty_like(stress)
+    out[:, 0] = c * c * sx - 2 * c * s * t + s * s * sy
+    out[:, 1] = s * s * sx + 2 * c * s * t + c * c * sy
+    out[:, 2] = c * s * (sx - sy) + (c * c - s * s) * t
+    return out
 
 
 def newmark_beta(params: Params, state: State) -> float:
@@ -48,9 +53,13 @@ def block_radius(model: Model, vertex_xy: np.ndarray, centroid: np.ndarray) -> n
     return np.maximum.reduceat(r, model.vertex_offset[:-1])
 
 
-def vertex_displacement(model: Model, vertex_xy: np.ndarray, geom: dict, disp: np.ndarray) -> np.ndarray:
-    """(V,) how far each vertex moves with the solution ``disp`` [m]."""
-    moved = move_points(vertex_xy, model.vertex_block, geom["centroid"], disp) - vertex_xy
+def vertex_displacement(model: Model, vertex_xy: np.ndarray, geom: dict, disp: np.ndarray,
+                        moved_xy: Optional[np.ndarray] = None) -> np.ndarray:
+    """(V,) how far each vertex moves with the solution ``disp`` [m]; ``moved_xy``: the
+    vertices moved by it (`move_points`), when already known."""
+    if moved_xy is None:
+        moved_xy = move_points(vertex_xy, model.vertex_block, geom["centroid"], disp)
+    moved = moved_xy - vertex_xy
     return np.hypot(moved[:, 0], moved[:, 1])
 
 
@@ -59,23 +68,26 @@ def block_displacement(model: Model, vertex_xy: np.ndarray, geom: dict, disp: np
     return np.maximum.reduceat(vertex_displacement(model, vertex_xy, geom, disp), model.vertex_offset[:-1])
 
 
-def max_vertex_displacement(model: Model, vertex_xy: np.ndarray, geom: dict, disp: np.ndarray) -> float:
+def max_vertex_displacement(model: Model, vertex_xy: np.ndarray, geom: dict, disp: np.ndarray,
+                            moved_xy: Optional[np.ndarray] = None) -> float:
     """Largest vertex displacement of the solution [m] (the step's acceptance test, §4.5)."""
-    return float(np.max(vertex_displacement(model, vertex_xy, geom, disp), initial=0.0))
+    return float(np.max(vertex_displacement(model, vertex_xy, geom, disp, moved_xy), initial=0.0))
 
 
-def moved(model: Model, state: State, geom: dict, disp: np.ndarray) -> dict:
+def moved(model: Model, state: State, geom: dict, disp: np.ndarray, vertex_xy: Optional[np.ndarray] = None) -> dict:
     """The fields of ``state`` that a solution ``disp`` moves: vertices and points (exact
     rotation, §5.3), stresses (strain increment, then rotated with the block, §5.4; fixed
     blocks keep theirs) and the accumulated rotation — what a step and the equilibrium stage's
-    settlement share."""
+    settlement share. ``vertex_xy``: the vertices moved by ``disp``, when already known (the
+    acceptance test moved them)."""
     centroid = geom["centroid"]
+    if vertex_xy is None:
+        vertex_xy = move_points(state.vertex_xy, model.vertex_block, centroid, disp)
     stress = state.block_stress + np.einsum("bij,bj->bi", model.block_elastic, disp[:, 3:6])
     stress = rotate_stress(stress, disp[:, 2])
     stress[model.block_fixed] = state.block_stress[model.block_fixed]
     return dict(
-        vertex_xy=move_points(state.vertex_xy, model.vertex_block, centroid, disp),
-        block_stress=stress, block_rotation=state.block_rotation + disp[:, 2],
+        vertex_xy=vertex_xy, block_stress=stress, block_rotation=state.block_rotation + disp[:, 2],
         fixed_point_xy=move_points(state.fixed_point_xy, model.fixed_point_block, centroid, disp),
         load_xy=move_points(state.load_xy, model.load_block, centroid, disp),
         measured_xy=move_points(state.measured_xy, model.measured_block, centroid, disp))
@@ -88,12 +100,14 @@ def settle_points(model: Model, state: State, geom: dict, disp: np.ndarray) -> S
     return state.replace(**fields, geometry=model.block_geometry(fields["vertex_xy"]))
 
 
-def update(model: Model, state: State, geom: dict, disp: np.ndarray, contacts: Contacts, dt: float) -> State:
+def update(model: Model, state: State, geom: dict, disp: np.ndarray, contacts: Contacts, dt: float,
+           vertex_xy: Optional[np.ndarray] = None) -> State:
     """The state after an accepted step: vertices and points moved (exact rotation, §5.3),
     stresses (§5.4), velocities and accelerations (§5.2), bolts, and the contact memory that
-    the next step starts from."""
+    the next step starts from. ``vertex_xy``: the vertices moved by ``disp``, when already
+    known (`moved`)."""
     m, p = model, model.params
-    fields = moved(m, state, geom, disp)
+    fields = moved(m, state, geom, disp, vertex_xy)
     # Newmark, γ = 1: a_{n+1} = (D − v Δt)/(βΔt²) − (1/(2β) − 1) a_n, v_{n+1} = v + Δt a_{n+1}
     # (β = ½: v_{n+1} = 2D/Δt − v, Shi's update, §5.2)
     beta = newmark_beta(p, state)

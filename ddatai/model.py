@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 from typing import Callable, Optional
 
 import numpy as np
@@ -155,9 +156,15 @@ class Model:
     def n_vertices(self) -> int:
         return len(self.vertex_block)
 
-    @property
+    @cached_property
     def n_free(self) -> int:
+        # cached: the fields never change (a run's new penalty is a new Model, `with_penalty`)
         return int(np.count_nonzero(~self.block_fixed))
+
+    @cached_property
+    def block_compliance(self) -> np.ndarray:
+        """(B, 3, 3) C⁻¹ of every block [1/Pa] (the strain energy's, `ddatai.energy`)."""
+        return np.linalg.inv(self.block_elastic)
 
     def with_penalty(self, penalty: float) -> "Model":
         """This model with the normal contact penalty p [Pa] and what follows from it (the
@@ -191,7 +198,7 @@ class Model:
 
     def block_geometry(self, vertex_xy: np.ndarray) -> dict[str, np.ndarray]:
         """Area, centroid and central moments of every block at the given vertex positions."""
-        return polygon_integrals(vertex_xy, self.vertex_offset)
+        return polygon_integrals(vertex_xy, self.vertex_offset, self.vertex_block, self.vertex_next)
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)

@@ -274,8 +274,9 @@ def second_order_shift(model: Model, vertex_xy: np.ndarray, q: np.ndarray, cint:
     nxt = model.vertex_next
     shift = np.zeros((len(cint), 3))
     for line in (0, 1):
-        rows = np.arange(len(cint)) if line == 0 else np.flatnonzero(cint[:, KIND] == VV)
-        if not len(rows):
+        # every contact's line 0 (a slice: no gather), the line 1 of vertex-vertex ones
+        rows = slice(None) if line == 0 else np.flatnonzero(cint[:, KIND] == VV)
+        if line == 1 and not len(rows):
             continue
         p1, k = cint[rows, 1 + 2 * line], cint[rows, 2 + 2 * line]
         P1, P2, P3 = vertex_xy[p1], vertex_xy[nxt[k]], vertex_xy[k]
@@ -292,8 +293,8 @@ def second_order_shift(model: Model, vertex_xy: np.ndarray, q: np.ndarray, cint:
             b1 = P3 - P2
             b2 = -P1 + 2 * (1 - w) * P2 - (1 - 2 * w) * P3
             b3 = P1 - (1 - 2 * w) * P2 - 2 * w * P3
-            ve = cint[rows, 0] == VE
-            shift[rows, 2] = np.where(ve, ((b1 * q1).sum(1) + (b2 * q2).sum(1) + (b3 * q3).sum(1)) / length, 0.0)
+            ve = cint[:, 0] == VE
+            shift[:, 2] = np.where(ve, ((b1 * q1).sum(1) + (b2 * q2).sum(1) + (b3 * q3).sum(1)) / length, 0.0)
     return shift
 
 

@@ -41,7 +41,7 @@ from .contact_law import accumulate_slip
 from .contacts import Contacts, _Buffers, detect_contacts
 from .diagnosis import failure_message
 from .energy import state_energy, step_work
-from .kinematics import max_vertex_displacement, newmark_beta, update
+from .kinematics import max_vertex_displacement, move_points, newmark_beta, update
 from .layout import KIND, LOCK, OPEN, SLIDE, VV
 from .model import Model, State
 from .open_close import open_close
@@ -73,6 +73,7 @@ class Attempt:
     cause: str = ""
     """Why it was rejected: "nan", "open-close", "displacement", "inverted" or "penetration"."""
     displacement: Optional[np.ndarray] = None  # (B, 6) solution D, zero for fixed blocks
+    vertex_xy: Optional[np.ndarray] = None     # (V, 2) the vertices moved by D (the state's next)
     contacts: Optional[Contacts] = None
     iterations: int = 0
     max_displacement: float = 0.0    # largest vertex displacement [m]
@@ -171,7 +172,7 @@ class Stepper:
         t0 = _time.perf_counter()
         if self.softening:
             accumulate_slip(model, attempt.contacts, attempt.vec, attempt.displacement)
-        new_state = update(model, state, geom, attempt.displacement, attempt.contacts, dt)
+        new_state = update(model, state, geom, attempt.displacement, attempt.contacts, dt, attempt.vertex_xy)
         t0 = timer.add("update", t0)
         new_state, energy, work = self.energy_balance(state, new_state, geom, contacts, attempt, dt)
         timer.add("energy", t0)
@@ -280,13 +281,15 @@ class Stepper:
         contact that entered the step already too deep, which no Δt can help)."""
         p, m = self.params, self.model
         disp = oc.displacement
-        umax = max_vertex_displacement(m, state.vertex_xy, geom, disp)
+        # the vertices moved by D: the largest displacement now, the next state's vertices
+        moved_xy = move_points(state.vertex_xy, m.vertex_block, geom["centroid"], disp)
+        umax = max_vertex_displacement(m, state.vertex_xy, geom, disp, moved_xy)
         closed = contacts.state != OPEN
         depth = np.where(closed, -contacts.dn, 0.0)
         deepest = int(np.argmax(depth)) if contacts.n else -1
         pen = float(depth[deepest]) if contacts.n else 0.0
         ratio = umax / m.max_step
-        result = Attempt(ok=True, displacement=disp, contacts=contacts, iterations=oc.iterations,
+        result = Attempt(ok=True, displacement=disp, vertex_xy=moved_xy, contacts=contacts, iterations=oc.iterations,
                          max_displacement=umax, max_penetration=max(pen, 0.0), ratio=ratio,
                          friction=oc.friction, vec=vec, coulomb=oc.coulomb)
         if ratio > p.displacement_reject:

@@ -186,10 +186,13 @@ class _Geometry:
         behind = (dn[k] < -SLACK * d9).nonzero()[0]
         if len(behind):
             pb, eb, depth = p[k[behind]], e[k[behind]], dn[k[behind]]
-            out = self.nearer_exit(pb, depth, self.prv[eb], eb) | \
-                self.nearer_exit(pb, depth, self.nxt[eb], self.nxt[eb]) | \
-                self.outside_convex(pb, eb, SLACK * d9)
-            k = np.delete(k, behind[out])
+            # the edges before and after e in one call (halves of its result)
+            n, after = len(eb), self.nxt[eb]
+            exits = self.nearer_exit(np.concatenate([pb, pb]), np.concatenate([depth, depth]),
+                                     np.concatenate([self.prv[eb], after]), np.concatenate([eb, after]))
+            keep = np.ones(len(k), bool)
+            keep[behind[exits[:n] | exits[n:] | self.outside_convex(pb, eb, SLACK * d9)]] = False
+            k = k[keep]
         p, e, nx, ny = p[k], e[k], nx[k], ny[k]
         # the vertex's material wedge must lie on the outer side of the edge within h1
         r1n = self.r1x[p] * nx + self.r1y[p] * ny
@@ -210,8 +213,7 @@ class _Geometry:
         return k[ok], length
 
 
-def _first_per_group(group: np.ndarray, dist: np.ndarray, index: np.ndarray
-                     ) -> tuple[np.ndarray, np.ndarray]:
+def _first_per_group(group: np.ndarray, dist: np.ndarray, index: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """For each group: the entry of smallest ``dist``, the lowest ``index`` on ties
     (`kernels._nearest`). Returns (groups, position of that entry)."""
     order = np.lexsort((index, dist, group))
@@ -221,8 +223,7 @@ def _first_per_group(group: np.ndarray, dist: np.ndarray, index: np.ndarray
     return g[first], order[first]
 
 
-def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray]:
+def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Contacts of the candidate block pairs (A < B): (cint (m, 5) int32 — kind, vertex0,
     edge0, vertex1, edge1 — and length (m,)), in canonical order (``contacts.sort_contacts``).
 
@@ -238,7 +239,6 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray
     off = model.vertex_offset.astype(np.int64)
     d0, d9 = model.search_distance, model.max_penetration
     h1 = math.radians(model.params.angle_tolerance)
-    sin_h1 = math.sin(h1)
     xy = vertex_xy
     nxt, prv = model.vertex_next, model.vertex_prev
     geo = _Geometry(model, xy)
@@ -376,7 +376,7 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray
     ve_e.append(e[keep])
     ve_check.append(np.ones(len(keep), bool))
     v, e = np.concatenate(ve_v), np.concatenate(ve_e)
-    ok, length = geo.ve_test(v, e, np.concatenate(ve_check), d0, d9, sin_h1)
+    ok, length = geo.ve_test(v, e, np.concatenate(ve_check), d0, d9, math.sin(h1))
     out_v.append(v[ok])
     out_e.append(e[ok])
     out_len.append(length)
