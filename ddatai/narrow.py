@@ -13,11 +13,14 @@ whatever its size, so the phase is written to make few calls rather than little 
   faces which vertices and edges) are built once per pair set (`PairTopology`) and reused while
   the broad phase returns the same pairs, as it does step after step for a resting or slowly
   moving model;
-- all vertex-edge candidates go through one test (`_vertex_edge`): those of every vertex
-  against the edges of the other block, and those that a vertex pair hands to the vertex-edge
-  rules (a concave vertex of the pair, or a vertex that exits elsewhere), with the vertex
-  pairs' exit tests in the same arithmetic: the hand-over candidates are measured whether the
-  pair hands them over or not, and go on to the costlier tests where it does.
+- every vertex of a pair is measured against every edge of the other block in one pass
+  (`_Rows`: the normal distance, the projection parameter, the distance to the edge's start).
+  The kernel's tests all read from it: the vertex-vertex distances of the mutual-nearest rule
+  (an edge is named by its start vertex), the vertex-edge tests (`kernels._ve_test`), the
+  shortest-exit rule, which measures the vertex against the edges next to its edge
+  (`kernels._nearer_exit`) and against every edge of the block (`kernels._outside_convex`),
+  and the vertex pairs' exit tests (`kernels._edge_edge_exit`). The kernel tests every vertex
+  against every edge too; this only does it with a few large array operations.
 """
 
 from __future__ import annotations
@@ -26,7 +29,7 @@ import math
 
 import numpy as np
 
-from .contacts import box_bounds, sort_contacts
+from .contacts import sort_contacts
 from .layout import VE, VV
 from .model import Model
 
@@ -95,44 +98,15 @@ class _Geometry:
         hi = np.minimum(1.0, np.maximum(ta, tb))
         return 0.5 * np.maximum(0.0, hi - lo) * np.sqrt(l2)
 
-    def outside_convex(self, p: np.ndarray, e: np.ndarray, slack: float) -> np.ndarray:
-        """Whether vertices p lie in front of some edge of the convex block of their edge e (or
-        on its line, within ``slack``): outside it, or on its boundary (`kernels._outside_convex`)."""
-        block = self.vblock[e]
-        convex = self.block_convex[block]
-        out = np.zeros(len(p), bool)
-        k = convex.nonzero()[0]
-        if not len(k):
-            return out
-        owner, rank = _expand(self.off[block[k] + 1] - self.off[block[k]])
-        j = self.off[block[k]][owner] + rank
-        v = p[k][owner]
-        dn = (self.x[v] - self.x[j]) * self.nx[j] + (self.y[v] - self.y[j]) * self.ny[j]
-        front = np.zeros(len(k), bool)
-        np.logical_or.at(front, owner, dn > -slack)
-        out[k] = front
-        return out
-
-    def nearer_exit(self, p: np.ndarray, depth: np.ndarray, a: np.ndarray, c: np.ndarray) -> np.ndarray:
-        """Whether vertices p, at normal distances ``depth`` (< 0) from their edges, lie less
-        deep behind the lines of edges a (or in front of them), projecting onto a, or nearer
-        than |depth| to an end of a, where a meets that edge at the convex corner c
-        (`kernels._nearer_exit`)."""
-        px, py = self.x[p] - self.x[a], self.y[p] - self.y[a]
-        l = self.length[a]
-        t = (px * self.dx[a] + py * self.dy[a]) / (l * l)
-        dn = px * self.nx[a] + py * self.ny[a]
-        qx, qy = self.x[p] - self.x[self.nxt[a]], self.y[p] - self.y[self.nxt[a]]
-        near = ((t < 0.0) & (px * px + py * py < depth * depth)) | ((t > 1.0) & (qx * qx + qy * qy < depth * depth))
-        return self.convex[c] & (((dn > depth) & (t >= -SLACK) & (t <= 1.0 + SLACK)) | near)
-
 
 class PairTopology:
     """The candidates of a set of block pairs, which depend only on the pairs and on the blocks'
     vertex lists: built once, reused while the broad phase returns the same pairs.
 
     A pair's two blocks give two "sides": side s < P holds the vertices of block A of pair s,
-    side P + s those of block B; the side vertices are listed side by side.
+    side P + s those of block B; the side vertices are listed side by side (A's sides first),
+    each side's vertices in order. A "row" is one side vertex against one edge of the other
+    block: every row of a side vertex, its edges in order, then those of the next.
     """
 
     def __init__(self, model: Model, pairs: np.ndarray):
@@ -146,21 +120,27 @@ class PairTopology:
         side, rank = _expand(per_side)
         #: (n,) the side vertices, and the block that each faces
         self.vertex = off[own[side]] + rank
-        self.facing = other[side]
-        #: how many side vertices belong to the A sides (they come first)
+        facing = other[side]
+        n_edges = off[facing + 1] - off[facing]
+        #: (n,) the first row of each side vertex, and the row of (k, edge e) less e
+        self.row_start = n_edges.cumsum() - n_edges
+        self.row_base = self.row_start - off[facing]
+        #: (R,) each row's side position, vertex, edge and the edge's end vertex
+        self.row_k, rank = _expand(n_edges)
+        self.row_v = self.vertex[self.row_k]
+        self.row_e = off[facing[self.row_k]] + rank
+        self.row_end = model.vertex_next[self.row_e]
+        #: (R,) the rows of the same vertex against the edges before and after the row's edge
+        self.row_before = self.row_base[self.row_k] + model.vertex_prev[self.row_e]
+        self.row_after = self.row_base[self.row_k] + self.row_end
+        #: how many side vertices belong to the A sides
         self.n_a = int(per_side[:n_pairs].sum())
-        # vertex pairs: every vertex of A against every vertex of B of the same pair (positions
-        # in the side list, and the vertices)
+        # the rows of A's vertices are the vertex pairs (an edge is named by its start vertex):
+        # the side positions of their B vertices
+        self.n_pair_rows = int(n_edges[:self.n_a].sum())
         side_start = per_side.cumsum() - per_side
-        self.pair_a, rank = _expand(per_side[n_pairs + side[:self.n_a]])
-        self.pair_b = side_start[n_pairs + side[self.pair_a]] + rank
-        self.pair_va, self.pair_vb = self.vertex[self.pair_a], self.vertex[self.pair_b]
-        # vertex-edge: every side vertex against every edge of the block it faces (the side
-        # position of the vertex, the vertex, the edge and the edge's end vertex)
-        self.edge_k, rank = _expand(off[self.facing + 1] - off[self.facing])
-        self.edge_v = self.vertex[self.edge_k]
-        self.edge_e = off[self.facing[self.edge_k]] + rank
-        self.edge_end = model.vertex_next[self.edge_e]
+        b_side = n_pairs + side[self.row_k[:self.n_pair_rows]]
+        self.pair_b = side_start[b_side] + self.row_e[:self.n_pair_rows] - off[own[b_side]]
 
     def matches(self, model: Model, pairs: np.ndarray) -> bool:
         """Whether this is the topology of ``pairs`` in ``model``."""
@@ -179,6 +159,30 @@ class NarrowCache:
         return self.topology
 
 
+class _Rows:
+    """Every row's vertex p measured against its edge e, once (`kernels._ve_test`,
+    `_nearer_exit`, `_outside_convex`, `_nearest` compute the same, with the same operations):
+    P − e's start, its square length, the normal distance dn, and the projection parameter t."""
+
+    def __init__(self, geo: _Geometry, topo: PairTopology):
+        v, e = topo.row_v, topo.row_e
+        px, py = geo.x[v] - geo.x[e], geo.y[v] - geo.y[e]
+        self.d2 = px * px + py * py
+        self.dn = px * geo.nx[e] + py * geo.ny[e]
+        self.l = geo.length[e]
+        self.t = (px * geo.dx[e] + py * geo.dy[e]) / (self.l * self.l)
+        self.topo, self.convex = topo, geo.convex
+
+    def nearer_exit(self, row_a: np.ndarray, depth: np.ndarray, c: np.ndarray) -> np.ndarray:
+        """Whether the vertices of rows ``row_a``, at normal distances ``depth`` (< 0) from some
+        edge, lie less deep behind the line of the row's edge a (or in front of it), projecting
+        onto a, or nearer than |depth| to an end of a, where a meets that edge at the convex
+        corner c (`kernels._nearer_exit`)."""
+        t, dn, d2 = self.t[row_a], self.dn[row_a], depth * depth
+        near = ((t < 0.0) & (self.d2[row_a] < d2)) | ((t > 1.0) & (self.d2[self.topo.row_after[row_a]] < d2))
+        return self.convex[c] & (((dn > depth) & (t >= -SLACK) & (t <= 1.0 + SLACK)) | near)
+
+
 def _first_per_group(group: np.ndarray, dist: np.ndarray, index: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """For each group: the entry of smallest ``dist``, the lowest ``index`` on ties
     (`kernels._nearest`). Returns (groups, position of that entry)."""
@@ -189,21 +193,18 @@ def _first_per_group(group: np.ndarray, dist: np.ndarray, index: np.ndarray) -> 
     return g[first], order[first]
 
 
-def _mutual_nearest(geo: _Geometry, topo: PairTopology, d0: float) -> np.ndarray:
+def _mutual_nearest(rows: _Rows, topo: PairTopology, d0: float) -> np.ndarray:
     """(n,) the side position of each side vertex's mutual-nearest vertex of the other block
     within d0, −1 where it has none (`kernels._nearest`: |Q − P|, the lowest index on ties)."""
-    va, vb = topo.pair_va, topo.pair_vb
-    dx = geo.x[vb] - geo.x[va]
-    dy = geo.y[vb] - geo.y[va]
-    dist = np.sqrt(dx * dx + dy * dy)
+    dist = np.sqrt(rows.d2[:topo.n_pair_rows])
     close = (dist <= d0).nonzero()[0]
     nearest = np.full(len(topo.vertex), -1)
     if not len(close):
         return nearest
-    ka, kb, dist = topo.pair_a[close], topo.pair_b[close], dist[close]
-    g, at = _first_per_group(ka, dist, vb[close])
+    ka, kb, dist = topo.row_k[close], topo.pair_b[close], dist[close]
+    g, at = _first_per_group(ka, dist, topo.row_e[close])
     nearest[g] = kb[at]
-    g, at = _first_per_group(kb, dist, va[close])
+    g, at = _first_per_group(kb, dist, topo.row_v[close])
     nearest[g] = ka[at]
     has = (nearest >= 0).nonzero()[0]
     nearest[has[nearest[nearest[has]] != has]] = -1
@@ -227,72 +228,105 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray, cache: 
     topo = (cache or NarrowCache()).topology_of(model, pairs)
     d0, d9 = model.search_distance, model.max_penetration
     h1 = math.radians(model.params.angle_tolerance)
-    nxt, prv = model.vertex_next, model.vertex_prev
     geo = _Geometry(model, vertex_xy)
-    vertex = topo.vertex
+    rows = _Rows(geo, topo)
 
-    # 1. mutual-nearest vertex pairs within d0, A's vertex P and B's vertex Q
-    nearest = _mutual_nearest(geo, topo, d0)
-    pa = (nearest[:topo.n_a] >= 0).nonzero()[0]
-    P, Q = vertex[pa], vertex[nearest[pa]]
-    partner = np.where(nearest >= 0, vertex[nearest], -1)
-    handoff = _VertexPairs(geo, P, Q, h1, nxt, prv) if len(pa) else None
+    # 1. mutual-nearest vertex pairs within d0: A's vertex P (side position kP), B's Q (kQ)
+    nearest = _mutual_nearest(rows, topo, d0)
+    kP = (nearest[:topo.n_a] >= 0).nonzero()[0]
+    kQ = nearest[kP]
+    pairs_ = _VertexPairs(geo, rows, topo.vertex[kP], topo.vertex[kQ], kP, kQ, h1, d9) if len(kP) else None
 
-    # 2., 3. every side vertex near the other block's box against every edge of that block,
-    # except the edges that end at its mutual-nearest partner. A vertex accepted against an
-    # edge lies within max(d0, d9) of it (projection on the edge, dn in [−d9, d0]): every
-    # accepted candidate is among these. The margin is 1.5× that reach so that round-off
-    # cannot drop one; the exact tests follow.
-    lo, hi = box_bounds(model, vertex_xy, 1.5 * max(d0, d9))
-    xy, facing = vertex_xy[vertex], topo.facing
-    near = ((xy >= lo[facing]) & (xy <= hi[facing])).all(axis=1)
-    k, mate = topo.edge_k, partner[topo.edge_k]
-    keep = (near[k] & (mate != topo.edge_e) & (mate != topo.edge_end)).nonzero()[0]
-    v, e = topo.edge_v[keep], topo.edge_e[keep]
-    ok, length, ee = _vertex_edge(geo, v, e, handoff, d0, d9, math.sin(h1))
-    # the accepted candidates: the tested vertex-edge ones, then the edge-edge contacts of the
-    # vertex pairs, then their vertex-vertex contacts
-    if handoff is not None:
-        v, e = np.concatenate([v, handoff.ve_v]), np.concatenate([e, handoff.ve_e])
-    cint = np.full((len(ok) + len(ee), 5), -1, np.int32)
+    # 2., 3. every vertex against every edge of the other block (its projection on the edge),
+    # except the edges that end at its mutual-nearest partner; and the rows that the vertex
+    # pairs hand over (no projection test)
+    partner = np.where(nearest >= 0, topo.vertex[nearest], -1)[topo.row_k]
+    t = rows.t
+    candidate = (partner != topo.row_e) & (partner != topo.row_end) & (t >= 0.0) & (t <= 1.0)
+    if pairs_ is not None:
+        candidate[pairs_.handed_rows] = True
+    # a collapsed edge has no normal; a concave vertex never contacts as a vertex
+    dn = rows.dn
+    k = (candidate & (rows.l > EDGE_FLOOR) & (dn <= d0) & (dn >= -d9) & geo.convex[topo.row_v]).nonzero()[0]
+    # behind the edge's line, but nearer the line of the edge that meets it at a convex corner
+    # (or in front of it: outside the block): the vertex entered, or lies on, that edge, not
+    # this one (§3.3, the shortest exit)
+    behind = k[dn[k] < -SLACK * d9]
+    if len(behind):
+        depth, after = dn[behind], topo.row_after[behind]
+        exits = rows.nearer_exit(topo.row_before[behind], depth, topo.row_e[behind]) | \
+            rows.nearer_exit(after, depth, topo.row_end[behind])
+        # outside the convex block of the edge: in front of (or on) one of its edges' lines
+        kb = topo.row_k[behind]
+        front = np.logical_or.reduceat(dn > -SLACK * d9, topo.row_start)[kb]
+        outside = geo.block_convex[geo.vblock[topo.row_e[behind]]] & front
+        drop = np.zeros(len(dn), bool)
+        drop[behind[exits | outside]] = True
+        k = k[~drop[k]]
+    p, e = topo.row_v[k], topo.row_e[k]
+    # the vertex's material wedge must lie on the outer side of the edge within h1
+    nx, ny = geo.nx[e], geo.ny[e]
+    r1n = geo.r1x[p] * nx + geo.r1y[p] * ny
+    r2n = geo.r2x[p] * nx + geo.r2y[p] * ny
+    sin_h1 = math.sin(h1)
+    lim1 = sin_h1 * geo.n1[p]
+    lim2 = sin_h1 * geo.n2[p]
+    ok = ((r1n >= -lim1) & (r2n >= -lim2)).nonzero()[0]
+    p, e, r1n, r2n, lim1, lim2 = p[ok], e[ok], r1n[ok], r2n[ok], lim1[ok], lim2[ok]
+    # edge-edge: one of the vertex's edges parallel to the line within h1, the one to the next
+    # vertex first (§3.6); and the vertex pairs' edge-edge contacts, in the same call
+    along1 = np.abs(r1n) <= lim1
+    along = (along1 | (np.abs(r2n) <= lim2)).nonzero()[0]
+    v = p[along]
+    ends, edges, vertices = [np.where(along1[along], geo.nxt[v], geo.prv[v])], [e[along]], [v]
+    vv_rows = []
+    if pairs_ is not None:
+        ee = (~pairs_.par_elsewhere).nonzero()[0]
+        p, e = np.concatenate([p, pairs_.par_v[ee]]), np.concatenate([e, pairs_.par_e[ee]])
+        along = np.concatenate([along, len(along1) + np.arange(len(ee))])
+        edges.append(pairs_.par_e[ee])
+        vertices.append(pairs_.par_v[ee])
+        ends.append(pairs_.par_end[ee])
+        vv = (~pairs_.vv_elsewhere).nonzero()[0]
+        if len(vv):
+            vv_rows.append(np.stack([np.full(len(vv), VV), pairs_.vv_p[vv], pairs_.vv_ep[vv],
+                                     pairs_.vv_q[vv], pairs_.vv_eq[vv]], axis=1).astype(np.int32))
+    length = np.zeros(len(p))
+    if len(along):
+        length[along] = geo.half_overlap(np.concatenate(edges), np.concatenate(vertices), np.concatenate(ends))
+    cint = np.full((len(p), 5), -1, np.int32)
     cint[:, 0] = VE
-    cint[:len(ok), 1], cint[:len(ok), 2] = v[ok], e[ok]
-    if len(ee):
-        cint[len(ok):, 1], cint[len(ok):, 2] = handoff.par_v[ee], handoff.par_e[ee]
-    if handoff is not None and len(handoff.vv_p):
-        vv = ~handoff.vv_elsewhere
-        rows = np.stack([np.full(int(vv.sum()), VV), handoff.vv_p[vv], handoff.vv_ep[vv],
-                         handoff.vv_q[vv], handoff.vv_eq[vv]], axis=1).astype(np.int32)
-        cint = np.concatenate([cint, rows])
-        length = np.concatenate([length, np.zeros(len(rows))])
+    cint[:, 1], cint[:, 2] = p, e
+    if vv_rows:
+        cint = np.concatenate([cint] + vv_rows)
+        length = np.concatenate([length, np.zeros(len(vv_rows[0]))])
     return sort_contacts(cint, length)
 
 
 class _VertexPairs:
-    """The mutual-nearest vertex pairs (P of A, Q of B) sorted by Shi's vertex-pair rules
-    (§3.3–3.6), and what they hand to the vertex-edge rules.
+    """The mutual-nearest vertex pairs (P of A, Q of B; side positions kP, kQ) sorted by Shi's
+    vertex-pair rules (§3.3–3.6), and the rows they hand to the vertex-edge rules.
 
     - One vertex concave: the convex one goes against both edges meeting at the concave one.
     - Both convex, the wedges apart and one gap below h1 (``par``): edge-edge; the contact vertex
       is whichever lies inside the other's edge, A's on a tie (``TIE``).
     - Both convex, the wedges apart, no gap below h1 (``vv``): vertex-vertex, the entrance lines
       the edges across the smaller gap.
-    - A ``par`` vertex, or a ``vv`` vertex, that lies behind its line and exits by the edge at the
-      line's far corner, or lies deeper than d9 (§3.3 rule 3): the vertex pair is no contact,
-      each such vertex goes against both edges at its partner by the vertex-edge rules.
-
-    The hand-over candidates (``ve_v``, ``ve_e``: every vertex v of ``hand_v`` against both
-    edges at its partner w) are listed whether the pair hands them over or not; `handed` says
-    which, once the exit tests (``exit_v``, ``exit_e``, ``exit_w``) are known.
+    - A ``par`` vertex, or a ``vv`` vertex, that lies behind its line (beyond round-off) and
+      exits by the edge at the line's far corner, or lies deeper than d9 (§3.3 rule 3;
+      `kernels._edge_edge_exit`): the vertex pair is no contact, and each vertex goes against
+      both edges at its partner by the vertex-edge rules. The edge at the partner is no exit:
+      the vertex's own edge lies along the line.
     """
 
-    def __init__(self, geo: _Geometry, P: np.ndarray, Q: np.ndarray, h1: float, nxt, prv):
+    def __init__(self, geo: _Geometry, rows: _Rows, P, Q, kP, kQ, h1: float, d9: float):
+        nxt, prv, topo = geo.nxt, geo.prv, rows.topo
         cP, cQ = geo.convex[P], geo.convex[Q]
         one = (cP != cQ).nonzero()[0]
-        one_v = np.where(cP[one], P[one], Q[one])
+        one_k = np.where(cP[one], kP[one], kQ[one])
         one_w = np.where(cP[one], Q[one], P[one])
         both = (cP & cQ).nonzero()[0]
-        P, Q = P[both], Q[both]
+        P, Q, kP, kQ = P[both], Q[both], kP[both], kQ[both]
         PQ = np.concatenate([P, Q])
         a1, b1 = np.arctan2(geo.r1y[PQ], geo.r1x[PQ]).reshape(2, -1)
         a2, b2 = np.arctan2(geo.r2y[PQ], geo.r2x[PQ]).reshape(2, -1)
@@ -313,115 +347,36 @@ class _VertexPairs:
         tP = geo.edge_param(edge_p, p)
         tQ = geo.edge_param(edge_q, q)
         keep = np.minimum(tP, 1.0 - tP) >= np.minimum(tQ, 1.0 - tQ) - TIE
-        self.par_v = np.where(keep, p, q)
-        self.par_e = np.where(keep, edge_p, edge_q)
-        par_w = np.where(keep, q, p)
+        self.par_v, self.par_e = np.where(keep, p, q), np.where(keep, edge_p, edge_q)
+        par_k, par_w = np.where(keep, kP[k], kQ[k]), np.where(keep, q, p)
         # the far end of the vertex's edge that lies along the line
         self.par_end = np.where(s5, np.where(keep, prv[p], nxt[q]), np.where(keep, nxt[p], prv[q]))
         # vertex-vertex: the entrance lines are the edges across the smaller gap (e5 unless e6
         # is clearly smaller)
         k = (apart & ~par).nonzero()[0]
         self.vv_p, self.vv_q = p, q = P[k], Q[k]
+        kp, kq = kP[k], kQ[k]
         small5 = e5[k] <= e6[k] + h1
         self.vv_ep, self.vv_eq = np.where(small5, q, prv[q]), np.where(small5, prv[p], p)
         # the exit tests: each edge-edge vertex on its edge, each vertex-vertex vertex on its
         # entrance line; w: the partner, an end of that edge
-        self.exit_v = np.concatenate([self.par_v, p, q])
-        self.exit_e = np.concatenate([self.par_e, self.vv_ep, self.vv_eq])
+        exit_k = np.concatenate([par_k, kp, kq])
+        exit_e = np.concatenate([self.par_e, self.vv_ep, self.vv_eq])
         exit_w = np.concatenate([par_w, q, p])
-        # the hand-over candidates: the concave pairs' convex vertices, then the exit tests'
-        hand_v = np.concatenate([one_v, self.exit_v])
-        hand_w = np.concatenate([one_w, exit_w])
-        self.exit_w = exit_w
-        self.n_one, self.n_par = len(one), len(self.par_v)
-        self.ve_v = np.concatenate([hand_v, hand_v])
-        self.ve_e = np.concatenate([prv[hand_w], hand_w])
-
-    def handed(self, elsewhere: np.ndarray) -> np.ndarray:
-        """Which hand-over candidates the pairs hand over, given which exit tests' vertices
-        exit elsewhere (or lie deeper than d9); sets ``par_elsewhere`` and ``vv_elsewhere``."""
-        n_par, n_vv = self.n_par, len(self.vv_p)
-        self.par_elsewhere = elsewhere[:n_par]
-        self.vv_elsewhere = elsewhere[n_par:n_par + n_vv] | elsewhere[n_par + n_vv:]
-        hand = np.concatenate([np.ones(self.n_one, bool), self.par_elsewhere, self.vv_elsewhere,
-                               self.vv_elsewhere])
-        return np.concatenate([hand, hand])
-
-
-def _vertex_edge(geo: _Geometry, p: np.ndarray, e: np.ndarray, pairs: _VertexPairs | None, d0: float,
-                 d9: float, sin_h1: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Distance and entrance-angle criteria (§3.3, §3.4; `kernels._ve_test`) of vertices p
-    against edges e, whose projection on the edge must fall on it, and of the vertex pairs'
-    hand-over candidates (no projection test), with the pairs' exit tests.
-
-    Returns (positions of the accepted candidates among [p, pairs.ve_v], their contact lengths
-    L — half the overlap of an edge-edge contact, else 0 — followed by the lengths of the
-    pairs' edge-edge contacts, and the positions of those among ``pairs.par_v``)."""
-    n_test = n_ve = len(p)
-    if pairs is not None:
-        n_ve += len(pairs.ve_v)
-        p = np.concatenate([p, pairs.ve_v, pairs.exit_v])
-        e = np.concatenate([e, pairs.ve_e, pairs.exit_e])
-    x, y = geo.x, geo.y
-    l = geo.length[e]
-    nx, ny = geo.nx[e], geo.ny[e]
-    px, py = x[p] - x[e], y[p] - y[e]
-    dn = px * nx + py * ny
-    t = (px * geo.dx[e] + py * geo.dy[e]) / (l * l)
-    on_edge = (t >= 0.0) & (t <= 1.0)
-    on_edge[n_test:] = True
-    # a collapsed edge has no normal; a concave vertex never contacts as a vertex
-    k = ((l[:n_ve] > EDGE_FLOOR) & (dn[:n_ve] <= d0) & (dn[:n_ve] >= -d9) & geo.convex[p[:n_ve]] &
-         on_edge[:n_ve]).nonzero()[0]
-    if pairs is not None:
-        # the pairs' exit tests first: a vertex behind its edge's line (beyond round-off) that
-        # exits by the edge at the far corner (the edge at the partner w is no exit: the
-        # vertex's own edge lies along the line), or lies deeper than d9, is handed over; the
-        # candidates not handed over go no further
-        exit_dn = dn[n_ve:]
-        out = exit_dn < -SLACK * d9
-        q = out.nonzero()[0]
-        eq, at_start = pairs.exit_e[q], pairs.exit_w[q] == pairs.exit_e[q]
-        far = np.where(at_start, geo.nxt[eq], geo.prv[eq])  # the edge at e's far corner
-        out[q] = geo.nearer_exit(pairs.exit_v[q], exit_dn[q], far, np.where(at_start, far, eq)) | \
-            (exit_dn[q] < -d9)
-        k = k[np.concatenate([np.ones(n_test, bool), pairs.handed(out)])[k]]
-    # behind the edge's line, but nearer the line of the edge that meets it at a convex corner
-    # (or in front of it: outside the block): the vertex entered, or lies on, that edge, not
-    # this one (§3.3, the shortest exit)
-    behind = (dn[k] < -SLACK * d9).nonzero()[0]
-    if len(behind):
-        pb, eb, depth = p[k[behind]], e[k[behind]], dn[k[behind]]
-        # the edges before and after e in one call (halves of its result)
-        n, after = len(eb), geo.nxt[eb]
-        exits = geo.nearer_exit(np.concatenate([pb, pb]), np.concatenate([depth, depth]),
-                                np.concatenate([geo.prv[eb], after]), np.concatenate([eb, after]))
-        keep = np.ones(len(k), bool)
-        keep[behind[exits[:n] | exits[n:] | geo.outside_convex(pb, eb, SLACK * d9)]] = False
-        k = k[keep]
-    p, e, nx, ny = p[k], e[k], nx[k], ny[k]
-    # the vertex's material wedge must lie on the outer side of the edge within h1
-    r1n = geo.r1x[p] * nx + geo.r1y[p] * ny
-    r2n = geo.r2x[p] * nx + geo.r2y[p] * ny
-    lim1 = sin_h1 * geo.n1[p]
-    lim2 = sin_h1 * geo.n2[p]
-    ok = ((r1n >= -lim1) & (r2n >= -lim2)).nonzero()[0]
-    p, e, r1n, r2n, lim1, lim2 = p[ok], e[ok], r1n[ok], r2n[ok], lim1[ok], lim2[ok]
-    # edge-edge: one of the vertex's edges parallel to the line within h1, the one to the next
-    # vertex first (§3.6); and the pairs' edge-edge contacts, in the same call
-    along1 = np.abs(r1n) <= lim1
-    along = (along1 | (np.abs(r2n) <= lim2)).nonzero()[0]
-    v = p[along]
-    ends = [np.where(along1[along], geo.nxt[v], geo.prv[v])]
-    edges, vertices = [e[along]], [v]
-    ee = np.zeros(0, np.int64)
-    if pairs is not None:
-        ee = (~pairs.par_elsewhere).nonzero()[0]
-        edges.append(pairs.par_e[ee])
-        vertices.append(pairs.par_v[ee])
-        ends.append(pairs.par_end[ee])
-    length = np.zeros(len(p) + len(ee))
-    if len(length):
-        along = np.concatenate([along, len(p) + np.arange(len(ee))])
-        length[along] = geo.half_overlap(np.concatenate(edges), np.concatenate(vertices), np.concatenate(ends))
-    return k[ok], length, ee
+        r = topo.row_base[exit_k] + exit_e
+        depth = rows.dn[r]
+        out = depth < -SLACK * d9
+        o = out.nonzero()[0]
+        r, depth, at_start = r[o], depth[o], exit_w[o] == exit_e[o]
+        far = np.where(at_start, topo.row_after[r], topo.row_before[r])  # the edge at the far corner
+        out[o] = rows.nearer_exit(far, depth, np.where(at_start, topo.row_e[far], exit_e[o])) | (depth < -d9)
+        n_par, n_vv = len(par_k), len(kp)
+        self.par_elsewhere = out[:n_par]
+        self.vv_elsewhere = out[n_par:n_par + n_vv] | out[n_par + n_vv:]
+        # the handed-over rows: the concave pairs' convex vertices, and the exits' vertices
+        handed = np.concatenate([np.ones(len(one), bool), self.par_elsewhere, self.vv_elsewhere,
+                                 self.vv_elsewhere]).nonzero()[0]
+        hand_k = np.concatenate([one_k, exit_k])[handed]
+        hand_w = np.concatenate([one_w, exit_w])[handed]
+        base = topo.row_base[hand_k]
+        self.handed_rows = np.concatenate([base + prv[hand_w], base + hand_w])
