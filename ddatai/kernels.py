@@ -98,7 +98,7 @@ def _convex(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), p):
 def _nearer_exit(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), P, depth, a, c):
     """Whether point P, at normal distance ``depth`` (< 0) from an edge, lies less deep behind
     the line of edge a (or in front of it), projecting onto a, or nearer than |depth| to an end
-    of a, where a meets that edge at the convex corner c (`vectorized._Geometry.nearer_exit`)."""
+    of a, where a meets that edge at the convex corner c (`narrow._Rows.nearer_exit`)."""
     q0 = _pt(xy, a)
     q1 = _pt(xy, vnext[a])
     d = q1 - q0
@@ -122,7 +122,7 @@ SLACK = 1e-9
 @ti.func
 def _outside_convex(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), P, e, slack):
     """Whether point P lies in front of some edge of the convex block of edge e (or on its line,
-    within ``slack``): outside it, or on its boundary (`vectorized._Geometry.outside_convex`)."""
+    within ``slack``): outside it, or on its boundary (`narrow.narrow_phase`)."""
     convex = _convex(xy, vnext, vprev, e)
     front = 0
     j = vnext[e]
@@ -144,7 +144,7 @@ def _edge_edge_exit(xy: ti.template(), vnext: ti.template(), vprev: ti.template(
     of e, lies behind e's line (beyond round-off) but less deep behind (or in front of) the
     line of the edge meeting e at its far, convex corner, projecting onto it (it entered that
     edge: §3.3 rule 3), or deeper than d9 (the window of rule 2): no contact of e
-    (`vectorized._Geometry.edge_edge_exit`). The edge at w is no exit: p's own edge lies along
+    (`narrow._VertexPairs`). The edge at w is no exit: p's own edge lies along
     e, so p cannot have entered that edge."""
     q0 = _pt(xy, e)
     d = _pt(xy, vnext[e]) - q0

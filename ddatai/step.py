@@ -22,7 +22,7 @@
 Each phase is timed under its own name into the step's `StepRecord`
 (``ddatai.results.STEP_DTYPE``). ``ddatai.run.simulate`` runs the steps (after the equilibrium
 stage of `ddatai.start`); a `Stepper` holds only what steps reuse: the model, the solver and
-its last factor, the sparse pattern, the detection buffers.
+its last factor, the sparse pattern, the detection buffers and candidates.
 """
 
 from __future__ import annotations
@@ -125,6 +125,7 @@ class Stepper:
         self.model = model
         self.params = model.params
         self.buffers = _Buffers()
+        self.narrow = vectorized.NarrowCache()  # the NumPy narrow phase's candidates of the last pairs
         self.free_idx = np.flatnonzero(~model.block_fixed)
         self.solver = SparseSolver(model.params.solver, unknowns=6 * model.n_free)
         # a block's weight, the smallest load the open-close judgement measures it by [N/m]
@@ -238,7 +239,7 @@ class Stepper:
         (`contacts.detect_contacts`) or, for a small model, their NumPy twin
         (`vectorized.detect_contacts`)."""
         if self.model.numpy_path:
-            return vectorized.detect_contacts(self.model, vertex_xy)
+            return vectorized.detect_contacts(self.model, vertex_xy, self.narrow)
         return detect_contacts(self.model, vertex_xy, self.buffers)
 
     def attempt(self, state: State, geom: dict, contacts0: Contacts, vec0: np.ndarray, sca0: np.ndarray,
