@@ -400,7 +400,10 @@ def main() -> None:
         own = [r for r in rows if r["family"] == family]
         step, oc = growth_exponent(own), growth_exponent(own, key="ms_per_oc")
         one = growth_exponent([r for r in own if r.get("ms_one_oc")], key="ms_one_oc")
-        text.append(f"Growth exponent from 1,600 to 25,600 blocks ({family}): {step:.2f} per step, {oc:.2f} per "
+        # the sizes the fit really spans (the range is 1,600 to 25,600)
+        span = [r["blocks"] for r in own if 1600 * 0.9 <= r["blocks"] <= 25600 * 1.1]
+        where = f"{min(span):,} to {max(span):,}" if len(span) >= 2 else "1,600 to 25,600"
+        text.append(f"Growth exponent from {where} blocks ({family}): {step:.2f} per step, {oc:.2f} per "
                     f"open-close iteration" + ("" if math.isnan(one) else f", {one:.2f} per 1-OC step"))
     text += ["", "With ntdda's protocol the large sizes time only steps 2-5, before the ringing of the sudden "
              "start builds up, so they take fewer open-close iterations per step than the small sizes; the "
