@@ -38,13 +38,13 @@ __version__ = "0.1.0"
 # public name -> module that defines it (PEP 562 lazy attributes)
 _EXPORTS = {
     "Material": "params", "Joint": "params", "BartonBandis": "params", "Params": "params", "STRICT_CONVERGENCE": "params", "UnitWarning": "params",
-    "Scene": "scene",
+    "Scene": "scene", "SliverWarning": "cutting",
     "Model": "model", "State": "model", "ContactState": "layout", "ContactKind": "layout",
     "build_model": "model",
     "Results": "results", "load_results": "results", "SimulationError": "results",
     "SimulationInterrupted": "results",
     "STEP_DTYPE": "records", "StepRecord": "records",
-    "simulate": "run", "Stepper": "step", "sweep": "sweep",
+    "simulate": "run", "Stepper": "step", "PenaltyWarning": "step", "sweep": "sweep",
     "polygon_integrals": "geometry", "validate_polygon": "geometry",
     "write_gif": "render", "write_png": "render", "render_frames": "render", "write_video": "render",
     "joint_sets": "jointsets", "JointSet": "jointsets", "fit_mapping": "jointsets", "MappingFit": "jointsets",

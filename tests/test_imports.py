@@ -53,3 +53,20 @@ res = dd.simulate(s, steps=20)
 assert res.start["held"][0] == 1 and res.steps["contacts"].min() > 0
 """
     assert "taichi" not in _loaded_after(code)
+
+
+def test_the_engine_warnings_are_public_names_and_light():
+    """A script filters the engine's warnings by their public names (`dd.PenaltyWarning`: the
+    automatic penalty raised; `dd.SliverWarning`: thin blocks merged or kept by `Scene.cut`;
+    `dd.UnitWarning`), which load no heavy module."""
+    code = """
+import warnings
+import ddatai as dd
+from ddatai.cutting import SliverWarning
+from ddatai.params import UnitWarning
+from ddatai.step import PenaltyWarning
+assert (dd.PenaltyWarning, dd.SliverWarning, dd.UnitWarning) == (PenaltyWarning, SliverWarning, UnitWarning)
+assert all(issubclass(w, UserWarning) for w in (PenaltyWarning, SliverWarning, UnitWarning))
+warnings.simplefilter("ignore", dd.PenaltyWarning)
+"""
+    assert _loaded_after(code) == set()
