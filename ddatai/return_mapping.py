@@ -229,9 +229,10 @@ def _finish(stepper, state: State, geom: dict, frame: Frame, contacts: Contacts,
     if finished is None or not finished[2] or \
             mechanisms(stepper, state.vertex_xy, geom, finished[1], finished[0], out, size).any():
         return None, n
-    _shift_lock_points(stepper, state.vertex_xy, finished[1], guess.slip)
-    finished[1].coupled[:] = False
-    return (finished[0], finished[1]), n
+    disp, done, _ = finished
+    _shift_lock_points(stepper, state.vertex_xy, done, guess.slip)
+    done.coupled[:] = False
+    return (disp, done), n
 
 
 def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndarray,
@@ -359,12 +360,13 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
                 outcome.converged = outcome.strict = True
                 return outcome, guess
         unbalance = float(np.max(np.maximum(excess, 0.0) / loose, initial=0.0))
-        steady = 0 if (changed or alpha < 1.0) else steady + 1
+        states_moved = changed or alpha < 1.0  # states changed, or the line search stopped short
+        steady = 0 if states_moved else steady + 1
         if tail is not None and steady >= tail and it > 1:
             outcome.steady = True
             guess.slip = guess.slip + dslip
             return outcome, guess
-        if changed or alpha < 1.0:
+        if states_moved:
             history.clear()
             best, best_at = np.inf, it
         elif unbalance < 0.5 * best:

@@ -202,7 +202,7 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
     last = None  # the contacts of the last pseudo-step
     solves = 0
     stalled = False  # set by a pseudo-step that stalls, which then ends the stage
-    increment = np.inf  # the last pseudo-step's largest displacement [m]
+    increment = np.inf  # the last pseudo-step's largest displacement [m] (none yet: no limit)
     unsettled = False
     for pseudo_steps in range(MAX_PSEUDO_STEPS):
         geom = state.geometry if state.geometry is not None else model.block_geometry(state.vertex_xy)
@@ -234,7 +234,7 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
         held = free & ~released
         disp[~held] = 0.0
         step = float(block_displacement(stepper.model, state.vertex_xy, geom, disp).max(initial=0.0))
-        if last is not None and not found.any() and step >= GEOMETRY_CONTRACTION * increment:
+        if not found.any() and step >= GEOMETRY_CONTRACTION * increment:
             # the pseudo-steps are a fixed-point iteration on the geometry (each solves the
             # static increment at the last one's settled shape); where an increment does not
             # shrink, the iteration does not converge — the load grows with the deflection

@@ -22,13 +22,14 @@ from ddatai.step import Stepper
 from tests.cases import G, ROCK, block_on_incline, incline_base, incline_frame, sliding_scene
 
 
-def stacked_grid(n: int) -> dd.Scene:
-    """n × n fitted 1 m blocks of ROCK (E = 5 GPa) on a fixed base, φ = 30°."""
+def stacked_grid(width: int, height: int = None, rock: dd.Material = ROCK) -> dd.Scene:
+    """``width`` × ``height`` (default square) fitted 1 m blocks of ``rock`` (default E = 5 GPa)
+    on a fixed base, φ = 30°."""
     scene = dd.Scene(gravity=G)
-    scene.add_block([(-1, -1), (n + 1, -1), (n + 1, 0), (-1, 0)], material=ROCK, fixed=True)
-    for j in range(n):
-        for i in range(n):
-            scene.add_block([(i, j), (i + 1, j), (i + 1, j + 1), (i, j + 1)], material=ROCK)
+    scene.add_block([(-1, -1), (width + 1, -1), (width + 1, 0), (-1, 0)], material=rock, fixed=True)
+    for j in range(width if height is None else height):
+        for i in range(width):
+            scene.add_block([(i, j), (i + 1, j), (i + 1, j + 1), (i, j + 1)], material=rock)
     scene.set_joint(dd.Joint(friction=30.0))
     return scene
 
@@ -185,14 +186,8 @@ def test_the_kgm_slope_scene_starts_from_its_frictional_equilibrium():
 def soft_stack(width: int, height: int) -> tuple[dd.Scene, dd.Params]:
     """ntdda's grid (docs/ntdda.md §5): ``width`` × ``height`` fitted 1 m blocks, ρ = 2000 kg/m³,
     E = 100 MPa, ν = 0.25, plane stress, p = 1e9 N/m, φ = 30°, on a fixed base."""
-    scene = dd.Scene(gravity=G)
-    rock = dd.Material(density=2000.0, young=1e8, poisson=0.25)
-    scene.add_block([(-1, -1), (width + 1, -1), (width + 1, 0), (-1, 0)], material=rock, fixed=True)
-    for j in range(height):
-        for i in range(width):
-            scene.add_block([(i, j), (i + 1, j), (i + 1, j + 1), (i, j + 1)], material=rock)
-    scene.set_joint(dd.Joint(friction=30.0))
-    return scene, dd.Params(dt=1e-3, penalty=1e9, plane="stress")
+    soft = dd.Material(density=2000.0, young=1e8, poisson=0.25)
+    return stacked_grid(width, height, soft), dd.Params(dt=1e-3, penalty=1e9, plane="stress")
 
 
 def test_the_return_mapping_is_finished_by_newton_and_the_start_is_at_rest(monkeypatch):
