@@ -20,7 +20,8 @@ from ddatai.params import Params
 from ddatai.scene import Scene
 
 from .blocks import BlockSystem
-from .judgement import _StopRun, _verdict, block_displacements, group_size, judge, run_params, sub_scene
+from .judgement import (RestCounter, _StopRun, _verdict, block_displacements, block_speeds, group_size, judge,
+                        run_params, sub_scene)
 from .settings import DdaSettings
 
 
@@ -58,7 +59,8 @@ def judge_members(members, blocks: frozenset, *, settings: DdaSettings, params: 
     sub-models side by side (`ddatai.batch`), each with the constants of its own model, so that
     each verdict is the one `judge` gives (the members share the step's Δt: a fixed Δt stays;
     the automatic one follows the fastest member, a shorter step than it needs alone). The run
-    ends when every member has moved past ``stop_ratio``·δ, or at T. A step of a few blocks costs
+    ends when every member has moved past ``stop_ratio``·δ or come to rest (`kgm.judgement.RestCounter`),
+    or at T. A step of a few blocks costs
     its fixed overhead, so the members share it (docs/guide/performance.md, "Batched studies").
 
     ``exact``: every verdict is the one its own run gives, not only as a rule: with a fixed Δt
@@ -124,7 +126,11 @@ def judge_members(members, blocks: frozenset, *, settings: DdaSettings, params: 
     n_members = len(members)
     times = [[0.0] for _ in members]   # each member's history: time [s] ...
     disp = [[0.0] for _ in members]    # ... and the largest displacement of its group [m]
-    decided = np.zeros(n_members, bool)  # moved past stop_at (unstable, stopped early)
+    decided = np.zeros(n_members, bool)  # moved past stop_at (unstable, stopped early) or at rest
+    rest = None  # each member's steps at rest, counted as its own run counts them (`judge`)
+    if settings.rest_ratio > 0.0:
+        rest = RestCounter(n_members, settings.rest_ratio * delta / duration, settings.rest_steps)
+    resting = np.zeros(n_members, bool)
     cut = False      # (exact) a step's Δt was cut: the members not decided are judged again
     failure = None
     active = list(range(n_members))  # the members not decided
@@ -137,8 +143,11 @@ def judge_members(members, blocks: frozenset, *, settings: DdaSettings, params: 
         initial = combined_state(batch, model, own, [states[k] for k in active])
         moved = block_displacements(model, (batch.block_offset[:-1, None] + np.array(pos)[None, :]).ravel())
         run_t, run_d = [], []  # this run's times and its members' displacements
-        passed = np.full(len(active), -1)  # the record of this run at which each passed stop_at
+        passed = np.full(len(active), -1)  # the record of this run at which each was decided
         last = [None]
+        if rest is not None:
+            speeds = block_speeds(model, group_size(members[0].system, blocks))
+            members_of = np.array(active)
 
         def progress(state, record):
             if exact and record.dt_cuts > 0:
@@ -148,6 +157,11 @@ def judge_members(members, blocks: frozenset, *, settings: DdaSettings, params: 
             run_t.append(state.time)
             run_d.append(d)
             passed[(passed < 0) & (d > stop_at)] = len(run_t) - 1
+            if rest is not None:
+                fastest = np.maximum.reduceat(speeds(state.block_velocity), batch.block_offset[:-1])
+                rested = (passed < 0) & rest.update(fastest, members_of)
+                resting[members_of[rested]] = True
+                passed[rested] = len(run_t) - 1
             left = np.count_nonzero(passed < 0)
             if not left:
                 raise _StopRun
@@ -180,7 +194,7 @@ def judge_members(members, blocks: frozenset, *, settings: DdaSettings, params: 
     wall = time.perf_counter() - start
     out, rerun = {}, []
     for k, m in enumerate(members):
-        note = "stopped early" if decided[k] else ""
+        note = ("at rest" if resting[k] else "stopped early") if decided[k] else ""
         if cut and not decided[k]:
             rerun.append(k)  # not decided when the run left the steps it takes alone
             continue

@@ -53,7 +53,8 @@ class DdaJudgement:
     scene_blocks: int
     """Blocks in the whole scene [-]."""
     note: str = ""
-    """'stopped early' or the cause of a divergence after the group had failed."""
+    """'stopped early' (past `kgm.DdaSettings.stop_ratio`·δ), 'at rest' (stopped as stable,
+    `kgm.judgement.RestCounter`) or the cause of a divergence after the group had failed."""
     batch: int = 1
     """Members of the run it was judged in (`judge_many`: several strengths side by side in one
     model; ``wall_time`` is then that run's) [-]."""
@@ -138,6 +139,43 @@ def block_displacements(model, blocks):
     return moved
 
 
+def block_speeds(model, length: float):
+    """A function of the generalized velocities (of ``model``, (B, 6)) giving an upper bound of
+    each block's vertex speeds [m/s]: the speed of its reference point plus ``length`` [m] times
+    its rotation and strain rates (0 for fixed blocks)."""
+    free = ~np.asarray(model.block_fixed)
+
+    def speeds(velocity: np.ndarray) -> np.ndarray:
+        v = np.hypot(velocity[:, 0], velocity[:, 1]) + length * np.abs(velocity[:, 2:]).sum(axis=1)
+        return np.where(free, v, 0.0)
+
+    return speeds
+
+
+class RestCounter:
+    """Counts, per run, the consecutive steps at which every free block moves slower than
+    ``limit`` [m/s] (`kgm.DdaSettings.rest_ratio`·δ/T). A run that has been that still for
+    ``steps`` steps is at rest: its loads do not change in time (kgm refuses ground shaking and
+    point loads given as functions of time, `kgm.blocks.build_block_system`), and a step from rest
+    with its contacts locked reproduces the state it started from (the contact forces balance
+    the loads), so its displacement at T is the one it has, and its speed over the last quarter
+    of the run 0. The limit sits far above round-off (~1e-16 of the coordinates a step, ~1e-10
+    m/s in a batch of members 500 m from the origin) and far below motion: a block perched at an
+    unstable equilibrium leaves it as e^(λt), λ ≈ √(g/L) for a block of size L, and over
+    T = √(2δ/a_r) with δ = 0.005·L and a_r = 0.05 m/s², λT ≈ √(0.2·g) ≈ 1.4: from 1e-6·δ/T it
+    moves some 3e-6·δ by T (docs/kgm/method.md §6.3)."""
+
+    def __init__(self, runs: int, limit: float, steps: int):
+        self.limit, self.steps = limit, steps
+        self.quiet = np.zeros(runs, np.int64)
+
+    def update(self, fastest: np.ndarray, runs=slice(None)) -> np.ndarray:
+        """Record the fastest block speed of the runs ``runs`` (all by default) at this step;
+        returns which of them are at rest."""
+        self.quiet[runs] = np.where(fastest <= self.limit, self.quiet[runs] + 1, 0)
+        return self.quiet[runs] >= self.steps
+
+
 def judge(scene: Scene, system: BlockSystem, blocks: frozenset, *, settings: DdaSettings,
           params: Optional[Params] = None, removed: frozenset = frozenset(),
           friction: Optional[float] = None, reduction: float = 1.0,
@@ -160,12 +198,20 @@ def judge(scene: Scene, system: BlockSystem, blocks: frozenset, *, settings: Dda
     moved = block_displacements(model, [ids.index(b) for b in sorted(blocks)])
     stop_at = settings.stop_ratio * delta if record_every is None else math.inf
     times, disp = [0.0], [0.0]
+    rest = None
+    if record_every is None and settings.rest_ratio > 0.0:
+        rest = RestCounter(1, settings.rest_ratio * delta / duration, settings.rest_steps)
+        speeds = block_speeds(model, group_size(system, blocks))
+    resting = [False]
 
     def progress(state, record):
         # the group's displacement: the largest of its members'
         times.append(state.time)
         disp.append(float(np.max(moved(state.vertex_xy))))
         if disp[-1] > stop_at:
+            raise _StopRun
+        if rest is not None and rest.update(np.array([speeds(state.block_velocity).max(initial=0.0)]))[0]:
+            resting[0] = True
             raise _StopRun
 
     t0 = time.perf_counter()
@@ -175,7 +221,7 @@ def judge(scene: Scene, system: BlockSystem, blocks: frozenset, *, settings: Dda
         results = simulate(sub, prm, duration=duration, progress=progress,
                            record_every=record_every or 10 ** 9, model=model)
     except _StopRun:
-        note = "stopped early"
+        note = "at rest" if resting[0] else "stopped early"
     except SimulationError as err:
         if max(disp) < delta:
             raise
@@ -195,9 +241,13 @@ def judge(scene: Scene, system: BlockSystem, blocks: frozenset, *, settings: Dda
 def _verdict(t: np.ndarray, d: np.ndarray, *, delta: float, duration: float, note: str, **fields) -> DdaJudgement:
     """The verdict of a run from its displacement history d(t) (`kgm.DdaSettings`): unstable if
     it was stopped or failed after moving, or if d(T) ≥ δ while its mean speed over the last
-    quarter of the run is ≥ δ/T."""
+    quarter of the run is ≥ δ/T. A run stopped "at rest" (`RestCounter`) stays where it is until
+    T: its history goes on flat, as the steps it did not take would have recorded it."""
+    simulated, steps = float(t[-1]), len(t) - 1
+    if note == "at rest" and t[-1] < duration:
+        t, d = np.append(t, duration), np.append(d, d[-1])
     tq = 0.75 * t[-1]
     speed = float((d[-1] - np.interp(tq, t, d)) / max(t[-1] - tq, 1e-300))
-    unstable = bool(note) or (d[-1] >= delta and speed >= delta / duration)
+    unstable = (bool(note) and note != "at rest") or (d[-1] >= delta and speed >= delta / duration)
     return DdaJudgement(stable=not unstable, displacement=float(d[-1]), speed=speed, threshold=delta,
-                        duration=duration, simulated=float(t[-1]), steps=len(t) - 1, note=note, **fields)
+                        duration=duration, simulated=simulated, steps=steps, note=note, **fields)

@@ -38,7 +38,8 @@ class DdaSettings:
     run is ≥ δ/T (a group sliding with constant acceleration a has d = aT²/2 and that speed
     7aT/8, so it passes as soon as d ≥ δ). Otherwise it is **stable**: it stayed within δ, or
     it moved and came to rest (arrested). A run whose displacement passes ``stop_ratio``·δ
-    is stopped early as unstable.
+    is stopped early as unstable, and one whose free blocks have been at rest for
+    ``rest_steps`` steps (speeds below ``rest_ratio``·δ/T) as stable.
 
     δ = ``displacement_ratio`` × √(group area): 0.5 % of the group's size, far above the
     contact settlement N/p and the elastic overshoot of the first steps (≈ 1e-4 of the size
@@ -58,6 +59,13 @@ class DdaSettings:
     """a_r: smallest acceleration a run must detect [m/s²] (sets T when ``duration`` is None)."""
     stop_ratio: float = 4.0
     """Stop a run as unstable once the displacement exceeds this many δ [-]."""
+    rest_ratio: float = 1e-6
+    """Stop a run as stable once every free block has moved slower than this many δ/T for
+    ``rest_steps`` steps: at rest, with loads that do not change in time, a step reproduces the
+    state it started from, so the rest of the run would add nothing (`kgm.judgement.RestCounter`);
+    0: every stable run goes to T [-]."""
+    rest_steps: int = 20
+    """Steps a run must stay at rest before it is stopped as stable [-]."""
     cohesion_held: bool = True
     """Joints keep their cohesion while they slide (lose it only when they open), as limit
     equilibrium assumes (docs/kgm/method.md §6.1, §6.6); False: Shi's DDA, where a joint loses it as
@@ -96,7 +104,10 @@ class DdaSettings:
             _positive(self, name)
         _require(isinstance(self.stop_ratio, (int, float)) and self.stop_ratio >= 1.0,
                  f"DdaSettings.stop_ratio must be >= 1, got {self.stop_ratio!r}")
-        for name in ("candidates", "whole_steps", "batch", "sample_batch"):
+        _require(isinstance(self.rest_ratio, (int, float)) and not isinstance(self.rest_ratio, bool)
+                 and 0.0 <= self.rest_ratio <= 1e-3,
+                 f"DdaSettings.rest_ratio must be between 0 and 1e-3, got {self.rest_ratio!r}")
+        for name in ("candidates", "whole_steps", "batch", "sample_batch", "rest_steps"):
             v = getattr(self, name)
             _require(isinstance(v, int) and not isinstance(v, bool) and v >= 1,
                      f"DdaSettings.{name} must be an integer >= 1, got {v!r}")

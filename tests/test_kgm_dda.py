@@ -30,8 +30,9 @@ def test_verdict_on_a_block_on_an_incline(friction, stable):
     j = judge(scene, build_block_system(scene), frozenset([b]), settings=settings)
     assert j.stable is stable
     assert j.model_blocks == 2 and j.moving_blocks == 1 and j.scene_blocks == 2
-    if stable:
-        assert j.displacement < 0.01 * j.threshold and j.simulated == pytest.approx(0.4)
+    if stable:  # held by the equilibrium start: at rest from the first step, stopped there
+        assert j.displacement < 0.01 * j.threshold
+        assert j.note == "at rest" and j.steps == settings.rest_steps and j.simulated < 0.4
     else:  # stopped once the displacement passed 4δ
         assert j.note == "stopped early" and j.displacement > 4 * j.threshold
     if not stable:  # released at once with a = g(sin30° − cos30° tan15°)
@@ -81,6 +82,25 @@ def test_sub_scene_keeps_only_the_group_and_its_neighbours():
     assert kept == sorted(ids[0:5])
     assert [b.fixed for b in sub.blocks] == [True, False, False, False, True]
     assert all(j.friction == pytest.approx(12.0) for j in sub.joints)
+
+
+@pytest.mark.parametrize("friction", [14.0, 8.0])
+def test_a_run_stopped_at_rest_has_the_verdict_of_the_whole_run(friction):
+    """`DdaSettings.rest_ratio`: Example I's group at 14° (stable) is at rest from the start and
+    its run stops after `rest_steps` steps with the verdict, displacement and speed of the run
+    taken to T (to 1e-6·δ: round-off, not motion); at 8° (unstable) no run stops at rest."""
+    scene, params = example_1.build(friction=friction)
+    system, group = build_block_system(scene), frozenset({0, 1})
+    early = judge(scene, system, group, settings=kgm.DdaSettings(), params=params)
+    whole = judge(scene, system, group, settings=kgm.DdaSettings(rest_ratio=0.0), params=params)
+    assert early.stable is whole.stable is (friction == 14.0)
+    if early.stable:
+        assert early.note == "at rest" and whole.note == ""
+        assert early.steps == kgm.DdaSettings().rest_steps and whole.simulated == pytest.approx(whole.duration)
+        assert early.displacement == pytest.approx(whole.displacement, abs=1e-6 * whole.threshold)
+        assert early.speed == 0.0 and abs(whole.speed) < 1e-6 * whole.threshold / whole.duration
+    else:
+        assert early.note == whole.note == "stopped early" and early.steps == whole.steps
 
 
 def test_example_1_dda_critical_friction_within_1_5_degrees():

@@ -130,6 +130,10 @@ def test_bad_input_is_named():
         kgm.Settings(max_group_size=0)
     with pytest.raises(ValueError, match="DdaSettings.displacement_ratio"):
         kgm.DdaSettings(displacement_ratio=-1.0)
+    with pytest.raises(ValueError, match="DdaSettings.rest_ratio must be between 0 and 1e-3"):
+        kgm.DdaSettings(rest_ratio=0.5)
+    with pytest.raises(ValueError, match="DdaSettings.rest_steps"):
+        kgm.DdaSettings(rest_steps=0)
     with pytest.raises(ValueError, match="Settings.screening"):
         kgm.Settings(screening="dda")
     with pytest.raises(ValueError, match="exhaustive"):
