@@ -28,14 +28,51 @@ def box_bounds(model: Model, vertex_xy: np.ndarray, margin: float) -> tuple[np.n
     return lo, hi
 
 
+#: the broad phase finds the block pairs within the search distance plus a skin of this many
+#: search distances, and the pairs serve later detections while no vertex has moved half the
+#: skin (a Verlet list: two blocks that close the skin in between must have moved that far)
+PAIR_SKIN = 1.0
+
+
+class PairList:
+    """The candidate block pairs of the last broad phase, found with a skin of `PAIR_SKIN`
+    search distances, and the vertex positions and search distance they were found at (a Verlet
+    list, `pairs`)."""
+
+    def __init__(self):
+        self.found = None       # (P, 2) the pairs
+        self.found_at = None    # (V, 2) the vertex positions they were found at [m]
+        self.margin = 0.0       # the search distance they serve [m]
+
+    def pairs(self, model: Model, vertex_xy: np.ndarray, broad) -> np.ndarray:
+        """The block pairs that may touch within the search distance: those of
+        ``broad(model, vertex_xy, margin)`` (a broad phase, `broad_phase` or its NumPy twin)
+        found with the skin, kept while every vertex is within half of it of where they were
+        found. Every pair whose boxes are within the search distance now is among them, and
+        the narrow phase, pair by pair, finds the same contacts as after a fresh broad phase
+        (tests/test_contacts.py)."""
+        d = model.search_distance
+        skin = PAIR_SKIN * d
+        at = self.found_at
+        if at is not None and at.shape == vertex_xy.shape and self.margin == d:
+            dx = vertex_xy - at
+            if float(np.max(dx[:, 0] * dx[:, 0] + dx[:, 1] * dx[:, 1], initial=0.0)) < 0.25 * skin * skin:
+                return self.found
+        self.found = broad(model, vertex_xy, d + skin)
+        self.found_at, self.margin = vertex_xy.copy(), d
+        return self.found
+
+
 class _Buffers:
-    """Output buffers reused between steps; grown (doubled) when a kernel reports overflow."""
+    """Output buffers reused between steps; grown (doubled) when a kernel reports overflow; the
+    candidate pairs kept between detections (`PairList`)."""
 
     def __init__(self):
         self.pairs = np.zeros((64, 2), np.int32)
         self.cint = np.zeros((256, 5), np.int32)
         self.clen = np.zeros(256)
         self.count = np.zeros(1, np.int32)
+        self.pair_list = PairList()
 
 
 def broad_phase(model: Model, vertex_xy: np.ndarray, margin: float, buffers: _Buffers) -> np.ndarray:
@@ -113,7 +150,7 @@ def detect_contacts(model: Model, vertex_xy: np.ndarray, buffers: _Buffers | Non
                     ) -> tuple[np.ndarray, np.ndarray]:
     """Broad + narrow phase on the Taichi backend. Returns (cint, length) in canonical order."""
     buffers = buffers or _Buffers()
-    pairs = broad_phase(model, vertex_xy, model.search_distance, buffers)
+    pairs = buffers.pair_list.pairs(model, vertex_xy, lambda m, xy, margin: broad_phase(m, xy, margin, buffers))
     return narrow_phase(model, vertex_xy, pairs, buffers)
 
 

@@ -29,7 +29,7 @@ import math
 
 import numpy as np
 
-from .contacts import sort_contacts
+from .contacts import PairList, sort_contacts
 from .layout import VE, VV
 from .model import Model
 
@@ -148,10 +148,12 @@ class PairTopology:
 
 
 class NarrowCache:
-    """The last pair set's `PairTopology`, kept between steps (`ddatai.step.Stepper`)."""
+    """The last pair set's `PairTopology` and the candidate pairs (`ddatai.contacts.PairList`),
+    kept between steps (`ddatai.step.Stepper`)."""
 
     def __init__(self):
         self.topology: PairTopology | None = None
+        self.pair_list = PairList()
 
     def topology_of(self, model: Model, pairs: np.ndarray) -> PairTopology:
         if self.topology is None or not self.topology.matches(model, pairs):

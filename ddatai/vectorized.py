@@ -62,9 +62,11 @@ def broad_phase(model: Model, vertex_xy: np.ndarray, margin: float) -> np.ndarra
 def detect_contacts(model: Model, vertex_xy: np.ndarray, cache: NarrowCache | None = None
                     ) -> tuple[np.ndarray, np.ndarray]:
     """Broad + narrow phase in NumPy. Returns (cint, length) in canonical order, as
-    ``ddatai.contacts.detect_contacts``. ``cache`` keeps the pairs' candidates between calls
-    (`ddatai.narrow.NarrowCache`)."""
-    return narrow_phase(model, vertex_xy, broad_phase(model, vertex_xy, model.search_distance), cache)
+    ``ddatai.contacts.detect_contacts``. ``cache`` keeps the candidate pairs (a Verlet list,
+    `ddatai.contacts.PairList`) and the pairs' candidates between calls (`ddatai.narrow.NarrowCache`)."""
+    if cache is None:
+        return narrow_phase(model, vertex_xy, broad_phase(model, vertex_xy, model.search_distance), None)
+    return narrow_phase(model, vertex_xy, cache.pair_list.pairs(model, vertex_xy, broad_phase), cache)
 
 
 # --------------------------------------------------------------------------- contact vectors
