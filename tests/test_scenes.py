@@ -1,4 +1,4 @@
-"""Every scene builds and runs a few steps headless; the command line runs a scene and an
+"""Every scene builds and runs a few steps headless, from its frictional equilibrium; the command line runs a scene and an
 ntdda model; a run without --gif never imports an imaging library (fresh interpreter)."""
 
 import importlib
@@ -33,6 +33,10 @@ def test_scene_builds_and_runs(name):
     res = dd.simulate(scene, params=params, steps=3)
     assert res.n_frames == 4
     assert np.all(np.isfinite(res.vertices))
+    # the equilibrium start finds each scene's frictional equilibrium: none needs the welded
+    # fallback (docs/guide/equilibrium_start.md)
+    if params.initial_equilibrium:
+        assert len(res.start) == 1 and not res.start[0]["welded"], f"{name} started welded"
 
 
 def test_scenes_build_only_what_they_use():
