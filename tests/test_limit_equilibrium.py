@@ -151,3 +151,26 @@ def test_the_jointed_slope_family_starts_from_its_frictional_equilibrium():
     assert released.sum() == record.released
     assert np.all(released[moving]) and moving.sum() >= 150
     assert released.sum() - moving.sum() <= 0.1 * moving.sum()
+
+
+@pytest.mark.parametrize("case", ["plane held", "plane slides", "cohesion", "example_1 at 8", "jointed_slope"])
+def test_dense_newton_steps_give_the_programs_of_the_sparse_ones(case, monkeypatch):
+    """`limit_equilibrium.DENSE_ROWS`: a program of a few blocks takes its interior-point
+    Newton steps with dense arrays, a large one with sparse ones. Both give the same blocks:
+    planes either side of tanφ = tanθ and of the cohesion's closed form, Example I at 8° (B1 and
+    B2 slide) and the jointed slope's 25 of 75."""
+    from scenes import example_1, jointed_slope
+
+    theta = 30.0
+    t = math.radians(theta)
+    critical = ROCK.density * G * (math.sin(t) - math.cos(t) * math.tan(math.radians(20.0)))
+    scene = {"plane held": lambda: plane(theta, theta + 0.5)[0],
+             "plane slides": lambda: plane(theta, theta - 0.5)[0],
+             "cohesion": lambda: plane(theta, 20.0, cohesion=0.98 * critical)[0],
+             "example_1 at 8": lambda: example_1.build(friction=8.0)[0],
+             "jointed_slope": lambda: jointed_slope.build()[0]}[case]()
+    dense = unsupported(scene)
+    monkeypatch.setattr(limit_equilibrium, "DENSE_ROWS", 0)
+    assert unsupported(scene) == dense
+    expected = {"plane held": 0, "plane slides": 1, "cohesion": 1, "example_1 at 8": 2, "jointed_slope": 25}[case]
+    assert len(dense) == expected
