@@ -252,6 +252,12 @@ class SparseSolver:
         self._factored_data = np.array(data, dtype=np.float64)
         return self._factorise(data, indices, indptr, rhs, n, symmetric)
 
+    def factor_solve(self, rhs: np.ndarray) -> "np.ndarray | None":
+        """K⁻¹·rhs with the last factor (the matrix last factorised); None without one."""
+        if self._factor is None:
+            return None
+        return self._factor[2](np.ascontiguousarray(rhs, dtype=np.float64))
+
     def _factorise(self, data, indices, indptr, rhs, n, symmetric) -> np.ndarray:
         if self.backend == "pardiso":
             return self._solve_pardiso(data, indices, indptr, rhs, n, symmetric)
