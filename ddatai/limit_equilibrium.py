@@ -5,7 +5,7 @@ The equilibrium stage (`ddatai.start`) asks it where its return mapping stalls: 
 limit equilibrium lets move are released, the rest is held. It is the static (lower-bound)
 theorem of rigid-block limit analysis as a linear program (Livesley's): the blocks are rigid,
 each touching contact carries at its vertex a normal force N ≥ −T·L (the tensile strength of a
-bonded joint, else 0) and a shear force |S| ≤ N·tanφ + c·L (cohesion while bonded) — in 2D
+bonded joint, else 0) and a shear force ``|S| ≤ N·tanφ + c·L`` (cohesion while bonded) — in 2D
 Coulomb's law is linear —, and the forces on each free block balance λ times its weight and
 point loads (x, y and the moment about its centroid):
 
@@ -17,15 +17,15 @@ are released, and the program is solved again for the rest (a block that rested 
 next) until the rest is held. A frictional, cohesionless mass is homogeneous: λ is then 0 or 1.
 
 The program is solved by a primal-dual interior-point method (Mehrotra's predictor-corrector,
-`_interior_point`): the inequalities of a contact involve only its own N and S, so each Newton
+``_interior_point``): the inequalities of a contact involve only its own N and S, so each Newton
 step reduces to one sparse symmetric system A·H⁻¹·Aᵀ in the blocks' three rows, with the
 sparsity of the blocks' adjacency (a 2,600-block slope: ~0.5 s a program, where a general LP
 code takes a minute), and the interior solution's y is the union of the mechanisms of the
-critical λ, not one vertex of them. A program of a few blocks (`DENSE_ROWS`) takes its Newton
+critical λ, not one vertex of them. A program of a few blocks (``DENSE_ROWS``) takes its Newton
 steps with dense arrays: 14 ms instead of 90 for a two-block group that slides (Example I, II).
 
 Where a model has bolts or a water table, whose forces this program does not carry, it answers
-None and the stage keeps its open-close test (`ddatai.mechanisms.test_unbalanced`).
+None and the stage keeps its open-close test (``ddatai.mechanisms.test_unbalanced``).
 """
 
 from __future__ import annotations
@@ -179,7 +179,7 @@ def _interior_point(a, b, tan_phi, cohesion, tensile):
 
 
 def _mehrotra(a, b, tan_phi, cohesion, tensile):
-    """`_interior_point`'s iteration."""
+    """``_interior_point``'s iteration."""
     from scipy.sparse import diags
 
     from .solver import SparseSolver

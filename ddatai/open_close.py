@@ -18,7 +18,7 @@ the normal force of the last solve, a load in F, so K is symmetric positive defi
 Cholesky factor, 0.4 × the cost of the LU of the coupled K at 1,540 blocks); the convergence test asks the
 friction to be that of the solve itself, so a contact whose N moved is judged again with its
 new N. Where the lagged iteration stalls (the contacts still changing have not become fewer
-for `LAGGED_STALL` solves), it goes on with coupled friction (N = −p·dn of the same solve, a
+for ``LAGGED_STALL`` solves), it goes on with coupled friction (N = −p·dn of the same solve, a
 non-symmetric term in K, an LU), with the same acceptance test.
 
 The iteration reads what steps reuse from the `ddatai.step.Stepper` it is given (``stepper``):

@@ -3,7 +3,7 @@ pseudo-step. Every closed contact stays a spring, its shear measured from a lock
 its slip, while the iteration finds which contacts open and how far each slides (slips
 accelerated by Anderson mixing, an energy line search where states change); once its states
 stop changing, and at a stalled or bonded-at-strength end, the open-close iteration of a static
-step (semismooth Newton) finishes it (`_finish`); blocks the
+step (semismooth Newton) finishes it (``_finish``); blocks the
 contacts cannot hold are found (thrown away, or out of balance and moved by their loads) and
 released (docs/method/dda.md §8.12).
 """
@@ -149,7 +149,7 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
             touching, line0 = touching[keep], line0[keep]
             guess = guess.subset(keep) if guess is not None else None
             frame = Frame.build(stepper, state, geom, contacts, dt)
-        # Newton (`_finish`) from where the states settle, once a pseudo-step and before anything
+        # Newton (``_finish``) from where the states settle, once a pseudo-step and before anything
         # is released (a model with a mechanism keeps the path limit equilibrium checks)
         newton_now = newton and not freeze and not np.any(out & ~released)
         outcome, raw = _iterate(stepper, frame, contacts, geom, out, size, guess, freeze,
@@ -263,7 +263,7 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
     then in equilibrium within that much. A block that moves away by more than MECHANISM_SIZE
     ends the iteration (`mechanisms`), and so do MAX_ITERATIONS iterations or a stall, and with
     ``tail`` an iteration whose states have not changed for that many iterations (``steady``: the
-    slips' linear convergence is left, which `_finish` does in a few solves)."""
+    slips' linear convergence is left, which ``_finish`` does in a few solves)."""
     model, p = stepper.model, stepper.params
     free = ~model.block_fixed
     ve = contacts.cint[:, KIND] == VE

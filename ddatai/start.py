@@ -32,7 +32,7 @@ solve of the model under its weight, the point loads at t = 0 and its initial st
    cut-off, K kept), as corner contacts of blocks cut by persistent joints otherwise do by
    turns for the whole iteration. It ends
    when no state changes and every contact force is the contact law's within
-   `ddatai.return_mapping.STAGE_FORCE_TOLERANCE` (1e-6, stricter than a step's
+   ``ddatai.return_mapping.STAGE_FORCE_TOLERANCE`` (1e-6, stricter than a step's
    ``Params.oc_force_tolerance``) × the load its blocks carry — the law's forces then balance
    every block within that much —, or, where the iteration stalls before, within
    ``Params.oc_state_tolerance``; in that case, and where a bonded contact ends at its strength
@@ -117,7 +117,7 @@ MAX_PSEUDO_STEPS = 8
 #: fraction of the load that a contact's blocks carry
 BALANCE_ROUNDOFF = 1e-12
 #: a pseudo-step whose increment is at least this fraction of the last one's does not contract:
-#: the stage ends at the last one's equilibrium (`_stage`)
+#: the stage ends at the last one's equilibrium (``_stage``)
 GEOMETRY_CONTRACTION = 1.0
 
 
@@ -283,7 +283,7 @@ def balanced(stepper, frame: Frame, contacts: Contacts, geom: dict, size: np.nda
     (settled) geometry to round-off: at D = 0 each keeps its state by the contact law, no shear
     spring exceeds its strength, and the contact law's forces balance each block's loads (force
     and moment rows), each within BALANCE_ROUNDOFF of the load its blocks carry (a block held
-    by a weak spring, a bolt, must not keep a residual of the tolerance of `_iterate`)."""
+    by a weak spring, a bolt, must not keep a residual of the tolerance of ``_iterate``)."""
     model = stepper.model
     c = coupled(contacts)
     law = contact_law(stepper.model, c, frame.vec, frame.sca, np.zeros((model.n_blocks, 6)))

@@ -192,11 +192,11 @@ class Stepper:
 
     def follow_load(self, attempt: Attempt) -> bool:
         """Raise the automatic penalty (``Params.penalty = None``) for the rest of the run when
-        the accepted step's deepest contact went past `PENALTY_RAISE_AT` of the penetration limit:
+        the accepted step's deepest contact went past ``PENALTY_RAISE_AT`` of the penetration limit:
         the penalty chosen at the start from the blocks' weight and speed (`build_model`) does
         not follow a load that builds up in the run (cut seed 170: a 366 m domain under 30 m/s²,
-        0.013 of the limit for 350 steps, then 0.56 and the limit). p × depth / (`PENALTY_TARGET`
-        × limit) takes the same force at that share of the limit; at most `PENALTY_RAISE_MAX` ×
+        0.013 of the limit for 350 steps, then 0.56 and the limit). p × depth / (``PENALTY_TARGET``
+        × limit) takes the same force at that share of the limit; at most ``PENALTY_RAISE_MAX`` ×
         the starting p. Said once in a `PenaltyWarning`, each step's p in ``Results.steps``.
         Returns whether it raised it."""
         m = self.model

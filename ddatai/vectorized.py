@@ -8,7 +8,7 @@ contacts, and no Taichi:
 
 - `broad_phase`: all block pairs (i < j, not both fixed) whose boxes, enlarged by margin/2,
   overlap, by a sweep along x (sort, then each box against the boxes that start within it);
-- `narrow_phase` (`ddatai.narrow`): Shi's vertex-edge / vertex-vertex rules (docs/method/dda.md
+- `narrow_phase` (``ddatai.narrow``): Shi's vertex-edge / vertex-vertex rules (docs/method/dda.md
   §3.3–3.6) evaluated over every (vertex, vertex) and (vertex, edge) candidate of every block
   pair at once, operation for operation as `ddatai.kernels.narrow_phase` (the same guards
   ``EDGE_FLOOR`` and ``TIE``, the same mutual-nearest-vertex rule, the same entrance-angle
@@ -63,7 +63,7 @@ def detect_contacts(model: Model, vertex_xy: np.ndarray, cache: NarrowCache | No
                     ) -> tuple[np.ndarray, np.ndarray]:
     """Broad + narrow phase in NumPy. Returns (cint, length) in canonical order, as
     ``ddatai.contacts.detect_contacts``. ``cache`` keeps the candidate pairs (a Verlet list,
-    `ddatai.contacts.PairList`) and the pairs' candidates between calls (`ddatai.narrow.NarrowCache`)."""
+    ``ddatai.contacts.PairList``) and the pairs' candidates between calls (``ddatai.narrow.NarrowCache``)."""
     if cache is None:
         return narrow_phase(model, vertex_xy, broad_phase(model, vertex_xy, model.search_distance), None)
     return narrow_phase(model, vertex_xy, cache.pair_list.pairs(model, vertex_xy, broad_phase), cache)

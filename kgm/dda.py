@@ -11,7 +11,7 @@ joint) and the critical friction angle on the friction angle of every joint with
 (`kgm.batched`).
 
 This module imports Taichi (through `ddatai.simulate`) only inside the functions that run a
-simulation, so `import kgm` stays light.
+simulation, so ``import kgm`` stays light.
 """
 
 from __future__ import annotations

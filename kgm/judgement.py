@@ -3,7 +3,7 @@ sub-model of the group and the blocks it touches, one run, its verdict. `kgm.dda
 factor of safety and the critical friction angle on it, `kgm.batched` runs many at once.
 
 This module imports Taichi (through `ddatai.simulate`) only inside the function that runs a
-simulation, so `import kgm` stays light.
+simulation, so ``import kgm`` stays light.
 """
 
 from __future__ import annotations

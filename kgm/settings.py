@@ -93,7 +93,7 @@ class DdaSettings:
     member-step costs 1.6 ms alone, 0.17 ms among 16 and 0.036 ms among 128 (Example II's group,
     docs/guide/performance.md "Batched studies")."""
     progress: Optional[Callable[..., None]] = None
-    """Called with each `kgm.dda.DdaJudgement` as its run ends (``kgm analyze`` prints a line
+    """Called with each `kgm.DdaJudgement` as its run ends (``kgm analyze`` prints a line
     per run); None: silent."""
 
     def __post_init__(self) -> None:
