@@ -140,9 +140,10 @@ def block_displacements(model, blocks):
 
 
 def block_speeds(model, length: float):
-    """A function of the generalized velocities (of ``model``, (B, 6)) giving an upper bound of
-    each block's vertex speeds [m/s]: the speed of its reference point plus ``length`` [m] times
-    its rotation and strain rates (0 for fixed blocks)."""
+    """A function of the generalized velocities (of ``model``, (B, 6)) giving a measure of each
+    block's vertex speeds [m/s]: the speed of its reference point plus ``length`` [m] (the
+    group's size, standing for the blocks' radii) times its rotation and strain rates (0 for
+    fixed blocks)."""
     free = ~np.asarray(model.block_fixed)
 
     def speeds(velocity: np.ndarray) -> np.ndarray:
