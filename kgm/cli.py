@@ -139,8 +139,11 @@ def _print_report(rep, out) -> None:
         if crit.dda is not None:
             d = crit.dda
             j = d.judgement
-            print(f"  DDA: {len(d.runs)} runs, {d.wall_time:.1f} s; at the scene's strength the group "
-                  f"moved {j.displacement:.4f} m in {j.simulated:.2f} s (criterion {j.threshold:.4f} m); "
+            ran = (f"was at rest after {j.simulated:.2f} s of T = {j.duration:.2f} s, {j.displacement:.4f} m "
+                   f"from its start" if j.note == "at rest" else
+                   f"moved {j.displacement:.4f} m in {j.simulated:.2f} s")
+            print(f"  DDA: {len(d.runs)} runs, {d.wall_time:.1f} s; at the scene's strength the group {ran} "
+                  f"(criterion {j.threshold:.4f} m); "
                   f"sub-model {j.model_blocks} of {j.scene_blocks} blocks ({j.moving_blocks} free)", file=out)
             if d.timing is not None:
                 t = d.timing

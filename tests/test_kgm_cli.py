@@ -39,3 +39,21 @@ def test_gif_of_a_rigid_analysis(tmp_path):
     path = tmp_path / "ex1.gif"
     assert main(["analyze", EX1, "--method", "rigid", "--gif", str(path)], out=io.StringIO()) == 0
     assert path.read_bytes()[:4] == b"GIF8"
+
+
+def test_analyze_by_dda_says_when_the_verdict_run_stopped_at_rest(tmp_path):
+    """A 2 × 1 block on a 30° plane with φ = 45° (FS 1.73): the DDA verdict's run is at rest
+    from the equilibrium start and stops there; the report says so, with T, instead of a
+    displacement "in" the few steps it took."""
+    script = tmp_path / "held_block.py"
+    script.write_text(
+        "import sys\n"
+        f"sys.path.insert(0, {str(ROOT / 'tests')!r})\n"
+        "from kgm_cases import block_on_incline\n"
+        "def build():\n"
+        "    scene, _, _ = block_on_incline(theta=30.0, width=2.0, height=1.0, friction=45.0, cohesion=0.0)\n"
+        "    return scene\n")
+    out = io.StringIO()
+    assert main(["analyze", str(script), "--method", "dda"], out=out) == 0
+    text = out.getvalue()
+    assert "at the scene's strength the group was at rest after" in text and "of T = " in text
