@@ -146,7 +146,7 @@ def judge_members(members, blocks: frozenset, *, settings: DdaSettings, params: 
         passed = np.full(len(active), -1)  # the record of this run at which each was decided
         last = [None]
         if rest is not None:
-            speeds = block_speeds(model, group_size(members[0].system, blocks))
+            speeds = block_speeds(model)
             members_of = np.array(active)
 
         def progress(state, record):

@@ -139,15 +139,19 @@ def block_displacements(model, blocks):
     return moved
 
 
-def block_speeds(model, length: float):
-    """A function of the generalized velocities (of ``model``, (B, 6)) giving a measure of each
-    block's vertex speeds [m/s]: the speed of its reference point plus ``length`` [m] (the
-    group's size, standing for the blocks' radii) times its rotation and strain rates (0 for
-    fixed blocks)."""
+def block_speeds(model):
+    """A function of the generalized velocities (of ``model``, (B, 6)) giving a bound of each
+    block's vertex speeds [m/s]: the speed of its reference point plus its radius
+    (`ddatai.kinematics.block_radius`, at the model's start) times its rotation and strain
+    rates (0 for fixed blocks)."""
+    from ddatai.kinematics import block_radius
+
+    xy = model.vertex_xy0
+    radius = block_radius(model, xy, model.block_geometry(xy)["centroid"])
     free = ~np.asarray(model.block_fixed)
 
     def speeds(velocity: np.ndarray) -> np.ndarray:
-        v = np.hypot(velocity[:, 0], velocity[:, 1]) + length * np.abs(velocity[:, 2:]).sum(axis=1)
+        v = np.hypot(velocity[:, 0], velocity[:, 1]) + radius * np.abs(velocity[:, 2:]).sum(axis=1)
         return np.where(free, v, 0.0)
 
     return speeds
@@ -202,7 +206,7 @@ def judge(scene: Scene, system: BlockSystem, blocks: frozenset, *, settings: Dda
     rest = None
     if record_every is None and settings.rest_ratio > 0.0:
         rest = RestCounter(1, settings.rest_ratio * delta / duration, settings.rest_steps)
-        speeds = block_speeds(model, group_size(system, blocks))
+        speeds = block_speeds(model)
     resting = [False]
 
     def progress(state, record):
