@@ -36,6 +36,7 @@ import inspect
 import json
 import math
 import time
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Mapping, Optional
@@ -44,6 +45,10 @@ import numpy as np
 
 SAMPLINGS = ("monte-carlo", "latin-hypercube")
 METHODS = ("rigid", "sarma", "dda")
+#: most DDA samples judged side by side in one batch of a study: a batch's verdicts are saved
+#: when it ends, about every 5 s of a worker's time on Example II (40 samples a batch cost ~15 %
+#: more a sample than 80, measured on 2 workers) [-]
+SAVED_BATCH = 40
 #: first line of a study file: what identifies the study (a file of another study is refused)
 HEADER_MARK = "# kgm probabilistic study "
 
@@ -56,15 +61,15 @@ class Study:
     """Samples [-]."""
     pf: float
     """Probability of failure: the fraction of samples whose critical group fails (FS < 1, or
-    unstable under DDA) [-]."""
+    unstable under DDA), among the samples evaluated (not `lost`) [-]."""
     beta: float
     """Reliability index β = (mean FS − 1) / standard deviation of FS, over the samples with a
     finite FS (the definition of RocPlane and Slide, exact for a normally distributed FS) [-];
     nan when fewer than two samples have a finite FS."""
     table: np.ndarray
     """One row per sample, in sample order (a NumPy structured array): ``index``, ``seed``,
-    the sampled variables (their names), ``fs``, ``failed`` and ``critical`` (the critical
-    group's block ids, space-separated)."""
+    the sampled variables (their names), ``fs``, ``failed``, ``critical`` (the critical
+    group's block ids, space-separated) and ``lost`` (`Study.lost`)."""
     variables: tuple
     """Names of the sampled variables, in table order."""
     method: str
@@ -89,6 +94,13 @@ class Study:
         return self.table["failed"]
 
     @property
+    def lost(self) -> np.ndarray:
+        """Samples given up because their worker process died twice while running them (killed
+        by the out-of-memory killer, a crash in a native library): recorded with their values,
+        ``fs`` nan, not failed, and left out of P_f (`ddatai.workers`)."""
+        return self.table["lost"]
+
+    @property
     def beta_pf(self) -> float:
         """The reliability index that P_f corresponds to, −Φ⁻¹(P_f) [-] (±inf when no sample or
         every sample failed)."""
@@ -102,7 +114,7 @@ class Study:
         from scipy.stats import norm
 
         z = float(norm.ppf(0.5 + 0.5 * confidence))
-        n, p = self.n, self.pf
+        n, p = self.n - int(np.count_nonzero(self.lost)), self.pf
         centre = (p + z * z / (2 * n)) / (1 + z * z / n)
         half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
         return max(0.0, centre - half), min(1.0, centre + half)
@@ -124,9 +136,11 @@ class Study:
         lo, hi = self.pf_interval()
         finite = self.fs[np.isfinite(self.fs)]
         mean = float(np.mean(finite)) if len(finite) else math.inf
+        lost = int(np.count_nonzero(self.lost))
         return (f"{self.n} samples ({self.sampling}, {self.method}, seed {self.seed}): "
                 f"P_f = {self.pf:.4f} (95 % {lo:.4f}-{hi:.4f}), beta = {self.beta:.3f}, "
-                f"mean FS = {mean:.3f}")
+                f"mean FS = {mean:.3f}" +
+                (f"; {lost} sample(s) lost (their worker process died twice), not counted" if lost else ""))
 
     def to_csv(self, path) -> Path:
         """Write the table (with the study's header line) to ``path``; returns the path."""
@@ -216,7 +230,7 @@ def _check_sampling(variables, n, sampling, correlation) -> None:
     for k, v in variables.items():
         if not isinstance(k, str) or not k.isidentifier():
             raise ValueError(f"variable name {k!r} must be a valid keyword argument name of build()")
-        if k in ("seed", "index", "fs", "failed", "critical"):
+        if k in ("seed", "index", "fs", "failed", "critical", "lost"):
             raise ValueError(f"variable name {k!r} is reserved (a column of the study table)")
         if not hasattr(v, "ppf") and not isinstance(v, (int, float)):
             raise ValueError(f"variable {k!r} must be a frozen scipy.stats distribution (with ppf) or a "
@@ -377,6 +391,7 @@ def probabilistic(build, variables: Mapping, n: int, *, method: str = "sarma",
         which is all P_f needs, and ``fs`` is nan.
     """
     from ddatai.parallel import ScriptFunction, check_execution, plan, run
+    from ddatai.workers import WorkerLost
 
     t0 = time.perf_counter()
     if method not in METHODS:
@@ -406,6 +421,7 @@ def probabilistic(build, variables: Mapping, n: int, *, method: str = "sarma",
         done = _read_done(Path(out), identity, names)
     resumed = len(done)
     items = [(i, {k: _scalar(samples[k][i]) for k in names}, int(seeds[i])) for i in range(n) if i not in done]
+    items_by_index = {it[0]: it for it in items}
     job = _Job(build=build, method=method, settings=settings, group=group, pass_seed=pass_seed, dda_fs=bool(dda_fs))
     # before any work: this process for limit-equilibrium samples, processes for DDA, and a
     # script whose workers could not import what the study needs is told what to add
@@ -418,30 +434,58 @@ def probabilistic(build, variables: Mapping, n: int, *, method: str = "sarma",
         if method == "dda" and not dda_fs else 1
     if size > 1:
         # one batch a worker or more (a larger batch shares a step among more samples: per
-        # sample a batch of 128 costs a fifth of one of 16); none larger than asked
+        # sample a batch of 128 costs a fifth of one of 16); none larger than asked, nor than
+        # SAVED_BATCH: a batch's samples reach the file when the batch ends
         sharing = 1 if client is None and workers == 1 else _n_workers(client, workers)
-        size = max(1, min(size, -(-len(items) // sharing)))
+        size = max(1, min(size, SAVED_BATCH, -(-len(items) // sharing)))
         batches = [tuple(items[i:i + size]) for i in range(0, len(items), size)]
-        results = run(functools.partial(_evaluate_batch, job), [(b[0][0], b) for b in batches],
-                      client=client, workers=workers, chunk=1)
-        flat = (row for _, rows in results for row in rows)
+        flat = _rows_of_batches(run(functools.partial(_evaluate_batch, job), [(b[0][0], b) for b in batches],
+                                    client=client, workers=workers, chunk=1, split=_split_batch))
     else:
         flat = run(functools.partial(_evaluate, job), [(it[0], it) for it in items], client=client, workers=workers)
     writer = _Appender(Path(out), identity, names) if out is not None else None
     try:
-        for index, (fs, failed, critical) in flat:
-            done[index] = (fs, failed, critical)
+        for index, row in flat:
+            if isinstance(row, WorkerLost):
+                warnings.warn(f"kgm.probabilistic: sample {index} ({_describe(items_by_index[index][1])}, seed "
+                              f"{int(seeds[index])}) recorded as lost: {row}", RuntimeWarning, stacklevel=2)
+                row = (math.nan, False, "", True)
+            else:
+                row = (*row, False)
+            done[index] = row
             if writer is not None:
-                writer.append(index, int(seeds[index]), [samples[k][index] for k in names], fs, failed, critical)
+                writer.append(index, int(seeds[index]), [samples[k][index] for k in names], *row)
             if progress is not None:
                 progress(len(done), n)
     finally:
         if writer is not None:
             writer.close()
     table = _table(n, names, samples, seeds, done)
-    return Study(n=n, pf=float(np.mean(table["failed"])), beta=_beta(table["fs"]), table=table, variables=names,
+    return Study(n=n, pf=_pf(table), beta=_beta(table["fs"]), table=table, variables=names,
                  method=method, sampling=sampling, seed=seed, resumed=resumed,
                  wall_time=time.perf_counter() - t0)
+
+
+def _split_batch(batch: tuple) -> list:
+    """A batch of samples as its single samples (run alone after a worker died running it)."""
+    return [(item[0], (item,)) for item in batch]
+
+
+def _rows_of_batches(results):
+    """(index, row) of each sample of each batch's results; a lost one as it comes."""
+    from ddatai.workers import WorkerLost
+
+    for index, rows in results:
+        if isinstance(rows, WorkerLost):
+            yield index, rows
+        else:
+            yield from rows
+
+
+def _pf(table: np.ndarray) -> float:
+    """Failed samples over the samples evaluated (the lost ones left out) [-]."""
+    kept = ~table["lost"]
+    return float(np.mean(table["failed"][kept])) if np.any(kept) else math.nan
 
 
 def _n_workers(client, workers: Optional[int]) -> int:
@@ -490,7 +534,7 @@ def _table_dtype(names: tuple, width: int) -> list:
     """Columns of a study table (`Study.table`); ``width``: characters of the longest
     ``critical`` entry."""
     return [("index", np.int64), ("seed", np.int64)] + [(k, np.float64) for k in names] + \
-        [("fs", np.float64), ("failed", bool), ("critical", f"U{width}")]
+        [("fs", np.float64), ("failed", bool), ("critical", f"U{width}"), ("lost", bool)]
 
 
 def _table(n: int, names: tuple, samples: dict, seeds: np.ndarray, done: dict) -> np.ndarray:
@@ -499,8 +543,8 @@ def _table(n: int, names: tuple, samples: dict, seeds: np.ndarray, done: dict) -
     table["seed"] = seeds
     for k in names:
         table[k] = samples[k]
-    for i, (fs, failed, critical) in done.items():
-        table["fs"][i], table["failed"][i], table["critical"][i] = fs, failed, critical
+    for i, (fs, failed, critical, lost) in done.items():
+        table["fs"][i], table["failed"][i], table["critical"][i], table["lost"][i] = fs, failed, critical, lost
     return table
 
 
@@ -516,20 +560,26 @@ class _Appender:
         self.writer = csv.writer(self.fh)
         if fresh:
             self.fh.write(HEADER_MARK + json.dumps(identity) + "\n")
-            self.writer.writerow(["index", "seed", *names, "fs", "failed", "critical"])
+            self.writer.writerow(_file_columns(names))
             self.fh.flush()
 
-    def append(self, index, seed, values, fs, failed, critical) -> None:
-        self.writer.writerow([index, seed, *[repr(float(v)) for v in values], repr(float(fs)), int(failed), critical])
+    def append(self, index, seed, values, fs, failed, critical, lost) -> None:
+        self.writer.writerow([index, seed, *[repr(float(v)) for v in values], repr(float(fs)), int(failed), critical,
+                              int(lost)])
         self.fh.flush()
 
     def close(self) -> None:
         self.fh.close()
 
 
+def _file_columns(names: tuple) -> list:
+    return ["index", "seed", *names, "fs", "failed", "critical", "lost"]
+
+
 def _read_done(path: Path, identity: dict, names: tuple) -> dict:
-    """Samples already in a study file: index -> (fs, failed, critical). A file of another
-    study is refused; a last line cut short by a kill is ignored (and rewritten)."""
+    """Samples already in a study file: index -> (fs, failed, critical, lost). A file of another
+    study is refused; a last line cut short by a kill is ignored (and rewritten), and a file
+    written before studies recorded lost samples is rewritten with that column (none lost)."""
     if not path.exists() or path.stat().st_size == 0:
         return {}
     with open(path, newline="") as fh:
@@ -544,16 +594,23 @@ def _read_done(path: Path, identity: dict, names: tuple) -> dict:
     done = {}
     good = []
     header = lines[0] if lines else ""
+    old = bool(header) and next(csv.reader([header])) == _file_columns(names)[:-1]  # no 'lost' column
     for line in lines[1:]:
         row = next(csv.reader([line]))
-        if not line.endswith("\n") or len(row) != len(names) + 5:
+        if not line.endswith("\n") or len(row) != len(names) + (5 if old else 6):
             break  # cut short
         try:
-            done[int(row[0])] = (float(row[-3]), bool(int(row[-2])), row[-1])
+            if old:
+                done[int(row[0])] = (float(row[-3]), bool(int(row[-2])), row[-1], False)
+                line = line.rstrip("\r\n") + ",0\r\n"
+            else:
+                done[int(row[0])] = (float(row[-4]), bool(int(row[-3])), row[-2], bool(int(row[-1])))
         except ValueError:
             break
         good.append(line)
-    if len(good) != len(lines) - 1:  # drop a partial last line before appending
+    if old or len(good) != len(lines) - 1:  # drop a partial last line before appending
+        if old:
+            header = header.rstrip("\r\n") + ",lost\r\n"
         with open(path, "w", newline="") as fh:
             fh.write(first + header + "".join(good))
     return done
@@ -574,8 +631,8 @@ def read_study(path) -> Study:
     table = np.zeros(len(rows), dtype=_table_dtype(names, max([len(r["critical"]) for r in rows] + [1])))
     for j, r in enumerate(rows):
         table[j] = (int(r["index"]), int(r["seed"]), *[float(r[k]) for k in names], float(r["fs"]),
-                    bool(int(r["failed"])), r["critical"])
-    return Study(n=len(rows), pf=float(np.mean(table["failed"])) if len(rows) else math.nan, beta=_beta(table["fs"]),
+                    bool(int(r["failed"])), r["critical"], bool(int(r.get("lost") or 0)))
+    return Study(n=len(rows), pf=_pf(table) if len(rows) else math.nan, beta=_beta(table["fs"]),
                  table=table, variables=names, method=identity["method"], sampling=identity["sampling"],
                  seed=identity["seed"])
 
