@@ -58,6 +58,19 @@ def test_a_divisible_item_runs_again_as_its_parts():
     assert all(rows[i] == i * i for i in range(10) if i != 7)
 
 
+def test_each_result_comes_back_as_it_completes_not_with_its_chunk(tmp_path):
+    """Item 1 of a chunk waits for a file that the caller writes on receiving item 0's result:
+    it sees it only if item 0's result came back before the chunk ended (a study saves every
+    sample as it completes)."""
+    mark = str(tmp_path / "got-0")
+    out = {}
+    for index, result in run_processes(worker_cases.waits_for_mark, [[(0, (0, mark)), (1, (1, mark))]], 1):
+        out[index] = result
+        if index == 0:
+            open(mark, "w").close()
+    assert out == {0: True, 1: True}
+
+
 def test_an_exception_is_raised_with_the_workers_traceback():
     with pytest.raises(ValueError, match="three is refused") as info:
         list(run_processes(worker_cases.fails_on_three, [[(i, i) for i in range(6)]], 2))

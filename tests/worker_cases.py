@@ -33,3 +33,15 @@ def kills_on_seven(x):
 def kills_on_seven_in_batch(batch):
     """A batch of items as one item: [(index, x²)]."""
     return [(i, kills_on_seven(x)) for i, x in batch]
+
+
+def waits_for_mark(arg):
+    """Item (k, path): item 0 returns at once; the others wait (up to 60 s) for the file at
+    path, which the caller creates when it has item 0's result; True if it came."""
+    import time
+
+    k, path = arg
+    deadline = time.monotonic() + 60.0
+    while k and not os.path.exists(path) and time.monotonic() < deadline:
+        time.sleep(0.01)
+    return k == 0 or os.path.exists(path)
