@@ -153,79 +153,110 @@ class _Worker:
         self.conn.close()
 
 
+class ProcessPool:
+    """Worker processes running ``fn``, kept between calls of `run` (a study that evaluates its
+    samples batch after batch starts its workers once). Use as a context manager, or `close`."""
+
+    def __init__(self, fn: Callable, n_workers: int):
+        import multiprocessing
+
+        # spawn, not fork: a forked child would inherit a half-initialised Taichi runtime or MKL
+        # thread pool of the parent
+        self._ctx = multiprocessing.get_context("spawn")
+        self._payload = pickle.dumps(fn)
+        self.n_workers = int(n_workers)
+        self._workers: list[_Worker] = []
+        self._start_failures = 0
+
+    def __enter__(self) -> "ProcessPool":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close(kill=exc[0] is not None)
+
+    def close(self, *, kill: bool = False) -> None:
+        """Stop the workers (``kill``: at once, whatever they are doing)."""
+        for w in self._workers:
+            w.stop(kill=kill)
+        self._workers = []
+
+    def run(self, chunks: Sequence[list], *, split: Optional[Callable] = None,
+            max_deaths: int = 2) -> Iterator[tuple[int, Any]]:
+        """Evaluate ``fn(item)`` for every ``(index, item)`` of ``chunks``; yields ``(index,
+        result)`` as each completes, or ``(index, WorkerLost)`` for an item given up (module
+        docstring). ``split(item)``: the item's parts as ``[(index, part)]`` (one result
+        each), to run alone after a death; None or a single part: not divisible. Left before
+        its end (an error, a caller that stops), the workers still busy are killed."""
+        from multiprocessing.connection import wait
+
+        queue = deque(list(c) for c in chunks if len(c))
+        deaths: dict = {}       # index -> deaths charged to that item
+        workers = self._workers
+        ok = False
+        try:
+            while queue or any(w.chunk for w in workers):
+                while len(workers) < min(self.n_workers, len(queue) + sum(w.chunk is not None for w in workers)):
+                    workers.append(_Worker(self._ctx, self._payload))
+                for w in workers:
+                    if w.idle and queue:
+                        w.give(queue.popleft())
+                waiting = {w.conn: w for w in workers}
+                waiting.update({w.process.sentinel: w for w in workers})
+                touched = {id(waiting[r]): waiting[r] for r in wait(list(waiting))}
+                for w in touched.values():
+                    msgs, closed = w.messages()
+                    for msg in msgs:
+                        kind = msg[0]
+                        if kind == "ready":
+                            w.ready, self._start_failures = True, 0
+                        elif kind == "result":
+                            w.chunk.popleft()
+                            yield msg[1], msg[2]
+                        elif kind == "done":
+                            w.chunk = None
+                        elif kind in ("error", "fatal"):
+                            exc = pickle.loads(msg[-2])
+                            exc.__cause__ = RemoteTraceback(msg[-1])
+                            raise exc
+                    if not closed and w.process.is_alive():
+                        continue
+                    # the worker died: its item in flight is charged, the rest go back to the queue
+                    w.process.join(JOIN_TIMEOUT)
+                    code = w.process.exitcode
+                    workers.remove(w)
+                    w.conn.close()
+                    if not w.ready:
+                        self._start_failures += 1
+                        if self._start_failures >= START_FAILURES:
+                            raise RuntimeError(f"{self._start_failures} worker processes in a row died as they "
+                                               f"started ({describe_exit(code)}): they cannot start on this "
+                                               "machine (memory?); pass workers=1 to run in this process")
+                        continue
+                    if not w.chunk:
+                        continue
+                    (index, item), rest = w.chunk[0], list(w.chunk)[1:]
+                    if rest:
+                        queue.appendleft(rest)
+                    count = deaths[index] = deaths.get(index, 0) + 1
+                    parts = split(item) if split is not None else None
+                    if parts is not None and len(parts) > 1:
+                        for part in reversed(parts):
+                            deaths[part[0]] = count
+                            queue.appendleft([part])
+                    elif count >= max_deaths:
+                        yield index, WorkerLost(deaths=count, exitcode=code)
+                    else:
+                        queue.appendleft([(index, item)])
+            ok = True
+        finally:
+            if not ok:  # a busy worker's results would reach the next run: stop it
+                for w in [w for w in workers if w.chunk is not None or not w.ready]:
+                    w.stop(kill=True)
+                    workers.remove(w)
+
+
 def run_processes(fn: Callable, chunks: Sequence[list], n_workers: int, *, split: Optional[Callable] = None,
                   max_deaths: int = 2) -> Iterator[tuple[int, Any]]:
-    """Evaluate ``fn(item)`` for every ``(index, item)`` of ``chunks`` on ``n_workers`` spawned
-    processes; yields ``(index, result)`` as each completes, or ``(index, WorkerLost)`` for an
-    item given up (module docstring). ``split(item)``: the item's parts as ``[(index, part)]``
-    (one result each), to run alone after a death; None or a single part: not divisible."""
-    import multiprocessing
-    from multiprocessing.connection import wait
-
-    # spawn, not fork: a forked child would inherit a half-initialised Taichi runtime or MKL
-    # thread pool of the parent
-    ctx = multiprocessing.get_context("spawn")
-    payload = pickle.dumps(fn)
-    queue = deque(list(c) for c in chunks if len(c))
-    deaths: dict = {}       # index -> deaths charged to that item
-    workers: list[_Worker] = []
-    start_failures = 0
-    ok = False
-    try:
-        while queue or any(w.chunk for w in workers):
-            while len(workers) < min(n_workers, len(queue) + sum(w.chunk is not None for w in workers)):
-                workers.append(_Worker(ctx, payload))
-            for w in workers:
-                if w.idle and queue:
-                    w.give(queue.popleft())
-            waiting = {w.conn: w for w in workers}
-            waiting.update({w.process.sentinel: w for w in workers})
-            touched = {id(waiting[r]): waiting[r] for r in wait(list(waiting))}
-            for w in touched.values():
-                msgs, closed = w.messages()
-                for msg in msgs:
-                    kind = msg[0]
-                    if kind == "ready":
-                        w.ready, start_failures = True, 0
-                    elif kind == "result":
-                        w.chunk.popleft()
-                        yield msg[1], msg[2]
-                    elif kind == "done":
-                        w.chunk = None
-                    elif kind in ("error", "fatal"):
-                        exc = pickle.loads(msg[-2])
-                        exc.__cause__ = RemoteTraceback(msg[-1])
-                        raise exc
-                if not closed and w.process.is_alive():
-                    continue
-                # the worker died: its item in flight is charged, the rest go back to the queue
-                w.process.join(JOIN_TIMEOUT)
-                code = w.process.exitcode
-                workers.remove(w)
-                w.conn.close()
-                if not w.ready:
-                    start_failures += 1
-                    if start_failures >= START_FAILURES:
-                        raise RuntimeError(f"{start_failures} worker processes in a row died as they started "
-                                           f"({describe_exit(code)}): they cannot start on this machine "
-                                           "(memory?); pass workers=1 to run in this process")
-                    continue
-                if not w.chunk:
-                    continue
-                (index, item), rest = w.chunk[0], list(w.chunk)[1:]
-                if rest:
-                    queue.appendleft(rest)
-                count = deaths[index] = deaths.get(index, 0) + 1
-                parts = split(item) if split is not None else None
-                if parts is not None and len(parts) > 1:
-                    for part in reversed(parts):
-                        deaths[part[0]] = count
-                        queue.appendleft([part])
-                elif count >= max_deaths:
-                    yield index, WorkerLost(deaths=count, exitcode=code)
-                else:
-                    queue.appendleft([(index, item)])
-        ok = True
-    finally:
-        for w in workers:
-            w.stop(kill=not ok)
+    """`ProcessPool.run` on a pool of its own, closed at the end."""
+    with ProcessPool(fn, n_workers) as pool:
+        yield from pool.run(chunks, split=split, max_deaths=max_deaths)

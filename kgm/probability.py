@@ -82,6 +82,25 @@ class Study:
     """Samples read from an earlier run's file instead of evaluated [-]."""
     wall_time: float = 0.0
     """Wall time of this call [s]."""
+    # subset simulation and importance sampling (kgm.studies.rare, docs/kgm/reliability.md)
+    pf_cov: float = math.nan
+    """Coefficient of variation of ``pf``: Monte Carlo √((1 − P_f)/(n·P_f)); subset simulation
+    Au & Beck's estimate with the chains' correlation; importance sampling its sampling c.o.v.
+    [-]."""
+    levels: tuple = ()
+    """Subset simulation: its levels (`kgm.studies.rare.StudyLevel`: FS thresholds, conditional
+    probabilities, samples)."""
+    evaluations: int = 0
+    """Limit-state evaluations the estimate rests on (Monte Carlo: the samples) [-]."""
+    design_point: Any = None
+    """Importance sampling: FORM's design point (`kgm.studies.rare.DesignPoint`), in the
+    variables' units, with β and each variable's sensitivity α."""
+    estimate: Any = None
+    """Subset simulation and importance sampling: the estimator's own result
+    (`kgm.studies.reliability`), in standard normal space."""
+    limit_state: Optional[Callable] = None
+    """Subset simulation and importance sampling by limit equilibrium: FS of samples given by
+    their values (name -> array), in this process (`plot_levels` draws FS = 1 with it)."""
 
     @property
     def fs(self) -> np.ndarray:
@@ -110,10 +129,14 @@ class Study:
 
     def pf_interval(self, confidence: float = 0.95) -> tuple[float, float]:
         """Confidence interval of P_f (Wilson's score interval for a binomial proportion; for
-        Monte Carlo sampling — Latin hypercube estimates are tighter)."""
+        Monte Carlo sampling — Latin hypercube estimates are tighter; subset simulation and
+        importance sampling: P_f ×/÷ exp(z·√ln(1 + c.o.v.²)), the estimate taken as lognormal)."""
         from scipy.stats import norm
 
         z = float(norm.ppf(0.5 + 0.5 * confidence))
+        if self.sampling in ("subset", "importance"):
+            k = math.exp(z * math.sqrt(math.log1p(self.pf_cov ** 2))) if math.isfinite(self.pf_cov) else math.inf
+            return self.pf / k, min(1.0, self.pf * k)
         n, p = self.n - int(np.count_nonzero(self.lost)), self.pf
         centre = (p + z * z / (2 * n)) / (1 + z * z / n)
         half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
@@ -134,6 +157,11 @@ class Study:
 
     def summary(self) -> str:
         lo, hi = self.pf_interval()
+        if self.sampling in ("subset", "importance"):
+            how = (f"subset simulation, {len(self.levels)} levels" if self.sampling == "subset" else
+                   f"importance sampling at the design point, beta_FORM = {self.design_point.beta:.3f}")
+            return (f"{self.evaluations} evaluations ({how}, {self.method}, seed {self.seed}): P_f = {self.pf:.3g} "
+                    f"(c.o.v. {self.pf_cov:.2f}, 95 % {lo:.3g}-{hi:.3g}), beta = {self.beta:.3f}")
         finite = self.fs[np.isfinite(self.fs)]
         mean = float(np.mean(finite)) if len(finite) else math.inf
         lost = int(np.count_nonzero(self.lost))
@@ -368,9 +396,14 @@ def probabilistic(build, variables: Mapping, n: int, *, method: str = "sarma",
         top level of an importable module, or the path of a scene script (its ``build``).
     variables : name -> frozen `scipy.stats` distribution (normal, lognormal, truncated normal,
         uniform, triangular...) or a constant; each name is a keyword argument of ``build``.
-    n : samples.
+    n : samples (subset simulation: samples a level; importance sampling: importance samples,
+        after FORM's evaluations).
     method : evaluator of each sample's critical group: 'rigid', 'sarma' or 'dda'.
-    sampling : 'monte-carlo' or 'latin-hypercube'.
+    sampling : 'monte-carlo' or 'latin-hypercube'; for small probabilities of failure
+        'subset' (subset simulation) or 'importance' (FORM, then importance sampling at its
+        design point), or their settings `kgm.SubsetSampling` / `kgm.ImportanceSampling`
+        (`kgm.studies.rare`, docs/kgm/reliability.md): the limit state FS − 1, under DDA the
+        strength-reduction factor of every sample.
     seed : seed of the study (the samples and the per-sample seeds follow from it).
     correlation : {(name1, name2): ρ} between sampled variables (Gaussian copula).
     group : evaluate this group of blocks in every sample instead of searching for the
@@ -408,6 +441,14 @@ def probabilistic(build, variables: Mapping, n: int, *, method: str = "sarma",
 
         if not isinstance(settings, Settings):
             raise ValueError(f"settings must be a kgm.Settings, got {type(settings).__name__}")
+    from .studies.rare import rare_sampling
+
+    if rare_sampling(sampling) is not None:  # subset simulation, importance sampling
+        from .studies.rare import rare_study
+
+        return rare_study(build, variables, n, method=method, sampling=sampling, seed=seed, correlation=correlation,
+                          group=group, settings=settings, client=client, workers=workers, out=out,
+                          geometry_seed=geometry_seed, progress=progress, t0=t0)
     pass_seed = _check_build(build, variables, geometry_seed)
     samples = sample_variables(variables, n, sampling=sampling, seed=seed, correlation=correlation)
     seeds = sample_seeds(seed, n)
@@ -461,9 +502,12 @@ def probabilistic(build, variables: Mapping, n: int, *, method: str = "sarma",
         if writer is not None:
             writer.close()
     table = _table(n, names, samples, seeds, done)
-    return Study(n=n, pf=_pf(table), beta=_beta(table["fs"]), table=table, variables=names,
+    pf = _pf(table)
+    kept = n - int(np.count_nonzero(table["lost"]))
+    return Study(n=n, pf=pf, beta=_beta(table["fs"]), table=table, variables=names,
                  method=method, sampling=sampling, seed=seed, resumed=resumed,
-                 wall_time=time.perf_counter() - t0)
+                 wall_time=time.perf_counter() - t0, evaluations=n,
+                 pf_cov=math.sqrt((1.0 - pf) / (kept * pf)) if pf > 0.0 else math.inf)
 
 
 def _split_batch(batch: tuple) -> list:
@@ -632,6 +676,10 @@ def read_study(path) -> Study:
     for j, r in enumerate(rows):
         table[j] = (int(r["index"]), int(r["seed"]), *[float(r[k]) for k in names], float(r["fs"]),
                     bool(int(r["failed"])), r["critical"], bool(int(r.get("lost") or 0)))
+    if identity["sampling"] in ("subset", "importance"):
+        from .studies.rare import read_rare_study
+
+        return read_rare_study(identity, table)
     return Study(n=len(rows), pf=_pf(table) if len(rows) else math.nan, beta=_beta(table["fs"]),
                  table=table, variables=names, method=identity["method"], sampling=identity["sampling"],
                  seed=identity["seed"])
