@@ -44,6 +44,7 @@ _EXPORTS = {
     "BlockStep": "toppling",
     "probabilistic": "probability", "Study": "probability", "read_study": "probability",
     "sample_variables": "probability",
+    "SubsetSampling": "studies.rare", "ImportanceSampling": "studies.rare",
 }
 
 __all__ = sorted(_EXPORTS)

@@ -185,6 +185,19 @@ class Study:
         return dict(n=self.n, seed=self.seed, sampling=self.sampling, method=self.method,
                     variables=list(self.variables))
 
+    def plot_levels(self, path=None, **kwargs):
+        """Subset simulation's levels (importance sampling's samples) over the two variables
+        that drive failure, with FS = 1 (`kgm.studies.plots.plot_levels`; the [plot] extra)."""
+        from .studies.plots import plot_levels
+
+        return plot_levels(self, path, **kwargs)
+
+    def plot_convergence(self, path=None):
+        """The P_f estimate against evaluations (`kgm.studies.plots.plot_convergence`)."""
+        from .studies.plots import plot_convergence
+
+        return plot_convergence(self, path)
+
     def write_png(self, scene, path, *, size=(640, 480), title: Optional[str] = None) -> Path:
         """Draw the scene's blocks coloured by `block_frequency` (white: never in the critical
         group, dark red: always; fixed blocks grey) with a colour bar; returns the path."""
@@ -418,7 +431,8 @@ def probabilistic(build, variables: Mapping, n: int, *, method: str = "sarma",
         same study is resumed (its samples are not run again).
     geometry_seed : pass each sample's seed to ``build(seed=...)`` (a new joint-set
         realisation per sample); None: when ``build`` has a ``seed`` parameter.
-    progress : called as ``progress(done, n)`` after each completed sample.
+    progress : called as ``progress(done, n)`` after each completed sample (subset and
+        importance sampling: ``progress(evaluations, None)``, their number not known ahead).
     dda_fs : with ``method="dda"``, also find each sample's FS by strength reduction (several
         DDA runs a sample); by default only the verdict at the sample's strength (one run),
         which is all P_f needs, and ``fs`` is nan.

@@ -173,3 +173,11 @@ def incline_scene_dies_once(friction=30.0, cohesion=0.0):
 
         kill_this_worker()
     return incline_scene(friction=friction, cohesion=cohesion)
+
+
+def planar_scene(friction=30.0, cohesion=25e3):
+    """`planar_slope` (H = 20 m, face 60°, plane 30°, crack 5 m) as a ``build(**sample) ->
+    Scene`` for probabilistic studies: the sliding block is block 0, FS = `hoek_bray_fs`."""
+    scene, block = planar_slope(friction=friction, cohesion=cohesion)
+    assert block == 0
+    return scene

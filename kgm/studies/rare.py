@@ -188,7 +188,6 @@ class _LimitState:
         self.cached, self.writer, self.progress = cached, writer, progress
         self.rows: dict = {}      # index -> (values, seed, fs, failed, critical, lost)
         self.count = 0
-        self.lost = 0
 
     def seed_of(self, index: int) -> int:
         return int(np.random.SeedSequence([self.seed, 0x6B676D, index]).generate_state(1, dtype=np.uint32)[0])
@@ -220,7 +219,6 @@ class _LimitState:
                 warnings.warn(f"kgm.probabilistic: evaluation {index} ({_describe(values)}) recorded as lost, taken "
                               f"as safe: {row}", RuntimeWarning, stacklevel=4)
                 row = (math.nan, False, "", True)
-                self.lost += 1
             else:
                 row = (*row, False)
             self.rows[index] = (values, self.seed_of(index), *row)

@@ -61,9 +61,9 @@ def _check(dim, n, seed) -> None:
 PROPOSALS = ("conditional", "random-walk")
 #: acceptance rate the adapted proposal spread aims at [-]: 0.2, below the 0.44 Papaioannou et
 #: al. (2015) recommend for many variables, because a slope's few variables mix better so
-#: (linear limit states in 1, 3 and 8 variables at P_f = 1e-6, 300 seeds: the scatter of the
-#: estimates 1.33, 1.09 and 1.18 times the mean reported c.o.v., against 2.0, 1.2 and 1.3 at
-#: 0.44; docs/kgm/reliability.md)
+#: (linear limit states in 1, 3 and 8 variables at P_f = 1e-6, 200-300 seeds: the scatter of
+#: the estimates 1.33, 1.09 and 1.18 times the mean reported c.o.v.; at 0.44, 2.0 in 1
+#: variable and 1.3 in 2 and in 8; docs/kgm/reliability.md)
 ACCEPTANCE = 0.2
 #: first scale of the adapted spread, times the seeds' standard deviation per component [-]
 LAMBDA0 = 0.6
