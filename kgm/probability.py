@@ -42,8 +42,9 @@ from typing import Any, Callable, Mapping, Optional
 
 import numpy as np
 
-SAMPLINGS = ("monte-carlo", "latin-hypercube")
-METHODS = ("rigid", "sarma", "dda")
+from .kinds import METHOD_NAMES, SAMPLINGS, Method, Sampling
+
+METHODS = METHOD_NAMES
 #: first line of a study file: what identifies the study (a file of another study is refused)
 HEADER_MARK = "# kgm probabilistic study "
 
@@ -161,7 +162,7 @@ def _cell(v) -> Any:
 
 
 # ---------------------------------------------------------------------- sampling
-def sample_variables(variables: Mapping, n: int, *, sampling: str = "monte-carlo", seed: int = 0,
+def sample_variables(variables: Mapping, n: int, *, sampling: str = Sampling.MONTE_CARLO, seed: int = 0,
                      correlation: Optional[Mapping] = None) -> dict:
     """The ``n`` samples of a study: name -> array (n,). ``variables`` maps names to frozen
     `scipy.stats` distributions (anything with ``ppf``) or to constants; ``correlation`` maps
@@ -172,7 +173,7 @@ def sample_variables(variables: Mapping, n: int, *, sampling: str = "monte-carlo
     d = len(names)
     if d == 0:
         u = np.zeros((n, 0))
-    elif sampling == "monte-carlo":
+    elif sampling == Sampling.MONTE_CARLO:
         u = rng.random((n, d))
     else:
         from scipy.stats import qmc
@@ -253,7 +254,7 @@ def _evaluate(job: _Job, item: tuple) -> tuple:
     index, values, seed = item
     try:
         screened = _screen(job, item)
-        if screened[0] is None or job.method != "dda":
+        if screened[0] is None or job.method is not Method.DDA:
             return screened[3]
         scene, params, result, _, settings = screened
         from .blocks import build_block_system
@@ -290,7 +291,7 @@ def _screen(job: _Job, item: tuple) -> tuple:
     # DDA judges the critical group of the screening evaluator (a DDA-ranked search runs
     # DDA on every candidate): the verdict from one run at the sample's strength, FS by
     # strength reduction only when asked (several runs)
-    method = settings.screening if job.method == "dda" else job.method
+    method = job.method.screened_by(settings.screening)
     if job.group is not None:
         result = search.evaluate(scene, job.group, method, settings=settings, params=params)
     else:
@@ -341,8 +342,8 @@ def _describe(values: Mapping) -> str:
 
 
 # ---------------------------------------------------------------------- the study
-def probabilistic(build, variables: Mapping, n: int, *, method: str = "sarma",
-                  sampling: str = "monte-carlo", seed: int = 0, correlation: Optional[Mapping] = None,
+def probabilistic(build, variables: Mapping, n: int, *, method: str = Method.SARMA,
+                  sampling: str = Sampling.MONTE_CARLO, seed: int = 0, correlation: Optional[Mapping] = None,
                   group=None, settings=None, client=None, workers: Optional[int] = None,
                   out=None, geometry_seed: Optional[bool] = None, progress: Optional[Callable] = None,
                   dda_fs: bool = False) -> Study:
@@ -379,8 +380,9 @@ def probabilistic(build, variables: Mapping, n: int, *, method: str = "sarma",
     from ddatai.parallel import ScriptFunction, check_execution, plan, run
 
     t0 = time.perf_counter()
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    if method not in METHOD_NAMES:
+        raise ValueError(f"method must be one of {METHOD_NAMES}, got {method!r}")
+    method = Method(method)
     if isinstance(build, (str, Path)):
         build = ScriptFunction(str(build))
     if not callable(build):
@@ -410,12 +412,12 @@ def probabilistic(build, variables: Mapping, n: int, *, method: str = "sarma",
     # before any work: this process for limit-equilibrium samples, processes for DDA, and a
     # script whose workers could not import what the study needs is told what to add
     workers = plan(functools.partial(_evaluate, job), client=client, workers=workers,
-                   cost="heavy" if method == "dda" else "light", caller="kgm.probabilistic")
+                   cost="heavy" if method is Method.DDA else "light", caller="kgm.probabilistic")
     # DDA verdicts: samples judged side by side, a batch of them per item (kgm.batched.judge_members)
     from .settings import DdaSettings
 
     size = (settings.dda if settings is not None else DdaSettings()).sample_batch \
-        if method == "dda" and not dda_fs else 1
+        if method is Method.DDA and not dda_fs else 1
     if size > 1:
         # one batch a worker or more (a larger batch shares a step among more samples: per
         # sample a batch of 128 costs a fifth of one of 16); none larger than asked
