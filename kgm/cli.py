@@ -241,7 +241,8 @@ def main(argv: Optional[Sequence[str]] = None, out=None) -> int:
 def _probabilistic(args, out) -> int:
     from ddatai.parallel import ScriptFunction
 
-    from .probability import probabilistic, read_variables
+    from .studies.probabilistic import probabilistic
+    from .studies.sampling import read_variables
 
     def bar(done, total):
         if sys.stderr.isatty() or done == total:
