@@ -129,7 +129,9 @@ def test_an_old_study_file_without_the_lost_column_is_resumed(tmp_path):
     ref = _study(kgm_cases.incline_scene, workers=1)
     identity = dict(n=N, seed=5, sampling="latin-hypercube", method="rigid", variables=["friction"], group=[1],
                     dda_fs=False)
-    lines = [kgm.probability.HEADER_MARK + json.dumps(identity) + "\n", "index,seed,friction,fs,failed,critical\r\n"]
+    from kgm.studies.study import HEADER_MARK
+
+    lines = [HEADER_MARK + json.dumps(identity) + "\n", "index,seed,friction,fs,failed,critical\r\n"]
     for r in ref.table[:12]:
         lines.append(f"{r['index']},{r['seed']},{float(r['friction'])!r},{float(r['fs'])!r},{int(r['failed'])},"
                      f"{r['critical']}\r\n")

@@ -200,3 +200,26 @@ def test_example_2_sarma_at_1e_3_subset_and_importance_agree_with_a_million_samp
                                   correlation=correlation, seed=5)
         sd = math.hypot(study.pf * study.pf_cov, mc_sd)
         assert abs(study.pf - mc) <= 3.0 * sd, (sampling, study.pf, study.pf_cov, mc)
+
+
+@pytest.mark.slow
+def test_dda_judged_importance_study_of_a_block_on_a_plane():
+    """method="dda": the limit state is each sample's DDA strength-reduction factor (a bisection
+    of DDA runs, resolved to DdaSettings.fs_tolerance = 2 %). A block on a 30° plane with its
+    friction N(34°, 2°): FS = tanφ/tan 30°, so the design point lies where tanφ = tan 30°·(1 ± 2 %)
+    and P_f between Φ((29.5° − 34°)/2°) and Φ((30.5° − 34°)/2°) (0.012–0.040); the importance
+    estimate (FORM, then 40 samples on 2 workers) within three of its c.o.v. of that range.
+    About 10 minutes on 2 shared cores (a sample took 10–20 s under a load of ~15)."""
+    import scipy.special as sp
+
+    variables = {"friction": st.norm(34.0, 2.0)}
+    study = kgm.probabilistic(kgm_cases.incline_scene, variables, 40, method="dda", group={1},
+                              sampling="importance", seed=2, workers=2)
+    t = math.tan(math.radians(30.0))
+    lo_phi, hi_phi = (math.degrees(math.atan(t * f)) for f in (0.98, 1.02))
+    assert lo_phi <= study.design_point.values["friction"] <= hi_phi, study.design_point
+    lo, hi = (float(sp.ndtr((p - 34.0) / 2.0)) for p in (lo_phi, hi_phi))
+    assert lo * (1.0 - 3.0 * study.pf_cov) <= study.pf <= hi * (1.0 + 3.0 * study.pf_cov), (study.pf, lo, hi)
+    # every row a DDA strength-reduction factor within the bisection's resolution of the closed form
+    fs = study.table["fs"]
+    assert np.all(np.abs(fs / kgm_cases.incline_fs(study.table["friction"], 0.0) - 1.0) < 0.03)

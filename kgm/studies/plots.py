@@ -15,6 +15,8 @@ from typing import Optional, Sequence
 
 import numpy as np
 
+from ..kinds import RARE_SAMPLINGS, Sampling
+
 
 def _pyplot(path):
     try:
@@ -38,7 +40,7 @@ def _save(fig, plt, path):
 
 
 def _rare(study, what: str) -> None:
-    if study.sampling not in ("subset", "importance") or study.estimate is None:
+    if study.sampling not in RARE_SAMPLINGS or study.estimate is None:
         raise ValueError(f"{what} draws a study of sampling='subset' or 'importance' (complete), "
                          f"not {study.sampling!r}")
 
@@ -101,7 +103,7 @@ def _sample_groups(study) -> list:
     """(label, values, fs, colour) of each group of samples to draw."""
     import matplotlib
 
-    if study.sampling == "subset":
+    if study.sampling == Sampling.SUBSET:
         cmap = matplotlib.colormaps["viridis"]
         out = []
         for j, lv in enumerate(study.levels):
@@ -153,7 +155,7 @@ def plot_convergence(study, path=None):
     plt = _pyplot(path)
     fig, ax = plt.subplots(figsize=(7, 4.5), constrained_layout=True)
     est = study.estimate
-    if study.sampling == "subset":
+    if study.sampling == Sampling.SUBSET:
         evals, values = est.history()
         domains = np.cumprod([lv.probability for lv in est.levels])
         covs = np.sqrt(np.cumsum([lv.cov ** 2 for lv in est.levels]))
