@@ -127,7 +127,9 @@ def replay(identity: dict, table: np.ndarray) -> dict:
     requests, each level's samples its rows). A file cut short gives P_f nan."""
     from . import reliability
 
-    est = identity["estimator"]
+    est = identity.get("estimator")
+    if est is None:  # written by Study.to_csv, which keeps the table only
+        return dict(pf=math.nan, beta=math.nan)
     dim, n, seed = len(est["sampled"]), identity["n"], identity["seed"]
     complete = len(table) > 0 and np.array_equal(table["index"], np.arange(len(table)))
     g = _Replay(np.where(table["lost"], np.nan, table["fs"]))

@@ -197,7 +197,9 @@ class Study:
         return plot_convergence(self, path)
 
     def to_csv(self, path) -> Path:
-        """Write the table (with the study's header line) to ``path``; returns the path."""
+        """Write the table (with the study's header line) to ``path``; returns the path. (A
+        subset or importance study's own ``out`` file also names its estimator's settings, so
+        that `read_study` runs the estimator again on it; this file keeps the table only.)"""
         path = Path(path)
         with open(path, "w", newline="") as fh:
             fh.write(HEADER_MARK + json.dumps(self._identity()) + "\n")
