@@ -196,3 +196,12 @@ def test_planar_slide_with_correlated_lognormal_cohesion_importance_and_subset()
         assert abs(imp.pf - exact) <= 3.0 * imp.cov * exact, (seed, imp.pf, imp.cov, exact)
         sub = subset_simulation(_slide_g, 2, n=1000, seed=seed)
         assert abs(sub.pf - exact) <= 3.0 * sub.cov * exact, (seed, sub.pf, sub.cov, exact)
+
+
+def test_form_where_the_median_inputs_fail_gives_a_negative_beta():
+    """g(u) = u₁ − 1 + 0.1·u₂²: the origin fails (g = −1); the design point is (1, 0), β = −1,
+    FORM's P_f = Φ(1) ≈ 0.84; forward differences of step h see ∂g/∂u₂ = 0.1·h at u₂ = 0, which
+    moves u₂* by about as much (0.005)."""
+    f = form(lambda u: u[:, 0] - 1.0 + 0.1 * u[:, 1] ** 2, 2)
+    assert f.converged and f.beta == pytest.approx(-1.0, abs=1e-3)
+    assert f.u == pytest.approx([1.0, 0.0], abs=0.1 * 0.05 + 1e-3) and f.pf == pytest.approx(st.norm.cdf(1.0), abs=1e-3)
