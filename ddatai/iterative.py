@@ -119,3 +119,30 @@ def _refinement(k, b: np.ndarray, x: np.ndarray, solve, target: float, passes: i
         best, last = x, residual
         x = x + solve(np.ascontiguousarray(r))
     return x, residual, False
+
+
+def refine_to_roundoff(k, b: np.ndarray, x: np.ndarray, solve, passes: int = REUSE_PASSES
+                       ) -> tuple[np.ndarray, float, bool]:
+    """Iterative refinement x ← x + solve(b − K x) of a solve by an updated factor (`ddatai.updates`),
+    done when the residual is within its own round-off: |b − K x|ᵢ ≤ m·ε·(|K|·|x|)ᵢ in every row,
+    m the most entries in a row of K (the bound on the rounding of the m-term sums that compute
+    the residual; a direct solve can do no better), or within `REUSE_RESIDUAL` × |b|max. It
+    gives up (not done) after ``passes`` corrections, or where a pass does not reduce the
+    residual by `REUSE_RATE`. Returns (x, relative residual |b − K x|max / |b|max, done)."""
+    scale = max(float(np.abs(b).max()), 1e-300)
+    row_terms = int(np.max(np.diff(k.indptr), initial=1)) + 1
+    abs_k = abs(k)
+    last = np.inf
+    for done in range(passes + 1):
+        if not np.all(np.isfinite(x)):
+            return x, np.inf, False
+        r = b - k @ x
+        floor = row_terms * np.finfo(float).eps * (abs_k @ np.abs(x))
+        residual = float(np.abs(r).max())
+        if residual <= REUSE_RESIDUAL * scale or np.all(np.abs(r) <= floor):
+            return x, residual / scale, True
+        if residual > REUSE_RATE * last or done == passes:
+            break
+        last = residual
+        x = x + solve(np.ascontiguousarray(r))
+    return x, residual / scale, False

@@ -63,6 +63,10 @@ def available(name: str) -> bool:
     """Whether a backend can be used here."""
     if name in ("scipy", "dense"):
         return True
+    if name == "cholmod":
+        from .updates import available as cholmod_available
+
+        return cholmod_available()
     if name == "pardiso":
         _locate_mkl()
         try:
@@ -92,7 +96,7 @@ def resolve(name: str, unknowns: Optional[int] = None) -> str:
 
 from .iterative import (KRYLOV_ACCEPT, KRYLOV_BLOCKS, KRYLOV_ITERATIONS, KRYLOV_RESIDUAL,  # noqa: F401
                         REFINE_ABOVE, REFINE_PASSES, REUSE_FLOOR, REUSE_PASSES, REUSE_RATE, REUSE_RESIDUAL,
-                        _refinement, gmres)
+                        _refinement, gmres, refine_to_roundoff)
 
 
 def _locate_mkl() -> None:
@@ -221,6 +225,14 @@ class SparseSolver:
         self.reused = 0          # solves done by refinement with an earlier factor (``reuse``)
         self.krylov = 0          # solves done by GMRES with an earlier factor (``krylov``)
         self.krylov_iterations = 0  # GMRES iterations of those
+        self.updated = 0         # solves done by CHOLMOD rank updates of the last factor (``springs``)
+        # the CHOLMOD factor that follows the contact springs (`ddatai.updates`), where the
+        # [cholmod] extra is installed and the system is solved sparse
+        self._updating = None
+        if self.backend != "dense" and available("cholmod"):
+            from .updates import UpdatedFactor
+
+            self._updating = UpdatedFactor()
 
     def __del__(self):
         for h in getattr(self, "_handles", {}).values():
@@ -229,13 +241,27 @@ class SparseSolver:
             except Exception:  # noqa: BLE001 - interpreter shutdown
                 pass
 
+    @property
+    def updates(self) -> bool:
+        """Whether symmetric solves given their ``springs`` follow them by CHOLMOD's rank updates
+        (`ddatai.updates`: the [cholmod] extra, a sparse backend)."""
+        return self._updating is not None
+
     def solve(self, data: np.ndarray, indices: np.ndarray, indptr: np.ndarray, rhs: np.ndarray,
               pattern: object = None, symmetric: bool = True, reuse: bool = False,
-              krylov: bool = False) -> np.ndarray:
+              krylov: bool = False, springs=None) -> np.ndarray:
         """x with K x = ``rhs``. ``reuse``: K is expected to be close to the last matrix
         factorised (module docstring): try refinement with that factor first. ``krylov``: K
-        differs from it by the terms of a few contacts: try GMRES preconditioned by it first."""
+        differs from it by the terms of a few contacts: try GMRES preconditioned by it first.
+        ``springs`` (`ddatai.updates.Springs`, a symmetric K): the contact springs in K; where
+        CHOLMOD is installed, K is solved by rank updates of the last factor while its springs
+        differ from that factor's by few terms, and factorised by CHOLMOD otherwise (so that
+        the next solves can update it)."""
         n = len(indptr) - 1
+        if springs is not None and symmetric and self._updating is not None:
+            return self._solve_updating(data, indices, indptr, rhs, n, springs, reuse)
+        if self._updating is not None:
+            self._updating.forget()  # another K: its factor no longer follows the springs
         if krylov:
             x = self._solve_krylov(data, indices, indptr, rhs, n)
             if x is not None:
@@ -251,6 +277,40 @@ class SparseSolver:
         # the matrix of the factor, against which a Krylov solve measures its change
         self._factored_data = np.array(data, dtype=np.float64)
         return self._factorise(data, indices, indptr, rhs, n, symmetric)
+
+    def _solve_updating(self, data, indices, indptr, rhs, n, springs, reuse) -> np.ndarray:
+        """The symmetric solve with springs (`solve`): by updates of the factor in hand, each
+        checked by its residual against K and refined as a reused factor is (`_refinement`);
+        a step's first solve (``reuse``, another step's vectors) by refinement with the last
+        factor first; otherwise a CHOLMOD factorisation, or the backend's LU where K is not
+        positive definite."""
+        u = self._updating
+        b = np.ascontiguousarray(rhs, dtype=np.float64)
+        if u.factor is not None and self._same(self._factor[1] if self._factor else None, indptr, indices) \
+                and u.update(springs, n):
+            from scipy.sparse import csr_matrix
+
+            k = csr_matrix((data, indices, indptr), shape=(n, n))
+            x, residual, done = refine_to_roundoff(k, b, u.solve(b), u.solve)
+            if done:
+                self._factor = (True, (indptr, indices), u.factor.solve_A)
+                self._factored_data = np.array(data, dtype=np.float64)
+                self.updated += 1
+                self.last_residual = residual
+                return x
+        elif reuse:
+            x = self._solve_reusing(data, indices, indptr, rhs, n, True)
+            if x is not None:
+                self.reused += 1
+                u.forget()  # the factor is of the last step's K, not of these springs
+                return x
+        self.factorisations += 1
+        self._factored_data = np.array(data, dtype=np.float64)
+        if u.factorise(data, indices, indptr, n, self._same, springs):
+            self._factor = (True, (indptr, indices), u.factor.solve_A)
+            return u.solve(b)
+        self.lu_factorisations += 1  # not positive definite: LU
+        return self._factorise(data, indices, indptr, rhs, n, False)
 
     def factor_solve(self, rhs: np.ndarray) -> "np.ndarray | None":
         """K⁻¹·rhs with the last factor (the matrix last factorised); None without one."""
