@@ -129,9 +129,11 @@ def open_close(stepper, state: State, geom: dict, contacts: Contacts, pattern: B
         # the blocks, and the last factor may still solve it (`ddatai.solver`, reuse)
         # the later solves differ from the last factor by the contacts that changed state
         # since: while they are few, GMRES preconditioned by it (`ddatai.solver`, krylov)
-        # and where CHOLMOD is installed a symmetric K's later solves update the last factor by
-        # the springs that changed (`ddatai.updates`)
-        springs = Springs.of(model, contacts, vec, rows) if symmetric and rows is not None else None
+        # and where CHOLMOD is installed the lagged iteration's K, symmetric at every solve,
+        # follows the springs that changed by updates of the last factor (`ddatai.updates`); a
+        # coupled iteration's K turns non-symmetric at its first sliding contact, and its first
+        # solve is factorised by the backend (PARDISO's Cholesky is cheaper than CHOLMOD's)
+        springs = Springs.of(model, contacts, vec, rows) if symmetric and lagged and rows is not None else None
         solution = solve(stepper, pattern, data, rhs, symmetric=symmetric, reuse=reuse_first and it == 1,
                          krylov=it > 1, springs=springs)
         t0 = timer.add("solve", t0)
