@@ -133,16 +133,19 @@ def run_one(family: str, size: int, steps: int, warmup: int, arch: str, solver: 
     start = {}
     t_run = time.perf_counter()
     if protocol == "settled":
+        cpu = time.process_time()
         state, rec = settle(stepper, state)
-        start = dict(start_s=rec.wall_time, start_solves=rec.solves, start_held=rec.held,
+        start = dict(start_s=rec.wall_time, start_cpu_s=time.process_time() - cpu, start_solves=rec.solves, start_held=rec.held,
                      start_released=rec.released, start_factorisations=rec.factorisations,
                      start_welded=bool(rec.welded))
-    records, factorised = [], []
+    records, factorised, cpu = [], [], []
     for k in range(warmup + steps):
+        cpu.append(time.process_time())
         before = stepper.solver.factorisations
         state, record = stepper.step(state)
         records.append(record.row())
         factorised.append(stepper.solver.factorisations - before)
+        cpu[-1] = time.process_time() - cpu[-1]
         if k + 1 == FROM_REST_STEPS and protocol == "settled":
             start["from_rest_ms_per_step"] = (time.perf_counter() - t_run) / FROM_REST_STEPS * 1e3
     all_steps = np.array(records, dtype=dd.STEP_DTYPE)
@@ -155,7 +158,7 @@ def run_one(family: str, size: int, steps: int, warmup: int, arch: str, solver: 
     total = step_wall_time(s)
     out = dict(family=family, blocks=int(model.n_free), all_blocks=int(model.n_blocks), arch=arch,
                solver=stepper.solver.backend + (" numpy" if model.numpy_path else ""), build_s=build_s,
-               ms_per_step=float(np.median(total)) * 1e3,
+               ms_per_step=float(np.median(total)) * 1e3, cpu_ms_per_step=float(np.median(cpu[warmup:])) * 1e3,
                ms_per_oc=float(np.median(total / np.maximum(s["oc_iterations"], 1))) * 1e3,
                oc_per_step=float(np.mean(s["oc_iterations"])), dt_cuts=int(s["dt_cuts"].sum()),
                protocol=protocol, solves_per_step=float(np.mean(s["oc_total"])),
@@ -436,7 +439,8 @@ def main() -> None:
 def one_run(tree: Path, family: str, size: int, a) -> "dict | None":
     """One (family, size) measured by ``tree``'s own benchmarks/scaling.py in a fresh process."""
     steps = a.steps if a.steps is not None else protocol_steps(size)
-    cmd = [sys.executable, str(tree / "benchmarks" / "scaling.py"), "--one", family, str(size), "--steps", str(steps),
+    # this script measures both (the same harness), importing ddatai from ``tree``
+    cmd = [sys.executable, __file__, "--one", family, str(size), "--steps", str(steps),
            "--warmup", str(a.warmup), "--arch", a.arch, "--solver", a.solver, "--reference-max", "0",
            "--protocol", a.protocol, "--kernels", a.kernels]
     proc = subprocess.run(cmd, capture_output=True, text=True, cwd=tree, env={**__import__("os").environ,
@@ -448,8 +452,10 @@ def one_run(tree: Path, family: str, size: int, a) -> "dict | None":
 
 
 #: what the paired table compares: (key, heading, format)
-PAIRED = [("ms_per_step", "ms/step", "{:.1f}"), ("solves_per_step", "solves/step", "{:.2f}"),
+PAIRED = [("ms_per_step", "ms/step", "{:.1f}"), ("cpu_ms_per_step", "CPU ms/step", "{:.1f}"),
+          ("solves_per_step", "solves/step", "{:.2f}"),
           ("factorisations_per_step", "factorisations/step", "{:.2f}"), ("start_s", "stage s", "{:.2f}"),
+          ("start_cpu_s", "stage CPU s", "{:.2f}"),
           ("start_solves", "stage solves", "{:.0f}"), ("start_factorisations", "stage factorisations", "{:.0f}"),
           ("from_rest_ms_per_step", "stage + 10 steps ms/step", "{:.0f}"), ("peak_mb", "peak MB", "{:.0f}")]
 

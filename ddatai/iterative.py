@@ -48,11 +48,11 @@ def gmres(k, b: np.ndarray, solve, tol: float = KRYLOV_RESIDUAL, max_iterations:
     iterations, whether the residual estimate reached ``tol`` × |b|₂).
 
     Kept instead of `scipy.sparse.linalg.gmres` with the factor as its preconditioner, which
-    `benchmarks/gmres.py` measured paired on the 391-block slope's K with 1–8 contacts changed:
+    ``benchmarks/gmres.py`` measured paired on the 391-block slope's K with 1–8 contacts changed:
     SciPy's preconditions from the left, so it applies the factor twice more per solve (to b and
     to the first residual) and stops on the preconditioned residual — 1.2–1.9× the time at the
     same iteration counts, and a true residual of 1.3e-12 with 4 contacts changed, above what
-    the solver accepts (`KRYLOV_ACCEPT`, which would cost a factorisation); this one starts from
+    the solver accepts (``KRYLOV_ACCEPT``, which would cost a factorisation); this one starts from
     x0 = solve(b), preconditions from the right and so minimises the true residual."""
     from scipy.linalg import solve_triangular
 
@@ -134,9 +134,9 @@ def refine_to_roundoff(k, b: np.ndarray, x: np.ndarray, solve, passes: int = REU
     """Iterative refinement x ← x + solve(b − K x) of a solve by an updated factor (`ddatai.updates`),
     done when the residual is within its own round-off: |b − K x|ᵢ ≤ m·ε·(|K|·|x|)ᵢ in every row,
     m the most entries in a row of K (the bound on the rounding of the m-term sums that compute
-    the residual; a direct solve can do no better), or within `REUSE_RESIDUAL` × |b|max. It
+    the residual; a direct solve can do no better), or within ``REUSE_RESIDUAL`` × |b|max. It
     gives up (not done) after ``passes`` corrections, or where a pass does not reduce the
-    residual by `REUSE_RATE`. Returns (x, relative residual |b − K x|max / |b|max, done)."""
+    residual by ``REUSE_RATE``. Returns (x, relative residual |b − K x|max / |b|max, done)."""
     scale = max(float(np.abs(b).max()), 1e-300)
     row_terms = int(np.max(np.diff(k.indptr), initial=1)) + 1
     abs_k = abs(k)

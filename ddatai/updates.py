@@ -17,9 +17,9 @@ What an update costs, measured on the 1,537-block slope's K (9,222 unknowns, 2-c
 thread; docs/guide/performance.md): a rank-r update about r/300 of a numeric factorisation (the
 first after a factorisation also converts the supernodal factor to the simplicial form the
 update needs, about 1/30 of one), and a solve with the updated factor about 1/20. So a solve
-whose springs differ from the factor's by at most `UPDATE_RANK` columns is done by updates
-(`SparseSolver.solve`, ``springs``); more, or once the updates since the last factorisation add
-up to `ACCUMULATED_RANK` columns, factorise. Each updated solve is checked against K itself
+whose springs differ from the factor's by at most ``UPDATE_RANK`` columns is done by updates
+(`ddatai.solver.SparseSolver.solve`, ``springs``); more, or once the updates since the last factorisation add
+up to ``ACCUMULATED_RANK`` columns, factorise. Each updated solve is checked against K itself
 (its residual, with refinement by the updated factor, as a factor reused between steps), so
 the round-off of many updates can cost a factorisation, never accuracy.
 
@@ -71,9 +71,9 @@ class Springs:
     """The contact springs in one K: for each contact the line of its normal spring (−1: open)
     and whether it has a shear spring, with the contact vectors and penalties they are made of.
     Two `Springs` of the same contact vectors (``vec``, the same array) differ by the
-    rank-one terms of `columns`."""
+    rank-one terms of `Springs.columns`."""
 
-    vec: np.ndarray          # (m, N_SLOTS, 6) the contact vectors of the step (`assembly.contact_vectors`)
+    vec: np.ndarray          # (m, N_SLOTS, 6) the contact vectors of the step (`ddatai.assembly.contact_vectors`)
     rows: np.ndarray         # (m, 2, 2) block-row of blocks i and j of line 0 and line 1 (−1: fixed)
     normal: np.ndarray       # (m,) int8: line of the normal spring, −1 for none
     shear: np.ndarray        # (m,) bool: a shear spring (locked vertex-edge contact)
@@ -82,7 +82,7 @@ class Springs:
 
     @staticmethod
     def of(model, contacts, vec: np.ndarray, rows: Optional[np.ndarray] = None) -> "Springs":
-        """The springs that the contacts' states put in K (`assembly.assemble_contacts`):
+        """The springs that the contacts' states put in K (`ddatai.assembly.assemble_contacts`):
         a normal spring on the active line of every closed contact, a shear spring on every
         locked vertex-edge one. ``rows``: `block_rows` of these contacts, if already known."""
         closed = contacts.state != OPEN
@@ -93,7 +93,7 @@ class Springs:
 
     def same_terms(self, other: "Springs") -> bool:
         """Whether ``other``'s springs are made of the same vectors (the same step's geometry)
-        and penalties, so that the two K differ only by `columns`."""
+        and penalties, so that the two K differ only by `Springs.columns`."""
         return (other is not None and other.vec is self.vec and len(other.normal) == len(self.normal)
                 and other.penalty == self.penalty and other.shear_penalty == self.shear_penalty)
 
@@ -105,7 +105,7 @@ class Springs:
                 np.flatnonzero(self.shear & ~other.shear), np.flatnonzero(other.shear & ~self.shear))
 
     def rank(self, other: "Springs") -> int:
-        """How many rank-one terms separate the two K (`columns`)."""
+        """How many rank-one terms separate the two K (`Springs.columns`)."""
         return int(sum(len(k) for k in self.changed(other)))
 
     def columns(self, other: "Springs", n: int):
@@ -144,7 +144,7 @@ class Springs:
 def block_rows(model, contacts) -> np.ndarray:
     """(m, 2, 2) block-row of the blocks of each contact line: [line 0: vertex's block, edge's
     block; line 1: the same of the second line of a vertex-vertex contact], −1 for a fixed block
-    (the rows `assembly.assemble_contacts` adds each spring to)."""
+    (the rows `ddatai.assembly.assemble_contacts` adds each spring to)."""
     vb, dof = model.vertex_block, model.block_dof
     cint = contacts.cint
     out = np.empty((contacts.n, 2, 2), np.int64)
@@ -174,7 +174,7 @@ class UpdatedFactor:
                   springs: Springs) -> bool:
         """Factorise K (CSR of a symmetric K = its CSC); returns False where it is not positive
         definite (the caller then solves it by LU). ``same(key, indptr, indices)``: whether a
-        stored structure is this one (`SparseSolver._same`)."""
+        stored structure is this one (``SparseSolver._same``)."""
         from scipy.sparse import csc_matrix
         from sksparse import cholmod
 
@@ -193,7 +193,7 @@ class UpdatedFactor:
 
     def update(self, springs: Springs, n: int) -> bool:
         """Make the factor stand for ``springs`` by rank updates; False where it cannot (no
-        factor, another step's vectors, too many columns: `UPDATE_RANK`, `ACCUMULATED_RANK`), or
+        factor, another step's vectors, too many columns: ``UPDATE_RANK``, ``ACCUMULATED_RANK``), or
         where a downdate loses positive definiteness (the factor is then dropped)."""
         if self.factor is None or not springs.same_terms(self.springs):
             return False
