@@ -113,7 +113,7 @@ def open_close(stepper, state: State, geom: dict, contacts: Contacts, pattern: B
         contacts.coupled[:] = False  # friction from the last solve's N: K symmetric
     fewest, since = contacts.n + 1, 0  # the fewest contacts changing, solves since then
     # the rows of each contact's springs, where the solver follows them by factor updates
-    rows = block_rows(model, contacts) if stepper.solver.updates else None
+    rows = block_rows(model, contacts) if stepper.solver.updates and stepper.params.factor_updates else None
     seen = {contacts.state.tobytes(): 0}  # each set of states tried, and when (`hold_cycling`)
     history = [contacts.state.copy()]
     held = np.zeros(contacts.n, bool)

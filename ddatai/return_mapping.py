@@ -277,7 +277,7 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
     tensile = np.where(contacts.bond, contacts.tensile * contacts.length, 0.0)
     pen, ks = model.penalty, model.shear_penalty
     disp = np.zeros((model.n_blocks, 6))
-    rows = block_rows(model, contacts) if stepper.solver.updates else None
+    rows = block_rows(model, contacts) if stepper.solver.updates and p.factor_updates else None
     history: list = []
     flips = np.zeros(contacts.n, np.int64)  # how often each contact opened or closed
     changed = True  # the closed contacts changed: K is factorised
