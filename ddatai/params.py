@@ -247,12 +247,8 @@ class Params:
     falling back to coupled where it stalls). Both accept the same law; lagged took 1.5–2× the
     solves on the benchmark models, more than its cheaper factor saves (`ddatai.open_close`)."""
     factor_updates: bool = False
-    """Follow contact state changes by rank updates of the last Cholesky factor (CHOLMOD, the
-    ``[cholmod]`` extra; without it this does nothing): the equilibrium stage's return mapping
-    and the lagged-friction iteration then update the factor where contacts open, close, lock or
-    slide instead of factorising (`ddatai.updates`). Off by default: measured paired, it cuts
-    the stage's factorisations by half or more at the same time at 1,600 blocks, and its
-    round-off takes the 1,537-block slope's stage another way (docs/guide/performance.md)."""
+    """Update the last Cholesky factor where contacts change state, in the stage and the lagged
+    iteration (`ddatai.updates`, the ``[cholmod]`` extra); off: no time saved (measured)."""
     oc_state_tolerance: float = 1e-3
     """Open-close convergence, state and motion [-]: a contact's state may differ from what its
     motion calls for (open but overlapping, sliding where it would stick) while the force that
