@@ -44,6 +44,11 @@ _EXPORTS = {
     "BlockStep": "toppling",
     "probabilistic": "probability", "Study": "probability", "read_study": "probability",
     "sample_variables": "probability",
+    # 3D: wedges and key blocks of a rock slope (docs/kgm/wedge.md)
+    "Plane": "wedges.geometry", "wedge": "wedges.slope", "Wedge": "wedges.slope",
+    "TensionCrack": "wedges.slope", "Support": "wedges.slope", "Water": "wedges.mechanics",
+    "Seismic": "wedges.mechanics", "Bolt": "wedges.mechanics", "Force": "wedges.mechanics",
+    "joint_pyramids": "wedges.block_theory", "JointPyramid": "wedges.block_theory",
 }
 
 __all__ = sorted(_EXPORTS)
