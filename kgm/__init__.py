@@ -45,8 +45,9 @@ _EXPORTS = {
     "probabilistic": "probability", "Study": "probability", "read_study": "probability",
     "sample_variables": "probability",
     # 3D: wedges and key blocks of a rock slope (docs/kgm/wedge.md)
-    "Plane": "wedges.geometry", "wedge": "wedges.slope", "Wedge": "wedges.slope",
-    "TensionCrack": "wedges.slope", "Support": "wedges.slope", "Water": "wedges.mechanics",
+    "Plane": "wedges.geometry", "wedge": "wedges.slope", "Wedge": "wedges.block",
+    "TensionCrack": "wedges.slope", "Support": "wedges.block", "polyhedral_block": "wedges.block",
+    "Halfspace": "wedges.geometry", "Water": "wedges.mechanics",
     "Seismic": "wedges.mechanics", "Bolt": "wedges.mechanics", "Force": "wedges.mechanics",
     "joint_pyramids": "wedges.block_theory", "JointPyramid": "wedges.block_theory",
 }

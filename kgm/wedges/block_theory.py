@@ -7,7 +7,8 @@ the rock sides of the free faces its **excavation pyramid** EP. With n non-paral
 there are 2ⁿ joint pyramids, one per sign code (above or below each plane). The theorems:
 
 * **finite** if and only if the block pyramid BP = JP ∩ EP is the origin alone;
-* a finite block is **removable** if and only if its JP is not empty (has an interior);
+* a finite block is **removable** if and only if its JP is not empty (holds a direction other
+  than the origin; between parallel joints it is a line or a flat cone, along which it slides);
   a finite block with an empty JP is **tapered**: it cannot leave its socket.
 
 Both are linear programs (`jp_is_empty`, `is_finite`). The **mode** of a removable block under
@@ -31,19 +32,19 @@ KINEMATIC_TOLERANCE = 1e-9
 
 
 def jp_is_empty(inward_normals: np.ndarray, tol: float = 1e-9) -> bool:
-    """True if the joint pyramid {d: vₖ·d ≥ 0 for all k} has no interior (``inward_normals``
-    point into the block): the LP max t s.t. vₖ·d ≥ t, |d|∞ ≤ 1 has t ≤ ``tol``."""
+    """True if the joint pyramid {d: vₖ·d ≥ 0 for all k} is the origin alone (``inward_normals``
+    point into the block): no translation leaves the block's joint faces without entering one.
+    A JP reduced to a line or a flat cone (a block between parallel joints) is not empty: the
+    block slides along it. LP: max Σvₖ·d s.t. vₖ·d ≥ 0, |d|∞ ≤ 1 is 0 and V has rank 3."""
     from scipy.optimize import linprog
 
     v = np.atleast_2d(np.asarray(inward_normals, dtype=float))
-    if len(v) == 0:
-        return False
-    if len(v) <= 3 and np.linalg.matrix_rank(v, tol=1e-9) == len(v):
+    if len(v) == 0 or np.linalg.matrix_rank(v, tol=1e-9) < 3:
+        return False                     # a direction perpendicular to every normal stays free
+    if len(v) <= 3:
         return False                     # independent normals: V d = (1, …, 1) has a solution
-    a_ub = np.hstack([-v, np.ones((len(v), 1))])
-    res = linprog(c=[0, 0, 0, -1.0], A_ub=a_ub, b_ub=np.zeros(len(v)),
-                  bounds=[(-1, 1)] * 3 + [(None, 1)], method="highs")
-    return bool(res.status != 0 or -res.fun <= tol)
+    res = linprog(c=-v.sum(axis=0), A_ub=-v, b_ub=np.zeros(len(v)), bounds=[(-1, 1)] * 3, method="highs")
+    return bool(res.status == 0 and -res.fun <= tol)
 
 
 def is_finite(inward_joint_normals: np.ndarray, outward_free_normals: np.ndarray, tol: float = 1e-9) -> bool:
@@ -70,7 +71,7 @@ class JointPyramid:
     """Side of each joint plane the block lies on: +1 above (on the side of its upward
     normal), −1 below (Goodman & Shi's 0 and 1)."""
     empty: bool
-    """JP has no interior."""
+    """JP is the origin alone."""
     finite: bool
     """BP = JP ∩ EP = {0}."""
 

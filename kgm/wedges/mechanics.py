@@ -214,9 +214,10 @@ def equilibrium(contacts: Sequence[Contact], active: np.ndarray, passive: Option
     p = np.zeros(3) if passive is None else np.asarray(passive, dtype=float)
     v = np.array([c.normal for c in contacts]) if contacts else np.zeros((0, 3))
     best = None
-    for mode in admissible_modes(r, v):
+    for mode in admissible_modes(r, v):                  # falling, one plane, two planes
         eq = _judge(mode, contacts, v, r, p, mass)
-        if best is None or eq.fs < best.fs:
+        # a tie (release planes without load) keeps the mode with fewer faces
+        if best is None or eq.fs < best.fs * (1.0 - 1e-12):
             best = eq
     return best
 
@@ -296,15 +297,73 @@ def _optimum_direction(eq: Equilibrium, contacts, v, r, f: float) -> np.ndarray:
     if mode.kind == "falling" or mode.kind == "stable":
         return -r / np.linalg.norm(r)
     s = mode.direction
-    # g·d: the strength a unit force along d adds through the normal forces (tan φ at the
-    # current normal stress), and −F ŝ·d: the drive it removes; d ∥ g − F ŝ maximises both
+    g = _strength_gradient(eq, contacts, v)
+    d = g - f * s
+    return d / np.linalg.norm(d)
+
+
+def worst_force(contacts: Sequence[Contact], active: np.ndarray, passive: Optional[np.ndarray], mass: float,
+                magnitude: float) -> tuple[float, np.ndarray]:
+    """The least FS an external force of this ``magnitude`` [N] can give, and its direction
+    (Hoek & Bray's minimum factor of safety for a load E in its worst direction, Wyllie & Mah
+    eq. III.81–III.98, for any mode). With Q₀, S₀ the strength and drive without it and g the
+    strength a unit force adds through the normal forces (g ⟂ ŝ), F = Q/S is least along
+    d = −(g − F ŝ)/|g − F ŝ| where (Q₀ − F S₀)² = E²(|g|² + F²): the smaller root. A mode that
+    changes under the load (contact lost) is caught by minimising the full equilibrium over
+    directions from there."""
+    r = np.asarray(active, dtype=float)
+    eq = equilibrium(contacts, r, passive, mass)
+    e = float(magnitude)
+    if e <= 0:
+        return eq.fs, np.zeros(3)
+    if eq.mode.kind in ("falling", "stable"):
+        d = r / np.linalg.norm(r) if eq.mode.kind == "falling" else -_held_direction(contacts)
+        return equilibrium(contacts, r + e * d, passive, mass).fs, d
+    v = np.array([c.normal for c in contacts])
+    g = _strength_gradient(eq, contacts, v)
+    s = eq.mode.direction
+    q0, s0 = eq.resisting, eq.driving
+    a2, a1, a0 = s0 * s0 - e * e, -2.0 * (q0 * s0 - e * e * float(g @ s)), q0 * q0 - e * e * float(g @ g)
+    if abs(a2) < 1e-300:
+        f = a0 / -a1
+    else:
+        disc = max(a1 * a1 - 4 * a2 * a0, 0.0)
+        roots = sorted([(-a1 - math.sqrt(disc)) / (2 * a2), (-a1 + math.sqrt(disc)) / (2 * a2)])
+        f = next((x for x in roots if x <= q0 / s0 + 1e-12 and x >= 0), 0.0)
+    d = -(g - f * s)
+    d = d / np.linalg.norm(d)
+    full = equilibrium(contacts, r + e * d, passive, mass).fs
+    if abs(full - f) <= 1e-9 * max(1.0, f):
+        return f, d
+    from scipy.optimize import minimize
+
+    def fs_at(x):
+        u = np.array([math.cos(x[1]) * math.sin(x[0]), math.cos(x[1]) * math.cos(x[0]), -math.sin(x[1])])
+        return min(equilibrium(contacts, r + e * u, passive, mass).fs, 1e6)
+
+    t0 = math.atan2(d[0], d[1])
+    p0 = -math.asin(max(-1.0, min(1.0, d[2])))
+    res = minimize(fs_at, [t0, p0], method="Nelder-Mead", options=dict(xatol=1e-10, fatol=1e-12, maxiter=4000))
+    t, p = res.x
+    d = np.array([math.cos(p) * math.sin(t), math.cos(p) * math.cos(t), -math.sin(p)])
+    return float(res.fun), d
+
+
+def _held_direction(contacts) -> np.ndarray:
+    v = np.array([c.normal for c in contacts])
+    d = v.sum(axis=0)
+    return d / np.linalg.norm(d)
+
+
+def _strength_gradient(eq: Equilibrium, contacts, v) -> np.ndarray:
+    """g: the shear strength a unit force along each axis adds through the normal forces of
+    the mode's faces (tan φ at the current normal stress) [-]."""
     g = np.zeros(3)
-    for i in mode.planes:
+    for i in eq.mode.planes:
         unit = np.zeros(3)
         for axis in range(3):
             e = np.zeros(3)
             e[axis] = 1.0
-            unit[axis] = normal_forces(e, mode, v)[i]
+            unit[axis] = normal_forces(e, eq.mode, v)[i]
         g += contacts[i].tan_friction(eq.normal[i]) * unit
-    d = g - f * s
-    return d / np.linalg.norm(d)
+    return g
