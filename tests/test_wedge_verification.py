@@ -273,12 +273,15 @@ def test_hoek_bray_minimum_factor_of_safety_under_a_load_in_its_worst_direction(
     assert round(fs, 2) == 1.04
     assert trend == pytest.approx(173.03, abs=0.01) and plunge == pytest.approx(-1.62, abs=0.01)
     # it is the least: no other direction of the same force gives less
+    from kgm.wedges.geometry import direction_vector
+    from kgm.wedges.mechanics import equilibrium
+
     w = _hoek_bray()
     rng = np.random.default_rng(3)
-    for _ in range(200):
-        t, p = rng.uniform(0, 360), rng.uniform(-90, 90)
-        other = _hoek_bray(forces=[kgm.Force(8e6, t, p)]).fs
+    for t, p in zip(rng.uniform(0, 360, 400), np.degrees(np.arcsin(rng.uniform(-1, 1, 400)))):
+        other = equilibrium(w.contacts, w.active + 8e6 * direction_vector(t, p), w.passive, w.mass).fs
         assert other >= fs - 1e-9
+    assert _hoek_bray(forces=[kgm.Force(8e6, trend, plunge)]).fs == pytest.approx(fs, rel=1e-9)
     assert w.fs > fs
 
 
