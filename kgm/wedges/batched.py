@@ -291,7 +291,14 @@ def _modes(r, p, v, A, phi, c, bb, mass) -> dict:
         normal[:, i], normal[:, j] = np.maximum(ni + pi, 0.0), np.maximum(nj_ + pj, 0.0)
         fs = _fs(normal, A, phi, c, bb, [i, j], p, s, drive)
         keep(fs, 3, normal, s, adm)
-    accel_unused = mass  # noqa: F841  (acceleration is reported by the reference path)
+    held = np.flatnonzero(best_mode == 4)
+    if len(held):
+        # a held block: its frictionless reactions (non-negative least squares, as the reference)
+        from scipy.optimize import nnls
+
+        for q in held:
+            faces = np.flatnonzero(present[q])
+            best_normal[q, faces] = nnls(v[q, faces].T, -(r[q] + p[q]))[0]
     return dict(fs=best_fs, mode=best_mode, normal=best_normal, sliding=best_dir)
 
 

@@ -225,7 +225,10 @@ def equilibrium(contacts: Sequence[Contact], active: np.ndarray, passive: Option
 def _judge(mode: Mode, contacts, v, r, p, mass) -> Equilibrium:
     m = len(contacts)
     if mode.kind == "stable":
-        return Equilibrium(math.inf, mode, _held_normals(r + p, v), np.zeros(m), 0.0, 0.0, 0.0)
+        present = np.array([c.area > 0 for c in contacts], bool)
+        normal = np.zeros(m)
+        normal[present] = _held_normals(r + p, v[present])
+        return Equilibrium(math.inf, mode, normal, np.zeros(m), 0.0, 0.0, 0.0)
     if mode.kind == "falling":
         held = max(0.0, -float(p @ mode.direction))
         rn = float(np.linalg.norm(r))

@@ -70,7 +70,7 @@ def wedge(face: Plane, upper: Plane, height: float, joints: Sequence[Plane], *, 
         return Wedge(False, _why_none(pyramids, nf, nu, nj), pyramids=tuple(pyramids), inputs=inputs)
     best = None
     for code in candidates:
-        scale = _size_scale(nf, nu, nj, code, top, bench_width, slope_length)
+        scale = _size_scale(nf, nu, nj, code, top * height, bench_width, slope_length)
         halfspaces = _halfspaces(nf, nu, nj, code, top * scale * height, crack, labels)
         try:
             block = polyhedron(halfspaces, scale=height)
