@@ -105,11 +105,12 @@ class _ConeTests:
         jk = np.array([self.pair_index[(j, k)] for _, j, k in triples])
         ik = np.array([self.pair_index[(i, k)] for i, _, k in triples])
         ij = np.array([self.pair_index[(i, j)] for i, j, _ in triples])
-        cross = self.cross[take]
-        det = self.triple[take][:, ti, jk]
+        rows = take[:, None]
+        det = self.triple[rows, ti[None], jk[None]]
         good = np.abs(det) > 1e-10
         bs = b * sign[None, :]
-        num = (bs[:, ti, None] * cross[:, jk] - bs[:, tj, None] * cross[:, ik] + bs[:, tk, None] * cross[:, ij])
+        num = (bs[:, ti, None] * self.cross[rows, jk[None]] - bs[:, tj, None] * self.cross[rows, ik[None]]
+               + bs[:, tk, None] * self.cross[rows, ij[None]])
         x = num / np.where(good, det, 1.0)[..., None]
         a = self.rows[take] * sign[None, :, None]
         slack = x @ a.transpose(0, 2, 1) - b[:, None, :]
