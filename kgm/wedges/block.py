@@ -114,6 +114,30 @@ class Wedge:
         t, p = trend_plunge(d)
         return fs, t, p
 
+    def stereonet(self, path, **kw):
+        """Write the stereonet of its joint pyramids (`kgm.wedges.pictures.stereonet`)."""
+        from .pictures import stereonet
+
+        return stereonet(self, path, **kw)
+
+    def write_png(self, path, **kw):
+        """Draw the wedge on its slope to a PNG (`kgm.wedges.pictures.write_png`)."""
+        from .pictures import write_png
+
+        return write_png(self, path, **kw)
+
+    def write_gif(self, path, **kw):
+        """A turning GIF of the wedge on its slope (`kgm.wedges.pictures.write_gif`)."""
+        from .pictures import write_gif
+
+        return write_gif(self, path, **kw)
+
+    def write_vtp(self, path):
+        """Write the wedge for ParaView (`kgm.wedges.vtk.write_vtp`)."""
+        from .vtk import write_vtp
+
+        return write_vtp(self, path)
+
     def summary(self) -> str:
         if not self.forms:
             return f"no wedge: {self.reason}"
