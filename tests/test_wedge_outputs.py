@@ -104,6 +104,11 @@ def test_kgm_wedge_command_runs_the_example(tmp_path):
     text = out.getvalue()
     w = _wedge(water=kgm.Water(fill=0.5), seismic=0.08, density=2600.0)
     assert f"FS = {w.fs:.4f}" in text and "sliding on joint 1 and joint 2" in text
+    # the gallery script builds the same wedge from Python
+    spec = importlib.util.spec_from_file_location("wedge_example", ROOT / "docs" / "kgm" / "wedge_example.py")
+    example = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(example)
+    assert example.build().fs == pytest.approx(w.fs, rel=1e-12)
     assert "support for FS 1.5" in text and "2000 samples (latin-hypercube, seed 1)" in text
     for name in ("wedge.png", "wedge.gif", "wedge_stereonet.png", "wedge.vtp", "wedge_samples.csv"):
         assert (tmp_path / name).is_file(), name

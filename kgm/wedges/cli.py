@@ -179,7 +179,8 @@ def _study(s: dict) -> dict:
               if isinstance(v, dict) and v.get("distribution") == "fisher"}
     rest = {k: v for k, v in variables.items() if k not in fisher}
     parsed, corr = _variables_from_mapping(dict(rest, correlation=correlation) if correlation else rest)
-    out = dict(variables={**parsed, **fisher}, correlation=corr or None, n=int(s.pop("n", 10000)),
+    ordered = {k: fisher[k] if k in fisher else parsed[k] for k in variables}       # the file's order
+    out = dict(variables=ordered, correlation=corr or None, n=int(s.pop("n", 10000)),
                sampling=s.pop("sampling", "monte-carlo"), seed=int(s.pop("seed", 0)),
                min_volume=float(s.pop("min_volume", 0.0)))
     if s:
