@@ -4,7 +4,6 @@ the linear programs; the vectorised wedges against the reference path."""
 
 from __future__ import annotations
 
-import itertools
 import math
 
 import numpy as np

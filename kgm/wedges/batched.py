@@ -13,15 +13,12 @@ and the least safe admissible mode. Samples are processed in chunks (``CHUNK``) 
 from __future__ import annotations
 
 import itertools
-import math
 import os
 from dataclasses import dataclass
-from typing import Optional
 
 import numpy as np
 
-from .batched_geometry import (_ConeTests, _crack_outward, _cross, _face_areas, _max1, _min1, _norm,  # noqa: F401
-                               _size_scale)
+from .batched_geometry import _ConeTests, _crack_outward, _cross, _face_areas, _norm, _size_scale
 from .geometry import direction_vector, plane_normal
 
 #: samples per chunk (memory ~ 2 kB a sample)

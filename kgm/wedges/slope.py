@@ -14,13 +14,12 @@ crest and that length along the crest.
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Optional, Sequence
 
 import numpy as np
 
-from .block import Support, Wedge, judge, water_pressures  # noqa: F401  (Support: re-exported)
+from .block import Wedge, judge, water_pressures
 from .block_theory import JointPyramid, block_pyramid_direction, jp_is_empty
 from .geometry import Halfspace, NoBlock, Plane, Polyhedron, _finite, polyhedron, trend_plunge
 from .mechanics import Bolt, Force, Water, seismic_load

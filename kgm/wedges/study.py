@@ -195,6 +195,22 @@ def wedge_study(base, variables: Mapping, n: int, *, sampling: str = "monte-carl
     return study
 
 
+def limit_state(base, *, min_volume: float = 0.0, workers: Optional[int] = None):
+    """The wedge's factor of safety as a vectorised function of sampled variables, for
+    samplings that choose their samples as they go (subset simulation, importance sampling):
+    ``f(samples)`` takes a mapping name -> array (the names of `wedge_study`; a `Fisher` joint
+    as ``jointK_orientation_angle`` and ``_azimuth``, degrees) and returns FS per sample, +inf
+    where no wedge of at least ``min_volume`` forms (it cannot fail)."""
+    inputs = dict(base.inputs if hasattr(base, "inputs") else base)
+
+    def fs(samples: Mapping) -> np.ndarray:
+        n = len(next(iter(samples.values()))) if samples else 1
+        res = batched.evaluate(**_batch_arguments(inputs, dict(samples), n), workers=workers)
+        return np.where(res.forms & (res.volume >= min_volume), res.fs, np.inf)
+
+    return fs
+
+
 def _study(table, identity, wall, resumed=0) -> WedgeStudy:
     n = identity["n"]
     valid = int(np.sum(table["valid"]))
