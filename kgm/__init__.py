@@ -50,6 +50,7 @@ _EXPORTS = {
     "Halfspace": "wedges.geometry", "Water": "wedges.mechanics",
     "Seismic": "wedges.mechanics", "Bolt": "wedges.mechanics", "Force": "wedges.mechanics",
     "joint_pyramids": "wedges.block_theory", "JointPyramid": "wedges.block_theory",
+    "face_key_blocks": "wedges.block_theory", "KeyBlock": "wedges.block_theory",
     "wedge_study": "wedges.study", "WedgeStudy": "wedges.study", "Fisher": "wedges.study",
 }
 

@@ -198,3 +198,19 @@ def test_batched_wedges_equal_the_reference_path(name, kw):
             ref.mode, "one plane" if " and " not in ref.mode else "two planes")
         assert fast.normal[k] == pytest.approx(np.array(ref.normal_forces), rel=1e-9, abs=1e-6 * ref.weight)
     assert formed >= N // 5
+
+
+def test_key_blocks_of_a_face_are_typed_by_goodman_and_shi():
+    """The slope's joint pyramids as blocks of its faces: 00 is the removable one, a key block
+    (type I) below its critical friction and a potential key block (II) above it; the others
+    are infinite (V). Friction only, its FS is the wedge's at any size."""
+    free = [HB_FACE.normal, HB_UPPER.normal]
+    for phi, expected in ((20.0, "I"), (45.0, "II")):
+        planes = [kgm.Plane(45, 105, dd.Joint(friction=phi)), kgm.Plane(70, 235, dd.Joint(friction=phi))]
+        blocks = {b.pyramid.name: b for b in kgm.face_key_blocks(planes, free)}
+        assert blocks["00"].type == expected and {blocks[k].type for k in ("01", "10", "11")} == {"V"}
+        assert blocks["00"].fs == pytest.approx(kgm.wedge(HB_FACE, HB_UPPER, 17.0, planes).fs, rel=1e-12)
+    # a block held whatever its friction (III): a pyramid sitting in a socket that opens upwards
+    bowl = [kgm.Plane(40, a, dd.Joint(friction=5.0)) for a in (0, 120, 240)]
+    types = {b.pyramid.name: b.type for b in kgm.face_key_blocks(bowl, [np.array([0.0, 0.0, 1.0])])}
+    assert types["000"] == "III"
