@@ -12,7 +12,7 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from .block_theory import jp_is_empty
+from .block_theory import JointPyramid, Mode, joint_pyramids, jp_is_empty
 from .geometry import Halfspace, NoBlock, Polyhedron, _finite, polyhedron, trend_plunge
 from .mechanics import (Bolt, Contact, Equilibrium, Force, Seismic, Water, equilibrium, required_force,
                         seismic_load, worst_force)
@@ -285,3 +285,43 @@ def _seismic_vector(seismic: Seismic, weight, contacts, active, passive, mass, n
     from .geometry import direction_vector
 
     return seismic.k * weight * direction_vector(trend, seismic.plunge)
+
+
+@dataclass(frozen=True)
+class KeyBlock:
+    """A joint pyramid judged as a block of a free face (Goodman & Shi's types)."""
+
+    pyramid: JointPyramid
+    type: str
+    """'I' key block (slides: friction-only FS < 1), 'II' potential key block (FS ≥ 1), 'III'
+    removable but held whatever the friction (no mode), 'IV' tapered, 'V' infinite."""
+    mode: Optional[Mode]
+    """Its mode under the force (None for types IV and V)."""
+    fs: float
+    """Friction-only factor of safety (size-free; nan for IV and V) [-]."""
+
+
+def face_key_blocks(joints: Sequence, free_outward_normals: Sequence, force=(0.0, 0.0, -1.0)) -> list:
+    """Every joint pyramid of ``joints`` (`kgm.Plane` s with their ``joint``) as a block of the
+    free faces with these outward normals, typed I–V under ``force`` (default: its weight),
+    with its friction-only factor of safety: with c = 0 the normal forces scale with the force,
+    so FS does not depend on the block's size or shape, only on its faces' orientations and
+    friction angles (a Barton–Bandis joint counts with its residual angle)."""
+    normals = np.array([j.normal for j in joints])
+    out = []
+    for p in joint_pyramids(normals, free_outward_normals):
+        if p.kind != "removable":
+            out.append(KeyBlock(p, "V" if p.kind == "infinite" else "IV", None, math.nan))
+            continue
+        contacts = [Contact(f"joint {k + 1}", s * n, 1.0, _friction_only(j.joint))
+                    for k, (j, n, s) in enumerate(zip(joints, normals, p.code))]
+        eq = equilibrium(contacts, np.asarray(force, float))
+        kind = "III" if eq.mode.kind == "stable" else ("I" if eq.fs < 1.0 else "II")
+        out.append(KeyBlock(p, kind, eq.mode, eq.fs))
+    return out
+
+
+def _friction_only(joint):
+    from ddatai.params import Joint
+
+    return None if joint is None else Joint(friction=joint.friction)

@@ -6,8 +6,8 @@ z up [m]. ``height`` H is the vertical height of the crest above the toe measure
 trace of joint 1 on the face (Hoek & Bray's H1, SWedge's slope height); with
 ``height_reference="face"`` it is measured up the face's line of steepest dip instead. A
 tension crack is a plane at ``distance`` L behind the crest, measured along the trace of
-joint 1 on the upper face (Hoek & Bray's L); a third joint is a basal joint (a pentahedral
-wedge). ``bench_width`` and ``slope_length`` limit the wedge as SWedge does: the wedge is
+joint 1 on the upper face (Hoek & Bray's L); a third joint is a basal joint through the toe
+(a pentahedral wedge). ``bench_width`` and ``slope_length`` limit the wedge as SWedge does: the wedge is
 scaled about its toe (H reduced) until it lies within that horizontal distance behind the
 crest and that length along the crest.
 """
