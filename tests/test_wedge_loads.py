@@ -105,3 +105,21 @@ def test_limit_state_is_the_study_evaluator():
                                                                      kgm.Plane(55, 230, dd.Joint(friction=p))])
         assert v == pytest.approx(w.fs, rel=1e-12)
     assert np.isinf(f({"joint1_dip": np.array([89.0]), "joint2_dip": np.array([89.0])})[0])   # no wedge: safe
+
+
+def test_a_held_block_needs_the_seismic_direction():
+    """A block held without the earthquake has no sliding trend: k alone is refused, a trend
+    works (a box on a flat floor between walls, pushed sideways: FS = tan φ / k)."""
+    j = dd.Joint(friction=30.0)
+    hs = [Halfspace(np.array([0.0, 0.0, 1.0]), 1.0, "top", "free"),
+          Halfspace(np.array([0.0, 0.0, -1.0]), 0.0, "floor", "joint"),
+          Halfspace(np.array([1.0, 0.0, 0.0]), 1.0, "east", "free"),
+          Halfspace(np.array([-1.0, 0.0, 0.0]), 0.0, "west", "joint"),
+          Halfspace(np.array([0.0, 1.0, 0.0]), 1.0, "north", "joint"),
+          Halfspace(np.array([0.0, -1.0, 0.0]), 0.0, "south", "joint")]
+    joints = {k: j for k in ("floor", "west", "north", "south")}
+    assert kgm.polyhedral_block(hs, joints).fs == math.inf
+    with pytest.raises(ValueError, match="kgm.Seismic"):
+        kgm.polyhedral_block(hs, joints, seismic=0.2)
+    w = kgm.polyhedral_block(hs, joints, seismic=kgm.Seismic(0.2, trend=90.0))
+    assert w.fs == pytest.approx(math.tan(30 * DEG) / 0.2, rel=1e-12) and w.mode == "sliding on floor"

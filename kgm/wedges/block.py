@@ -275,9 +275,8 @@ def _seismic_vector(seismic: Seismic, weight, contacts, active, passive, mass, n
         d = static.direction
         if static.kind == "stable" or np.linalg.norm(d[:2]) < 1e-12:
             if nj is None:
-                d = np.array([0.0, -1.0, 0.0]) if static.kind == "stable" else d
-                if np.linalg.norm(d[:2]) < 1e-12:
-                    return np.zeros(3)
+                raise ValueError("seismic: the block does not slide (or falls vertically) without the earthquake, "
+                                 "so it has no sliding trend to load along; give one: kgm.Seismic(k, trend=...)")
             else:
                 i = np.cross(nj[0], nj[1])
                 d = i if i[2] < 0 else -i
