@@ -46,8 +46,8 @@ _EXPORTS = {
     "sub_scene": "dda",
     "toppling_mode": "toppling", "toppling_row": "toppling", "toppling_check": "toppling", "BlockState": "toppling",
     "BlockStep": "toppling",
-    "probabilistic": "probability", "Study": "probability", "read_study": "probability",
-    "sample_variables": "probability",
+    "probabilistic": "studies.probabilistic", "Study": "studies.study", "read_study": "studies.study",
+    "sample_variables": "studies.sampling",
     # 3D: wedges and key blocks of a rock slope (docs/kgm/wedge.md)
     "Plane": "wedges.geometry", "wedge": "wedges.slope", "Wedge": "wedges.block",
     "TensionCrack": "wedges.slope", "Support": "wedges.block", "polyhedral_block": "wedges.block",

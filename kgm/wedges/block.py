@@ -35,7 +35,7 @@ class Support:
     (shotcrete or a pressure support)."""
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, kw_only=True, eq=False)
 class Wedge:
     """A wedge of a slope and its limit equilibrium (from `wedge`)."""
 
@@ -187,7 +187,7 @@ def judge(block: Polyhedron, joints: dict, *, density, gravity, water_pressures:
         inter = trend_plunge(i if i[2] < 0 else -i)
     labels = [k for k in joints]
     fields.setdefault("normal_forces", tuple(on.get(k, 0.0) for k in labels))
-    return Wedge(True, "", fs=eq.fs, mode=mode_name, volume=block.volume, weight=weight, sliding=sliding,
+    return Wedge(forms=True, reason="", fs=eq.fs, mode=mode_name, volume=block.volume, weight=weight, sliding=sliding,
                  normal_force_on=on, areas={f.label: f.area for f in block.faces}, water_pressure=dict(water_pressures),
                  intersection=inter, acceleration=eq.acceleration, driving=eq.driving, resisting=eq.resisting,
                  block=block, contacts=tuple(contacts), active=active, passive=passive, mass=mass, **fields)
@@ -213,10 +213,10 @@ def polyhedral_block(halfspaces: Sequence[Halfspace], joints: dict, *, density: 
         block = polyhedron(halfspaces)
     except NoBlock as exc:
         reason = "infinite" if exc.reason == "unbounded" else "no volume"
-        return Wedge(False, f"{reason}: {exc}")
+        return Wedge(forms=False, reason=f"{reason}: {exc}")
     inward = np.array([-f.normal for f in block.faces if f.kind != "free"])
     if len(inward) and jp_is_empty(inward):
-        return Wedge(False, "tapered: the block is finite but its joint pyramid is empty (it cannot leave its "
+        return Wedge(forms=False, reason="tapered: the block is finite but its joint pyramid is empty (it cannot leave its "
                             "socket)", block=block, volume=block.volume)
     joints = {h.label: joints[h.label] for h in halfspaces if h.kind == "joint"}
     return judge(block, joints, density=density, gravity=gravity, water_pressures=dict(water_pressures or {}),

@@ -171,6 +171,8 @@ def _get(t, key, where):
 
 
 def _study(s: dict) -> dict:
+    from ..kinds import Sampling
+    from ..studies.sampling import variables_from_mapping
     from ..wedges.study import Fisher
 
     variables = dict(s.pop("variables", {}))
@@ -178,23 +180,14 @@ def _study(s: dict) -> dict:
     fisher = {k: Fisher(_get(v, "k", f"[study.variables.{k}]")) for k, v in variables.items()
               if isinstance(v, dict) and v.get("distribution") == "fisher"}
     rest = {k: v for k, v in variables.items() if k not in fisher}
-    parsed, corr = _variables_from_mapping(dict(rest, correlation=correlation) if correlation else rest)
+    parsed, corr = variables_from_mapping(dict(rest, correlation=correlation) if correlation else rest)
     ordered = {k: fisher[k] if k in fisher else parsed[k] for k in variables}       # the file's order
     out = dict(variables=ordered, correlation=corr or None, n=int(s.pop("n", 10000)),
-               sampling=s.pop("sampling", "monte-carlo"), seed=int(s.pop("seed", 0)),
+               sampling=s.pop("sampling", Sampling.MONTE_CARLO.value), seed=int(s.pop("seed", 0)),
                min_volume=float(s.pop("min_volume", 0.0)))
     if s:
         raise ValueError(f"[study] has unknown keys {sorted(s)}")
     return out
-
-
-def _variables_from_mapping(spec):
-    """kgm's reader of distributions (the one of ``kgm probabilistic``'s variables files)."""
-    try:
-        from ..probability import variables_from_mapping
-    except ImportError:                                   # kgm's studies package
-        from ..studies import variables_from_mapping       # type: ignore[no-redef]
-    return variables_from_mapping(spec)
 
 
 def run(args, out=None) -> int:

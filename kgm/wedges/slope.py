@@ -66,7 +66,7 @@ def wedge(face: Plane, upper: Plane, height: float, joints: Sequence[Plane], *, 
     top = _crest_point(nf, nu, nj[0], face, height_reference)
     pyramids, candidates = _pyramids(nf, nu, nj, crack, top * height)
     if not candidates:
-        return Wedge(False, _why_none(pyramids, nf, nu, nj), pyramids=tuple(pyramids), inputs=inputs)
+        return Wedge(forms=False, reason=_why_none(pyramids, nf, nu, nj), pyramids=tuple(pyramids), inputs=inputs)
     best = None
     for code in candidates:
         scale = _size_scale(nf, nu, nj, code, top * height, bench_width, slope_length)
@@ -84,7 +84,7 @@ def wedge(face: Plane, upper: Plane, height: float, joints: Sequence[Plane], *, 
         if best is None or w.fs < best.fs:
             best = w
     if best is None:
-        return Wedge(False, reason, pyramids=tuple(pyramids), inputs=inputs)
+        return Wedge(forms=False, reason=reason, pyramids=tuple(pyramids), inputs=inputs)
     return best
 
 

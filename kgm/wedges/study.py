@@ -30,6 +30,8 @@ from typing import Mapping, Optional
 
 import numpy as np
 
+from ..kinds import Sampling
+from ..studies.sampling import sample_variables
 from . import batched
 from .geometry import _finite, plane_normal
 
@@ -145,7 +147,7 @@ class WedgeStudy:
                     min_volume=self.min_volume)
 
 
-def wedge_study(base, variables: Mapping, n: int, *, sampling: str = "monte-carlo", seed: int = 0,
+def wedge_study(base, variables: Mapping, n: int, *, sampling: str = Sampling.MONTE_CARLO, seed: int = 0,
                 correlation: Optional[Mapping] = None, min_volume: float = 0.0, out=None,
                 workers: Optional[int] = None) -> WedgeStudy:
     """Probability of failure of a wedge with uncertain inputs (module docstring).
@@ -157,9 +159,8 @@ def wedge_study(base, variables: Mapping, n: int, *, sampling: str = "monte-carl
     threads). ``out``: a CSV of every sample, read back instead of recomputed when it holds
     this very study.
     """
-    from kgm import sample_variables
-
     inputs = dict(base.inputs if hasattr(base, "inputs") else base)
+    sampling = str(getattr(sampling, "value", sampling))          # a kgm.kinds.Sampling or its name
     if not (_finite(min_volume) and min_volume >= 0):
         raise ValueError(f"min_volume must be a volume >= 0 m³, got {min_volume!r}")
     joints = inputs["joints"]
