@@ -112,7 +112,7 @@ SIGNATURES = {
     "KeyBlock": [("pyramid", P, _NO), ("type", P, _NO), ("mode", P, _NO), ("fs", P, _NO)],
     "wedge_study": [("base", P, _NO), ("variables", P, _NO), ("n", P, _NO), ("sampling", K, "'monte-carlo'"),
                     ("seed", K, "0"), ("correlation", K, "None"), ("min_volume", K, "0.0"), ("out", K, "None"),
-                    ("workers", K, "None")],
+                    ("workers", K, "None"), ("client", K, "None")],
     "WedgeStudy": [(f, K, _NO) for f in ("n", "pf", "p_sliding", "valid", "table", "variables", "sampling", "seed",
                                         "min_volume")] + [("wall_time", K, "0.0"), ("resumed", K, "0")],
     "Fisher": [("kappa", P, _NO)],

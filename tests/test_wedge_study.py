@@ -4,6 +4,7 @@ reference path, samplings, correlation, the size filter and the CSV resume."""
 
 from __future__ import annotations
 
+import importlib.util
 import math
 
 import numpy as np
@@ -116,3 +117,22 @@ def test_csv_resume_and_bad_variables(tmp_path):
         kgm.wedge_study(_base(), {"joint3_dip": st.norm(10, 1)}, 10)
     with pytest.raises(ValueError, match="min_volume"):
         kgm.wedge_study(_base(), {}, 10, min_volume=-1.0)
+
+
+@pytest.mark.skipif(importlib.util.find_spec("distributed") is None,
+                    reason="dask.distributed is an optional extra (pip install ddatai[dask])")
+def test_same_table_on_a_local_dask_cluster(monkeypatch):
+    """On a Dask cluster the samples go out in chunks (`ddatai.parallel.run`): the same table."""
+    from dask.distributed import Client, LocalCluster
+
+    import kgm.wedges.study as study_module
+
+    monkeypatch.setattr(study_module, "CLUSTER_CHUNK", 700)       # several tasks for 2,000 samples
+    variables = {"joint1_orientation": kgm.Fisher(20.0), "joint1_friction": st.norm(30, 3)}
+    ref = kgm.wedge_study(_base(), variables, 2000, seed=3)
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as cluster, \
+            Client(cluster) as client:
+        on = kgm.wedge_study(_base(), variables, 2000, seed=3, client=client)
+    for name in ("fs", "volume", "failed"):
+        assert np.array_equal(np.nan_to_num(on.table[name]), np.nan_to_num(ref.table[name]))
+    assert on.pf == ref.pf

@@ -149,15 +149,17 @@ class WedgeStudy:
 
 def wedge_study(base, variables: Mapping, n: int, *, sampling: str = Sampling.MONTE_CARLO, seed: int = 0,
                 correlation: Optional[Mapping] = None, min_volume: float = 0.0, out=None,
-                workers: Optional[int] = None) -> WedgeStudy:
+                workers: Optional[int] = None, client=None) -> WedgeStudy:
     """Probability of failure of a wedge with uncertain inputs (module docstring).
 
     ``base``: a `kgm.Wedge` (its inputs) or a mapping of `kgm.wedge` arguments; ``variables``:
     name -> distribution / number / `Fisher`; ``n`` samples drawn before any work from ``seed``
     (`kgm.sample_variables`, ``sampling`` 'monte-carlo' or 'latin-hypercube', ``correlation``
     of normal scores); all evaluated at once (`kgm.wedges.batched.evaluate`, ``workers``
-    threads). ``out``: a CSV of every sample, read back instead of recomputed when it holds
-    this very study.
+    threads), or, with ``client`` (a ``dask.distributed.Client`` or a scheduler address), in
+    chunks of ``CLUSTER_CHUNK`` samples on the cluster's workers (`ddatai.parallel.run`, as
+    `kgm.probabilistic` runs there): the same table either way. ``out``: a CSV of every sample,
+    read back instead of recomputed when it holds this very study.
     """
     inputs = dict(base.inputs if hasattr(base, "inputs") else base)
     sampling = str(getattr(sampling, "value", sampling))          # a kgm.kinds.Sampling or its name
@@ -180,8 +182,7 @@ def wedge_study(base, variables: Mapping, n: int, *, sampling: str = Sampling.MO
         if table is not None:
             return _study(table, identity, time.perf_counter() - t0, resumed=n)
     samples = sample_variables(expanded, n, sampling=sampling, seed=seed, correlation=correlation)
-    kw = _batch_arguments(inputs, samples, n)
-    res = batched.evaluate(**kw, workers=workers)
+    res = _evaluate(inputs, samples, n, workers, client)
     trend, plunge = _trend_plunge(res.sliding)
     valid = res.forms & (res.volume >= min_volume)
     columns = [("index", np.arange(n))] + [(k, np.asarray(v, float)) for k, v in samples.items()] + [
@@ -194,6 +195,30 @@ def wedge_study(base, variables: Mapping, n: int, *, sampling: str = Sampling.MO
     if out is not None:
         study.to_csv(out)
     return study
+
+
+#: samples a task of a study on a Dask cluster
+CLUSTER_CHUNK = 50_000
+
+
+def _evaluate(inputs, samples, n, workers, client) -> "batched.BatchResult":
+    if client is None:
+        return batched.evaluate(**_batch_arguments(inputs, samples, n), workers=workers)
+    from ddatai.parallel import run
+
+    items = [(k, (inputs, {name: v[lo:lo + CLUSTER_CHUNK] for name, v in samples.items()}))
+             for k, lo in enumerate(range(0, n, CLUSTER_CHUNK))]
+    parts = dict(run(_evaluate_part, items, client=client, chunk=1))
+    fields = batched.BatchResult.__dataclass_fields__
+    return batched.BatchResult(**{f: np.concatenate([getattr(parts[k], f) for k in range(len(items))])
+                                  for f in fields})
+
+
+def _evaluate_part(item) -> "batched.BatchResult":
+    """One chunk of a study on a cluster worker (top level: picklable)."""
+    inputs, samples = item
+    n = len(next(iter(samples.values()))) if samples else 0
+    return batched.evaluate(**_batch_arguments(inputs, samples, n), workers=1)
 
 
 def limit_state(base, *, min_volume: float = 0.0, workers: Optional[int] = None):
