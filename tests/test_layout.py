@@ -15,7 +15,7 @@ CORE = ("assembly", "backend", "contact_law", "contacts", "cutting", "diagnosis"
         "limit_equilibrium", "mechanisms", "return_mapping", "return_steps",
         "recorder", "records",
         "kinematics", "layout", "model", "model_checks", "narrow", "open_close", "params", "reference", "results", "scene",
-        "solver", "start", "step", "support", "time_step", "water")
+        "solver", "pardiso", "updates", "start", "step", "support", "time_step", "water")
 #: engine modules that reach an adapter only inside one public convenience method, by design
 ALLOWED = {("results", "io.vtk")}  # Results.to_vtk
 
@@ -148,11 +148,11 @@ def test_core_modules_stay_short():
 #: kgm's modules in layers, lowest first (docs/kgm/architecture.md): a module imports only
 #: modules of lower layers, so data flows one way
 KGM_LAYERS = (
-    ("kinds",),
-    ("settings", "blocks"),
-    ("judgement", "report", "toppling"),
-    ("batched", "evaluators"),
-    ("dda",),
+    ("kinds", "wedges.geometry", "wedges.vtk"),
+    ("settings", "blocks", "wedges.block_theory", "wedges.batched_geometry", "wedges.pictures"),
+    ("judgement", "report", "toppling", "wedges.mechanics"),
+    ("batched", "evaluators", "wedges.block", "wedges.batched"),
+    ("dda", "wedges.slope"),
     ("search",),
     # small probabilities of failure: the estimators (pure numerics), their pictures and their
     # outcome in a study's terms, below the study; the study's subset and importance sampling
@@ -161,7 +161,8 @@ KGM_LAYERS = (
     ("studies.estimates", "studies.plots"),
     ("studies.sampling", "studies.study"),
     ("studies.rare",),
-    ("studies.probabilistic",),
+    ("studies.probabilistic", "wedges.study"),
+    ("wedges.cli",),
     ("cli",),
     # former homes, re-exporting their names for one release: nothing in kgm imports them
     ("probability",),
