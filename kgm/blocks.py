@@ -20,14 +20,15 @@ contact when s·n < 0 (n into the block). Everything here is NumPy and shapely o
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import Iterable, Optional
 
 import numpy as np
 
 from ddatai.geometry import check_overlaps, polygon_integrals
 
-from .kinds import ModeKind  # noqa: F401  (its home is kgm.kinds; kgm.blocks.ModeKind stays)
+from .judges.evaluation import Mode
+from .kinds import ModeKind
 
 #: Two directions closer than this are the same face direction [rad]. Cut blocks have edges
 #: parallel to ~1e-12 rad; hand-built scenes to the precision of their coordinates.
@@ -619,38 +620,6 @@ def has_free_face(system: BlockSystem, blocks: Iterable[int], removed: frozenset
 
 
 # ---------------------------------------------------------------------- rigid modes
-@dataclass(frozen=True, kw_only=True, eq=False)
-class Mode:
-    """A failure mode of a block or group and what it needs to hold (docs/kgm/method.md §2.4, §5.2)."""
-
-    kind: ModeKind
-    """Lifting, sliding, rotation, Sarma mechanism or none."""
-    fs: float
-    """Factor of safety of this mode [-] (inf: cannot fail this way)."""
-    critical_friction: float
-    """Friction angle of all joints (cohesion held) at which this mode reaches limit
-    equilibrium [degrees]; 0 if cohesion alone holds it, 90 if no friction angle does
-    (lifting, toppling)."""
-    sliding_contacts: np.ndarray
-    """Indices of the boundary contacts that slide (the failure surface) [-]."""
-    sheared_contacts: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
-    """Indices of the internal contacts that shear (Sarma mechanisms only)."""
-    direction: Optional[np.ndarray] = None
-    """(2,) unit sliding direction of a rigid translation [-]."""
-    pivot: Optional[np.ndarray] = None
-    """(2,) rotation centre of a toppling mode [m]."""
-    block_velocity: Optional[dict] = None
-    """Relative velocity (2,) of every member in a Sarma mechanism, normalised to max 1 [-]."""
-    critical_acceleration: Optional[float] = None
-    """Sarma's K_c: horizontal acceleration (in g, toward the direction of motion) that brings
-    the mode to limit equilibrium at the actual strength; < 0 means unstable under gravity
-    alone [-]."""
-    block_modes: Optional[tuple] = None
-    """Block toppling only: the Goodman–Bray recursion at limit equilibrium (strength reduced
-    by FS), one `kgm.toppling.BlockStep` per member (stable, toppling or sliding, with its
-    forces), top block first."""
-
-
 def rigid_modes(system: BlockSystem, blocks: frozenset, removed: frozenset = frozenset(),
                 rejected: Optional[list] = None) -> list[Mode]:
     """Admissible modes of the group glued into one rigid body under its resultant

@@ -9,7 +9,8 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from .blocks import DISTANCE_TOL, BlockSystem, Mode
+from .blocks import DISTANCE_TOL, BlockSystem
+from .judges.evaluation import Mode
 from .kinds import BlockState, Method, ModeKind
 
 
@@ -51,7 +52,7 @@ class GroupResult:
     governs; for dda: the screening evaluator's)."""
     rejected: tuple = ()
     """Why the other modes the limit-equilibrium evaluator looked for are not admissible, one
-    line each (``kgm.evaluators.Evaluation.rejected``)."""
+    line each (``kgm.judges.evaluation.Evaluation.rejected``)."""
 
     @property
     def verdict(self) -> str:

@@ -27,7 +27,9 @@ import numpy as np
 
 from .blocks import (BlockSystem, build_block_system, check_group, classify_blocks, has_free_face,
                      is_connected, is_removable)
-from .evaluators import Evaluation, critical_friction_of, evaluate_rigid, evaluate_sarma, tie_key
+from .judges.evaluation import Evaluation, critical_friction_of, tie_key
+from .judges.rigid import evaluate_rigid
+from .judges.sarma import evaluate_sarma
 from .kinds import METHODS, Method
 from .report import GroupResult, Report, contact_polylines
 from .toppling import upslope_neighbours

@@ -47,8 +47,10 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from .kinds import BlockState
-from .blocks import BARTON_ITERATIONS, BARTON_TOL, BlockSystem, Mode, ModeKind, _cross, _parallel_sets, group_faces
+from .blocks import BARTON_ITERATIONS, BARTON_TOL, BlockSystem, _cross, _parallel_sets, group_faces
+from .judges.evaluation import Mode
+from .judges.limits import F_MAX, F_MIN, PHI_MAX, bisect
+from .kinds import BlockState, ModeKind
 
 #: Least cosine between the active force and a base face's inward normal for the face to carry
 #: the block (a base must be pressed, not a wall beside the block) [-].
@@ -63,11 +65,6 @@ ROW_BASE_ANGLE = 30.0
 #: Largest distance from a column's pivot to the foot of its interface with the block below,
 #: as a fraction of the column's base length [-] (cut blocks: ~1e-12).
 ROW_PIVOT_TOL = 0.02
-#: Bracket of the strength-reduction factor F [-] and bisection steps.
-F_MIN, F_MAX = 1e-3, 1e3
-#: Largest friction angle of the critical-friction bisection [degrees].
-PHI_MAX = 89.9
-BISECTION_STEPS = 64
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -386,17 +383,6 @@ def _weight(row: TopplingRow) -> float:
     return float(sum(np.hypot(*rb.force) for rb in row.blocks))
 
 
-def _bisect(stands, lo: float, hi: float) -> float:
-    """The point in [lo, hi] where ``stands(x)`` turns from False (at lo) to True (at hi)."""
-    for _ in range(BISECTION_STEPS):
-        mid = 0.5 * (lo + hi)
-        if stands(mid):
-            hi = mid
-        else:
-            lo = mid
-    return 0.5 * (lo + hi)
-
-
 def row_factor_of_safety(row: TopplingRow) -> float:
     """Strength-reduction factor F with P_0 = 0 (tanφ/F, c/F on every joint), by bisection on
     log F; 0 if the row fails with a thousand times the strength, inf if it stands with a
@@ -407,7 +393,7 @@ def row_factor_of_safety(row: TopplingRow) -> float:
     if _is_stable(row, w, reduction=F_MAX):
         return math.inf
     # the row stands at small F and fails at large F: bisect on −log F
-    return math.exp(-_bisect(lambda x: _is_stable(row, w, reduction=math.exp(-x)),
+    return math.exp(-bisect(lambda x: _is_stable(row, w, reduction=math.exp(-x)),
                              -math.log(F_MAX), -math.log(F_MIN)))
 
 
@@ -419,7 +405,7 @@ def row_critical_friction(row: TopplingRow) -> float:
         return 0.0
     if not _is_stable(row, w, friction=PHI_MAX):
         return 90.0
-    return _bisect(lambda phi: _is_stable(row, w, friction=phi), 0.0, PHI_MAX)
+    return bisect(lambda phi: _is_stable(row, w, friction=phi), 0.0, PHI_MAX)
 
 
 def toppling_mode(system: BlockSystem, blocks: frozenset, removed: frozenset = frozenset()) -> Optional[Mode]:
@@ -503,3 +489,17 @@ def upslope_neighbours(system: BlockSystem, blocks: frozenset, removed: frozense
         if grown is not None and grown.blocks[0].block == nb:
             out.append(nb)
     return out
+
+
+def with_toppling(system: BlockSystem, blocks: frozenset, removed: frozenset, modes: list[Mode],
+                  rejected: list[str]) -> list[Mode]:
+    """The modes plus the group's block-toppling mode where its geometry admits one (a row of
+    two or more blocks; a single block's toppling is the rigid rotation, §4.5); why not in
+    ``rejected`` otherwise."""
+    if len(blocks) > 1 and not any(m.fs == 0.0 for m in modes):
+        mode, why = toppling_check(system, blocks, removed)
+        if mode is not None:
+            modes = modes + [mode]
+        else:
+            rejected.append(f"toppling: {why}")
+    return modes

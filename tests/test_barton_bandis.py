@@ -137,20 +137,21 @@ def test_kgm_critical_inclination_is_the_law(method):
 def test_kgm_sarma_faces_hold_the_law_at_their_own_stress():
     """A two-block group sliding on one plane, blocks of different weight: the Sarma forces
     at FS give each base face the friction of its own normal stress."""
-    from kgm.evaluators import _loaded, _mechanisms, _merge_faces, _statics_at
+    from kgm.judges.mechanisms import mechanisms, merge_faces
+    from kgm.judges.sarma import _loaded, _statics_at
 
     theta = 40.0
     scene, ids = incline(theta, [LIGHT, LIGHT], at=(2.0, 2.0 + WIDTH))
     system = build_block_system(scene)
     members = sorted(ids)
-    faces = _merge_faces(system, members, frozenset())
+    faces = merge_faces(system, members, frozenset())
     assert faces.tan_at is not None
     rep = kgm.evaluate(scene, set(ids), method="sarma")
     weight = system.block_mass[members] * system.gravity
     expected = math.tan(math.radians(law(RHO * G * LIGHT * math.cos(math.radians(theta))))) / math.tan(
         math.radians(theta))
     assert rep.fs == pytest.approx(expected, rel=1e-9)
-    for mech in _mechanisms(faces, system.block_force[members], len(members)):
+    for mech in mechanisms(faces, system.block_force[members], len(members)):
         st = _statics_at(mech, faces, _loaded(system.block_force[members], None, mech, rep.fs), weight, rep.fs,
                          check=False)
         if st is None:

@@ -18,7 +18,8 @@ import pytest
 import ddatai as dd
 import kgm
 from kgm.blocks import ModeKind, build_block_system
-from kgm.evaluators import evaluate_rigid, evaluate_sarma
+from kgm.judges.rigid import evaluate_rigid
+from kgm.judges.sarma import evaluate_sarma
 from kgm.toppling import (BlockState, recursion, row_critical_friction, row_factor_of_safety, toe_force,
                           toppling_mode, toppling_row)
 from benchmarks.toppling import (AA_FRICTION, AA_PUBLISHED_LE, AA_RECOMPUTED_LE, AA_UDEC,
