@@ -19,7 +19,7 @@ import numpy as np
 from ddatai.params import Params
 from ddatai.scene import Scene
 
-from .blocks import BlockSystem
+from .system import BlockSystem
 from .kinds import RunEnd
 from .judgement import (RestCounter, _StopRun, _verdict, block_displacements, block_speeds, group_size, judge,
                         run_params, sub_scene)

@@ -87,7 +87,7 @@ def write_result_gif(path: str, scene, report, params=None, settings=None) -> No
     settings = settings or Settings()
     crit = report.critical
     if report.method == Method.DDA and crit is not None:
-        from .blocks import build_block_system
+        from .build import build_block_system
         from .dda import judge
 
         prm = settings.dda.params or params

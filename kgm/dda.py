@@ -26,7 +26,7 @@ import numpy as np
 from ddatai.params import Params
 from ddatai.scene import Scene
 
-from .blocks import BlockSystem
+from .system import BlockSystem
 from .batched import judge_many
 # the single judgement and its sub-model live in kgm.judgement; their names stay here too
 from .judgement import DdaJudgement, group_size, judge, run_params, sub_scene  # noqa: F401

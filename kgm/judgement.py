@@ -18,7 +18,7 @@ import numpy as np
 from ddatai.params import Joint, Params
 from ddatai.scene import Scene
 
-from .blocks import BlockSystem
+from .system import BlockSystem
 from .kinds import RunEnd
 from .settings import DdaSettings
 

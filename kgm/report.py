@@ -9,7 +9,7 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from .blocks import DISTANCE_TOL, BlockSystem
+from .system import DISTANCE_TOL, BlockSystem
 from .judges.evaluation import Mode
 from .kinds import BlockState, Method, ModeKind
 

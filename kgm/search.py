@@ -25,15 +25,16 @@ from typing import Iterator, Optional
 
 import numpy as np
 
-from .blocks import (BlockSystem, build_block_system, check_group, classify_blocks, has_free_face,
-                     is_connected, is_removable)
+from .build import build_block_system
+from .faces import check_group, has_free_face, is_connected, is_removable
 from .judges.evaluation import Evaluation, critical_friction_of, tie_key
-from .judges.rigid import evaluate_rigid
+from .judges.rigid import classify_blocks, evaluate_rigid
 from .judges.sarma import evaluate_sarma
 from .kinds import METHODS, Method
 from .report import GroupResult, Report, contact_polylines
 from .toppling import upslope_neighbours
 from .settings import Settings
+from .system import BlockSystem
 
 
 

@@ -47,10 +47,11 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from .blocks import BARTON_ITERATIONS, BARTON_TOL, BlockSystem, _cross, _parallel_sets, group_faces
+from .faces import group_faces, parallel_sets
 from .judges.evaluation import Mode
 from .judges.limits import F_MAX, F_MIN, PHI_MAX, bisect
 from .kinds import BlockState, ModeKind
+from .system import BARTON_ITERATIONS, BARTON_TOL, BlockSystem, cross
 
 #: Least cosine between the active force and a base face's inward normal for the face to carry
 #: the block (a base must be pressed, not a wall beside the block) [-].
@@ -178,7 +179,7 @@ def row_geometry(system: BlockSystem, blocks: frozenset, removed: frozenset = fr
         if fnorm == 0.0 or len(sel) == 0:
             return None, f"block {m} has no base on the rock"
         best = None
-        for grp in _parallel_sets(gf.boundary_normal[sel]):
+        for grp in parallel_sets(gf.boundary_normal[sel]):
             k = sel[grp]
             nrm = gf.boundary_normal[k[0]]
             press = -float(f @ nrm) / fnorm
@@ -309,7 +310,7 @@ def recursion(row: TopplingRow, *, reduction: float = 1.0, friction: Optional[fl
         n_b, t, o = rb.base.normal, rb.downslope, rb.pivot
         # toppling sense: the rotation about the pivot that moves the block's top downslope
         sense = 1.0 if float(np.array([-n_b[1], n_b[0]]) @ t) > 0 else -1.0
-        m_force = sense * (rb.moment - _cross(o, rb.force))  # moment of the active force about o
+        m_force = sense * (rb.moment - cross(o, rb.force))  # moment of the active force about o
         f_above = np.zeros(2)
         m_above = 0.0
         if above is not None and p_above > 0.0:
@@ -317,7 +318,7 @@ def recursion(row: TopplingRow, *, reduction: float = 1.0, friction: Optional[fl
             s_u = _shear_direction(n_u, n_b, away_from_base=False)
             q = p_above * tan_of(above, p_above) + above.cl / reduction
             f_above = p_above * n_u + q * s_u
-            m_above = sense * _cross(above.point - o, f_above)
+            m_above = sense * cross(above.point - o, f_above)
         lo = rb.below
         s_l = _shear_direction(lo.normal, n_b, away_from_base=True)
         cl_l = lo.cl / reduction
@@ -330,8 +331,8 @@ def recursion(row: TopplingRow, *, reduction: float = 1.0, friction: Optional[fl
             tan_l = tan_of(lo, p_t)
             unit = lo.normal + tan_l * s_l          # force on the block per unit P_{n-1}
             # toppling (Goodman & Bray eq. 11): moment about the pivot, base reaction through it
-            lever = sense * _cross(lo.point - o, unit)
-            driving = m_force + m_above + sense * _cross(lo.point - o, cl_l * s_l)
+            lever = sense * cross(lo.point - o, unit)
+            driving = m_force + m_above + sense * cross(lo.point - o, cl_l * s_l)
             if lever < -1e-12 * rb.height:
                 new_t = -driving / lever
             else:

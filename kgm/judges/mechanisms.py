@@ -20,7 +20,8 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from ..blocks import BlockSystem, _parallel_sets, group_faces
+from ..faces import group_faces, parallel_sets
+from ..system import BlockSystem
 
 #: Velocity tolerance of the mechanism checks, relative to the fastest member [-].
 VELOCITY_TOL = 1e-7
@@ -52,7 +53,7 @@ def merge_faces(system: BlockSystem, members: list[int], removed: frozenset) -> 
     # the same kinematic condition whichever non-member they touch)
     for mem in sorted(set(gf.boundary_member.tolist())):
         sel = np.flatnonzero(gf.boundary_member == mem)
-        for grp in _parallel_sets(gf.boundary_normal[sel]):
+        for grp in parallel_sets(gf.boundary_normal[sel]):
             k = sel[grp]
             entries.append((pos[mem], -1, gf.boundary[k], gf.boundary_normal[k[0]]))
     # internal contacts: per member pair and direction, normal into the lower-position member
@@ -64,7 +65,7 @@ def merge_faces(system: BlockSystem, members: list[int], removed: frozenset) -> 
     for (i, j), ks in sorted(pairs.items()):
         ks = np.array(ks)
         nrm = system.contact_normal[ks] * np.where(_pos_of(cb[ks, 0], pos) == i, 1.0, -1.0)[:, None]
-        for grp in _parallel_sets(nrm):
+        for grp in parallel_sets(nrm):
             entries.append((i, j, ks[grp], nrm[grp[0]]))
     f = len(entries)
     normal = np.array([e[3] for e in entries]).reshape(f, 2)

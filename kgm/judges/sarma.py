@@ -25,12 +25,13 @@ from typing import Optional
 
 import numpy as np
 
-from ..blocks import BARTON_ITERATIONS, BARTON_TOL, BlockSystem, rigid_modes
 from ..kinds import ModeKind
+from ..system import BARTON_ITERATIONS, BARTON_TOL, BlockSystem
 from ..toppling import with_toppling
 from .evaluation import Evaluation, Mode, governing
 from .limits import F_MAX, F_MIN, PHI_MAX, first_limit, pencil_roots, scan_roots, smallest_singular
 from .mechanisms import Faces, Mechanism, face_name, mechanism_label, mechanisms, merge_faces
+from .rigid import rigid_modes
 
 
 def evaluate_sarma(system: BlockSystem, blocks: frozenset, removed: frozenset = frozenset()) -> Evaluation:

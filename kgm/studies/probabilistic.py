@@ -40,7 +40,7 @@ import numpy as np
 
 from .. import search
 from ..batched import Member, judge_members
-from ..blocks import build_block_system
+from ..build import build_block_system
 from ..dda import evaluate_dda
 from ..kinds import METHOD_NAMES, Method, Sampling
 from ..report import GroupResult
