@@ -1,13 +1,15 @@
 """The faces of a block or group (docs/kgm/method.md §2.2–2.3): its boundary and internal
 contacts, its removability (the half-circle test on the normals of its joint pyramid), its free
-faces and connectivity, a group's validation, and contacts grouped by direction.
+faces and connectivity, a group's validation, contacts grouped by direction, and the one rule
+for contacts pooled into a face (`pool`: ΣL, Σc·L, length-weighted tanφ, and the Barton–Bandis
+law at the face's normal force), which every judge's faces use.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Iterable, Optional
+from typing import Callable, Iterable, Optional
 
 import numpy as np
 
@@ -148,3 +150,37 @@ def parallel_sets(normals: np.ndarray) -> list[np.ndarray]:
             dirs.append(a)
             out.append([i])
     return [np.array(g) for g in out]
+
+
+# ---------------------------------------------------------------------- pooled faces
+@dataclass(frozen=True, kw_only=True, eq=False)
+class Face:
+    """Contacts pooled into one face (parallel contacts that slide or press together): the
+    normal force spreads over their segments in proportion to their lengths (a uniform normal
+    stress σn = N/ΣL), so the face's cohesion is Σc·L and its friction the length-weighted mean
+    of tanφ (docs/kgm/method.md §4.2; eq. BB4 of docs/method/barton_bandis.md)."""
+
+    contacts: np.ndarray
+    """Indices of the pooled contacts (int64)."""
+    length: float
+    """ΣL [m]."""
+    cl: float
+    """Σ c·L [N/m]."""
+    tan_phi: float
+    """Length-weighted tanφ of the contacts' friction angles [-] (Mohr–Coulomb)."""
+    tan_at: Optional[Callable[[float], float]] = None
+    """Where a contact is Barton–Bandis: normal force [N/m] -> the face's tanφ at σn = N/ΣL
+    (`BlockSystem.face_tan_function`); None on a Mohr–Coulomb face."""
+
+
+def pool(system: BlockSystem, contacts) -> Face:
+    """The contacts ``contacts`` pooled into one `Face`."""
+    ks = np.asarray(contacts, dtype=np.int64)
+    length = system.contact_length[ks]
+    total = float(length.sum())
+    tan_at = None
+    if system.contact_barton is not None and not np.all(np.isnan(system.contact_barton[ks, 0])):
+        tan_at = system.face_tan_function(ks)
+    return Face(contacts=ks, length=total, cl=float((system.contact_cohesion[ks] * length).sum()),
+                tan_phi=float((np.tan(np.radians(system.contact_friction[ks])) * length).sum() / max(total, 1e-300)),
+                tan_at=tan_at)

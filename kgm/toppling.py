@@ -47,7 +47,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from .faces import group_faces, parallel_sets
+from .faces import group_faces, parallel_sets, pool
 from .judges.evaluation import Mode
 from .judges.limits import F_MAX, F_MIN, PHI_MAX, bisect
 from .kinds import BlockState, ModeKind
@@ -133,16 +133,9 @@ class BlockStep:
 
 # ---------------------------------------------------------------------- geometry of a row
 def _face(system: BlockSystem, contacts: np.ndarray, normal: np.ndarray, point: np.ndarray) -> _Face:
-    length = system.contact_length[contacts]
-    total = float(length.sum())
-    ks = np.asarray(contacts, dtype=np.int64)
-    tan_at = None
-    if system.contact_barton is not None and not np.all(np.isnan(system.contact_barton[ks, 0])):
-        tan_at = system.face_tan_function(ks)
-    return _Face(contacts=ks, normal=normal, point=point, length=total,
-                 cl=float((system.contact_cohesion[contacts] * length).sum()),
-                 tan_phi=float((np.tan(np.radians(system.contact_friction[contacts])) * length).sum()
-                               / max(total, 1e-300)), tan_at=tan_at)
+    face = pool(system, contacts)
+    return _Face(contacts=face.contacts, normal=normal, point=point, length=face.length, cl=face.cl,
+                 tan_phi=face.tan_phi, tan_at=face.tan_at)
 
 
 def toppling_row(system: BlockSystem, blocks: frozenset, removed: frozenset = frozenset()

@@ -20,7 +20,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from ..faces import group_faces, parallel_sets
+from ..faces import group_faces, parallel_sets, pool
 from ..system import BlockSystem
 
 #: Velocity tolerance of the mechanism checks, relative to the fastest member [-].
@@ -69,13 +69,14 @@ def merge_faces(system: BlockSystem, members: list[int], removed: frozenset) -> 
             entries.append((i, j, ks[grp], nrm[grp[0]]))
     f = len(entries)
     normal = np.array([e[3] for e in entries]).reshape(f, 2)
-    length = np.array([system.contact_length[e[2]].sum() for e in entries])
-    cl = np.array([(system.contact_cohesion[e[2]] * system.contact_length[e[2]]).sum() for e in entries])
-    tan_phi = np.array([(np.tan(np.radians(system.contact_friction[e[2]])) * system.contact_length[e[2]]).sum()
-                        for e in entries]) / np.maximum(length, 1e-300)
+    pooled = [pool(system, e[2]) for e in entries]
+    length = np.array([p.length for p in pooled])
+    cl = np.array([p.cl for p in pooled])
+    tan_phi = np.array([p.tan_phi for p in pooled])
     tan_at = None
     if system.contact_barton is not None:
-        face_fns = tuple(system.face_tan_function(e[2]) for e in entries)
+        # every face follows its law at its own stress (a Mohr–Coulomb one: a constant)
+        face_fns = tuple(p.tan_at or system.face_tan_function(p.contacts) for p in pooled)
         tan_at = lambda normal: np.array([f(nk) for f, nk in zip(face_fns, normal)])  # noqa: E731
     return Faces(a=np.array([e[0] for e in entries], dtype=np.int64),
                   b=np.array([e[1] for e in entries], dtype=np.int64),

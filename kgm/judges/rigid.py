@@ -12,7 +12,7 @@ from typing import Optional
 
 import numpy as np
 
-from ..faces import group_faces, has_free_face, is_removable, parallel_sets
+from ..faces import group_faces, has_free_face, is_removable, parallel_sets, pool
 from ..kinds import ModeKind
 from ..system import ANGLE_TOL, BARTON_ITERATIONS, BARTON_TOL, DISTANCE_TOL, BlockSystem
 from ..toppling import with_toppling
@@ -67,7 +67,7 @@ def rigid_modes(system: BlockSystem, blocks: frozenset, removed: frozenset = fro
         # normal force on the contacts parallel to r (e.g. down a vertical slot); only their
         # cohesion (and passive bolts) resist (§4.2 with N' = 0)
         k = idx[np.abs(rn) <= ANGLE_TOL * rnorm]
-        cl = float((system.contact_cohesion[k] * system.contact_length[k]).sum()) - float(passive @ (r / rnorm))
+        cl = pool(system, k).cl - float(passive @ (r / rnorm))
         modes.append(Mode(kind=ModeKind.SLIDING, fs=cl / rnorm, critical_friction=90.0 if cl < rnorm else 0.0,
                           sliding_contacts=k, direction=r / rnorm))
         return modes
@@ -126,8 +126,7 @@ def _sliding_fs(system: BlockSystem, contacts: np.ndarray, normal_force: float, 
     The normal force is spread over the pooled segments in proportion to their lengths
     (uniform normal stress), so the face's friction is the length-weighted mean of tanφ.
     """
-    length = system.contact_length[contacts]
-    cl = float((system.contact_cohesion[contacts] * length).sum())
+    cl = pool(system, contacts).cl
     normal_force = max(normal_force, 0.0)
     # Barton–Bandis: the friction of the face's own normal stress N'/ΣL, which rigid sliding
     # fixes whatever the strength, so FS is the force ratio at it (eq. BB4–BB5)
@@ -145,8 +144,7 @@ def _sliding_kc(system: BlockSystem, members: np.ndarray, contacts: np.ndarray, 
     r + K·W·e + N·n − (c·L + N tanφ)·s = 0, e horizontal toward the motion; solved for N, K."""
     weight = float(system.block_mass[members].sum()) * system.gravity
     e = np.array([1.0 if s[0] >= 0 else -1.0, 0.0])
-    length = system.contact_length[contacts]
-    cl = float((system.contact_cohesion[contacts] * length).sum())
+    cl = pool(system, contacts).cl
     tan_phi = system.face_tan(contacts, -float(r @ n))
     for _ in range(BARTON_ITERATIONS if system.contact_barton is not None else 1):
         a = np.column_stack([n - tan_phi * s, weight * e])
