@@ -29,7 +29,7 @@ import importlib
 # public name -> module that defines it (PEP 562 lazy attributes)
 _EXPORTS = {
     "analyze": "search", "evaluate": "search", "factor_of_safety": "search",
-    "critical_friction": "search", "exhaustive": "search", "key_blocks": "search",
+    "critical_friction": "search", "exhaustive": "search", "key_blocks": "candidates",
     "Settings": "settings", "DdaSettings": "settings",
     "Report": "report", "GroupResult": "report", "format_paper_table": "report",
     "format_groups": "report", "format_toppling": "report",
@@ -40,8 +40,8 @@ _EXPORTS = {
     "sarma_checks": "judges.sarma",
     "DdaJudgement": "dda", "DdaEvaluation": "dda", "DdaTiming": "dda", "judge": "dda",
     "sub_scene": "dda",
-    "toppling_mode": "toppling", "toppling_row": "toppling", "toppling_check": "toppling", "BlockState": "kinds",
-    "BlockStep": "toppling",
+    "toppling_mode": "judges.toppling", "toppling_row": "candidates", "toppling_check": "judges.toppling",
+    "BlockState": "kinds", "BlockStep": "judges.toppling",
     "probabilistic": "studies.probabilistic", "Study": "studies.study", "read_study": "studies.study",
     "sample_variables": "studies.sampling",
 }

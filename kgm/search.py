@@ -21,18 +21,18 @@ from __future__ import annotations
 
 import math
 import time
-from typing import Iterator, Optional
+from typing import Optional
 
 import numpy as np
 
 from .build import build_block_system
+from .candidates import connected_groups, key_blocks, mobile_neighbours, upslope_neighbours
 from .faces import check_group, has_free_face, is_connected, is_removable
 from .judges.evaluation import Evaluation, critical_friction_of, tie_key
 from .judges.rigid import classify_blocks, evaluate_rigid
 from .judges.sarma import evaluate_sarma
-from .kinds import METHODS, Method
+from .kinds import Method
 from .report import GroupResult, Report, contact_polylines
-from .toppling import upslope_neighbours
 from .settings import Settings
 from .system import BlockSystem
 
@@ -75,14 +75,6 @@ class _Evaluator:
 
 
 # ---------------------------------------------------------------------- key groups
-def key_blocks(system: BlockSystem, removed: frozenset = frozenset()) -> list[int]:
-    """Seeds of the search: free blocks with a free face that are removable on their own
-    (types I, II and III, §3.2 condition 1)."""
-    return [b for b in range(system.n_blocks)
-            if b not in removed and not system.block_fixed[b]
-            and has_free_face(system, [b], removed) and is_removable(system, frozenset([b]), removed)]
-
-
 def is_key_group(system: BlockSystem, blocks: frozenset, evaluation: Evaluation, seeds,
                  removed: frozenset = frozenset()) -> bool:
     """§3.2: contains a key block, free face, removable (finite: no fixed member), active
@@ -92,10 +84,6 @@ def is_key_group(system: BlockSystem, blocks: frozenset, evaluation: Evaluation,
     return (bool(set(blocks) & set(seeds)) and has_free_face(system, blocks, removed)
             and is_removable(system, blocks, removed) and math.isfinite(evaluation.fs)
             and is_connected(system, blocks))
-
-
-def _mobile_neighbours(system: BlockSystem, blocks: frozenset, removed: frozenset) -> list[int]:
-    return sorted(b for b in system.neighbours(blocks, removed) if not system.block_fixed[b])
 
 
 def grow(system: BlockSystem, seed: int, evaluate, seeds, settings: Settings,
@@ -112,7 +100,7 @@ def grow(system: BlockSystem, seed: int, evaluate, seeds, settings: Settings,
     while True:
         best = None
         if len(group) < settings.max_group_size:
-            for nb in _mobile_neighbours(system, group, removed):
+            for nb in mobile_neighbours(system, group, removed):
                 g2 = group | {nb}
                 ev2 = evaluate(g2)
                 if not is_key_group(system, g2, ev2, seeds, removed):
@@ -145,26 +133,6 @@ def _grow_row(system: BlockSystem, group: frozenset, ev: Evaluation, evaluate, s
         if ev2.fs < ev.fs - settings.growth_tolerance and (best is None or ev2.fs < best[1].fs):
             best = (row, ev2)
     return best
-
-
-def connected_groups(system: BlockSystem, max_size: int, removed: frozenset = frozenset()) -> Iterator[frozenset]:
-    """Every connected set of free, remaining blocks with at most ``max_size`` members, each
-    once (the ESU enumeration of connected induced subgraphs)."""
-    nodes = [b for b in range(system.n_blocks) if b not in removed and not system.block_fixed[b]]
-    adj = {b: set(_mobile_neighbours(system, frozenset([b]), removed)) for b in nodes}
-
-    def extend(sub: frozenset, ext: list, v: int, closed_nb: set):
-        yield sub
-        if len(sub) == max_size:
-            return
-        ext = list(ext)
-        while ext:
-            w = ext.pop()
-            new = [u for u in adj[w] if u > v and u not in closed_nb and u not in ext]
-            yield from extend(sub | {w}, ext + sorted(new), v, closed_nb | adj[w] | {w})
-
-    for v in nodes:
-        yield from extend(frozenset([v]), sorted(u for u in adj[v] if u > v), v, adj[v] | {v})
 
 
 def exhaustive(scene, method: str = Method.SARMA, *, max_size: int = 4, settings: Optional[Settings] = None,

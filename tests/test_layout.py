@@ -151,8 +151,9 @@ KGM_LAYERS = (
     ("kinds",),
     ("settings", "system"),
     ("build", "faces"),
+    ("candidates",),
     ("judges.evaluation", "judges.limits"),
-    ("judgement", "report", "toppling", "judges.mechanisms"),
+    ("judgement", "report", "judges.mechanisms", "judges.toppling"),
     ("batched", "judges.rigid"),
     ("judges.sarma",),
     ("dda",),
@@ -161,11 +162,11 @@ KGM_LAYERS = (
     ("studies.probabilistic",),
     ("cli",),
     # former homes, re-exporting their names for one release: nothing in kgm imports them
-    ("blocks", "evaluators", "probability"),
+    ("blocks", "evaluators", "probability", "toppling"),
 )
 #: the judges: they take values and return values, and never reach the search, the analyses
 #: built on it, the studies or the command line
-KGM_JUDGES = ("toppling", "judgement", "batched", "dda")
+KGM_JUDGES = ("judgement", "batched", "dda")
 KGM_ABOVE_JUDGES = ("search", "analysis", "studies", "probability", "cli")
 #: no kgm module over this many lines (one concern a module) ...
 KGM_MAX_LINES = 500

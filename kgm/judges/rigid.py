@@ -15,8 +15,8 @@ import numpy as np
 from ..faces import group_faces, has_free_face, is_removable, parallel_sets, pool
 from ..kinds import ModeKind
 from ..system import ANGLE_TOL, BARTON_ITERATIONS, BARTON_TOL, DISTANCE_TOL, BlockSystem
-from ..toppling import with_toppling
 from .evaluation import Evaluation, Mode, governing
+from .toppling import with_toppling
 
 
 def evaluate_rigid(system: BlockSystem, blocks: frozenset, removed: frozenset = frozenset()) -> Evaluation:

@@ -27,8 +27,8 @@ import numpy as np
 
 from ..kinds import ModeKind
 from ..system import BARTON_ITERATIONS, BARTON_TOL, BlockSystem
-from ..toppling import with_toppling
 from .evaluation import Evaluation, Mode, governing
+from .toppling import with_toppling
 from .limits import F_MAX, F_MIN, PHI_MAX, first_limit, pencil_roots, scan_roots, smallest_singular
 from .mechanisms import Faces, Mechanism, face_name, mechanism_label, mechanisms, merge_faces
 from .rigid import rigid_modes
