@@ -28,8 +28,8 @@ import importlib
 
 # public name -> module that defines it (PEP 562 lazy attributes)
 _EXPORTS = {
-    "analyze": "search", "evaluate": "search", "factor_of_safety": "search",
-    "critical_friction": "search", "exhaustive": "search", "key_blocks": "candidates",
+    "analyze": "analysis", "evaluate": "analysis", "factor_of_safety": "analysis",
+    "critical_friction": "analysis", "exhaustive": "analysis", "key_blocks": "candidates",
     "Settings": "settings", "DdaSettings": "settings",
     "Report": "report", "GroupResult": "report", "format_paper_table": "report",
     "format_groups": "report", "format_toppling": "report",
@@ -38,8 +38,8 @@ _EXPORTS = {
     "Mode": "judges.evaluation", "ModeKind": "kinds",
     "evaluate_rigid": "judges.rigid", "evaluate_sarma": "judges.sarma", "sarma_modes": "judges.sarma",
     "sarma_checks": "judges.sarma",
-    "DdaJudgement": "dda", "DdaEvaluation": "dda", "DdaTiming": "dda", "judge": "dda",
-    "sub_scene": "dda",
+    "DdaJudgement": "judges.run", "DdaEvaluation": "judges.dda", "DdaTiming": "judges.dda",
+    "judge": "judges.run", "sub_scene": "judges.run",
     "toppling_mode": "judges.toppling", "toppling_row": "candidates", "toppling_check": "judges.toppling",
     "BlockState": "kinds", "BlockStep": "judges.toppling",
     "probabilistic": "studies.probabilistic", "Study": "studies.study", "read_study": "studies.study",

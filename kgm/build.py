@@ -3,18 +3,20 @@
 blocks, with the joint of each pair, the active forces (weight, constant point loads, water,
 pseudo-static seismic load, bolts) and the fixed blocks. Scenes kgm cannot analyse statically
 (a ground acceleration, loads that vary in time, overlapping blocks) are refused here, before any
-work.
+work. `prepare` makes the `Problem` an analysis works on, once per entry point.
 """
 
 from __future__ import annotations
 
 import math
-from typing import Optional
+from dataclasses import dataclass, field
+from typing import Any, Optional
 
 import numpy as np
 
 from ddatai.geometry import check_overlaps, polygon_integrals
 
+from .settings import Settings
 from .system import CONTACT_GAP, DISTANCE_TOL, MIN_CONTACT, BlockSystem, cross
 
 
@@ -253,3 +255,50 @@ def _find_contacts(specs, offset, xy, scale, gap) -> list[tuple]:
             out.append((a, b, int(offset[a] + i), int(offset[b] + j), lo, hi,
                         max(0.0, u0), min(lb[j], u1)))
     return out
+
+
+# ---------------------------------------------------------------------- the problem
+@dataclass(frozen=True, kw_only=True, eq=False)
+class Problem:
+    """What an analysis works on, made once per entry point (`prepare`): the scene, its block
+    system (built with the settings' contact gap and the seismic load), the settings and the
+    DDA parameters. Every stage after it — candidates, judges, search, report — takes it or its
+    parts, so the system is never built twice and always belongs to its scene."""
+
+    scene: Any
+    """The `ddatai.Scene` analysed."""
+    system: BlockSystem
+    """Its block system."""
+    settings: Settings = field(default_factory=Settings)
+    """The analysis settings (`kgm.Settings`)."""
+    params: Any = None
+    """`ddatai.Params` of the DDA runs given to the entry point (`kgm.DdaSettings.params`, when
+    set, takes precedence), or None."""
+
+    @classmethod
+    def of(cls, scene, system: BlockSystem, *, settings: Optional[Settings] = None, params=None) -> "Problem":
+        """A problem of a scene and a system built from it elsewhere (the DDA judges' public
+        functions take the two); ValueError when the system cannot be the scene's."""
+        if not isinstance(system, BlockSystem):
+            raise ValueError(f"system must be a kgm.BlockSystem, got {type(system).__name__}")
+        if system.n_blocks != scene.n_blocks:
+            raise ValueError(f"the block system has {system.n_blocks} blocks and the scene {scene.n_blocks}: "
+                             "build the system from this scene (kgm.build_block_system)")
+        return cls(scene=scene, system=system, settings=settings or Settings(), params=params)
+
+
+def prepare(scene, *, settings: Optional[Settings] = None, params=None, seismic=None) -> Problem:
+    """The `Problem` of an analysis, every input checked before any work: the scene (a
+    `ddatai.Scene` with blocks), the settings (a `kgm.Settings`; None: defaults), the scene's
+    block system with the seismic coefficients (kh, kv) or kh (`build_block_system`)."""
+    from ddatai.scene import Scene
+
+    settings = Settings() if settings is None else settings
+    if not isinstance(settings, Settings):
+        raise ValueError(f"settings must be a kgm.Settings, got {type(settings).__name__}")
+    if not isinstance(scene, Scene):
+        raise ValueError(f"scene must be a ddatai.Scene, got {type(scene).__name__}")
+    if scene.n_blocks == 0:
+        raise ValueError("the scene has no blocks")
+    system = build_block_system(scene, seismic=seismic, contact_gap=settings.contact_gap)
+    return Problem(scene=scene, system=system, settings=settings, params=params)

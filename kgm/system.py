@@ -17,6 +17,8 @@ from typing import Iterable, Optional
 
 import numpy as np
 
+from .strength import Strength
+
 #: Two directions closer than this are the same face direction [rad]. Cut blocks have edges
 #: parallel to ~1e-12 rad; hand-built scenes to the precision of their coordinates.
 ANGLE_TOL = 1e-6
@@ -145,15 +147,10 @@ class BlockSystem:
     def with_strength(self, *, friction: Optional[float] = None, reduction: float = 1.0) -> "BlockSystem":
         """The same system with every joint's friction angle set to ``friction`` [degrees]
         (cohesion held), and/or tanφ and c divided by ``reduction`` (strength reduction,
-        docs/kgm/method.md §4.6)."""
-        phi = self.contact_friction if friction is None else np.full(self.n_contacts, float(friction))
-        tan_phi = np.tan(np.radians(phi)) / reduction
-        barton = self.contact_barton
-        if barton is not None:
-            # a set friction angle replaces every law; a reduction divides tan φ(σn) too
-            barton = None if friction is not None else barton * np.array([1, 1, 1, 1, reduction])
-        return replace(self, contact_friction=np.degrees(np.arctan(tan_phi)),
-                       contact_cohesion=self.contact_cohesion / reduction, contact_barton=barton)
+        docs/kgm/method.md §4.6; the rule is `kgm.strength.Strength`'s)."""
+        strength = Strength(friction=friction, reduction=reduction)
+        return replace(self, **strength.contact_arrays(self.contact_friction, self.contact_cohesion,
+                                                       self.contact_barton))
 
     def tan_friction(self, contacts: np.ndarray, sigma_n) -> np.ndarray:
         """Friction coefficient of each of ``contacts`` at the normal stress ``sigma_n`` [Pa]

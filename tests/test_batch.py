@@ -179,7 +179,7 @@ def test_member_states_cut_out_what_combined_state_put_in():
 def test_k_section_closes_on_a_monotone_limit(limit):
     """The batched search alone, on a verdict stable for φ ≥ limit: it ends within the tolerance
     of the limit (0 and 90 where the limit lies outside [0°, 89°]), 16 probes a round."""
-    from kgm.dda import _Bracket
+    from kgm.judges.dda import _Bracket
 
     b = _Bracket(guess=20.0, lower=0.0, upper=89.0, tolerance=0.25, step=2.0)
     rounds = 0
@@ -202,7 +202,7 @@ def test_k_section_closes_on_a_monotone_limit(limit):
 def test_k_section_stops_on_verdicts_that_turn_over():
     """Verdicts that are not monotone near the limit (stable at 10.4°, unstable at 10.6°): the
     bracket turns over, the search stops, the limit is the middle of the band."""
-    from kgm.dda import _Bracket
+    from kgm.judges.dda import _Bracket
 
     b = _Bracket(guess=10.0, lower=0.0, upper=89.0, tolerance=0.25, step=2.0)
     for x, stable in [(9.0, False), (10.4, True), (10.6, False), (12.0, True)]:
