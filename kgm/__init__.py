@@ -9,9 +9,15 @@ Method) and judges them with three evaluators (docs/kgm/method.md):
   Shahami, Yarahmadi Bafghi & Fatehi Marji), FS by strength reduction.
 
 ``"rigid"`` and ``"sarma"`` also check block toppling of a row of blocks (Goodman & Bray 1976,
-`kgm.toppling`) and take the least safe admissible mechanism. The scene's water table and rock
-bolts (active pretension, passive capacity) enter every evaluator, and ``seismic=(kh, kv)`` adds
-a pseudo-static load to the limit-equilibrium ones (docs/method/water_bolts.md).
+`kgm.judges.toppling`) and take the least safe admissible mechanism. The scene's water table
+and rock bolts (active pretension, passive capacity) enter every evaluator, and
+``seismic=(kh, kv)`` adds a pseudo-static load to the limit-equilibrium ones
+(docs/method/water_bolts.md).
+
+The package is a one-way pipeline (docs/kgm/architecture.md): the scene's `kgm.build.Problem`
+(made once per analysis) → candidates (`kgm.candidates`) → judges (`kgm.judges`) → search
+(`kgm.search`) → report (`kgm.report`) → analyses (`kgm.analysis`) → studies (`kgm.studies`)
+→ the ``kgm`` command (`kgm.cli`); the method names and other words are `kgm.kinds`.
 
 >>> import kgm
 >>> rep = kgm.analyze(scene, method="sarma")                      # doctest: +SKIP

@@ -73,7 +73,7 @@ def analyze(scene, method: str = Method.SARMA, progressive: bool = False, *, set
 
 def analyze_problem(problem: Problem, method: Method, progressive: bool = False, *,
                     started: Optional[float] = None) -> Report:
-    """`analyze` on a prepared problem (``started``: the `time.perf_counter` its wall time
+    """`analyze` on a prepared problem (``started``: the ``time.perf_counter()`` its wall time
     counts from; None: now)."""
     t0 = time.perf_counter() if started is None else started
     settings, system = problem.settings, problem.system

@@ -142,7 +142,7 @@ class Settings:
     """How the DDA evaluator runs."""
     contact_gap: Optional[float] = None
     """Blocks whose facing edges are at most this far apart are in contact [m]; None:
-    `kgm.blocks.CONTACT_GAP` × the model size (1 mm in a 10 m model)."""
+    `kgm.system.CONTACT_GAP` × the model size (1 mm in a 10 m model)."""
 
     def __post_init__(self) -> None:
         _positive(self, "fs_target")

@@ -1,5 +1,5 @@
 """Independent models run side by side in one (`ddatai.batch`) and the kgm judgements that use
-it (`kgm.batched.judge_members`): each member moves as it does alone, each verdict is the one its
+it (`kgm.judges.batch.judge_members`): each member moves as it does alone, each verdict is the one its
 own run gives, and a batched bisection finds the closed-form limit."""
 
 import math
@@ -16,9 +16,9 @@ from ddatai.batch import batch_model, combined_state, member_constants, side_by_
 from ddatai.model import build_model
 from ddatai.start import settle
 from ddatai.step import Stepper
-from kgm.blocks import build_block_system
-from kgm.batched import Member, judge_many, judge_members
-from kgm.dda import judge
+from kgm.build import build_block_system
+from kgm.judges.batch import Member, judge_many, judge_members
+from kgm.judges.run import judge
 
 G = 9.81
 THETA = 30.0
@@ -118,7 +118,7 @@ def test_batched_and_sequential_bisections_agree_with_the_closed_form():
     phi = 40.0
     scene, _, b = kgm_cases.block_on_incline(theta=THETA, width=2.0, height=1.0, friction=phi, cohesion=0.0)
     system = build_block_system(scene)
-    from kgm.dda import evaluate_dda
+    from kgm.judges.dda import evaluate_dda
 
     tan_t = math.tan(math.radians(THETA))
     for batch in (16, 1):

@@ -8,8 +8,10 @@ import pytest
 
 import ddatai as dd
 import kgm
-from kgm.blocks import (ModeKind, build_block_system, classify_blocks, is_removable, removable_arc,
-                        rigid_modes)
+from kgm.build import build_block_system
+from kgm.faces import is_removable, removable_arc
+from kgm.judges.rigid import classify_blocks, rigid_modes
+from kgm.kinds import ModeKind
 from kgm_cases import (ROCK, block_above_incline, block_on_incline, hanging_block, planar_slope, slot_block,
                        tapered_block)
 from scenes import example_1, example_2
@@ -137,7 +139,7 @@ def test_planar_slope_geometry():
 def test_a_gap_within_the_contact_tolerance_is_a_contact():
     """A block drawn 1 mm above its plane (CONTACT_GAP × 26 m = 2.6 mm) rests on it: the same FS
     as touching (c·A + W cosθ tanφ)/(W sinθ); 5 cm above, it is free (lifting)."""
-    from kgm.blocks import CONTACT_GAP, build_block_system
+    from kgm.system import CONTACT_GAP
 
     touching = kgm.analyze(block_above_incline(0.0), method="rigid").critical
     w = ROCK.density * 9.81 * 10.0

@@ -11,8 +11,8 @@ import pytest
 
 import ddatai as dd
 import kgm
-from kgm.blocks import build_block_system
-from kgm.dda import judge, sub_scene
+from kgm.build import build_block_system
+from kgm.judges.run import judge, sub_scene
 from cases import block_on_incline as ddatai_block_on_incline
 from cases import downslope_displacement, incline_base
 from kgm_cases import ROCK, block_on_incline
@@ -141,7 +141,7 @@ def test_whole_slope_timing_is_reported():
     for b in ids[:3]:
         scene.set_fixed(b)
     s = build_block_system(scene)
-    from kgm.dda import time_sub_and_whole
+    from kgm.judges.dda import time_sub_and_whole
 
     t = time_sub_and_whole(scene, s, frozenset([ids[-1]]), settings=kgm.DdaSettings(whole_steps=5))
     assert t.sub_blocks < t.whole_blocks == len(ids)

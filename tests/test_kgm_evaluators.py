@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import kgm
-from kgm.blocks import build_block_system
+from kgm.build import build_block_system
 from kgm.judges.evaluation import critical_friction_of
 from kgm.judges.rigid import evaluate_rigid
 from kgm.judges.sarma import evaluate_sarma, sarma_modes

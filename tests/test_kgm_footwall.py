@@ -24,11 +24,12 @@ import numpy as np
 import pytest
 
 import kgm
-from kgm.blocks import ModeKind, build_block_system
+from kgm.build import build_block_system
 from kgm.judges.limits import F_MAX, F_MIN
 from kgm.judges.rigid import evaluate_rigid
 from kgm.judges.sarma import evaluate_sarma, sarma_checks
-from kgm.toppling import toppling_check
+from kgm.judges.toppling import toppling_check
+from kgm.kinds import ModeKind
 from scenes import footwall as fw
 
 G = 9.81
@@ -206,7 +207,7 @@ def test_a_mechanism_with_no_admissible_root_is_reported():
 
 # ---------------------------------------------------------------------- DDA
 def _judge(case, reduction):
-    from kgm.dda import judge
+    from kgm.judges.run import judge
 
     scene, params = fw.build(case)
     return judge(scene, build_block_system(scene), PAIR, settings=kgm.DdaSettings(), params=params,

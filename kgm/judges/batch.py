@@ -218,9 +218,9 @@ def judge_members(members, blocks: frozenset, *, settings: DdaSettings, params: 
                 continue
             end, cause = RunEnd.DIVERGED, str(failure)
         out[k] = verdict(np.array(times[k]), np.array(disp[k]), delta=delta, duration=duration, end=end,
-                          cause=cause, wall_time=wall, friction=m.friction, reduction=m.reduction, model_blocks=len(ids),
-                          moving_blocks=sum(not b.fixed for b in first.blocks), scene_blocks=m.scene.n_blocks,
-                          batch=n_members)
+                         cause=cause, wall_time=wall, friction=m.friction, reduction=m.reduction,
+                         model_blocks=len(ids), moving_blocks=sum(not b.fixed for b in first.blocks),
+                         scene_blocks=m.scene.n_blocks, batch=n_members)
         if report is not None:
             report(out[k])
     if cut and len(rerun) > 1:

@@ -24,7 +24,7 @@ PHI_MAX = 89.9
 #: Points of the root scan where the pencil of `pencil_roots` does not apply, over the
 #: bracket and around each near-singular point of the equilibrium [-].
 SCAN_SAMPLES, POLE_SAMPLES = 48, 32
-#: |K| at an accepted root [g]: a crossing with a larger |K| is a pole or a 0/0 point.
+#: Largest absolute K at an accepted root [g]: a crossing with a larger one is a pole or a 0/0 point.
 ROOT_K_TOL = 1e-6
 #: Steps of `bisect` [-].
 BISECTION_STEPS = 64
@@ -100,7 +100,7 @@ def scan_roots(k_of: Callable[[float], float], sigma_of: Callable[[float], float
     (a local minimum of ``sigma_of``, the smallest singular value of the scaled system): a
     pole of K sits there, and a root beside it crosses zero between two coarse points that
     both see the same sign. Each sign change in the mechanism's direction is refined by
-    `root`; a pole found that way is rejected later (|K| is not small there)."""
+    `root`; a pole found that way is rejected later (K is not small there)."""
     u = np.linspace(lo, hi, SCAN_SAMPLES + 1)
     sig = np.array([sigma_of(v) for v in u])
     extra = []

@@ -203,7 +203,7 @@ def block_displacements(model, blocks):
 def block_speeds(model):
     """A function of the generalized velocities (of ``model``, (B, 6)) giving a bound of each
     block's vertex speeds [m/s]: the speed of its reference point plus its radius
-    (`ddatai.kinematics.block_radius`, at the model's start) times its rotation and strain
+    (``ddatai.kinematics.block_radius``, at the model's start) times its rotation and strain
     rates (0 for fixed blocks)."""
     from ddatai.kinematics import block_radius
 

@@ -254,8 +254,8 @@ def probabilistic(build, variables: Mapping, n: int, *, method: str = Method.SAR
         if writer is not None:
             writer.close()
     table = study_table(n, names, samples, seeds, done)
-    return Study(n=n, pf=float(np.mean(table["failed"])), beta=reliability_index(table["fs"]), table=table, variables=names,
-                 method=method, sampling=sampling, seed=seed, resumed=resumed,
+    return Study(n=n, pf=float(np.mean(table["failed"])), beta=reliability_index(table["fs"]), table=table,
+                 variables=names, method=method, sampling=sampling, seed=seed, resumed=resumed,
                  wall_time=time.perf_counter() - t0)
 
 
