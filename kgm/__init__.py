@@ -24,6 +24,10 @@ The package is a one-way pipeline (docs/kgm/architecture.md): the scene's `kgm.b
 >>> rep.critical.blocks, rep.critical.fs, rep.critical.critical_friction   # doctest: +SKIP
 >>> kgm.factor_of_safety(scene, {0, 1}, method="rigid")           # doctest: +SKIP
 
+In 3D, ``kgm.wedge`` judges the wedge that joints cut from a rock slope (block theory, vector
+limit equilibrium with water, bolts and earthquakes, support, probabilistic studies, pictures;
+`kgm.wedges`, docs/kgm/wedge.md).
+
 Importing kgm loads NumPy and the light parts of ddatai only; Taichi starts when the DDA
 evaluator runs its first simulation.
 """
@@ -50,6 +54,14 @@ _EXPORTS = {
     "BlockState": "kinds", "BlockStep": "judges.toppling",
     "probabilistic": "studies.probabilistic", "Study": "studies.study", "read_study": "studies.study",
     "sample_variables": "studies.sampling",
+    # 3D: wedges and key blocks of a rock slope (docs/kgm/wedge.md)
+    "Plane": "wedges.geometry", "wedge": "wedges.slope", "Wedge": "wedges.block",
+    "TensionCrack": "wedges.slope", "Support": "wedges.block", "polyhedral_block": "wedges.block",
+    "Halfspace": "wedges.geometry", "Water": "wedges.mechanics",
+    "Seismic": "wedges.mechanics", "Bolt": "wedges.mechanics", "Force": "wedges.mechanics",
+    "joint_pyramids": "wedges.block_theory", "JointPyramid": "wedges.block_theory",
+    "face_key_blocks": "wedges.block", "KeyBlock": "wedges.block",
+    "wedge_study": "wedges.study", "WedgeStudy": "wedges.study", "Fisher": "wedges.study",
 }
 
 __all__ = sorted(_EXPORTS)

@@ -1,12 +1,14 @@
 """Console command ``kgm``.
 
     kgm analyze SCENE.py [--method rigid|sarma|dda] [--progressive] [--compare] [--gif PATH]
+    kgm wedge INPUT.toml [--png PATH] [--gif PATH] [--stereonet PATH] [--vtp PATH] [--csv PATH]
 
 SCENE.py is a scene script with ``build()`` returning a `ddatai.Scene` or ``(scene, params)``
 (the convention of ``scenes/``). Prints the block types, the candidate key groups (least safe
 first) and the critical group; ``--compare`` adds the paper-layout table of the critical group
 under all three evaluators; ``--gif`` draws the scene with the critical group highlighted
-(for ``dda``: its simulated motion) with `ddatai.render.write_gif`.
+(for ``dda``: its simulated motion) with `ddatai.render.write_gif`. ``kgm wedge`` analyses a
+3D wedge of a rock slope from a TOML file (`kgm.wedges.cli`, docs/kgm/wedge.md).
 """
 
 from __future__ import annotations
@@ -205,7 +207,14 @@ def main(argv: Optional[Sequence[str]] = None, out=None) -> int:
     pr.add_argument("--scheduler", metavar="ADDRESS", help="run on a Dask cluster, e.g. tcp://host:8786")
     pr.add_argument("--out", metavar="CSV", help="append samples to this file as they finish (and resume it)")
     pr.add_argument("--png", metavar="PATH", help="draw how often each block is in the critical group")
+    from .wedges.cli import add_parser as add_wedge_parser
+
+    add_wedge_parser(sub)
     args = parser.parse_args(argv)
+    if args.command == "wedge":
+        from .wedges.cli import run as run_wedge
+
+        return run_wedge(args, out)
     if getattr(args, "force", False):
         from ddatai.cli import _allow_any_size
 

@@ -89,6 +89,33 @@ SIGNATURES = {
                  ("dda", K, "<factory>"), ("contact_gap", K, "None")],
     "Study": [(f, K, _NO) for f in ("n", "pf", "beta", "table", "variables", "method", "sampling", "seed")]
     + [("resumed", K, "0"), ("wall_time", K, "0.0")],
+    # 3D wedges (docs/kgm/wedge.md)
+    "Plane": [("dip", P, _NO), ("dip_direction", P, _NO), ("joint", P, "None")],
+    "wedge": [("face", P, _NO), ("upper", P, _NO), ("height", P, _NO), ("joints", P, _NO), ("density", K, "2600.0"),
+              ("water", K, "None"), ("seismic", K, "None"), ("bolts", K, "()"), ("tension_crack", K, "None"),
+              ("bench_width", K, "None"), ("slope_length", K, "None"), ("forces", K, "()"), ("gravity", K, "9.81"),
+              ("height_reference", K, "'joint1'")],
+    "Wedge": [("forms", K, _NO), ("reason", K, _NO)],
+    "TensionCrack": [("plane", P, _NO), ("distance", P, _NO)],
+    "Support": [("fs", P, _NO), ("force", P, _NO), ("trend", P, _NO), ("plunge", P, _NO), ("pressure", P, _NO)],
+    "polyhedral_block": [("halfspaces", P, _NO), ("joints", P, _NO), ("density", K, "2600.0"), ("gravity", K, "9.81"),
+                         ("water_pressures", K, "None"), ("seismic", K, "None"), ("bolts", K, "()"),
+                         ("forces", K, "()")],
+    "Halfspace": [("normal", P, _NO), ("offset", P, _NO), ("label", P, _NO), ("kind", P, "'joint'")],
+    "Water": [("fill", P, "1.0"), ("density", P, "1000.0"), ("pressures", P, "None")],
+    "Seismic": [("k", P, _NO), ("trend", P, "None"), ("plunge", P, "0.0")],
+    "Bolt": [("force", P, _NO), ("trend", P, _NO), ("plunge", P, _NO), ("kind", P, "'active'")],
+    "Force": [("force", P, _NO), ("trend", P, _NO), ("plunge", P, _NO)],
+    "joint_pyramids": [("joint_normals", P, _NO), ("free_outward_normals", P, _NO)],
+    "JointPyramid": [("code", P, _NO), ("empty", P, _NO), ("finite", P, _NO)],
+    "face_key_blocks": [("joints", P, _NO), ("free_outward_normals", P, _NO), ("force", P, "(0.0, 0.0, -1.0)")],
+    "KeyBlock": [("pyramid", P, _NO), ("type", P, _NO), ("mode", P, _NO), ("fs", P, _NO)],
+    "wedge_study": [("base", P, _NO), ("variables", P, _NO), ("n", P, _NO), ("sampling", K, "'monte-carlo'"),
+                    ("seed", K, "0"), ("correlation", K, "None"), ("min_volume", K, "0.0"), ("out", K, "None"),
+                    ("workers", K, "None"), ("client", K, "None")],
+    "WedgeStudy": [(f, K, _NO) for f in ("n", "pf", "p_sliding", "valid", "table", "variables", "sampling", "seed",
+                                        "min_volume")] + [("wall_time", K, "0.0"), ("resumed", K, "0")],
+    "Fisher": [("kappa", P, _NO)],
 }
 #: enums: their members' values
 ENUMS = {

@@ -148,11 +148,11 @@ def test_core_modules_stay_short():
 #: kgm's modules in layers, lowest first (docs/kgm/architecture.md): a module imports only
 #: modules of lower layers, so data flows one way
 KGM_LAYERS = (
-    ("kinds",),                                         # the vocabulary
-    ("settings", "strength"),
-    ("system",),                                        # the block system
-    ("build", "faces"),                                 # Scene -> system, the Problem; group faces
-    ("candidates",),                                    # key blocks, groups, toppling rows
+    ("kinds", "wedges.geometry", "wedges.vtk"),         # the vocabulary
+    ("settings", "strength", "wedges.block_theory", "wedges.batched_geometry", "wedges.pictures"),
+    ("system", "wedges.mechanics"),                     # the block system
+    ("build", "faces", "wedges.block", "wedges.batched"),  # Scene -> system, the Problem; group faces
+    ("candidates", "wedges.slope"),                     # key blocks, groups, toppling rows
     ("judges.evaluation", "judges.limits"),             # the judges ...
     ("judges.mechanisms", "judges.toppling", "judges.run"),
     ("judges.rigid", "judges.batch"),
@@ -161,7 +161,8 @@ KGM_LAYERS = (
     ("report",),                                        # GroupResult, Report, tables
     ("analysis",),                                      # the entry points
     ("studies.sampling", "studies.study"),              # studies over many analyses
-    ("studies.probabilistic",),
+    ("studies.probabilistic", "wedges.study"),
+    ("wedges.cli",),
     ("cli",),                                           # the kgm command
     # former homes, re-exporting their names for one release: nothing in kgm imports them
     ("blocks", "toppling", "evaluators", "judgement", "batched", "dda", "probability"),
