@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import inspect
 
+import pytest
+
 import kgm
 
 P, K = "positional", "keyword"  # POSITIONAL_OR_KEYWORD, KEYWORD_ONLY
@@ -204,3 +206,15 @@ def test_the_former_module_paths_still_give_their_names():
 
     assert kgm.blocks.build_block_system is kgm.build_block_system and kgm.dda.judge is kgm.judge
     assert kgm.toppling.BlockState is kgm.BlockState and kgm.blocks.Mode is kgm.Mode
+
+
+def test_the_words_are_str_enums_that_compare_as_before():
+    """`kgm.kinds`: the old strings compare equal, print as themselves, and name a method."""
+    from kgm.kinds import Method, RunEnd
+
+    assert Method("sarma") == "sarma" and f"{Method.DDA:<5}|" == "dda  |" and str(Method.RIGID) == "rigid"
+    assert RunEnd.DIVERGED.note("step 12: nan") == "diverged after failing: step 12: nan"
+    assert RunEnd.DURATION.note() == "" and RunEnd.AT_REST.note() == "at rest"
+    assert kgm.Settings(screening="rigid").screening is Method.RIGID
+    with pytest.raises(ValueError, match="unknown method 'sarm'"):
+        kgm.analyze(None, method="sarm")
