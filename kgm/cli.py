@@ -26,8 +26,15 @@ from typing import Optional, Sequence
 
 import numpy as np
 
+from .analysis import analyze, evaluate
+from .build import prepare
+from .judges.run import RunPlan, judge
 from .kinds import (LIMIT_EQUILIBRIUM, METHOD_NAMES, METHODS, RARE_SAMPLINGS, SAMPLINGS, BlockState, Method, RunEnd,
                     Sampling)
+from .report import format_paper_table
+from .settings import DdaSettings, Settings
+from .studies.probabilistic import probabilistic
+from .studies.sampling import read_variables
 
 
 def load_scene(path: str, joints: Optional[str] = None):
@@ -91,20 +98,15 @@ def write_result_gif(path: str, scene, report, params=None, settings=None) -> No
         from ddatai.render import write_gif
     except ImportError:
         raise RuntimeError("--gif needs ddatai.render (write_gif), which this ddatai does not have") from None
-    from .settings import Settings
-
     settings = settings or Settings()
     crit = report.critical
     if report.method == Method.DDA and crit is not None:
-        from .blocks import build_block_system
-        from .dda import judge
-
-        prm = settings.dda.params or params
-        dt = (prm.dt if prm is not None and prm.dt is not None else 0.005)
-        system = build_block_system(scene)
-        j = crit.dda.judgement
-        every = max(1, int(j.duration / dt / 80))
-        _, res, ids = judge(scene, system, crit.blocks, settings=settings.dda, params=params,
+        # the run of the verdict again, recorded: the analysis's problem (its contact gap) and plan
+        problem = prepare(scene, settings=settings, params=params)
+        plan = RunPlan.of(problem.system, crit.blocks, settings.dda, params)
+        dt = plan.params.dt if plan.params.dt is not None else 0.005
+        every = max(1, int(crit.dda.judgement.duration / dt / 80))
+        _, res, ids = judge(problem.scene, problem.system, crit.blocks, settings=settings.dda, params=params,
                             record_every=every)
         labels = np.array([0 if b in crit.blocks else -1 for b in ids])
         title = f"KGM + DDA: group {sorted(crit.blocks)}, {crit.verdict} (FS {crit.fs:.2f})"
@@ -235,10 +237,6 @@ def main(argv: Optional[Sequence[str]] = None, out=None) -> int:
     if args.command in ("probabilistic", "study"):
         return _probabilistic(args, out)
 
-    from .report import format_paper_table
-    from .search import analyze, evaluate
-    from .settings import DdaSettings, Settings
-
     try:
         scene, params = load_scene(args.scene, getattr(args, "joints", None))
         settings = Settings(dda=DdaSettings(compare_whole=args.compare_whole, progress=_dda_progress(sys.stderr)))
@@ -291,9 +289,6 @@ def _print_rare(study, out) -> None:
 
 def _probabilistic(args, out) -> int:
     from ddatai.parallel import ScriptFunction
-
-    from .studies.probabilistic import probabilistic
-    from .studies.sampling import read_variables
 
     def bar(done, total):
         if sys.stderr.isatty() or done == total:

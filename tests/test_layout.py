@@ -148,33 +148,38 @@ def test_core_modules_stay_short():
 #: kgm's modules in layers, lowest first (docs/kgm/architecture.md): a module imports only
 #: modules of lower layers, so data flows one way
 KGM_LAYERS = (
-    ("kinds", "wedges.geometry", "wedges.vtk"),
-    ("settings", "blocks", "wedges.block_theory", "wedges.batched_geometry", "wedges.pictures"),
-    ("judgement", "report", "toppling", "wedges.mechanics"),
-    ("batched", "evaluators", "wedges.block", "wedges.batched"),
-    ("dda", "wedges.slope"),
-    ("search",),
+    ("kinds", "wedges.geometry", "wedges.vtk"),         # the vocabulary
+    ("settings", "strength", "wedges.block_theory", "wedges.batched_geometry", "wedges.pictures"),
+    ("system", "wedges.mechanics"),                     # the block system
+    ("build", "faces", "wedges.block", "wedges.batched"),  # Scene -> system, the Problem; group faces
+    ("candidates", "wedges.slope"),                     # key blocks, groups, toppling rows
+    ("judges.evaluation", "judges.limits"),             # the judges ...
+    ("judges.mechanisms", "judges.toppling", "judges.run"),
+    ("judges.rigid", "judges.batch"),
+    ("judges.sarma", "judges.dda"),
+    ("search",),                                        # greedy growth, enumeration
+    ("report",),                                        # GroupResult, Report, tables
+    ("analysis",),                                      # the entry points
     # small probabilities of failure: the estimators (pure numerics), their pictures and their
     # outcome in a study's terms, below the study; the study's subset and importance sampling
     # below kgm.probabilistic, which hands them its sample runner
     ("studies.reliability",),
     ("studies.estimates", "studies.plots"),
-    ("studies.sampling", "studies.study"),
+    ("studies.sampling", "studies.study"),              # studies over many analyses
     ("studies.rare",),
     ("studies.probabilistic", "wedges.study"),
     ("wedges.cli",),
-    ("cli",),
+    ("cli",),                                           # the kgm command
     # former homes, re-exporting their names for one release: nothing in kgm imports them
-    ("probability",),
+    ("blocks", "toppling", "evaluators", "judgement", "batched", "dda", "probability"),
 )
-#: the judges: they take values and return values, and never reach the search, the analyses
-#: built on it, the studies or the command line
-KGM_JUDGES = ("evaluators", "toppling", "judgement", "batched", "dda")
-KGM_ABOVE_JUDGES = ("search", "analysis", "studies", "probability", "cli")
+#: the judges take values and return values, and never reach the search, the analyses built on
+#: it, the studies or the command line
+KGM_ABOVE_JUDGES = ("search", "report", "analysis", "studies", "cli")
 #: no kgm module over this many lines (one concern a module) ...
 KGM_MAX_LINES = 500
 #: ... except these, each to be split along its banners, which must not grow meanwhile
-KGM_OVERSIZE = {"blocks": 876, "evaluators": 709, "toppling": 505}
+KGM_OVERSIZE: dict = {}
 
 
 def _kgm_modules() -> dict[str, Path]:
@@ -215,7 +220,8 @@ def test_kgm_imports_go_down_the_layers():
 
 def test_judges_never_import_search_studies_or_the_command_line():
     graph = _graph()
-    judges = {m for m in _kgm_modules() if m in KGM_JUDGES or m.startswith("judges")}
+    judges = {m for m in _kgm_modules() if m.startswith("judges.")}
+    assert judges
     bad = [f"kgm.{m} -> {t}" for m in sorted(judges) for t in sorted(graph[f"kgm.{m}"])
            if t.removeprefix("kgm.").split(".")[0] in KGM_ABOVE_JUDGES]
     assert not bad, "judges importing what stands above them: " + ", ".join(bad)
