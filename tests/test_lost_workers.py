@@ -77,12 +77,12 @@ def test_an_exception_is_raised_with_the_workers_traceback():
     assert "fails_on_three" in str(info.value.__cause__)
 
 
-def test_a_sample_that_kills_its_worker_twice_is_recorded_and_the_rest_completes(tmp_path):
-    out = tmp_path / "study.csv"
-    with pytest.warns(RuntimeWarning, match=r"sample \d+ \(friction=4[45]\.\d+, seed \d+\) recorded as lost: its "
-                                            r"worker process died 2 times"):
-        study = _study(kgm_cases.incline_scene_killing, workers=2, out=out)
-    ref = _study(kgm_cases.incline_scene, workers=1)
+def _check_lost_sample(study, ref, out, build, **kw):
+    """The study's one lost sample (the top stratum's, friction above KILL_ABOVE): recorded with
+    its values, the others as an uninterrupted study gives them; the file holds it, so that
+    resuming runs nothing and reads the same table back. ``ref``: the study run in this
+    process, nothing lost."""
+    assert not ref.lost.any()
     killer = np.flatnonzero(ref.table["friction"] > kgm_cases.KILL_ABOVE)
     assert len(killer) == 1
     assert np.flatnonzero(study.lost).tolist() == killer.tolist()
@@ -96,9 +96,8 @@ def test_a_sample_that_kills_its_worker_twice_is_recorded_and_the_rest_completes
     # P_f over the samples evaluated, and the summary says what was left out
     assert study.pf == pytest.approx(np.mean(ref.failed[others]))
     assert "1 sample(s) lost" in study.summary()
-    # the file holds the lost sample: resuming runs nothing, and reads the same table back
     calls = []
-    again = _study(kgm_cases.incline_scene_killing, workers=2, out=out, progress=lambda d, n: calls.append(d))
+    again = _study(build, out=out, progress=lambda d, n: calls.append(d), **kw)
     assert again.resumed == N and not calls
     back = kgm.read_study(out)
     for k in study.table.dtype.names:
@@ -107,9 +106,47 @@ def test_a_sample_that_kills_its_worker_twice_is_recorded_and_the_rest_completes
     assert back.pf == study.pf
 
 
+def test_a_lost_sample_is_recorded_with_its_values_and_the_rest_completes(tmp_path, monkeypatch):
+    """The study's side, in this process: the executor gives up the top stratum's sample
+    (`WorkerLost` in place of its row, as `ddatai.workers` yields it after two deaths); the
+    real deaths are `test_a_sample_that_kills_its_worker_twice_is_recorded_and_the_rest_completes`
+    (slow)."""
+    import ddatai.parallel
+
+    run = ddatai.parallel.run
+
+    def losing(fn, items, **kw):
+        items = list(items)
+        friction = {index: item[1]["friction"] for index, item in items}
+        for index, row in run(fn, items, **kw):
+            yield index, WorkerLost(deaths=2, exitcode=-9) if friction[index] > kgm_cases.KILL_ABOVE else row
+
+    ref = _study(kgm_cases.incline_scene, workers=1)
+    monkeypatch.setattr(ddatai.parallel, "run", losing)
+    out = tmp_path / "study.csv"
+    with pytest.warns(RuntimeWarning, match=r"sample \d+ \(friction=4[45]\.\d+, seed \d+\) recorded as lost: its "
+                                            r"worker process died 2 times"):
+        study = _study(kgm_cases.incline_scene, workers=1, out=out)
+    _check_lost_sample(study, ref, out, kgm_cases.incline_scene, workers=1)
+
+
+@pytest.mark.slow
+def test_a_sample_that_kills_its_worker_twice_is_recorded_and_the_rest_completes(tmp_path):
+    """Worker processes killed by SIGKILL in the middle of a study. About 6 s on the shared
+    machine (four workers start, each importing kgm)."""
+    out = tmp_path / "study.csv"
+    with pytest.warns(RuntimeWarning, match=r"sample \d+ \(friction=4[45]\.\d+, seed \d+\) recorded as lost: its "
+                                            r"worker process died 2 times"):
+        study = _study(kgm_cases.incline_scene_killing, workers=2, out=out)
+    _check_lost_sample(study, _study(kgm_cases.incline_scene, workers=1), out, kgm_cases.incline_scene_killing,
+                       workers=2)
+
+
+@pytest.mark.slow
 def test_a_worker_lost_once_changes_nothing(tmp_path, monkeypatch):
     """A worker killed once, by a cause outside its sample: the sample runs again on another
-    worker and the table is the uninterrupted one, bit for bit."""
+    worker and the table is the uninterrupted one, bit for bit. About 3 s on the shared machine
+    (three workers start)."""
     monkeypatch.setenv(kgm_cases.DIE_ONCE, str(tmp_path / "died"))
     out = tmp_path / "study.csv"
     with warnings.catch_warnings():
@@ -142,7 +179,9 @@ def test_an_old_study_file_without_the_lost_column_is_resumed(tmp_path):
     assert np.array_equal(kgm.read_study(out).table, ref.table)
 
 
+@pytest.mark.slow
 def test_a_sweep_run_that_kills_its_worker_twice_is_a_row_saying_so():
+    """About 8 s on the shared machine (two workers start Taichi for their DDA runs)."""
     import ddatai as dd
 
     rows = dd.sweep(kgm_cases.incline_scene_killing, {"friction": [20.0, 44.5, 35.0]}, duration=0.05, workers=2)
@@ -151,9 +190,11 @@ def test_a_sweep_run_that_kills_its_worker_twice_is_a_row_saying_so():
     assert np.isnan(rows["max_displacement"][1]) and rows["friction"][1] == 44.5
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(importlib.util.find_spec("distributed") is None,
                     reason="dask.distributed is an optional extra (pip install ddatai[dask])")
 def test_on_a_dask_cluster_an_item_that_kills_its_workers_is_given_up_after_the_clusters_retries():
+    """About 20 s on the shared machine (a local cluster started, three of its workers killed)."""
     import dask
     from dask.distributed import Client, LocalCluster
 

@@ -24,30 +24,51 @@ def _slide(sampling, n, **kw):
                              correlation=CORRELATION, seed=kw.pop("seed", 1), **kw)
 
 
-def test_planar_slide_study_by_importance_sampling_and_subset_simulation():
+#: a block on a 30° plane with its friction angle N(34.65°, 2°): P_f = Φ((30 − 34.65)/2) ≈ 1e-2
+#: (two levels of subset simulation: the default tests' cheap study)
+INCLINE = {"friction": st.norm(34.65, 2.0)}
+INCLINE_PF = float(st.norm.cdf((30.0 - 34.65) / 2.0))
+
+
+def _incline(sampling, n, **kw):
+    return kgm.probabilistic(kgm_cases.incline_scene, INCLINE, n, method="rigid", group={1}, sampling=sampling,
+                             seed=kw.pop("seed", 3), **kw)
+
+
+def test_planar_slide_study_by_importance_sampling():
     """Hoek & Bray's planar slide built as a scene and judged by the rigid evaluator, friction
     normal and cohesion lognormal correlated −0.5: P_f ≈ 9e-4 exactly (one-dimensional
-    quadrature over φ); both estimates within three of their own c.o.v."""
+    quadrature over φ); the importance estimate (FORM, then 60 samples) within three of its own
+    c.o.v.; the design point in the variables' units on FS = 1."""
     exact = closed._slide_exact()
-    imp = _slide("importance", 300)
+    imp = _slide("importance", 60)
     dp = imp.design_point
-    assert dp.converged and imp.evaluations == 300 + dp.evaluations == len(imp.table)
+    assert dp.converged and imp.evaluations == 60 + dp.evaluations == len(imp.table)
     assert abs(imp.pf - exact) <= 3.0 * imp.pf_cov * exact, (imp.pf, imp.pf_cov, exact)
+    assert imp.pf_cov < 0.5  # an estimate, not a bound
     # the design point in the variables' units: on FS = 1, friction the driving variable
     assert dp.fs == pytest.approx(1.0, abs=2e-3)
     assert kgm_cases.hoek_bray_fs(20.0, 60.0, 30.0, 5.0, dp.values["friction"], dp.values["cohesion"]) == \
         pytest.approx(dp.fs, rel=1e-9)
     assert abs(dp.alpha["friction"]) > abs(dp.alpha["cohesion"]) and \
         sum(a * a for a in dp.alpha.values()) == pytest.approx(1.0)
-    sub = _slide("subset", 300)
-    assert abs(sub.pf - exact) <= 3.0 * sub.pf_cov * exact, (sub.pf, sub.pf_cov, exact)
-    assert sub.evaluations == len(sub.table) == sub.levels[-1].evaluations
     # every row is a sample: its FS the closed form of its values
-    t = sub.table
+    t = imp.table
     assert np.allclose(t["fs"], kgm_cases.hoek_bray_fs(20.0, 60.0, 30.0, 5.0, t["friction"], t["cohesion"]),
                        rtol=1e-9)
     assert np.array_equal(t["failed"], t["fs"] < 1.0)
-    # the levels: FS thresholds falling to 1, the samples of each level below the one before
+
+
+def test_a_subset_study_of_a_block_on_a_plane():
+    """Subset simulation through kgm.probabilistic (50 samples a level, P_f ≈ 1e-2 exactly):
+    within three of its own c.o.v.; each row the closed form of its values; the levels' FS
+    thresholds falling to 1, each level's samples below the threshold before."""
+    sub = _incline("subset", 50)
+    assert abs(sub.pf - INCLINE_PF) <= 3.0 * sub.pf_cov * INCLINE_PF, (sub.pf, sub.pf_cov, INCLINE_PF)
+    assert sub.evaluations == len(sub.table) == sub.levels[-1].evaluations == 50 + 45 * (len(sub.levels) - 1)
+    t = sub.table
+    assert np.allclose(t["fs"], kgm_cases.incline_fs(t["friction"], 0.0), rtol=1e-9)
+    assert np.array_equal(t["failed"], t["fs"] < 1.0)
     thresholds = [lv.fs_threshold for lv in sub.levels]
     assert all(a > b for a, b in zip(thresholds, thresholds[1:])) and thresholds[-1] == 1.0
     for before, level in zip(sub.levels, sub.levels[1:]):
@@ -56,21 +77,45 @@ def test_planar_slide_study_by_importance_sampling_and_subset_simulation():
     assert lo < sub.pf < hi and "subset simulation" in sub.summary()
 
 
-def test_a_subset_study_resumes_from_its_file_bit_for_bit(tmp_path):
-    """A study file cut after 150 of its evaluations (a partial line at its end): the study
-    started again with the same arguments, here on two worker processes, reads them, evaluates
-    the others and gives the uninterrupted table and P_f; the file reads back as the study."""
+@pytest.mark.slow
+def test_planar_slide_study_by_importance_sampling_and_subset_simulation():
+    """The planar slide of `test_planar_slide_study_by_importance_sampling` with 300 samples:
+    importance sampling and subset simulation (300 samples a level) within three of their own
+    c.o.v. of the exact P_f. About 1,200 rigid evaluations: 10–20 s on the shared machine."""
+    exact = closed._slide_exact()
+    imp = _slide("importance", 300)
+    assert abs(imp.pf - exact) <= 3.0 * imp.pf_cov * exact, (imp.pf, imp.pf_cov, exact)
+    sub = _slide("subset", 300)
+    assert abs(sub.pf - exact) <= 3.0 * sub.pf_cov * exact, (sub.pf, sub.pf_cov, exact)
+    t = sub.table
+    assert np.allclose(t["fs"], kgm_cases.hoek_bray_fs(20.0, 60.0, 30.0, 5.0, t["friction"], t["cohesion"]),
+                       rtol=1e-9)
+    thresholds = [lv.fs_threshold for lv in sub.levels]
+    assert all(a > b for a, b in zip(thresholds, thresholds[1:])) and thresholds[-1] == 1.0
+
+
+def _resume(tmp_path, n: int, workers: int):
+    """A study file cut after 3n/2 of its evaluations (a partial line at its end): the study
+    started again with the same arguments on ``workers`` reads them, evaluates the others and
+    gives the uninterrupted table and P_f; the file reads back as the study."""
     out = tmp_path / "study.csv"
-    whole = _slide("subset", 100, seed=3, out=out, workers=1)
+    whole = _incline("subset", n, out=out, workers=1)
+    keep = 3 * n // 2
+    assert len(whole.levels) >= 2 and whole.evaluations > keep + 2
     lines = out.read_text().splitlines(keepends=True)
     cut = tmp_path / "cut.csv"
-    cut.write_text("".join(lines[:2 + 150]) + lines[152][:10])
-    again = _slide("subset", 100, seed=3, out=cut, workers=2)
-    assert again.resumed == 150
+    cut.write_text("".join(lines[:2 + keep]) + lines[2 + keep][:10])
+    again = _incline("subset", n, out=cut, workers=workers)
+    assert again.resumed == keep
     assert np.array_equal(again.table, whole.table) and again.pf == whole.pf and again.pf_cov == whole.pf_cov
     back = kgm.read_study(cut)
     assert np.array_equal(back.table, whole.table) and back.pf == whole.pf and len(back.levels) == len(whole.levels)
     assert all(np.array_equal(a.values["friction"], b.values["friction"]) for a, b in zip(back.levels, whole.levels))
+    return out
+
+
+def test_a_subset_study_resumes_from_its_file_bit_for_bit(tmp_path):
+    out = _resume(tmp_path, 20, workers=1)
     # a file whose values are not this study's is refused, naming the evaluation
     bad = tmp_path / "bad.csv"
     shutil.copy(out, bad)
@@ -80,14 +125,22 @@ def test_a_subset_study_resumes_from_its_file_bit_for_bit(tmp_path):
     text[5] = ",".join(row)
     bad.write_text("".join(text))
     with pytest.raises(ValueError, match="other values for evaluation 3"):
-        _slide("subset", 100, seed=3, out=bad, workers=1)
+        _incline("subset", 20, out=bad, workers=1)
+
+
+@pytest.mark.slow
+def test_a_subset_study_resumes_on_worker_processes(tmp_path):
+    """The resumed study on two worker processes, started once for all its batches
+    (`ddatai.parallel.Executor`): the same table. About 5 s on the shared machine (the
+    workers' start)."""
+    _resume(tmp_path, 50, workers=2)
 
 
 def test_settings_and_bad_input():
-    sub = _slide(kgm.SubsetSampling(p0=0.2), 100, seed=2)
+    sub = _incline(kgm.SubsetSampling(p0=0.2), 20, seed=2)
     assert all(lv.probability >= 0.2 for lv in sub.levels[:-1]) and sub.estimate.p0 == 0.2
     with pytest.raises(ValueError, match="whole numbers"):
-        _slide(kgm.SubsetSampling(p0=0.3), 100)
+        _incline(kgm.SubsetSampling(p0=0.3), 100)
     with pytest.raises(ValueError, match="geometry_seed=True with sampling='subset'"):
         kgm.probabilistic(kgm_cases.jointed_scene, {"friction": st.norm(30, 3)}, 100, method="rigid",
                           sampling="subset", geometry_seed=True)
@@ -97,35 +150,59 @@ def test_settings_and_bad_input():
         kgm.probabilistic(kgm_cases.incline_scene, {"friction": st.norm(30, 3)}, 100, sampling="sobol")
 
 
-@pytest.mark.skipif(importlib.util.find_spec("matplotlib") is None,
-                    reason="plots need matplotlib, an optional extra (pip install 'ddatai[plot]')")
-def test_command_line_and_pictures(tmp_path):
-    from PIL import Image
-
-    from kgm.cli import main
-
-    (tmp_path / "vars.toml").write_text('[friction]\ndistribution = "normal"\nmean = 36.2\nsd = 2.0\n')
+def _scene_script(tmp_path):
+    (tmp_path / "vars.toml").write_text('[friction]\ndistribution = "normal"\nmean = 34.65\nsd = 2.0\n')
     script = tmp_path / "scene.py"
     script.write_text(f"import sys; sys.path.insert(0, {str(kgm_cases.__file__.rsplit('/', 1)[0])!r})\n"
                       "import kgm_cases\n\n\ndef build(friction=30.0):\n"
                       "    return kgm_cases.incline_scene(friction=friction)\n")
+    return script
+
+
+def test_command_line_subset_and_importance(tmp_path):
+    """`kgm study ... --sampling subset` prints P_f, its c.o.v. and the levels, writes the study
+    file that reads back as the study of kgm.probabilistic; ``importance`` prints the design
+    point."""
+    from kgm.cli import main
+
+    script = _scene_script(tmp_path)
     out = io.StringIO()
-    rc = main(["study", str(script), "--vars", str(tmp_path / "vars.toml"), "--n", "100", "--method", "rigid",
-               "--group", "1", "--sampling", "subset", "--seed", "4", "--out", str(tmp_path / "s.csv"),
-               "--plot-levels", str(tmp_path / "levels.png"), "--plot-convergence", str(tmp_path / "pf.png")],
-              out=out)
+    rc = main(["study", str(script), "--vars", str(tmp_path / "vars.toml"), "--n", "20", "--method", "rigid",
+               "--group", "1", "--sampling", "subset", "--seed", "3", "--out", str(tmp_path / "s.csv")], out=out)
     text = out.getvalue()
     assert rc == 0, text
-    ref = kgm.probabilistic(kgm_cases.incline_scene, {"friction": st.norm(36.2, 2.0)}, 100, method="rigid",
-                            group={1}, sampling="subset", seed=4)
-    assert f"P_f = {ref.pf:.3g}" in text and "FS threshold" in text
-    assert np.array_equal(kgm.read_study(tmp_path / "s.csv").table, ref.table)
+    ref = kgm.read_study(tmp_path / "s.csv")
+    assert np.array_equal(ref.table, _incline("subset", 20).table)
+    assert f"P_f = {ref.pf:.3g}" in text and "FS threshold" in text and f"c.o.v. {ref.pf_cov:.2f}" in text
+    out = io.StringIO()
+    rc = main(["study", str(script), "--vars", str(tmp_path / "vars.toml"), "--n", "10", "--method", "rigid",
+               "--group", "1", "--sampling", "importance"], out=out)
+    assert rc == 0 and "design point (FORM" in out.getvalue() and "friction = 30." in out.getvalue(), out.getvalue()
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(importlib.util.find_spec("matplotlib") is None,
+                    reason="plots need matplotlib, an optional extra (pip install 'ddatai[plot]')")
+def test_command_line_pictures(tmp_path):
+    """The levels and the convergence pictures from the command line, FS = 1 drawn on a
+    two-variable study. About 10–20 s on the shared machine (matplotlib, a contour's grid of
+    evaluations)."""
+    from PIL import Image
+
+    from kgm.cli import main
+
+    script = _scene_script(tmp_path)
+    out = io.StringIO()
+    rc = main(["study", str(script), "--vars", str(tmp_path / "vars.toml"), "--n", "50", "--method", "rigid",
+               "--group", "1", "--sampling", "subset", "--seed", "3",
+               "--plot-levels", str(tmp_path / "levels.png"), "--plot-convergence", str(tmp_path / "pf.png")],
+              out=out)
+    assert rc == 0, out.getvalue()
     for name in ("levels.png", "pf.png"):
         with Image.open(tmp_path / name) as im:
             assert im.size[0] > 400 and len(im.getcolors(maxcolors=100000)) > 20
-    # importance sampling prints the design point; a two-variable study draws FS = 1
+    # a two-variable study draws FS = 1
     imp = _slide("importance", 100)
-    out = io.StringIO()
     fig = imp.plot_levels(tmp_path / "imp.png", grid=8)
     assert any(c.get_label() == "FS = 1 (others at the reference)" or c.get_label() == "FS = 1"
                for c in fig.axes[0].get_lines())
@@ -186,7 +263,7 @@ def test_example_2_sarma_at_1e_3_subset_and_importance_agree_with_a_million_samp
     from pathlib import Path
 
     from ddatai.parallel import ScriptFunction
-    from kgm.probability import read_variables
+    from kgm.studies.sampling import read_variables
 
     root = Path(kgm_cases.__file__).parents[1]
     variables, correlation = read_variables(root / "docs" / "kgm" / "example_2_rare_vars.toml")

@@ -2,6 +2,7 @@
 subset simulation, FORM and importance sampling on limit states with closed forms, the
 tolerances from each estimate's own reported coefficient of variation."""
 
+import functools
 import math
 
 import numpy as np
@@ -166,6 +167,7 @@ def _slide_g(u):
     return _slide_fs(_x(FRICTION, z1), _x(COHESION, z2)) - 1.0
 
 
+@functools.lru_cache(maxsize=None)
 def _slide_exact() -> float:
     """P_f = ∫ φ(z₁) P(c < c_crit(φ(z₁)) | z₁) dz₁ with c_crit = W(sinψ − cosψ tanφ)/A (FS
     linear in c) and z₂ | z₁ ~ N(ρz₁, 1 − ρ²): one-dimensional quadrature over φ."""
