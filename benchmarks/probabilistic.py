@@ -95,7 +95,7 @@ def targets(args) -> None:
 
     sys.path.insert(0, str(ROOT / "tests"))
     import kgm_cases
-    from kgm.probability import probabilistic
+    from kgm.studies.probabilistic import probabilistic
     from kgm.studies import reliability
 
     print(f"# small P_f targets, {platform.processor() or platform.machine()}, {os.cpu_count()} CPUs")
