@@ -262,8 +262,8 @@ def test_example_2_sarma_at_1e_3_subset_and_importance_agree_with_a_million_samp
     lognormal 20 ± 5 kPa, correlated −0.3: docs/kgm/example_2_rare_vars.toml): subset simulation
     (1,000 samples a level) and importance sampling (1,000) through kgm.probabilistic agree with
     a plain Monte Carlo of 10⁶ Sarma samples within three standard deviations of their
-    difference (the estimates' own c.o.v. and the binomial one). About 65 s of CPU: 4–10 minutes
-    wall on the shared 2-core machine (docs/kgm/reliability.md)."""
+    difference (the estimates' own c.o.v. and the binomial one). 83 s wall on the shared 2-core
+    machine at a load of ~7, up to 10 minutes under heavier load (docs/kgm/reliability.md)."""
     from pathlib import Path
 
     from ddatai.parallel import ScriptFunction
