@@ -1,6 +1,6 @@
 """Console command ``kgm``.
 
-    kgm analyze SCENE.py [--method rigid|sarma|dda] [--progressive] [--compare] [--gif PATH]
+    kgm analyze SCENE.py [--method rigid|sarma|dda] [--progressive] [--compare] [--contact-gap M] [--gif PATH]
     kgm wedge INPUT.toml [--png PATH] [--gif PATH] [--stereonet PATH] [--vtp PATH] [--csv PATH]
 
 SCENE.py is a scene script with ``build()`` returning a `ddatai.Scene` or ``(scene, params)``
@@ -198,6 +198,9 @@ def main(argv: Optional[Sequence[str]] = None, out=None) -> int:
                     help="also judge the critical group with all three evaluators (paper table)")
     an.add_argument("--compare-whole", action="store_true",
                     help="dda: time the sub-model against the whole slope")
+    an.add_argument("--contact-gap", metavar="M", type=float, default=None,
+                    help="blocks whose facing edges are at most this far apart are in contact [m] "
+                         "(default: 1e-4 of the model's size)")
     an.add_argument("--gif", metavar="PATH", help="write a GIF of the result")
     an.add_argument("--force", action="store_true",
                     help="build the scene even when it looks larger than this machine can simulate")
@@ -239,7 +242,8 @@ def main(argv: Optional[Sequence[str]] = None, out=None) -> int:
 
     try:
         scene, params = load_scene(args.scene, getattr(args, "joints", None))
-        settings = Settings(dda=DdaSettings(compare_whole=args.compare_whole, progress=_dda_progress(sys.stderr)))
+        settings = Settings(dda=DdaSettings(compare_whole=args.compare_whole, progress=_dda_progress(sys.stderr)),
+                            contact_gap=args.contact_gap)
         rep = analyze(scene, method=args.method, progressive=args.progressive, settings=settings, params=params,
                       seismic=args.seismic)
         _print_report(rep, out)
