@@ -149,16 +149,20 @@ def _ve_test(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), p, e
 
 
 @ti.func
-def _emit(out_int: ti.template(), out_len: ti.template(), count: ti.template(),
+def _emit(out_int: ti.template(), out_len: ti.template(), count: ti.template(), slot, base, cap,
           kind, v0, e0, v1, e1, length):
-    k = ti.atomic_add(count[0], 1)
-    if k < out_int.shape[0]:
-        out_int[k, 0] = kind
-        out_int[k, 1] = v0
-        out_int[k, 2] = e0
-        out_int[k, 3] = v1
-        out_int[k, 4] = e1
-        out_len[k] = length
+    """Append a contact to the region ``base:base + cap`` of the outputs, counted in
+    ``count[slot]`` (the count may pass ``cap``: the caller grows the region and detects again).
+    The narrow-phase kernel has one region (slot 0, base 0, the whole array); the fused engine
+    one per member (`ddatai.fused`)."""
+    k = ti.atomic_add(count[slot], 1)
+    if k < cap:
+        out_int[base + k, 0] = kind
+        out_int[base + k, 1] = v0
+        out_int[base + k, 2] = e0
+        out_int[base + k, 3] = v1
+        out_int[base + k, 4] = e1
+        out_len[base + k] = length
 
 
 @ti.func
@@ -177,7 +181,7 @@ def _nearest(xy: ti.template(), P, lo, hi, limit):
 @ti.func
 def _vertex_vertex(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), ia, ib,
                    d0, d9, sin_h1, h1, out_int: ti.template(), out_len: ti.template(),
-                   count: ti.template()):
+                   count: ti.template(), slot, base, cap):
     """Vertices ia (block A) and ib (block B) are mutual nearest within d0 (§3.3 case 1, §3.4)."""
     cP = _convex(xy, vnext, vprev, ia)
     cQ = _convex(xy, vnext, vprev, ib)
@@ -187,13 +191,13 @@ def _vertex_vertex(xy: ti.template(), vnext: ti.template(), vprev: ti.template()
             e = vprev[ib] if s == 0 else ib
             ok, length = _ve_test(xy, vnext, vprev, ia, e, d0, d9, sin_h1, 0)
             if ok == 1:
-                _emit(out_int, out_len, count, KIND_VE, ia, e, -1, -1, length)
+                _emit(out_int, out_len, count, slot, base, cap, KIND_VE, ia, e, -1, -1, length)
     elif cQ and not cP:
         for s in ti.static(range(2)):
             e = vprev[ia] if s == 0 else ia
             ok, length = _ve_test(xy, vnext, vprev, ib, e, d0, d9, sin_h1, 0)
             if ok == 1:
-                _emit(out_int, out_len, count, KIND_VE, ib, e, -1, -1, length)
+                _emit(out_int, out_len, count, slot, base, cap, KIND_VE, ib, e, -1, -1, length)
     elif cP and cQ:
         P = _pt(xy, ia)
         Q = _pt(xy, ib)
@@ -230,7 +234,7 @@ def _vertex_vertex(xy: ti.template(), vnext: ti.template(), vprev: ti.template()
                     else:
                         v, e, end, w = ib, ia, vprev[ib], ia
                 if _edge_edge_exit(xy, vnext, vprev, v, e, w, d9) == 0:
-                    _emit(out_int, out_len, count, KIND_VE, v, e, -1, -1, _half_overlap(xy, vnext, e, v, end))
+                    _emit(out_int, out_len, count, slot, base, cap, KIND_VE, v, e, -1, -1, _half_overlap(xy, vnext, e, v, end))
                 else:
                     # parallel, but v entered the edge at the far corner or lies deeper than d9
                     # (§3.3): v against both edges meeting at w, by the vertex-edge rules
@@ -238,7 +242,7 @@ def _vertex_vertex(xy: ti.template(), vnext: ti.template(), vprev: ti.template()
                         e2 = vprev[w] if s == 0 else w
                         ok, length = _ve_test(xy, vnext, vprev, v, e2, d0, d9, sin_h1, 0)
                         if ok == 1:
-                            _emit(out_int, out_len, count, KIND_VE, v, e2, -1, -1, length)
+                            _emit(out_int, out_len, count, slot, base, cap, KIND_VE, v, e2, -1, -1, length)
             else:
                 # genuine vertex-vertex: the entrance lines are the edges across the smaller gap
                 # (e5 unless e6 is clearly smaller, so equal gaps do not flip between steps)
@@ -249,7 +253,7 @@ def _vertex_vertex(xy: ti.template(), vnext: ti.template(), vprev: ti.template()
                     eB = ia
                 if _edge_edge_exit(xy, vnext, vprev, ia, eA, ib, d9) == 0 and \
                         _edge_edge_exit(xy, vnext, vprev, ib, eB, ia, d9) == 0:
-                    _emit(out_int, out_len, count, KIND_VV, ia, eA, ib, eB, 0.0)
+                    _emit(out_int, out_len, count, slot, base, cap, KIND_VV, ia, eA, ib, eB, 0.0)
                 else:
                     # a vertex behind its entrance line entered the edge at the line's far
                     # corner, or lies beyond d9 (§3.3 rule 3): each vertex against both edges
@@ -260,7 +264,43 @@ def _vertex_vertex(xy: ti.template(), vnext: ti.template(), vprev: ti.template()
                         e2 = vprev[w] if s % 2 == 0 else w
                         ok, length = _ve_test(xy, vnext, vprev, v, e2, d0, d9, sin_h1, 0)
                         if ok == 1:
-                            _emit(out_int, out_len, count, KIND_VE, v, e2, -1, -1, length)
+                            _emit(out_int, out_len, count, slot, base, cap, KIND_VE, v, e2, -1, -1, length)
+
+
+@ti.func
+def pair_contacts(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), a0, a1, b0, b1,
+                  d0, d9, sin_h1, h1, out_int: ti.template(), out_len: ti.template(),
+                  count: ti.template(), slot, base, cap):
+    """The contacts of the block pair whose vertices are ``a0:a1`` (A) and ``b0:b1`` (B), by
+    Shi's rules (docs/method/dda.md §3.3–3.6), appended to an output region (`_emit`)."""
+    # 1. vertex pairs closer than d0 (mutual nearest): vertex-vertex rules
+    for ia in range(a0, a1):
+        P = _pt(xy, ia)
+        ib = _nearest(xy, P, b0, b1, d0)
+        if ib >= 0:
+            if _nearest(xy, _pt(xy, ib), a0, a1, d0) == ia:
+                _vertex_vertex(xy, vnext, vprev, ia, ib, d0, d9, sin_h1, h1, out_int, out_len, count,
+                               slot, base, cap)
+    # 2. vertices of A against edges of B, and 3. vertices of B against edges of A,
+    # skipping a vertex whose mutual-nearest partner is an end of the edge (that pair was
+    # handled above). A vertex near an edge's end that is not that end's mutual nearest
+    # (the end pairs with another vertex) is tested here: skipping it by distance alone
+    # lost the contact of a wedge's tip sliding along a joint next to the other block's
+    # corner while the tip sank into it
+    for s in ti.static(range(2)):
+        v_lo, v_hi = (a0, a1) if s == 0 else (b0, b1)
+        e_lo, e_hi = (b0, b1) if s == 0 else (a0, a1)
+        for iv in range(v_lo, v_hi):
+            P = _pt(xy, iv)
+            partner = _nearest(xy, P, e_lo, e_hi, d0)
+            if partner >= 0:
+                if _nearest(xy, _pt(xy, partner), v_lo, v_hi, d0) != iv:
+                    partner = -1
+            for ie in range(e_lo, e_hi):
+                if partner != ie and partner != vnext[ie]:
+                    ok, length = _ve_test(xy, vnext, vprev, iv, ie, d0, d9, sin_h1, 1)
+                    if ok == 1:
+                        _emit(out_int, out_len, count, slot, base, cap, KIND_VE, iv, ie, -1, -1, length)
 
 
 @ti.kernel
@@ -274,32 +314,5 @@ def narrow_phase(pairs: I32_2, xy: F64_2, voff: I32_1, vnext: I32_1, vprev: I32_
     for p in range(pairs.shape[0]):
         A = pairs[p, 0]
         B = pairs[p, 1]
-        a0, a1 = voff[A], voff[A + 1]
-        b0, b1 = voff[B], voff[B + 1]
-        # 1. vertex pairs closer than d0 (mutual nearest): vertex-vertex rules
-        for ia in range(a0, a1):
-            P = _pt(xy, ia)
-            ib = _nearest(xy, P, b0, b1, d0)
-            if ib >= 0:
-                if _nearest(xy, _pt(xy, ib), a0, a1, d0) == ia:
-                    _vertex_vertex(xy, vnext, vprev, ia, ib, d0, d9, sin_h1, h1, out_int, out_len, count)
-        # 2. vertices of A against edges of B, and 3. vertices of B against edges of A,
-        # skipping a vertex whose mutual-nearest partner is an end of the edge (that pair was
-        # handled above). A vertex near an edge's end that is not that end's mutual nearest
-        # (the end pairs with another vertex) is tested here: skipping it by distance alone
-        # lost the contact of a wedge's tip sliding along a joint next to the other block's
-        # corner while the tip sank into it
-        for s in ti.static(range(2)):
-            v_lo, v_hi = (a0, a1) if s == 0 else (b0, b1)
-            e_lo, e_hi = (b0, b1) if s == 0 else (a0, a1)
-            for iv in range(v_lo, v_hi):
-                P = _pt(xy, iv)
-                partner = _nearest(xy, P, e_lo, e_hi, d0)
-                if partner >= 0:
-                    if _nearest(xy, _pt(xy, partner), v_lo, v_hi, d0) != iv:
-                        partner = -1
-                for ie in range(e_lo, e_hi):
-                    if partner != ie and partner != vnext[ie]:
-                        ok, length = _ve_test(xy, vnext, vprev, iv, ie, d0, d9, sin_h1, 1)
-                        if ok == 1:
-                            _emit(out_int, out_len, count, KIND_VE, iv, ie, -1, -1, length)
+        pair_contacts(xy, vnext, vprev, voff[A], voff[A + 1], voff[B], voff[B + 1], d0, d9, sin_h1, h1,
+                      out_int, out_len, count, 0, 0, out_int.shape[0])
