@@ -42,8 +42,8 @@ _EXPORTS = {
     "sub_scene": "dda",
     "toppling_mode": "toppling", "toppling_row": "toppling", "toppling_check": "toppling", "BlockState": "toppling",
     "BlockStep": "toppling",
-    "probabilistic": "probability", "Study": "probability", "read_study": "probability",
-    "sample_variables": "probability",
+    "probabilistic": "studies.probabilistic", "Study": "studies.study", "read_study": "studies.study",
+    "sample_variables": "studies.sampling",
 }
 
 __all__ = sorted(_EXPORTS)

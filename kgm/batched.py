@@ -20,6 +20,7 @@ from ddatai.params import Params
 from ddatai.scene import Scene
 
 from .blocks import BlockSystem
+from .kinds import RunEnd
 from .judgement import (RestCounter, _StopRun, _verdict, block_displacements, block_speeds, group_size, judge,
                         run_params, sub_scene)
 from .settings import DdaSettings
@@ -194,17 +195,18 @@ def judge_members(members, blocks: frozenset, *, settings: DdaSettings, params: 
     wall = time.perf_counter() - start
     out, rerun = {}, []
     for k, m in enumerate(members):
-        note = ("at rest" if resting[k] else "stopped early") if decided[k] else ""
+        end = (RunEnd.AT_REST if resting[k] else RunEnd.STOPPED_EARLY) if decided[k] else RunEnd.DURATION
+        cause = ""
         if cut and not decided[k]:
             rerun.append(k)  # not decided when the run left the steps it takes alone
             continue
-        if failure is not None and not note:
+        if failure is not None and not decided[k]:
             if max(disp[k]) < delta:
                 rerun.append(k)  # it had not failed when the run diverged: judged on its own
                 continue
-            note = f"diverged after failing: {failure}"
-        out[k] = _verdict(np.array(times[k]), np.array(disp[k]), delta=delta, duration=duration, note=note,
-                          wall_time=wall, friction=m.friction, reduction=m.reduction, model_blocks=len(ids),
+            end, cause = RunEnd.DIVERGED, str(failure)
+        out[k] = _verdict(np.array(times[k]), np.array(disp[k]), delta=delta, duration=duration, end=end,
+                          cause=cause, wall_time=wall, friction=m.friction, reduction=m.reduction, model_blocks=len(ids),
                           moving_blocks=sum(not b.fixed for b in first.blocks), scene_blocks=m.scene.n_blocks,
                           batch=n_members)
         if settings.progress is not None:

@@ -21,12 +21,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
-from enum import Enum
 from typing import Iterable, Optional
 
 import numpy as np
 
 from ddatai.geometry import check_overlaps, polygon_integrals
+
+from .kinds import ModeKind  # noqa: F401  (its home is kgm.kinds; kgm.blocks.ModeKind stays)
+
 #: Two directions closer than this are the same face direction [rad]. Cut blocks have edges
 #: parallel to ~1e-12 rad; hand-built scenes to the precision of their coordinates.
 ANGLE_TOL = 1e-6
@@ -44,18 +46,6 @@ CONTACT_GAP = 1e-4
 #: passes, stopped when tan φ(σn) changes by less than BARTON_TOL (docs/method/barton_bandis.md).
 BARTON_ITERATIONS = 100
 BARTON_TOL = 1e-12
-
-
-class ModeKind(str, Enum):
-    """How a block or group fails (docs/kgm/method.md §2.4, §5.2)."""
-
-    NONE = "none"            # no admissible mode: stable by geometry (type III)
-    LIFTING = "lifting"      # moves away from every contact (free fall)
-    SLIDING = "sliding"      # rigid translation on one face (parallel faces pooled)
-    ROTATION = "rotation"    # rigid rotation about a vertex (toppling)
-    SARMA = "sarma"          # blocks translate separately, shearing their shared joints
-    TOPPLING = "toppling"    # a row of blocks toppling and sliding on their own bases
-                             # (Goodman & Bray 1976, kgm.toppling)
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)

@@ -18,6 +18,8 @@ from typing import Optional, Sequence
 
 import numpy as np
 
+from .kinds import LIMIT_EQUILIBRIUM, METHOD_NAMES, METHODS, SAMPLINGS, BlockState, Method, RunEnd, Sampling
+
 
 def load_scene(path: str, joints: Optional[str] = None):
     """Run a scene script's ``build()`` (`ddatai.io.scenefile`, the loader of ``ddatai run``), or
@@ -84,7 +86,7 @@ def write_result_gif(path: str, scene, report, params=None, settings=None) -> No
 
     settings = settings or Settings()
     crit = report.critical
-    if report.method == "dda" and crit is not None:
+    if report.method == Method.DDA and crit is not None:
         from .blocks import build_block_system
         from .dda import judge
 
@@ -108,10 +110,10 @@ def write_result_gif(path: str, scene, report, params=None, settings=None) -> No
         title = f"progressive {report.method}: {len(report.removed)} groups removed"
     elif crit is not None and crit.block_modes:
         # a toppling group: each block coloured by its state at limit equilibrium
-        states = ["toppling", "sliding", "stable"]
+        states = [BlockState.TOPPLING, BlockState.SLIDING, BlockState.STABLE]
         for b, state in crit.block_modes.items():
             labels[b] = states.index(state)
-        names = [f"{state} (critical group)" for state in states]
+        names = [f"{state.value} (critical group)" for state in states]
         title = (f"{report.method}: {crit.mode.kind.value} of {len(crit.blocks)} blocks, FS {crit.fs:.2f} "
                  f"({crit.verdict})")
     else:
@@ -140,7 +142,7 @@ def _print_report(rep, out) -> None:
             d = crit.dda
             j = d.judgement
             ran = (f"was at rest after {j.simulated:.2f} s of T = {j.duration:.2f} s, {j.displacement:.4f} m "
-                   f"from its start" if j.note == "at rest" else
+                   f"from its start" if j.end is RunEnd.AT_REST else
                    f"moved {j.displacement:.4f} m in {j.simulated:.2f} s")
             print(f"  DDA: {len(d.runs)} runs, {d.wall_time:.1f} s; at the scene's strength the group {ran} "
                   f"(criterion {j.threshold:.4f} m); "
@@ -177,7 +179,7 @@ def main(argv: Optional[Sequence[str]] = None, out=None) -> int:
     an = sub.add_parser("analyze", help="find and judge the key groups of a scene")
     an.add_argument("scene", help="scene script with build() -> Scene or (Scene, Params), or a SECTION.dxf")
     an.add_argument("--joints", metavar="TOML", help="a SECTION.dxf's material and joint layers")
-    an.add_argument("--method", choices=("rigid", "sarma", "dda"), default="sarma")
+    an.add_argument("--method", choices=METHOD_NAMES, default=Method.SARMA.value)
     an.add_argument("--progressive", action="store_true", help="remove unstable groups and repeat")
     an.add_argument("--seismic", metavar="KH[,KV]", type=_seismic,
                     help="pseudo-static seismic coefficients (kh towards +x, kv upwards) [-], rigid and sarma")
@@ -192,8 +194,8 @@ def main(argv: Optional[Sequence[str]] = None, out=None) -> int:
     pr.add_argument("scene", help="scene script whose build(**sample) takes the variables as keyword arguments")
     pr.add_argument("--vars", required=True, metavar="TOML", help="variables file (distributions, correlation)")
     pr.add_argument("--n", type=int, default=1000, help="samples (default 1000)")
-    pr.add_argument("--method", choices=("rigid", "sarma", "dda"), default="sarma")
-    pr.add_argument("--sampling", choices=("monte-carlo", "latin-hypercube"), default="monte-carlo")
+    pr.add_argument("--method", choices=METHOD_NAMES, default=Method.SARMA.value)
+    pr.add_argument("--sampling", choices=SAMPLINGS, default=Sampling.MONTE_CARLO.value)
     pr.add_argument("--seed", type=int, default=0)
     pr.add_argument("--group", metavar="IDS", help="judge this group (comma-separated block ids) in every sample")
     pr.add_argument("--workers", type=int, default=None,
@@ -221,7 +223,7 @@ def main(argv: Optional[Sequence[str]] = None, out=None) -> int:
         _print_report(rep, out)
         if args.compare and rep.critical is not None:
             t0 = time.perf_counter()
-            methods = ("rigid", "sarma") if args.seismic else ("rigid", "sarma", "dda")   # dda: no k·W
+            methods = LIMIT_EQUILIBRIUM if args.seismic else METHODS   # dda: no k·W
             rows = [evaluate(scene, rep.critical.blocks, m, settings=settings, params=params, seismic=args.seismic)
                     if m != rep.method else rep.critical for m in methods]
             print("", file=out)
@@ -239,7 +241,8 @@ def main(argv: Optional[Sequence[str]] = None, out=None) -> int:
 def _probabilistic(args, out) -> int:
     from ddatai.parallel import ScriptFunction
 
-    from .probability import probabilistic, read_variables
+    from .studies.probabilistic import probabilistic
+    from .studies.sampling import read_variables
 
     def bar(done, total):
         if sys.stderr.isatty() or done == total:

@@ -77,10 +77,15 @@ _KIND_RANK = {ModeKind.LIFTING: 0, ModeKind.SLIDING: 1, ModeKind.ROTATION: 2, Mo
               ModeKind.TOPPLING: 4, ModeKind.NONE: 5}
 
 
+def tie_key(value: float) -> float:
+    """The tie rule of every ranking: values equal to 9 significant digits tie (the same plane
+    reached by two evaluators, or through two groups, differs only by round-off) [-]."""
+    return float(f"{value:.9g}")
+
+
 def _governing(modes: list[Mode], rejected: list[str] = ()) -> Evaluation:
-    # equal to 9 significant digits is a tie (one plane reached by two evaluators differs by
-    # round-off); then the larger critical friction, then the simpler mode
-    modes = sorted(modes, key=lambda m: (float(f"{m.fs:.9g}"), -float(f"{m.critical_friction:.9g}"),
+    # a tie in FS (`tie_key`) goes to the larger critical friction, then the simpler mode
+    modes = sorted(modes, key=lambda m: (tie_key(m.fs), -tie_key(m.critical_friction),
                                          _KIND_RANK.get(m.kind, 9)))
     if not modes:
         none = Mode(kind=ModeKind.NONE, fs=math.inf, critical_friction=0.0,

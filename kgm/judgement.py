@@ -19,6 +19,7 @@ from ddatai.params import Joint, Params
 from ddatai.scene import Scene
 
 from .blocks import BlockSystem
+from .kinds import RunEnd
 from .settings import DdaSettings
 
 
@@ -54,10 +55,14 @@ class DdaJudgement:
     """Blocks in the whole scene [-]."""
     note: str = ""
     """'stopped early' (past `kgm.DdaSettings.stop_ratio`·δ), 'at rest' (stopped as stable,
-    `kgm.judgement.RestCounter`) or the cause of a divergence after the group had failed."""
+    `kgm.judgement.RestCounter`) or the cause of a divergence after the group had failed
+    (``end`` says which)."""
     batch: int = 1
     """Members of the run it was judged in (`judge_many`: several strengths side by side in one
     model; ``wall_time`` is then that run's) [-]."""
+    end: RunEnd = RunEnd.DURATION
+    """How the run ended (`kgm.kinds.RunEnd`): its duration T, at rest, stopped early, or
+    diverged after the group had failed."""
 
 
 class _StopRun(Exception):
@@ -220,20 +225,21 @@ def judge(scene: Scene, system: BlockSystem, blocks: frozenset, *, settings: Dda
             raise _StopRun
 
     t0 = time.perf_counter()
-    note = ""
+    end, cause = RunEnd.DURATION, ""
     results = None
     try:
         results = simulate(sub, prm, duration=duration, progress=progress,
                            record_every=record_every or 10 ** 9, model=model)
     except _StopRun:
-        note = "at rest" if resting[0] else "stopped early"
+        end = RunEnd.AT_REST if resting[0] else RunEnd.STOPPED_EARLY
     except SimulationError as err:
         if max(disp) < delta:
             raise
-        note = f"diverged after failing: {err}"
+        end, cause = RunEnd.DIVERGED, str(err)
         results = err.results
     wall = time.perf_counter() - t0
-    j = _verdict(np.array(times), np.array(disp), delta=delta, duration=duration, note=note, wall_time=wall,
+    j = _verdict(np.array(times), np.array(disp), delta=delta, duration=duration, end=end, cause=cause,
+                 wall_time=wall,
                  friction=friction, reduction=reduction, model_blocks=len(ids),
                  moving_blocks=sum(not s.fixed for s in sub.blocks), scene_blocks=scene.n_blocks)
     if settings.progress is not None:
@@ -243,16 +249,18 @@ def judge(scene: Scene, system: BlockSystem, blocks: frozenset, *, settings: Dda
     return j
 
 
-def _verdict(t: np.ndarray, d: np.ndarray, *, delta: float, duration: float, note: str, **fields) -> DdaJudgement:
+def _verdict(t: np.ndarray, d: np.ndarray, *, delta: float, duration: float, end: RunEnd, cause: str = "",
+             **fields) -> DdaJudgement:
     """The verdict of a run from its displacement history d(t) (`kgm.DdaSettings`): unstable if
     it was stopped or failed after moving, or if d(T) ≥ δ while its mean speed over the last
-    quarter of the run is ≥ δ/T. A run stopped "at rest" (`RestCounter`) stays where it is until
+    quarter of the run is ≥ δ/T. A run stopped at rest (`RestCounter`) stays where it is until
     T: its history goes on flat, as the steps it did not take would have recorded it."""
     simulated, steps = float(t[-1]), len(t) - 1
-    if note == "at rest" and t[-1] < duration:
+    if end is RunEnd.AT_REST and t[-1] < duration:
         t, d = np.append(t, duration), np.append(d, d[-1])
     tq = 0.75 * t[-1]
     speed = float((d[-1] - np.interp(tq, t, d)) / max(t[-1] - tq, 1e-300))
-    unstable = (bool(note) and note != "at rest") or (d[-1] >= delta and speed >= delta / duration)
+    unstable = end in (RunEnd.STOPPED_EARLY, RunEnd.DIVERGED) or (d[-1] >= delta and speed >= delta / duration)
     return DdaJudgement(stable=not unstable, displacement=float(d[-1]), speed=speed, threshold=delta,
-                        duration=duration, simulated=simulated, steps=steps, note=note, **fields)
+                        duration=duration, simulated=simulated, steps=steps, note=end.note(cause), end=end,
+                        **fields)

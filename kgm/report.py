@@ -10,6 +10,7 @@ from typing import Optional, Sequence
 import numpy as np
 
 from .blocks import DISTANCE_TOL, BlockSystem, Mode
+from .kinds import BlockState, Method, ModeKind
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -29,7 +30,7 @@ class GroupResult:
     """Governing failure mode from limit equilibrium (for dda: from the screening evaluator)."""
     surface: tuple = ()
     """Critical failure surface: polylines (k, 2) [m] of the contacts on which the group slides."""
-    evaluator: str = "rigid"
+    evaluator: str = Method.RIGID
     """Evaluator that gave ``fs`` and ``critical_friction``: 'rigid', 'sarma' or 'dda'."""
     seed: Optional[int] = None
     """Key block the greedy search grew the group from."""
@@ -187,19 +188,19 @@ def format_groups(groups: Sequence[GroupResult]) -> str:
 
 
 #: Words for a mode in the tables.
-_MODE_WORDS = {"lifting": "lifting (the loads pull it off every contact)",
-               "sliding": "rigid sliding on one plane",
-               "rotation": "rigid rotation about a vertex",
-               "sarma": "Sarma mechanism (the blocks slide apart, shearing the joints between them)",
-               "toppling": "block toppling (Goodman–Bray row)",
-               "none": "no admissible mode (stable by geometry)"}
+_MODE_WORDS = {ModeKind.LIFTING: "lifting (the loads pull it off every contact)",
+               ModeKind.SLIDING: "rigid sliding on one plane",
+               ModeKind.ROTATION: "rigid rotation about a vertex",
+               ModeKind.SARMA: "Sarma mechanism (the blocks slide apart, shearing the joints between them)",
+               ModeKind.TOPPLING: "block toppling (Goodman–Bray row)",
+               ModeKind.NONE: "no admissible mode (stable by geometry)"}
 
 
 def _explain_lines(g: GroupResult) -> list[str]:
     """'governs: ...', 'also admissible: ...', 'not admissible: ...' lines of a group."""
     lines = []
-    if g.mode.kind.value == "none":
-        lines.append(f"governs: {_MODE_WORDS['none']}")
+    if g.mode.kind == ModeKind.NONE:
+        lines.append(f"governs: {_MODE_WORDS[ModeKind.NONE]}")
     else:
         lines.append(f"governs: {_MODE_WORDS.get(g.mode.kind.value, g.mode.kind.value)}, FS {_fmt(g.mode.fs)}")
     others = [m for m in g.modes if m is not g.mode]
@@ -213,8 +214,8 @@ def _block_modes_line(steps) -> str:
     """'stable {13-15}; toppling {3-12}; sliding {0-2}': blocks by state, top to toe, runs of
     consecutive ids joined."""
     parts = []
-    for state in ("stable", "toppling", "sliding"):
-        ids = sorted(s.block for s in steps if s.state.value == state)
+    for state in (BlockState.STABLE, BlockState.TOPPLING, BlockState.SLIDING):
+        ids = sorted(s.block for s in steps if s.state == state)
         if not ids:
             continue
         runs, start = [], ids[0]
@@ -222,7 +223,7 @@ def _block_modes_line(steps) -> str:
             if b != a + 1:
                 runs.append(f"{start}" if start == a else f"{start}-{a}")
                 start = b
-        parts.append(f"{state} {{{', '.join(runs)}}}")
+        parts.append(f"{state.value} {{{', '.join(runs)}}}")
     return "; ".join(parts)
 
 
@@ -245,7 +246,7 @@ def format_toppling(mode: Mode) -> str:
 def format_paper_table(results: Sequence[GroupResult], *, title: str = "") -> str:
     """The layout of the paper's comparison: method, factor of safety, critical friction
     angle, verdict (one row per evaluator of the same group), as a Markdown table."""
-    names = {"rigid": "KGM (rigid group)", "sarma": "SKGM (Sarma)", "dda": "KGM + DDA (developed)"}
+    names = {Method.RIGID: "KGM (rigid group)", Method.SARMA: "SKGM (Sarma)", Method.DDA: "KGM + DDA (developed)"}
     out = []
     if title:
         out.append(title)

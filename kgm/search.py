@@ -27,18 +27,17 @@ import numpy as np
 
 from .blocks import (BlockSystem, build_block_system, check_group, classify_blocks, has_free_face,
                      is_connected, is_removable)
-from .evaluators import Evaluation, critical_friction_of, evaluate_rigid, evaluate_sarma
+from .evaluators import Evaluation, critical_friction_of, evaluate_rigid, evaluate_sarma, tie_key
+from .kinds import METHODS, Method
 from .report import GroupResult, Report, contact_polylines
 from .toppling import upslope_neighbours
 from .settings import Settings
 
-METHODS = ("rigid", "sarma", "dda")
 
 
-def _check_method(method: str, seismic=None) -> str:
-    if method not in METHODS:
-        raise ValueError(f"unknown method {method!r}: expected 'rigid', 'sarma' or 'dda'")
-    if method == "dda" and seismic is not None:
+def _check_method(method: str, seismic=None) -> Method:
+    method = Method.of(method)
+    if method is Method.DDA and seismic is not None:
         raise ValueError("seismic coefficients are a limit-equilibrium load ('rigid' or 'sarma'); a DDA "
                          "run is dynamic: give the scene a ground acceleration instead")
     return method
@@ -57,18 +56,17 @@ def _check_scene(scene):
 class _Evaluator:
     """A limit-equilibrium evaluator with a per-round cache of group evaluations."""
 
-    def __init__(self, system: BlockSystem, method: str, settings: Settings, removed: frozenset):
+    JUDGES = {Method.RIGID: evaluate_rigid, Method.SARMA: evaluate_sarma}
+
+    def __init__(self, system: BlockSystem, method: Method, settings: Settings, removed: frozenset):
         self.system, self.settings, self.removed = system, settings, removed
-        self.method = method
+        self.judge = self.JUDGES[method]
         self.cache: dict[frozenset, Evaluation] = {}
 
     def __call__(self, blocks: frozenset) -> Evaluation:
         ev = self.cache.get(blocks)
         if ev is None:
-            if self.method == "rigid":
-                ev = evaluate_rigid(self.system, blocks, self.removed)
-            else:
-                ev = evaluate_sarma(self.system, blocks, self.removed)
+            ev = self.judge(self.system, blocks, self.removed)
             self.cache[blocks] = ev
         return ev
 
@@ -166,12 +164,12 @@ def connected_groups(system: BlockSystem, max_size: int, removed: frozenset = fr
         yield from extend(frozenset([v]), sorted(u for u in adj[v] if u > v), v, adj[v] | {v})
 
 
-def exhaustive(scene, method: str = "sarma", *, max_size: int = 4, settings: Optional[Settings] = None,
+def exhaustive(scene, method: str = Method.SARMA, *, max_size: int = 4, settings: Optional[Settings] = None,
                removed: frozenset = frozenset(), seismic=None) -> list[tuple[frozenset, float]]:
     """All key groups of up to ``max_size`` blocks with their limit-equilibrium FS, least safe
     first (exponential: for small models and for checking the greedy search, §3.3)."""
     method = _check_method(method)
-    if method == "dda":
+    if method is Method.DDA:
         raise ValueError("exhaustive: method must be 'rigid' or 'sarma' (a DDA run per group is "
                          "too slow for an enumeration)")
     settings = settings or Settings()
@@ -187,7 +185,7 @@ def exhaustive(scene, method: str = "sarma", *, max_size: int = 4, settings: Opt
 
 
 # ---------------------------------------------------------------------- results
-def _le_result(system: BlockSystem, blocks: frozenset, ev: Evaluation, method: str, settings: Settings,
+def _le_result(system: BlockSystem, blocks: frozenset, ev: Evaluation, method: Method, settings: Settings,
                seed: Optional[int] = None, iteration: int = 0) -> GroupResult:
     return GroupResult(blocks=blocks, fs=ev.fs, critical_friction=critical_friction_of(ev),
                        stable=ev.fs >= settings.fs_target, mode=ev.mode,
@@ -217,7 +215,7 @@ def _dda_result(scene, system: BlockSystem, le: GroupResult, settings: Settings,
     dres = evaluate_dda(scene, system, le.blocks, settings=settings.dda, params=params, removed=removed,
                         fs_guess=le.fs, friction_guess=le.critical_friction)
     return GroupResult(blocks=le.blocks, fs=dres.fs, critical_friction=dres.critical_friction,
-                       stable=dres.judgement.stable, mode=le.mode, surface=le.surface, evaluator="dda",
+                       stable=dres.judgement.stable, mode=le.mode, surface=le.surface, evaluator=Method.DDA,
                        seed=le.seed, iteration=le.iteration, dda=dres, water_force=le.water_force,
                        bolt_force=le.bolt_force, seismic=le.seismic, modes=le.modes, rejected=le.rejected)
 
@@ -225,17 +223,17 @@ def _dda_result(scene, system: BlockSystem, le: GroupResult, settings: Settings,
 def _order(fs: float, blocks: frozenset) -> tuple:
     """Ranking key: FS (equal to 9 significant digits counts as a tie: the same plane reached
     through different groups differs only by round-off), then fewer blocks, then ids."""
-    return (float(f"{fs:.9g}"), len(blocks), sorted(blocks))
+    return (tie_key(fs), len(blocks), sorted(blocks))
 
 
 def _rank(results: list[GroupResult]) -> list[GroupResult]:
     return sorted(results, key=lambda g: _order(g.fs, g.blocks))
 
 
-def _round(scene, system: BlockSystem, method: str, settings: Settings, params, removed: frozenset,
+def _round(scene, system: BlockSystem, method: Method, settings: Settings, params, removed: frozenset,
            iteration: int) -> list[GroupResult]:
     """One search round: candidate key groups, least safe first (DDA-judged ones first)."""
-    le_method = settings.screening if method == "dda" else method
+    le_method = method.screened_by(settings.screening)
     evaluate = _Evaluator(system, le_method, settings, removed)
     seeds = key_blocks(system, removed)
     found: dict[frozenset, GroupResult] = {}
@@ -245,14 +243,14 @@ def _round(scene, system: BlockSystem, method: str, settings: Settings, params, 
             continue
         found[group] = _le_result(system, group, ev, le_method, settings, seed=seed, iteration=iteration)
     ranked = _rank(list(found.values()))
-    if method == "dda" and ranked:
+    if method is Method.DDA and ranked:
         n = settings.dda.candidates
         judged = _rank([_dda_result(scene, system, g, settings, params, removed) for g in ranked[:n]])
         ranked = judged + ranked[n:]
     return ranked
 
 
-def analyze(scene, method: str = "sarma", progressive: bool = False, *, settings: Optional[Settings] = None,
+def analyze(scene, method: str = Method.SARMA, progressive: bool = False, *, settings: Optional[Settings] = None,
             params=None, seismic=None) -> Report:
     """Key Group Method analysis of a scene (docs/kgm/method.md §3).
 
@@ -304,7 +302,7 @@ def analyze(scene, method: str = "sarma", progressive: bool = False, *, settings
 
 
 # ---------------------------------------------------------------------- one group
-def evaluate(scene, blocks, method: str = "sarma", *, settings: Optional[Settings] = None,
+def evaluate(scene, blocks, method: str = Method.SARMA, *, settings: Optional[Settings] = None,
              params=None, seismic=None) -> GroupResult:
     """Evaluate one group (any connected set of free blocks) with one evaluator: FS, critical
     friction angle, governing mode, failure surface, verdict (``seismic`` as in `analyze`)."""
@@ -314,28 +312,28 @@ def evaluate(scene, blocks, method: str = "sarma", *, settings: Optional[Setting
     group = check_group(system, blocks)
     if not is_connected(system, group):
         raise ValueError(f"group {sorted(group)} is not connected: its blocks must share contacts")
-    le_method = settings.screening if method == "dda" else method
+    le_method = method.screened_by(settings.screening)
     ev = _Evaluator(system, le_method, settings, frozenset())(group)
     le = _le_result(system, group, ev, le_method, settings)
-    return _dda_result(scene, system, le, settings, params, frozenset()) if method == "dda" else le
+    return _dda_result(scene, system, le, settings, params, frozenset()) if method is Method.DDA else le
 
 
-def factor_of_safety(scene, blocks, method: str = "sarma", *, settings: Optional[Settings] = None,
+def factor_of_safety(scene, blocks, method: str = Method.SARMA, *, settings: Optional[Settings] = None,
                      params=None, seismic=None) -> float:
     """Factor of safety of a group [-] (inf: the group has no failure mode; ``seismic`` as
     in `analyze`)."""
     method = _check_method(method, seismic)
-    if method != "dda":
+    if method is not Method.DDA:
         return evaluate(scene, blocks, method, settings=settings, seismic=seismic).fs
     return _judge_with_dda(scene, blocks, settings, params, fs=True).fs
 
 
-def critical_friction(scene, blocks, method: str = "sarma", *, settings: Optional[Settings] = None,
+def critical_friction(scene, blocks, method: str = Method.SARMA, *, settings: Optional[Settings] = None,
                       params=None, seismic=None) -> float:
     """Friction angle of all joints (cohesion held) at which the group reaches limit
     equilibrium [degrees]: closed form for 'rigid' (§4.6), bisection for 'sarma' and 'dda'."""
     method = _check_method(method, seismic)
-    if method != "dda":
+    if method is not Method.DDA:
         return evaluate(scene, blocks, method, settings=settings, seismic=seismic).critical_friction
     return _judge_with_dda(scene, blocks, settings, params, fs=False).critical_friction
 

@@ -7,9 +7,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Callable, Literal, Optional
+from typing import Callable, Optional
 
 from ddatai.params import Params
+
+from .kinds import LIMIT_EQUILIBRIUM, Method
 
 
 def _require(cond: bool, message: str) -> None:
@@ -131,8 +133,9 @@ class Settings:
     evaluation is linear in its length, so rows may be longer than ``max_group_size``) [-]."""
     max_iterations: int = 100
     """Largest number of removal rounds in progressive mode [-]."""
-    screening: Literal["rigid", "sarma"] = "sarma"
-    """Limit-equilibrium evaluator that proposes the candidate groups DDA judges."""
+    screening: Method = Method.SARMA
+    """Limit-equilibrium evaluator that proposes the candidate groups DDA judges: 'rigid' or
+    'sarma' (a `kgm.kinds.Method`; a name is taken)."""
     dda: DdaSettings = field(default_factory=DdaSettings)
     """How the DDA evaluator runs."""
     contact_gap: Optional[float] = None
@@ -147,8 +150,9 @@ class Settings:
             v = getattr(self, name)
             _require(isinstance(v, int) and not isinstance(v, bool) and v >= 1,
                      f"Settings.{name} must be an integer >= 1, got {v!r}")
-        _require(self.screening in ("rigid", "sarma"),
+        _require(isinstance(self.screening, str) and self.screening in LIMIT_EQUILIBRIUM,
                  f"Settings.screening must be 'rigid' or 'sarma', got {self.screening!r}")
+        object.__setattr__(self, "screening", Method(self.screening))
         _require(self.contact_gap is None or (isinstance(self.contact_gap, (int, float))
                                               and not isinstance(self.contact_gap, bool)
                                               and 0 <= self.contact_gap < float("inf")),

@@ -43,11 +43,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from enum import Enum
 from typing import Callable, Optional
 
 import numpy as np
 
+from .kinds import BlockState
 from .blocks import BARTON_ITERATIONS, BARTON_TOL, BlockSystem, Mode, ModeKind, _cross, _parallel_sets, group_faces
 
 #: Least cosine between the active force and a base face's inward normal for the face to carry
@@ -68,14 +68,6 @@ F_MIN, F_MAX = 1e-3, 1e3
 #: Largest friction angle of the critical-friction bisection [degrees].
 PHI_MAX = 89.9
 BISECTION_STEPS = 64
-
-
-class BlockState(str, Enum):
-    """How one block of a toppling row behaves in the Goodman–Bray recursion."""
-
-    STABLE = "stable"
-    TOPPLING = "toppling"
-    SLIDING = "sliding"
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)

@@ -142,3 +142,99 @@ def test_core_modules_stay_short():
     long = {str(f.relative_to(ROOT)): n for f in _core_files() if f.stem != "reference"
             and (n := len(f.read_text(encoding="utf-8").splitlines())) > 470}
     assert not long, long
+
+
+# ---------------------------------------------------------------------- kgm
+#: kgm's modules in layers, lowest first (docs/kgm/architecture.md): a module imports only
+#: modules of lower layers, so data flows one way
+KGM_LAYERS = (
+    ("kinds",),
+    ("settings", "blocks"),
+    ("judgement", "report", "toppling"),
+    ("batched", "evaluators"),
+    ("dda",),
+    ("search",),
+    ("studies.sampling", "studies.study"),
+    ("studies.probabilistic",),
+    ("cli",),
+    # former homes, re-exporting their names for one release: nothing in kgm imports them
+    ("probability",),
+)
+#: the judges: they take values and return values, and never reach the search, the analyses
+#: built on it, the studies or the command line
+KGM_JUDGES = ("evaluators", "toppling", "judgement", "batched", "dda")
+KGM_ABOVE_JUDGES = ("search", "analysis", "studies", "probability", "cli")
+#: no kgm module over this many lines (one concern a module) ...
+KGM_MAX_LINES = 500
+#: ... except these, each to be split along its banners, which must not grow meanwhile
+KGM_OVERSIZE = {"blocks": 876, "evaluators": 709, "toppling": 505}
+
+
+def _kgm_modules() -> dict[str, Path]:
+    """kgm's modules (kgm.judges.sarma as 'judges.sarma'), without the packages' maps."""
+    return {_module(p).removeprefix("kgm."): p for p in sorted(ROOT.glob("kgm/**/*.py"))
+            if p.name != "__init__.py"}
+
+
+def test_kgm_subpackages_are_maps():
+    """A subpackage's __init__ is its map (a docstring): it imports nothing, so importing one
+    module of it does not load the others."""
+    graph = _graph()
+    busy = {_module(p): graph[_module(p)] for p in ROOT.glob("kgm/*/__init__.py") if graph[_module(p)]}
+    assert not busy, busy
+
+
+def test_kgm_layers_list_every_module_once():
+    listed = [m for layer in KGM_LAYERS for m in layer]
+    assert len(listed) == len(set(listed)), "a kgm module is listed twice"
+    assert set(listed) == set(_kgm_modules()), (
+        f"kgm modules not in KGM_LAYERS: {sorted(set(_kgm_modules()) - set(listed))}; "
+        f"listed but missing: {sorted(set(listed) - set(_kgm_modules()))}")
+
+
+def test_kgm_imports_go_down_the_layers():
+    graph = _graph()
+    level = {f"kgm.{m}": i for i, layer in enumerate(KGM_LAYERS) for m in layer}
+    # a subpackage's __init__ (its map) is at the level of its lowest module
+    for name in list(level):
+        parts = name.split(".")
+        for k in range(2, len(parts)):
+            pkg = ".".join(parts[:k])
+            level[pkg] = min(level.get(pkg, level[name]), level[name])
+    bad = [f"{m} -> {t}" for m, ts in graph.items() if m in level for t in ts
+           if t.startswith("kgm.") and t in level and level[t] >= level[m] and not t.startswith(m + ".")]
+    assert not bad, "kgm imports that do not go down the layers: " + ", ".join(sorted(bad))
+
+
+def test_judges_never_import_search_studies_or_the_command_line():
+    graph = _graph()
+    judges = {m for m in _kgm_modules() if m in KGM_JUDGES or m.startswith("judges")}
+    bad = [f"kgm.{m} -> {t}" for m in sorted(judges) for t in sorted(graph[f"kgm.{m}"])
+           if t.removeprefix("kgm.").split(".")[0] in KGM_ABOVE_JUDGES]
+    assert not bad, "judges importing what stands above them: " + ", ".join(bad)
+
+
+def test_kgm_modules_stay_short():
+    """One concern a module: no kgm module over ~500 lines."""
+    sizes = {m: len(p.read_text(encoding="utf-8").splitlines()) for m, p in _kgm_modules().items()}
+    long = {m: n for m, n in sizes.items() if n > KGM_OVERSIZE.get(m, KGM_MAX_LINES)}
+    assert not long, f"kgm modules over {KGM_MAX_LINES} lines: {long}"
+    split = [m for m in KGM_OVERSIZE if sizes.get(m, 0) <= KGM_MAX_LINES]
+    assert not split, f"modules now short enough to leave KGM_OVERSIZE: {split}"
+
+
+def test_kgm_words_have_one_home():
+    """The method names, the sampling schemes and how a DDA run ends are members of
+    `kgm.kinds`; no other kgm module spells them as string literals (a comparison with a
+    misspelt literal would be silently false)."""
+    from kgm import kinds
+
+    words = {w.value for enum in (kinds.Method, kinds.Sampling, kinds.RunEnd) for w in enum}
+    found = []
+    for m, path in _kgm_modules().items():
+        if m == "kinds":
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Constant) and isinstance(node.value, str) and node.value in words:
+                found.append(f"kgm/{m.replace('.', '/')}.py:{node.lineno} {node.value!r}")
+    assert not found, "vocabulary spelt outside kgm.kinds: " + ", ".join(found)
