@@ -270,11 +270,17 @@ class Params:
     """Taichi backend for contact detection and assembly: "cpu", "gpu" (CUDA/Vulkan/Metal,
     whichever is present) or "cuda"."""
     kernels: str = "auto"
-    """Where a step's per-block and per-contact work runs: "taichi" (the Taichi kernels, on
-    ``arch``), "numpy" (their vectorised NumPy twins: no kernel launch, no Taichi at all) or
-    "auto" (NumPy for a model of at most ``ddatai.model.SMALL_MODEL_BLOCKS`` free blocks on the
-    CPU, where a kernel launch costs more than the work; Taichi otherwise). Both give the same
-    results to round-off (tests compare them)."""
+    """Where a run's work runs: "fused" (the fused engine, `ddatai.fused`: the whole run of a
+    small model in one Taichi kernel, many runs side by side), "taichi" (today's step, its
+    per-block and per-contact work in Taichi kernels on ``arch``), "numpy" (today's step in
+    vectorised NumPy: no Taichi at all) or "auto": the fused engine where it pays (a model of at
+    most ``ddatai.fused.policy.FUSED_BLOCKS`` free blocks whose compiled kernel is in Taichi's
+    offline cache, or whose run pays its first compile; always for kgm's batches), else NumPy
+    for a model of at most ``ddatai.model.SMALL_MODEL_BLOCKS`` free blocks on the CPU and Taichi
+    beyond. A model the fused engine does not cover (water, bolts, Barton–Bandis joints,
+    shaking, loads varying in time) and runs that record contacts or checkpoints take today's
+    step; ``Results.meta["engine"]`` says which engine ran and why. All give the same results
+    to the tolerances of the open-close iteration (tests compare them)."""
 
     def __post_init__(self) -> None:
         def pos(name: str, allow_none: bool = False) -> None:
@@ -324,8 +330,8 @@ class Params:
         _require(self.dt_min_ratio < 1.0, f"Params.dt_min_ratio must be < 1, got {self.dt_min_ratio!r}")
         _require(self.solver in ("auto", "scipy", "pardiso", "dense"),
                  f"Params.solver must be 'auto', 'scipy', 'pardiso' or 'dense', got {self.solver!r}")
-        _require(self.kernels in ("auto", "taichi", "numpy"),
-                 f"Params.kernels must be 'auto', 'taichi' or 'numpy', got {self.kernels!r}")
+        _require(self.kernels in ("auto", "taichi", "numpy", "fused"),
+                 f"Params.kernels must be 'auto', 'fused', 'taichi' or 'numpy', got {self.kernels!r}")
         _require(isinstance(self.arch, str) and self.arch in ("cpu", "gpu", "cuda", "vulkan", "metal"),
                  f"Params.arch must be one of 'cpu', 'gpu', 'cuda', 'vulkan', 'metal', got {self.arch!r}")
         _require(isinstance(self.initial_equilibrium, bool),

@@ -1,19 +1,19 @@
 """The fused engine's driver: launches of its one kernel over many members, between which it
 drains what the members recorded, re-launches members whose contacts outgrew their region with
 twice the room (from the start of the step that overflowed: nothing is truncated), and hands a
-member whose step leaves what the engine does to today's path (`Stepper`), from that step's
-start.
+member whose step leaves what the engine does to today's path (`ddatai.step.Stepper`), from
+that step's start.
 
-`run` takes `ddatai.fused.pack.Member` values and returns one `Outcome` each. It starts Taichi
-(`ddatai.backend.ensure`); the kernel compiles once per process for every model size, from
-Taichi's offline cache after the first time (docs/guide/performance.md).
+`run` takes `ddatai.fused.pack.Member` values and returns one `Outcome` each; a `Session` holds
+the arrays of one launch between calls (a single run recorded every few steps). Both start
+Taichi (`ddatai.backend.ensure`); the kernel compiles once for every model size, from Taichi's
+offline cache after the first time on a machine (`ddatai.fused.policy`).
 """
 
 from __future__ import annotations
 
-import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np
@@ -27,6 +27,9 @@ LAUNCH_STEPS = 512
 #: names of the statuses (`Outcome.status`)
 STATUS = {L.RUNNING: "running", L.DONE: "done", L.STOP_MOVED: "moved", L.STOP_REST: "at rest",
           L.GROW: "grow", L.DIVERT: "diverted", L.WAITING: "waiting"}
+_RECORD_FIELDS = ("time", "dt", "oc_iterations", "oc_total", "dt_cuts", "contacts", "closed", "max_penetration",
+                  "max_displacement", "kinetic", "gravitational", "strain", "contact", "external_work",
+                  "friction_work", "integrator_work", "coulomb", "penalty")
 
 
 @dataclass(kw_only=True, eq=False)
@@ -56,33 +59,93 @@ class Outcome:
     """Wall time of the launches it ran in [s]."""
 
 
-def _kernel():
-    from . import kernel
-
-    return kernel.run
-
-
-def _records(rows: np.ndarray, seconds_per_step: float) -> np.ndarray:
+def records_of(rows: np.ndarray, seconds_per_step: float) -> np.ndarray:
+    """Step records (``STEP_DTYPE``) from the engine's rows. The engine times its launches, not
+    the phases of a step: each step's share of its launch is written as its solve time."""
     from ..records import STEP_DTYPE
 
     out = np.zeros(len(rows), STEP_DTYPE)
-    names = ("time", "dt", "oc_iterations", "oc_total", "dt_cuts", "contacts", "closed", "max_penetration",
-             "max_displacement", "kinetic", "gravitational", "strain", "contact", "external_work",
-             "friction_work", "integrator_work", "coulomb", "penalty")
-    for col, name in enumerate(names):
+    for col, name in enumerate(_RECORD_FIELDS):
         out[name] = rows[:, col]
-    # the engine times its launches, not the phases of a step: each step's share of its launch
     out["t_solve"] = seconds_per_step
     return out
 
 
+class Session:
+    """The arrays of one launch of ``members`` and the kernel, between launches."""
+
+    def __init__(self, members: list, *, arch: str = "cpu", launch_steps: int = LAUNCH_STEPS):
+        from .. import backend
+        from . import kernel
+        from .arrays import Pack
+        from .policy import mark_cached
+
+        backend.ensure(arch)
+        self.arch = arch
+        self.members = members
+        self.launch_steps = launch_steps
+        self.arrays = pack(members, launch_steps)
+        self._pack = Pack
+        self._kernel = kernel.run
+        self._mark = mark_cached
+        self.launches = 0
+        self.wall = 0.0
+
+    def launch(self, budget: Optional[np.ndarray] = None) -> float:
+        """Advance every running member by at most ``budget`` steps (each; default: the launch
+        size). Returns the wall time [s]. Drain ``hist``/``rec`` (`take`) before the next."""
+        mi = self.arrays["mi"]
+        mi[:, L.MI_LAUNCH_STEPS] = self.launch_steps if budget is None else np.minimum(budget, self.launch_steps)
+        mi[:, L.MI_HN] = 0
+        mi[:, L.MI_SN] = 0
+        t0 = time.perf_counter()
+        self._kernel(self._pack(**self.arrays), len(self.members))
+        wall = time.perf_counter() - t0
+        if self.launches == 0:
+            self._mark("cpu" if self.arch == "cpu" else "cuda")
+        self.launches += 1
+        self.wall += wall
+        return wall
+
+    def status(self, i: int) -> int:
+        return int(self.arrays["mi"][i, L.MI_STATUS])
+
+    def take(self, i: int, seconds_per_step: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """Member i's history rows and step records of the last launch."""
+        A, mi = self.arrays, self.arrays["mi"][i]
+        h0, hn, s0, sn = (int(mi[c]) for c in (L.MI_H0, L.MI_HN, L.MI_S0, L.MI_SN))
+        return A["hist"][h0:h0 + hn].copy(), records_of(A["rec"][s0:s0 + sn], seconds_per_step)
+
+    def state(self, i: int):
+        return unpack_state(self.arrays, i, self.members[i])
+
+    def model(self, i: int):
+        return member_model(self.arrays, i, self.members[i])
+
+    def carried(self, i: int, factor: int = 1) -> Member:
+        """Member i as a `Member` that goes on from where it is, its contact region ``factor``
+        times as large."""
+        m = self.members[i]
+        return Member(model=self.model(i), state=self.state(i), t_end=m.t_end, step_end=m.step_end,
+                      stop_at=m.stop_at, rest_limit=m.rest_limit, rest_steps=m.rest_steps, group=m.group,
+                      record=m.record, start_penalty=m.start_penalty,
+                      quiet=int(self.arrays["mi"][i, L.MI_QUIET]), contacts=factor * m.contacts)
+
+    def outcome(self, i: int, status: int, history: list, records: list, launches: int, wall: float) -> Outcome:
+        from ..records import STEP_DTYPE
+
+        mi = self.arrays["mi"][i]
+        cause = {L.CAUSE_CYCLES: "cycles", L.CAUSE_FAILED: "failed"}.get(int(mi[L.MI_CAUSE]), "")
+        return Outcome(status=STATUS[status], state=self.state(i), model=self.model(i),
+                       history=np.concatenate(history) if history else np.zeros((0, 2)),
+                       records=np.concatenate(records) if records else np.zeros(0, STEP_DTYPE),
+                       cause=cause if status == L.DIVERT else "", quiet=int(mi[L.MI_QUIET]),
+                       penalty_raised=bool(mi[L.MI_RAISED]), launches=launches, wall_time=wall)
+
+
 def run(members: list, *, arch: str = "cpu", launch_steps: int = LAUNCH_STEPS) -> list:
     """Run every member (`Member`) to its end on the fused engine; one `Outcome` each."""
-    from .. import backend
-    from .arrays import Pack
-
-    backend.ensure(arch)
-    kernel = _kernel()
+    members = list(members)
     outcomes: list[Optional[Outcome]] = [None] * len(members)
     history = [[] for _ in members]
     records = [[] for _ in members]
@@ -90,65 +153,33 @@ def run(members: list, *, arch: str = "cpu", launch_steps: int = LAUNCH_STEPS) -
     walls = [0.0] * len(members)
     active = list(range(len(members)))
     while active:
-        batch = [members[k] for k in active]
-        A = pack(batch, launch_steps)
+        session = Session([members[k] for k in active], arch=arch, launch_steps=launch_steps)
+        mi = session.arrays["mi"]
         while True:
-            t0 = time.perf_counter()
-            kernel(Pack(**A), len(batch))
-            wall = time.perf_counter() - t0
-            mi = A["mi"]
-            taken = max(1, int(np.sum(mi[:, L.MI_HN])))
+            running = mi[:, L.MI_STATUS] == L.RUNNING
+            wall = session.launch()
+            taken = max(1, int(np.sum(mi[running, L.MI_HN])))
             grow = []
             for i, k in enumerate(active):
+                if not running[i]:
+                    continue
                 launches[k] += 1
                 walls[k] += wall
-                hn = int(mi[i, L.MI_HN])
-                h0 = int(mi[i, L.MI_H0])
-                if hn:
-                    history[k].append(A["hist"][h0:h0 + hn].copy())
-                sn = int(mi[i, L.MI_SN])
-                if sn:
-                    s0 = int(mi[i, L.MI_S0])
-                    records[k].append(_records(A["rec"][s0:s0 + sn], wall / taken))
-                mi[i, L.MI_HN] = 0
-                mi[i, L.MI_SN] = 0
-                status = int(mi[i, L.MI_STATUS])
+                h, r = session.take(i, wall / taken)
+                history[k].append(h)
+                records[k].append(r)
+                status = session.status(i)
                 if status == L.GROW:
                     grow.append(i)
-                elif status not in (L.RUNNING, L.WAITING):
-                    outcomes[k] = _outcome(A, i, members[k], status, history[k], records[k], launches[k], walls[k])
-                    mi[i, L.MI_STATUS] = L.WAITING
+                elif status != L.RUNNING:
+                    outcomes[k] = session.outcome(i, status, history[k], records[k], launches[k], walls[k])
             if grow:
-                # more room for the contacts: every member not finished goes on in a new pack
+                # more room for the contacts: every member not finished goes on in a new launch
                 for i, k in enumerate(active):
                     if outcomes[k] is None:
-                        members[k] = _carried(A, i, members[k], 2 if i in grow else 1)
+                        members[k] = session.carried(i, 2 if i in grow else 1)
                 break
             if not np.any(mi[:, L.MI_STATUS] == L.RUNNING):
                 break
         active = [k for k in active if outcomes[k] is None]
     return outcomes
-
-
-def _carried(A: dict, i: int, member: Member, factor: int) -> Member:
-    """Member i of the arrays as a `Member` that goes on from where it is, its contact region
-    ``factor`` times as large."""
-    return Member(model=member_model(A, i, member), state=unpack_state(A, i, member), t_end=member.t_end,
-                  step_end=member.step_end, stop_at=member.stop_at, rest_limit=member.rest_limit,
-                  rest_steps=member.rest_steps, group=member.group, record=member.record,
-                  start_penalty=member.start_penalty, quiet=int(A["mi"][i, L.MI_QUIET]),
-                  contacts=factor * member.contacts)
-
-
-def _outcome(A, i, member, status, history, records, launches, wall) -> Outcome:
-    from ..records import STEP_DTYPE
-
-    cause = {L.CAUSE_CYCLES: "cycles", L.CAUSE_FAILED: "failed"}.get(int(A["mi"][i, L.MI_CAUSE]), "")
-    return Outcome(status=STATUS[status], state=unpack_state(A, i, member), model=member_model(A, i, member),
-                   history=np.concatenate(history) if history else np.zeros((0, 2)),
-                   records=np.concatenate(records) if records else np.zeros(0, STEP_DTYPE),
-                   cause=cause if status == L.DIVERT else "", quiet=int(A["mi"][i, L.MI_QUIET]),
-                   penalty_raised=bool(A["mi"][i, L.MI_RAISED]), launches=launches, wall_time=wall)
-
-
-_unused = (math, field)

@@ -64,36 +64,11 @@ def _copy_disp(E: ti.template(), m, src, dst):
 
 
 @ti.func
-def _line_search(E: ti.template(), m, energy_solution, brhs, grad):
-    """Backtracking from the last iterate (``BW_PREV``) towards the solution (``BW_SOL``) on
-    the energy Π(D) = ½DᵀK0D − F_blocksᵀD + the contact springs' energy (`line_search`): the
-    trial point goes to ``BW_D`` with its law in slot 1. Returns whether the step was
-    shortened."""
-    base_energy = system.block_energy(E, m, BW_PREV, brhs) + law.evaluate(E, m, BW_PREV, 1)
-    system.block_gradient(E, m, BW_PREV, brhs, grad)
-    law.internal_force(E, m, 1, grad)
-    slope = 0.0
-    r0 = E.mi[m, MI_B0]
-    for b in range(r0, E.mi[m, MI_B1]):
-        r = E.bint[b, BI_ROW]
-        if r >= 0:
-            for a in range(6):
-                slope += E.xvec[grad + 6 * r + a] * (E.bwork[b, BW_SOL + a] - E.bwork[b, BW_PREV + a])
-    shortened = 0
-    if slope < 0:
-        alpha = 1.0
-        trial = system.block_energy(E, m, BW_SOL, brhs) + energy_solution
-        while alpha > SMALLEST_STEP:
-            if trial <= base_energy + 1e-4 * alpha * slope:
-                break
-            alpha *= 0.5
-            for b in range(r0, E.mi[m, MI_B1]):
-                for a in ti.static(range(6)):
-                    E.bwork[b, BW_D + a] = E.bwork[b, BW_PREV + a] + alpha * \
-                        (E.bwork[b, BW_SOL + a] - E.bwork[b, BW_PREV + a])
-            trial = system.block_energy(E, m, BW_D, brhs) + law.evaluate(E, m, BW_D, 1)
-            shortened = 1
-    return shortened
+def _trial(E: ti.template(), m, alpha):
+    """The trial point D = D_last + α·(D_solution − D_last) into ``BW_D``."""
+    for b in range(E.mi[m, MI_B0], E.mi[m, MI_B1]):
+        for a in ti.static(range(6)):
+            E.bwork[b, BW_D + a] = E.bwork[b, BW_PREV + a] + alpha * (E.bwork[b, BW_SOL + a] - E.bwork[b, BW_PREV + a])
 
 
 @ti.func
@@ -157,15 +132,58 @@ def open_close(E: ti.template(), m, dt, beta, last):
             cause = NAN
             iterations = it
             break
-        energy_solution = law.evaluate(E, m, BW_SOL, 0)
-        bad = law.violations(E, m, 0)
+        # the law at the solution; from the second solve on, where a contact must change, the
+        # line search from the last iterate: every evaluation of the law at one place (one
+        # copy of it in the compiled kernel), ``stage`` 0: the solution (slot 0), 1: the last
+        # iterate, 2: a trial point (slot 1) (`open_close.line_search`)
         slot = 0
         disp = BW_SOL
-        if has_previous and bad > 0:
-            if _line_search(E, m, energy_solution, brhs, grad):
-                if law.violations(E, m, 1) > 0:
-                    slot = 1
-                    disp = BW_D
+        stage = 0
+        energy_solution = 0.0
+        base_energy = 0.0
+        slope = 0.0
+        alpha = 1.0
+        while True:
+            col = BW_SOL
+            s = 0
+            if stage == 1:
+                col = BW_PREV
+                s = 1
+            elif stage == 2:
+                col = BW_D
+                s = 1
+            energy = law.evaluate(E, m, col, s) + system.block_energy(E, m, col, brhs)
+            if stage == 0:
+                energy_solution = energy
+                bad = law.violations(E, m, 0)
+                if has_previous == 0 or bad == 0:
+                    break
+                stage = 1
+            elif stage == 1:
+                base_energy = energy
+                system.block_gradient(E, m, BW_PREV, brhs, grad)
+                law.internal_force(E, m, 1, grad)
+                slope = 0.0
+                for b in range(E.mi[m, MI_B0], E.mi[m, MI_B1]):
+                    r = E.bint[b, BI_ROW]
+                    if r >= 0:
+                        for a in range(6):
+                            slope += E.xvec[grad + 6 * r + a] * (E.bwork[b, BW_SOL + a] - E.bwork[b, BW_PREV + a])
+                if slope >= 0 or energy_solution <= base_energy + 1e-4 * slope:
+                    break  # not a descent direction (coupled friction), or the whole step is taken
+                alpha = 0.5
+                _trial(E, m, alpha)
+                stage = 2
+            else:
+                if alpha <= SMALLEST_STEP or energy <= base_energy + 1e-4 * alpha * slope:
+                    # the shortened step stops before the contacts that change state on the way;
+                    # where none changes there yet, the states change as the solution asks
+                    if law.violations(E, m, 1) > 0:
+                        slot = 1
+                        disp = BW_D
+                    break
+                alpha *= 0.5
+                _trial(E, m, alpha)
         for b in range(E.mi[m, MI_B0], E.mi[m, MI_B1]):
             E.bwork[b, BW_ROT] = E.bwork[b, disp + 2]
         changed, excess = law.judge(E, m, slot, not lagged)

@@ -182,22 +182,21 @@ def _nearest(xy: ti.template(), P, lo, hi, limit):
 def _vertex_vertex(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), ia, ib,
                    d0, d9, sin_h1, h1, out_int: ti.template(), out_len: ti.template(),
                    count: ti.template(), slot, base, cap):
-    """Vertices ia (block A) and ib (block B) are mutual nearest within d0 (§3.3 case 1, §3.4)."""
+    """Vertices ia (block A) and ib (block B) are mutual nearest within d0 (§3.3 case 1, §3.4).
+
+    Where the rules fall back on the vertex-edge tests of a vertex against both edges meeting at
+    its partner, those tests run in one loop at the end over the (vertex, partner) pairs that
+    asked for them, in the order the rules name them: one copy of `_ve_test` in the compiled
+    kernel instead of one a case (compile time; the same contacts in the same order)."""
     cP = _convex(xy, vnext, vprev, ia)
     cQ = _convex(xy, vnext, vprev, ib)
+    # (vertex, partner) pairs whose vertex is tested against both edges meeting at the partner
+    v1, w1, v2, w2 = -1, -1, -1, -1
     if cP and not cQ:
         # concave Q: P against both edges meeting at Q
-        for s in ti.static(range(2)):
-            e = vprev[ib] if s == 0 else ib
-            ok, length = _ve_test(xy, vnext, vprev, ia, e, d0, d9, sin_h1, 0)
-            if ok == 1:
-                _emit(out_int, out_len, count, slot, base, cap, KIND_VE, ia, e, -1, -1, length)
+        v1, w1 = ia, ib
     elif cQ and not cP:
-        for s in ti.static(range(2)):
-            e = vprev[ia] if s == 0 else ia
-            ok, length = _ve_test(xy, vnext, vprev, ib, e, d0, d9, sin_h1, 0)
-            if ok == 1:
-                _emit(out_int, out_len, count, slot, base, cap, KIND_VE, ib, e, -1, -1, length)
+        v1, w1 = ib, ia
     elif cP and cQ:
         P = _pt(xy, ia)
         Q = _pt(xy, ib)
@@ -234,15 +233,12 @@ def _vertex_vertex(xy: ti.template(), vnext: ti.template(), vprev: ti.template()
                     else:
                         v, e, end, w = ib, ia, vprev[ib], ia
                 if _edge_edge_exit(xy, vnext, vprev, v, e, w, d9) == 0:
-                    _emit(out_int, out_len, count, slot, base, cap, KIND_VE, v, e, -1, -1, _half_overlap(xy, vnext, e, v, end))
+                    _emit(out_int, out_len, count, slot, base, cap, KIND_VE, v, e, -1, -1,
+                          _half_overlap(xy, vnext, e, v, end))
                 else:
                     # parallel, but v entered the edge at the far corner or lies deeper than d9
                     # (§3.3): v against both edges meeting at w, by the vertex-edge rules
-                    for s in ti.static(range(2)):
-                        e2 = vprev[w] if s == 0 else w
-                        ok, length = _ve_test(xy, vnext, vprev, v, e2, d0, d9, sin_h1, 0)
-                        if ok == 1:
-                            _emit(out_int, out_len, count, slot, base, cap, KIND_VE, v, e2, -1, -1, length)
+                    v1, w1 = v, w
             else:
                 # genuine vertex-vertex: the entrance lines are the edges across the smaller gap
                 # (e5 unless e6 is clearly smaller, so equal gaps do not flip between steps)
@@ -251,20 +247,32 @@ def _vertex_vertex(xy: ti.template(), vnext: ti.template(), vprev: ti.template()
                 if e5 > e6 + h1:
                     eA = vprev[ib]
                     eB = ia
-                if _edge_edge_exit(xy, vnext, vprev, ia, eA, ib, d9) == 0 and \
-                        _edge_edge_exit(xy, vnext, vprev, ib, eB, ia, d9) == 0:
+                exits = 0
+                for k in range(2):  # ia against its entrance line eA, then ib against eB
+                    p, e, w = ia, eA, ib
+                    if k == 1:
+                        p, e, w = ib, eB, ia
+                    exits += _edge_edge_exit(xy, vnext, vprev, p, e, w, d9)
+                if exits == 0:
                     _emit(out_int, out_len, count, slot, base, cap, KIND_VV, ia, eA, ib, eB, 0.0)
                 else:
                     # a vertex behind its entrance line entered the edge at the line's far
                     # corner, or lies beyond d9 (§3.3 rule 3): each vertex against both edges
                     # meeting at the other, by the vertex-edge rules
-                    for s in ti.static(range(4)):
-                        v = ia if s < 2 else ib
-                        w = ib if s < 2 else ia
-                        e2 = vprev[w] if s % 2 == 0 else w
-                        ok, length = _ve_test(xy, vnext, vprev, v, e2, d0, d9, sin_h1, 0)
-                        if ok == 1:
-                            _emit(out_int, out_len, count, slot, base, cap, KIND_VE, v, e2, -1, -1, length)
+                    v1, w1, v2, w2 = ia, ib, ib, ia
+    for k in range(4):
+        v = v1
+        w = w1
+        if k >= 2:
+            v = v2
+            w = w2
+        if v >= 0:
+            e2 = w
+            if k % 2 == 0:
+                e2 = vprev[w]
+            ok, length = _ve_test(xy, vnext, vprev, v, e2, d0, d9, sin_h1, 0)
+            if ok == 1:
+                _emit(out_int, out_len, count, slot, base, cap, KIND_VE, v, e2, -1, -1, length)
 
 
 @ti.func
@@ -287,9 +295,10 @@ def pair_contacts(xy: ti.template(), vnext: ti.template(), vprev: ti.template(),
     # (the end pairs with another vertex) is tested here: skipping it by distance alone
     # lost the contact of a wedge's tip sliding along a joint next to the other block's
     # corner while the tip sank into it
-    for s in ti.static(range(2)):
-        v_lo, v_hi = (a0, a1) if s == 0 else (b0, b1)
-        e_lo, e_hi = (b0, b1) if s == 0 else (a0, a1)
+    for s in range(2):
+        v_lo, v_hi, e_lo, e_hi = a0, a1, b0, b1
+        if s == 1:
+            v_lo, v_hi, e_lo, e_hi = b0, b1, a0, a1
         for iv in range(v_lo, v_hi):
             P = _pt(xy, iv)
             partner = _nearest(xy, P, e_lo, e_hi, d0)

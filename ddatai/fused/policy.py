@@ -1,0 +1,107 @@
+"""Which engine runs a simulation, and why (NumPy only, no Taichi): `Params.kernels`
+"fused" asks for the fused engine, "auto" takes it where it pays (docs/guide/performance.md).
+
+The fused engine's one kernel compiles once per machine: Taichi keeps it in its offline cache
+(``~/.cache/taichi/ticache``, or ``TI_OFFLINE_CACHE_FILE_PATH``), and this module leaves a
+marker beside it once the kernel has run, so that "auto" knows a run will not pay the compile.
+A single `ddatai.simulate` of at most `FUSED_BLOCKS` free blocks then runs fused; without the
+compiled kernel, only a run long enough to pay `COMPILE_SECONDS` does. Batches of members
+(`ddatai.fused.engine.run`: kgm's bisections and studies) always run fused where they can.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+from pathlib import Path
+from typing import Optional
+
+#: "auto" runs a single simulation of at most this many free blocks on the fused engine (its
+#: skyline factorisation grows as n·w²: beyond a few dozen blocks the sparse solvers of today's
+#: path take over; benchmarks/small_models.py)
+FUSED_BLOCKS = 48
+#: the fused kernel's first compile on this project's 2-core CI machine [s] (measured, quiet;
+#: README, "Performance")
+COMPILE_SECONDS = 60.0
+#: what a step saves on the fused engine against today's NumPy path for a small model [s]
+STEP_SAVING = 1.0e-3
+
+_SOURCES = ("ddatai/fused/arrays.py", "ddatai/fused/blocks.py", "ddatai/fused/contacts.py",
+            "ddatai/fused/iterate.py", "ddatai/fused/kernel.py", "ddatai/fused/law.py",
+            "ddatai/fused/layout.py", "ddatai/fused/step.py", "ddatai/fused/system.py",
+            "ddatai/kernels/common.py", "ddatai/kernels/detection.py")
+
+
+def cache_dir() -> Path:
+    """Taichi's offline-cache directory (where the compiled kernel is kept)."""
+    path = os.environ.get("TI_OFFLINE_CACHE_FILE_PATH")
+    return Path(path) if path else Path.home() / ".cache" / "taichi" / "ticache"
+
+
+def _marker(arch: str) -> Path:
+    root = Path(__file__).resolve().parents[2]
+    digest = hashlib.sha1(arch.encode())
+    for name in _SOURCES:
+        digest.update((root / name).read_bytes())
+    try:
+        from importlib.metadata import version
+
+        digest.update(version("taichi").encode())
+    except Exception:  # noqa: BLE001 - no metadata: the sources alone key the marker
+        pass
+    return cache_dir() / f"ddatai-fused-{digest.hexdigest()[:16]}"
+
+
+def kernel_cached(arch: str = "cpu") -> bool:
+    """Whether the fused kernel of this source has run on this machine (its compiled code is in
+    Taichi's offline cache)."""
+    try:
+        return _marker(arch).exists()
+    except OSError:
+        return False
+
+
+def mark_cached(arch: str = "cpu") -> None:
+    """Note that the fused kernel has compiled and run (`kernel_cached`)."""
+    try:
+        path = _marker(arch)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.touch()
+    except OSError:
+        pass
+
+
+def choose(model, *, steps: Optional[int], duration: Optional[float], batch: bool = False,
+           record_contacts: bool = False, checkpoint: bool = False, resume: bool = False) -> tuple[str, str]:
+    """("fused" or today's path's name, why) for a run of ``model`` (``Params.kernels``)."""
+    from .pack import covers
+
+    p = model.params
+    today = "numpy" if model.numpy_path else "taichi"
+    if p.kernels in ("numpy", "taichi"):
+        return today, f"Params(kernels={p.kernels!r})"
+    why_not = covers(model)
+    if why_not is None and p.arch not in ("cpu", "cuda", "gpu"):
+        why_not = f"the fused engine runs on the CPU or CUDA, not arch={p.arch!r}"
+    if why_not is None and (record_contacts or checkpoint or resume):
+        why_not = "contacts are recorded, or the run writes or resumes a checkpoint"
+    if why_not is not None:
+        return today, why_not
+    if p.kernels == "fused" or batch:
+        return "fused", "Params(kernels='fused')" if p.kernels == "fused" else "a batch of members"
+    if model.n_free > FUSED_BLOCKS:
+        return today, f"{model.n_free} free blocks, more than the fused engine takes alone ({FUSED_BLOCKS})"
+    if kernel_cached("cpu" if p.arch == "cpu" else "cuda"):
+        return "fused", "a small model, the fused kernel compiled (Taichi's offline cache)"
+    dt = p.dt if p.dt is not None else p.dt_max
+    expected = steps if steps is not None else (duration / dt if duration is not None else 0)
+    if duration is not None and steps is not None:
+        expected = min(steps, duration / dt)
+    if expected * STEP_SAVING >= COMPILE_SECONDS:
+        return "fused", f"a small model and a run of at least {expected:.0f} steps, which pays the first compile"
+    return today, (f"a small model, but its {expected:.0f} steps do not pay the fused kernel's first compile "
+                   f"(~{COMPILE_SECONDS:.0f} s; then it is cached)")
+
+
+_unused = math
