@@ -76,6 +76,12 @@ def judge_members(members, blocks: frozenset, *, settings: DdaSettings, params: 
     members that had not failed when a batched run diverged. Returns the judgements in the order
     of ``members``.
     """
+    from .fused_runs import judge_fused
+
+    # the fused engine (ddatai.fused): every member in its own thread of one launch, as alone
+    fused = judge_fused(members, blocks, settings=settings, params=params, removed=removed)
+    if fused is not None:
+        return fused
     from ddatai.batch import batch_model, combined_state, member_constants, member_states, side_by_side
     from ddatai.model import build_model
     from ddatai.results import SimulationError

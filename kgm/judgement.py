@@ -199,6 +199,15 @@ def judge(scene: Scene, system: BlockSystem, blocks: frozenset, *, settings: Dda
     from ddatai.results import SimulationError
     from ddatai.run import simulate  # starts Taichi
 
+    if record_every is None:
+        # the fused engine (ddatai.fused) where it runs the sub-model: the run in few launches
+        from .batched import Member
+        from .fused_runs import judge_fused
+
+        fused = judge_fused([Member(scene=scene, system=system, friction=friction, reduction=reduction)], blocks,
+                            settings=settings, params=params, removed=removed)
+        if fused is not None:
+            return fused[0]
     sub, ids = sub_scene(scene, system, blocks, removed=removed, free_neighbours=settings.free_neighbours,
                          friction=friction, reduction=reduction)
     prm = run_params(params, settings)

@@ -13,6 +13,7 @@ offline cache after the first time on a machine (`ddatai.fused.policy`).
 from __future__ import annotations
 
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Optional
 
@@ -23,6 +24,8 @@ from .pack import Member, member_model, pack, unpack_state
 
 #: steps a member takes in one launch at most (its history and records are drained between)
 LAUNCH_STEPS = 512
+#: the kernel has run in this process (`ddatai.fused.policy`: it costs nothing more now)
+LAUNCHED = False
 
 #: names of the statuses (`Outcome.status`)
 STATUS = {L.RUNNING: "running", L.DONE: "done", L.STOP_MOVED: "moved", L.STOP_REST: "at rest",
@@ -71,6 +74,27 @@ def records_of(rows: np.ndarray, seconds_per_step: float) -> np.ndarray:
     return out
 
 
+@contextmanager
+def _short_source_positions():
+    """While Taichi turns the kernel's Python into its IR, every node's source position is its
+    file and line, without the code snippet Taichi formats (textwrap) for each of the ~35,000
+    nodes of the fused kernel, for its error messages: some 40 % of that work, which every
+    process does again before it takes the compiled kernel from the offline cache."""
+    from taichi.lang.ast import ast_transformer_utils as utils
+
+    context = utils.ASTTransformerContext
+    original = context.get_pos_info
+
+    def position(self, node):
+        return f'File "{self.file}", line {node.lineno + self.lineno_offset}, in {self.func.func.__name__}:\n'
+
+    context.get_pos_info = position
+    try:
+        yield
+    finally:
+        context.get_pos_info = original
+
+
 class Session:
     """The arrays of one launch of ``members`` and the kernel, between launches."""
 
@@ -98,10 +122,17 @@ class Session:
         mi[:, L.MI_LAUNCH_STEPS] = self.launch_steps if budget is None else np.minimum(budget, self.launch_steps)
         mi[:, L.MI_HN] = 0
         mi[:, L.MI_SN] = 0
+        mi[:, L.MI_FN] = 0
         t0 = time.perf_counter()
-        self._kernel(self._pack(**self.arrays), len(self.members))
+        if self.launches == 0:
+            with _short_source_positions():
+                self._kernel(self._pack(**self.arrays), len(self.members))
+        else:
+            self._kernel(self._pack(**self.arrays), len(self.members))
         wall = time.perf_counter() - t0
         if self.launches == 0:
+            global LAUNCHED
+            LAUNCHED = True
             self._mark("cpu" if self.arch == "cpu" else "cuda")
         self.launches += 1
         self.wall += wall
@@ -116,6 +147,12 @@ class Session:
         h0, hn, s0, sn = (int(mi[c]) for c in (L.MI_H0, L.MI_HN, L.MI_S0, L.MI_SN))
         return A["hist"][h0:h0 + hn].copy(), records_of(A["rec"][s0:s0 + sn], seconds_per_step)
 
+    def frames(self, i: int) -> np.ndarray:
+        """Member i's frames of the last launch, (frames, size) (`ddatai.fused.layout.FR_BLOCK`)."""
+        mi = self.arrays["mi"][i]
+        f0, fn, size = int(mi[L.MI_F0]), int(mi[L.MI_FN]), int(mi[L.MI_FSIZE])
+        return self.arrays["frame"][f0:f0 + fn * size].reshape(fn, size).copy()
+
     def state(self, i: int):
         return unpack_state(self.arrays, i, self.members[i])
 
@@ -128,7 +165,7 @@ class Session:
         m = self.members[i]
         return Member(model=self.model(i), state=self.state(i), t_end=m.t_end, step_end=m.step_end,
                       stop_at=m.stop_at, rest_limit=m.rest_limit, rest_steps=m.rest_steps, group=m.group,
-                      record=m.record, start_penalty=m.start_penalty,
+                      record=m.record, frame_every=m.frame_every, start_penalty=m.start_penalty,
                       quiet=int(self.arrays["mi"][i, L.MI_QUIET]), contacts=factor * m.contacts)
 
     def outcome(self, i: int, status: int, history: list, records: list, launches: int, wall: float) -> Outcome:

@@ -15,10 +15,11 @@ sizes and capacities are the arrays' (runtime) shapes and the members' offsets.
 import taichi as ti
 
 from .arrays import Pack
-from .layout import (BG_RADIUS0, BI_ROW, BI_V0, BI_V1, BS_VEL, DONE, MF_REST_LIMIT, MF_STOP_AT, MF_T_END,
-                     MF_TIME, MI_B0, MI_B1, MI_G0, MI_G1, MI_H0, MI_HCAP, MI_HN, MI_LAUNCH_STEPS,
-                     MI_QUIET, MI_REST_STEPS, MI_STATUS, MI_STEP, MI_STEP_END, RUNNING, STOP_MOVED,
-                     STOP_REST)
+from .layout import (BG_CX, BG_CY, BG_RADIUS0, BI_ROW, BI_V0, BI_V1, BS_ROT, BS_STRESS, BS_VEL, DONE, FR_BLOCK,
+                     MF_REST_LIMIT, MF_STOP_AT, MF_T_END, MF_TIME, MI_B0, MI_B1, MI_F0, MI_FCAP, MI_FEVERY,
+                     MI_FN, MI_FSIZE, MI_G0, MI_G1, MI_H0, MI_HCAP, MI_HN, MI_LAUNCH_STEPS, MI_P0, MI_P1,
+                     MI_QUIET, MI_REST_STEPS, MI_STATUS, MI_STEP, MI_STEP_END, MI_V0, MI_V1, PF_X, PF_Y,
+                     RUNNING, STOP_MOVED, STOP_REST)
 from .step import step
 
 
@@ -61,6 +62,33 @@ def _fastest(E: ti.template(), m):
     return fastest
 
 
+@ti.func
+def _frame(E: ti.template(), m):
+    """The member's state into its next frame (`ddatai.fused.layout.FR_BLOCK`)."""
+    at = E.mi[m, MI_F0] + E.mi[m, MI_FN] * E.mi[m, MI_FSIZE]
+    E.frame[at] = E.mf[m, MF_TIME]
+    at += 1
+    for b in range(E.mi[m, MI_B0], E.mi[m, MI_B1]):
+        E.frame[at + 0] = E.bgeo[b, BG_CX]
+        E.frame[at + 1] = E.bgeo[b, BG_CY]
+        E.frame[at + 2] = E.bst[b, BS_ROT]
+        E.frame[at + 3] = E.bst[b, BS_VEL]
+        E.frame[at + 4] = E.bst[b, BS_VEL + 1]
+        E.frame[at + 5] = E.bst[b, BS_VEL + 2]
+        for k in ti.static(range(3)):
+            E.frame[at + 6 + k] = E.bst[b, BS_STRESS + k]
+        at += FR_BLOCK
+    for v in range(E.mi[m, MI_V0], E.mi[m, MI_V1]):
+        E.frame[at] = E.vxy[v, 0]
+        E.frame[at + 1] = E.vxy[v, 1]
+        at += 2
+    for p in range(E.mi[m, MI_P0], E.mi[m, MI_P1]):
+        E.frame[at] = E.pf[p, PF_X]
+        E.frame[at + 1] = E.pf[p, PF_Y]
+        at += 2
+    E.mi[m, MI_FN] += 1
+
+
 @ti.kernel
 def run(E: Pack, members: ti.i32):
     """Advance every RUNNING member of the launch (one thread a member)."""
@@ -76,6 +104,10 @@ def run(E: Pack, members: ti.i32):
                     E.mi[m, MI_STATUS] = result
                     break
                 taken += 1
+                every = E.mi[m, MI_FEVERY]
+                if every > 0 and E.mi[m, MI_FN] < E.mi[m, MI_FCAP]:
+                    if E.mi[m, MI_STEP] % every == 0 or _finished(E, m):
+                        _frame(E, m)
                 d = _group_displacement(E, m)
                 if E.mi[m, MI_HN] < E.mi[m, MI_HCAP]:
                     row = E.mi[m, MI_H0] + E.mi[m, MI_HN]
@@ -93,5 +125,7 @@ def run(E: Pack, members: ti.i32):
                     if E.mi[m, MI_QUIET] >= E.mi[m, MI_REST_STEPS]:
                         E.mi[m, MI_STATUS] = STOP_REST
                         break
+                if every > 0 and E.mi[m, MI_FN] >= E.mi[m, MI_FCAP]:
+                    break  # the frames are full: the driver takes them before the next launch
             if E.mi[m, MI_STATUS] == RUNNING and _finished(E, m):
                 E.mi[m, MI_STATUS] = DONE

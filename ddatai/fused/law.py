@@ -31,16 +31,6 @@ def _dot(E: ti.template(), c, slot, b, col):
 
 
 @ti.func
-def li(E: ti.template(), c, slot, field):
-    return CI_LAW + 5 * slot + field
-
-
-@ti.func
-def lf(E: ti.template(), c, slot, field):
-    return CF_LAW + 10 * slot + field
-
-
-@ti.func
 def evaluate(E: ti.template(), m, col, slot):
     """The contact law at the displacements in ``bwork[:, col:col+6]`` into ``slot``, without
     changing the contacts' states (`contact_law_numpy`). Returns the contacts' spring energy
@@ -284,19 +274,3 @@ def internal_force(E: ti.template(), m, slot, out):
                 E.xvec[out + 6 * ra + k] += pull * E.cvec[c, 6 * sa + k] + ft * E.cvec[c, 6 * ES + k]
             if rb >= 0:
                 E.xvec[out + 6 * rb + k] += pull * E.cvec[c, 6 * sb + k] + ft * E.cvec[c, 6 * GS + k]
-
-
-@ti.func
-def copy_slot(E: ti.template(), m, src, dst):
-    """The law's fields of slot ``src`` into slot ``dst``."""
-    base = E.mi[m, MI_C0]
-    for c in range(base, base + E.mi[m, MI_NC]):
-        for k in ti.static(range(10)):
-            E.cf[c, CF_LAW + 10 * dst + k] = E.cf[c, CF_LAW + 10 * src + k]
-        for k in ti.static(range(5)):
-            E.cint[c, CI_LAW + 5 * dst + k] = E.cint[c, CI_LAW + 5 * src + k]
-
-
-@ti.func
-def unused_guard(E: ti.template(), m):
-    return E.mi[m, MI_NF] + E.mi[m, MI_X0]

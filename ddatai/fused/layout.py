@@ -14,8 +14,8 @@ from __future__ import annotations
 (MI_B0, MI_B1, MI_V0, MI_V1, MI_C0, MI_CCAP, MI_NC, MI_NM, MI_NF, MI_R0, MI_K0, MI_X0,
  MI_P0, MI_P1, MI_Q0, MI_Q1, MI_G0, MI_G1, MI_H0, MI_HCAP, MI_HN, MI_S0, MI_SCAP, MI_SN,
  MI_STATUS, MI_CAUSE, MI_STEP, MI_QUIET, MI_STEP_END, MI_OC_MAX, MI_REST_STEPS, MI_FLAGS,
- MI_LAUNCH_STEPS, MI_HAVE_ENERGY, MI_RAISED) = range(35)
-N_MI = 35
+ MI_LAUNCH_STEPS, MI_HAVE_ENERGY, MI_RAISED, MI_F0, MI_FCAP, MI_FN, MI_FEVERY, MI_FSIZE) = range(40)
+N_MI = 40
 
 # bits of ``MI_FLAGS`` (the member's Params as switches)
 FLAG_STATIC = 1          # Params.static
@@ -97,6 +97,11 @@ JF_TAN, JF_COH, JF_TEN = range(3)   # ``jf``: tanφ, c [Pa], T [Pa]
  RC_KINETIC, RC_GRAVITATIONAL, RC_STRAIN, RC_CONTACT, RC_EXTERNAL, RC_FRICTION, RC_INTEGRATOR,
  RC_COULOMB, RC_PENALTY) = range(18)
 N_RC = 18
+
+# ``frame``: a member's frames (every ``MI_FEVERY`` steps and at its end), each ``MI_FSIZE`` floats:
+# the time, then per block (centroid x, y, rotation, velocity x, y, angular velocity, stress σx,
+# σy, τxy), then every vertex (x, y), then every point (x, y) in the order fixed, load, measured
+FR_BLOCK = 9
 
 # ------------------------------------------------------------------ member status
 RUNNING = 0           # steps remain (the launch's step budget ended)

@@ -11,7 +11,7 @@ engine runs a model, and why not.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np
@@ -46,6 +46,9 @@ class Member:
     """Blocks (of the model) whose displacement is recorded every step and stopped on."""
     record: bool = False
     """Keep a step record (``ddatai.records.STEP_DTYPE``) of every step."""
+    frame_every: int = 0
+    """Keep a frame every this many steps (counted by the state's ``step``) and at the end; 0:
+    none."""
     start_penalty: Optional[float] = None
     """The penalty the run started with (the automatic penalty is raised at most 100 × it); None:
     the model's."""
@@ -104,9 +107,20 @@ def _memory_rows(memory, n_vertices: int):
     return vv.astype(np.int32), (key // n).astype(np.int64), (key % n).astype(np.int64)
 
 
+def frame_size(model) -> int:
+    """Floats of one frame of ``model`` (`ddatai.fused.layout.FR_BLOCK`)."""
+    points = len(model.fixed_point_block) + len(model.load_block) + len(model.measured_block)
+    return 1 + L.FR_BLOCK * model.n_blocks + 2 * model.n_vertices + 2 * points
+
+
+def frames_per_launch(member, launch_steps: int) -> int:
+    return launch_steps // member.frame_every + 2 if member.frame_every > 0 else 0
+
+
 def pack(members: list, launch_steps: int) -> dict:
     """The arrays of a launch of ``members`` (`Member`), each with room for ``launch_steps``
-    history rows (and step records). Returns the arrays by `ddatai.fused.arrays.FIELDS` name."""
+    history rows (and step records, and frames). Returns the arrays by
+    `ddatai.fused.arrays.FIELDS` name."""
     from ..geometry import polygon_integrals
     from ..kinematics import block_radius
 
@@ -126,6 +140,8 @@ def pack(members: list, launch_steps: int) -> dict:
     x_size = L.N_XS * 6 * nf + np.array([m.model.params.oc_max_iterations + 2 for m in members])
     x_off = np.concatenate([[0], np.cumsum(x_size)])
     B, V, R, C, P, Q, J, G = (int(max(1, off[-1, k])) for k in range(8))
+    f_size = np.array([frames_per_launch(m, launch_steps) * frame_size(m.model) for m in members], np.int64)
+    f_off = np.concatenate([[0], np.cumsum(f_size)])
 
     def zeros(shape, dtype=np.float64):
         return np.zeros(shape, dtype)
@@ -144,7 +160,7 @@ def pack(members: list, launch_steps: int) -> dict:
         gidx=zeros(G, np.int32),
         hist=zeros((max(1, M * launch_steps), 2)),
         rec=zeros((max(1, sum(launch_steps for m in members if m.record)), L.N_RC)),
-        frame=zeros(1),
+        frame=zeros(max(1, int(f_off[-1]))),
     )
     rec_at = 0
     for k, mem in enumerate(members):
@@ -166,6 +182,8 @@ def pack(members: list, launch_steps: int) -> dict:
                           L.FLAG_BOND_SLIP * p.bond_breaks_on_slip | L.FLAG_BY_LOAD * (p.oc_force_reference == "load")
                           | L.FLAG_AUTO_PENALTY * (p.penalty is None) | L.FLAG_RECORD * mem.record)
         mi[L.MI_LAUNCH_STEPS], mi[L.MI_HAVE_ENERGY] = launch_steps, st.energy is not None
+        mi[L.MI_F0], mi[L.MI_FCAP] = f_off[k], frames_per_launch(mem, launch_steps)
+        mi[L.MI_FEVERY], mi[L.MI_FSIZE] = mem.frame_every, frame_size(mo)
         start_penalty = mem.start_penalty if mem.start_penalty is not None else mo.penalty
         mem.start_penalty = start_penalty
         for col, v in ((L.MF_TIME, st.time), (L.MF_DT, st.dt), (L.MF_ACCEL, st.accel), (L.MF_PENALTY, mo.penalty),
@@ -302,5 +320,3 @@ def member_model(A: dict, k: int, member: Member):
     p = float(A["mf"][k, L.MF_PENALTY])
     return member.model if p == member.model.penalty else member.model.with_penalty(p)
 
-
-_unused = field

@@ -12,7 +12,6 @@ compiled kernel, only a run long enough to pay `COMPILE_SECONDS` does. Batches o
 from __future__ import annotations
 
 import hashlib
-import math
 import os
 from pathlib import Path
 from typing import Optional
@@ -21,10 +20,14 @@ from typing import Optional
 #: skyline factorisation grows as n·w²: beyond a few dozen blocks the sparse solvers of today's
 #: path take over; benchmarks/small_models.py)
 FUSED_BLOCKS = 48
-#: the fused kernel's first compile on this project's 2-core CI machine [s] (measured, quiet;
-#: README, "Performance")
-COMPILE_SECONDS = 60.0
+#: the fused kernel's first compile on this project's 2-core CI machine [s] (README, "Performance")
+COMPILE_SECONDS = 240.0
+#: what a process pays to take the compiled kernel from Taichi's offline cache [s]: Taichi turns
+#: the kernel's Python into its IR again (the cache's key) and LLVM makes machine code of the
+#: cached module (README, "Performance")
+LOAD_SECONDS = 6.0
 #: what a step saves on the fused engine against today's NumPy path for a small model [s]
+#: (benchmarks/small_models.py: ~1–3 ms a step on the NumPy path, a few µs to 0.1 ms fused)
 STEP_SAVING = 1.0e-3
 
 _SOURCES = ("ddatai/fused/arrays.py", "ddatai/fused/blocks.py", "ddatai/fused/contacts.py",
@@ -92,16 +95,26 @@ def choose(model, *, steps: Optional[int], duration: Optional[float], batch: boo
         return "fused", "Params(kernels='fused')" if p.kernels == "fused" else "a batch of members"
     if model.n_free > FUSED_BLOCKS:
         return today, f"{model.n_free} free blocks, more than the fused engine takes alone ({FUSED_BLOCKS})"
-    if kernel_cached("cpu" if p.arch == "cpu" else "cuda"):
-        return "fused", "a small model, the fused kernel compiled (Taichi's offline cache)"
+    loaded = _loaded()
+    cached = loaded or kernel_cached("cpu" if p.arch == "cpu" else "cuda")
+    cost = 0.0 if loaded else LOAD_SECONDS if cached else COMPILE_SECONDS
     dt = p.dt if p.dt is not None else p.dt_max
     expected = steps if steps is not None else (duration / dt if duration is not None else 0)
     if duration is not None and steps is not None:
         expected = min(steps, duration / dt)
-    if expected * STEP_SAVING >= COMPILE_SECONDS:
-        return "fused", f"a small model and a run of at least {expected:.0f} steps, which pays the first compile"
-    return today, (f"a small model, but its {expected:.0f} steps do not pay the fused kernel's first compile "
-                   f"(~{COMPILE_SECONDS:.0f} s; then it is cached)")
+    if expected * STEP_SAVING >= cost:
+        what = "in this process" if loaded else "in Taichi's offline cache" if cached else "not yet compiled"
+        return "fused", f"a small model, its run of at least {expected:.0f} steps pays the fused kernel ({what})"
+    what = (f"loading the compiled kernel (~{LOAD_SECONDS:.0f} s)" if cached else
+            f"the fused kernel's first compile (~{COMPILE_SECONDS:.0f} s; then it is cached)")
+    return today, f"a small model, but its {expected:.0f} steps do not pay {what}"
 
 
-_unused = math
+def _loaded() -> bool:
+    """Whether the fused kernel has already run in this process (compiled or loaded: free now)."""
+    import sys
+
+    engine = sys.modules.get("ddatai.fused.engine")
+    return bool(engine is not None and getattr(engine, "LAUNCHED", False))
+
+

@@ -310,14 +310,29 @@ def step(E: ti.template(), m):
                 break
             dt = new_dt
         if result == RUNNING:
-            # the energy at the step's start (once: then the last step's end energy)
-            if E.mi[m, MI_HAVE_ENERGY] == 0:
-                k0, g0, s0, c0 = energies(E, m, CF_DN0, CF_DS0, CI_STATE0)
-                E.mf[m, MF_ENERGY] = k0 + g0 + s0 + c0
             external, friction = work(E, m)
-            accel = update(E, m, dt, beta)
-            contacts.hand_over(E, m)
-            k1, g1, s1, c1 = energies(E, m, CF_DN, CF_DS, CI_STATE)
+            accel = 0.0
+            k1 = 0.0
+            g1 = 0.0
+            s1 = 0.0
+            c1 = 0.0
+            # the energy at the step's start (once: then the last step's end energy), the update,
+            # the energy at its end (one place in the compiled kernel for both energies)
+            for phase in range(2):
+                if phase == 1:
+                    accel = update(E, m, dt, beta)
+                    contacts.hand_over(E, m)
+                if phase == 1 or E.mi[m, MI_HAVE_ENERGY] == 0:
+                    dn_col = CF_DN0
+                    ds_col = CF_DS0
+                    state_col = CI_STATE0
+                    if phase == 1:
+                        dn_col = CF_DN
+                        ds_col = CF_DS
+                        state_col = CI_STATE
+                    k1, g1, s1, c1 = energies(E, m, dn_col, ds_col, state_col)
+                    if phase == 0:
+                        E.mf[m, MF_ENERGY] = k1 + g1 + s1 + c1
             total = k1 + g1 + s1 + c1
             dissipated = external - (total - E.mf[m, MF_ENERGY]) - friction
             E.mf[m, MF_ENERGY] = total
