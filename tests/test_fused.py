@@ -83,3 +83,147 @@ def test_fused_steps_follow_the_numpy_path(case):
     np.testing.assert_allclose(out.records["dt"], [r.dt for r in records], rtol=1e-6)
     solves = np.array([r.oc_total for r in records])
     assert np.abs(out.records["oc_total"] - solves).max() <= 1
+
+
+def test_simulate_on_the_fused_engine_records_the_numpy_path_s_frames():
+    """`dd.simulate` with ``Params(kernels="fused")``: the same frames (every 7 steps and the last)
+    and step records as the NumPy path, within the module's tolerance; ``Results.meta`` names the
+    engine and why."""
+    runs = {}
+    for kernels in ("fused", "numpy"):
+        scene, params = dropped_grid(3)
+        runs[kernels] = dd.simulate(scene, dataclasses.replace(params, kernels=kernels), steps=60, record_every=7)
+    a, b = runs["fused"], runs["numpy"]
+    assert a.meta["engine"] == {"name": "fused", "why": "Params(kernels='fused')"}
+    assert b.meta["engine"]["name"] == "numpy"
+    np.testing.assert_allclose(a.time, b.time, rtol=1e-12)
+    np.testing.assert_allclose(a.steps["time"], b.steps["time"], rtol=1e-12)
+    size = float(np.ptp(b.vertices[0], axis=0).max())
+    moved = float(np.abs(b.vertices[-1] - b.vertices[0]).max())
+    assert np.abs(a.vertices - b.vertices).max() <= 1e-3 * moved + 1e-9 * size
+    assert np.abs(a.steps["oc_total"] - b.steps["oc_total"]).max() <= 1
+
+
+def test_kgm_judgements_on_the_fused_engine_are_the_numpy_path_s():
+    """The block on a 30° plane judged at φ = 20°, 29°, 31° and 40° in one launch (kgm's default)
+    and one by one on the NumPy path: the same verdicts, notes and step counts, displacements
+    within 1e-3 of δ."""
+    import kgm
+    import kgm_cases
+    from kgm.batched import Member as Probe, judge_members
+    from kgm.blocks import build_block_system
+    from kgm.judgement import judge
+
+    scene, _, b = kgm_cases.block_on_incline(theta=30.0, width=2.0, height=1.0, friction=35.0, cohesion=0.0)
+    system = build_block_system(scene)
+    settings = kgm.DdaSettings(duration=0.5)
+    probes = [20.0, 29.0, 31.0, 40.0]
+    fused = judge_members([Probe(scene=scene, system=system, friction=f) for f in probes], frozenset([b]),
+                          settings=settings, params=dd.Params(dt=2e-3), exact=True)
+    for f, j in zip(probes, fused):
+        ref = judge(scene, system, frozenset([b]), settings=settings, params=dd.Params(dt=2e-3, kernels="numpy"),
+                    friction=f)
+        assert (j.stable, j.note, j.steps) == (ref.stable, ref.note, ref.steps)
+        assert j.displacement == pytest.approx(ref.displacement, abs=1e-3 * ref.threshold)
+    assert [j.stable for j in fused] == [False, False, True, True]
+
+
+def test_a_member_whose_contacts_outgrow_their_region_goes_on_with_more():
+    """A contact region of one contact: the member is launched again, from the start of the step
+    that overflowed, with twice the room, until its contacts fit; the run is the one with room
+    enough (never truncated)."""
+    from ddatai.fused import engine
+    from ddatai.fused.pack import Member
+
+    scene, params = dropped_grid(3)
+    model = build_model(scene, dataclasses.replace(params, kernels="numpy"))
+    state = model.initial_state()
+    roomy = engine.run([Member(model=model, state=state, step_end=30)])[0]
+    tight = engine.run([Member(model=model, state=state, step_end=30, contacts=1)])[0]
+    assert tight.status == roomy.status == "done"
+    assert tight.launches > roomy.launches
+    np.testing.assert_array_equal(tight.state.vertex_xy, roomy.state.vertex_xy)
+
+
+def test_a_step_the_engine_cannot_take_is_taken_on_today_s_path():
+    """A step that no Δt above the shortest makes converge (``dt_min_ratio`` close to 1, a block
+    thrown onto a plane): the fused engine hands it to today's path, which raises the error it
+    raises alone, with the same step and cause."""
+    errors = {}
+    for kernels in ("fused", "numpy"):
+        s = dd.Scene(gravity=9.81)
+        rock = dd.Material(density=2500.0, young=5e9, poisson=0.25)
+        s.add_block([(-2, -1), (4, -1), (4, 0), (-2, 0)], material=rock, fixed=True)
+        s.add_block([(0, 0.02), (1, 0.02), (1, 1.02), (0, 1.02)], material=rock, velocity=(0.0, -8.0))
+        params = dd.Params(dt=0.05, dt_min_ratio=0.5, initial_equilibrium=False, kernels=kernels)
+        with pytest.raises(dd.SimulationError) as err:
+            dd.simulate(s, params, steps=40)
+        errors[kernels] = err.value
+    assert (errors["fused"].step, errors["fused"].cause) == (errors["numpy"].step, errors["numpy"].cause)
+
+
+def test_auto_takes_the_fused_engine_where_it_pays(monkeypatch):
+    """``Params(kernels="auto")``: a small model's long run on the fused engine once the kernel is
+    compiled (cached); a short run, a model the engine does not cover, or many free blocks on
+    today's path; each with its reason."""
+    from ddatai.fused import policy
+
+    scene, params = dropped_grid(2)
+    model = build_model(scene, params)
+    monkeypatch.setattr(policy, "_loaded", lambda: False)
+    monkeypatch.setattr(policy, "kernel_cached", lambda arch="cpu": True)
+    assert policy.choose(model, steps=100_000, duration=None)[0] == "fused"
+    name, why = policy.choose(model, steps=10, duration=None)
+    assert name == "numpy" and "do not pay" in why
+    monkeypatch.setattr(policy, "kernel_cached", lambda arch="cpu": False)
+    assert policy.choose(model, steps=100_000, duration=None)[0] == "numpy"
+    assert policy.choose(model, steps=10, duration=None, batch=True)[0] == "fused"
+    name, why = policy.choose(model, steps=10 ** 7, duration=None, record_contacts=True)
+    assert name == "numpy" and "contacts are recorded" in why
+    shaken = dropped_grid(2)[0]
+    shaken.set_ground_acceleration(lambda t: (0.1, 0.0))
+    name, why = policy.choose(build_model(shaken, params), steps=10, duration=None, batch=True)
+    assert name == "numpy" and "shaken" in why
+
+
+@pytest.mark.gpu
+def test_fused_engine_on_cuda_follows_the_numpy_path():
+    """The fused engine on a CUDA GPU (one thread a member there too): the NumPy path's run of
+    Example I at 8° and of the dropped grid, within the module's tolerance (a subprocess: the
+    test session's Taichi runs on the CPU)."""
+    import shutil
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    if shutil.which("nvidia-smi") is None:
+        pytest.skip("no CUDA device (nvidia-smi not found)")
+    root = Path(__file__).resolve().parents[1]
+    code = f"""
+import sys, dataclasses
+sys.path[:0] = [{str(root)!r}, {str(root / 'tests')!r}]
+import numpy as np
+import ddatai as dd
+from ddatai.model import build_model
+from ddatai.start import settle
+from ddatai.step import Stepper
+from ddatai.fused import engine
+from ddatai.fused.pack import Member
+from scenes import example_1
+from test_fused import dropped_grid, _numpy_run
+for build, stage in ((lambda: example_1.build(friction=8.0), True), (dropped_grid, False)):
+    scene, params = build()
+    model = build_model(scene, dataclasses.replace(params, kernels="numpy", solver="dense"))
+    state = model.initial_state()
+    if stage:
+        state, _ = settle(Stepper(model), state)
+    ref, _ = _numpy_run(model, state, 60)
+    out = engine.run([Member(model=model, state=state, step_end=state.step + 60)], arch="cuda")[0]
+    size = float(np.ptp(model.vertex_xy0, axis=0).max())
+    moved = float(np.abs(ref.vertex_xy - state.vertex_xy).max())
+    assert out.status == "done", out.status
+    assert np.abs(out.state.vertex_xy - ref.vertex_xy).max() <= 1e-3 * moved + 1e-9 * size
+print("ok")
+"""
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0 and proc.stdout.strip().endswith("ok"), proc.stderr[-3000:]

@@ -8,7 +8,7 @@ contact vectors (`ddatai.kernels.assembly.contact_vectors`, §2.8), the second-o
 
 import taichi as ti
 
-from ..kernels.common import E0, ES, G0, GS, _cross, _pt, _trow
+from ..kernels.common import E0, ES, G0, GS, _cross, _dot2, _norm2, _pt, _trow
 from ..kernels.detection import pair_contacts
 from .layout import (BG_CX, BG_CY, BI_ROW, BI_V0, BI_V1, BW_ROT, CF_COH, CF_DN, CF_DN0, CF_DS, CF_DS0,
                      CF_LEN, CF_NF, CF_NF0, CF_OMEGA, CF_SCA, CF_SHIFT, CF_TAN, CF_TEN, CI_A, CI_B, CI_BOND,
@@ -142,7 +142,7 @@ def start(E: ti.template(), m, n):
         dn0 = _signed_distance(E, v, e)
         p2 = _pt(E.vxy, E.vnext[e])
         d = _pt(E.vxy, e) - p2
-        omega = (_pt(E.vxy, v) - p2).dot(d) / d.dot(d)
+        omega = _dot2(_pt(E.vxy, v) - p2, d) / _dot2(d, d)
         nf = p * ti.max(-dn0, 0.0)
         tan = E.jf[joint, JF_TAN]
         coh = E.jf[joint, JF_COH]
@@ -171,7 +171,7 @@ def start(E: ti.template(), m, n):
             if state == SLIDE and kind == VE:
                 # the lock point S/k_s behind the vertex: a lock starts from the friction force
                 strength = nf * tan + coh * length * bond
-                edge = ti.sqrt(d.dot(d))
+                edge = ti.sqrt(_dot2(d, d))
                 omega -= sdir * strength / (E.mf[m, MF_SHEAR] * edge)
         elif first:
             dn1 = -1e300
@@ -219,7 +219,7 @@ def vectors(E: ti.template(), m):
             P1 = _pt(E.vxy, p1)
             x2 = _pt(E.vxy, E.vnext[k]) - P1
             x3 = _pt(E.vxy, k) - P1
-            length = (x3 - x2).norm()
+            length = _norm2(x3 - x2)
             bi = E.vblock[p1]
             bj = E.vblock[k]
             ci = ti.Vector([E.bgeo[bi, BG_CX], E.bgeo[bi, BG_CY]])
@@ -235,7 +235,7 @@ def vectors(E: ti.template(), m):
             if q == 0 and kind == VE:
                 w = E.cf[c, CF_OMEGA]
                 t = (x3 - x2) / length
-                E.cf[c, CF_SCA + 2] = (-(1.0 - w) * x2 - w * x3).dot(x3 - x2) / length
+                E.cf[c, CF_SCA + 2] = _dot2((-(1.0 - w) * x2 - w * x3), x3 - x2) / length
                 c2 = (2.0 * (1.0 - w) * x2 - (1.0 - 2.0 * w) * x3) / length
                 c3 = (-(1.0 - 2.0 * w) * x2 - 2.0 * w * x3) / length
                 _store_row(E.cvec, c, ES, _trow(t[0], t[1], X1))
@@ -302,7 +302,7 @@ def second_order_shift(E: ti.template(), m, any_rotation):
                 q1 = _q(E, p1)
                 q2 = _q(E, p2)
                 q3 = _q(E, k)
-                length = (P3 - P2).norm()
+                length = _norm2(P3 - P2)
                 E.cf[c, CF_SHIFT + line] = ((P2[1] - P3[1]) * q1[0] + (P3[0] - P2[0]) * q1[1] +
                                             (P3[1] - P1[1]) * q2[0] + (P1[0] - P3[0]) * q2[1] +
                                             (P1[1] - P2[1]) * q3[0] + (P2[0] - P1[0]) * q3[1]) / length
@@ -311,7 +311,7 @@ def second_order_shift(E: ti.template(), m, any_rotation):
                     b1 = P3 - P2
                     b2 = -P1 + 2.0 * (1.0 - w) * P2 - (1.0 - 2.0 * w) * P3
                     b3 = P1 - (1.0 - 2.0 * w) * P2 - 2.0 * w * P3
-                    E.cf[c, CF_SHIFT + 2] = (b1.dot(q1) + b2.dot(q2) + b3.dot(q3)) / length
+                    E.cf[c, CF_SHIFT + 2] = (_dot2(b1, q1) + _dot2(b2, q2) + _dot2(b3, q3)) / length
 
 
 @ti.func

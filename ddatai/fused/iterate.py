@@ -153,13 +153,16 @@ def open_close(E: ti.template(), m, dt, beta, last):
                 col = BW_D
                 s = 1
             energy = law.evaluate(E, m, col, s) + system.block_energy(E, m, col, brhs)
+            bad = 0
+            if stage != 1:
+                bad = law.violations(E, m, s)  # (one place in the compiled kernel)
             if stage == 0:
                 energy_solution = energy
-                bad = law.violations(E, m, 0)
                 if has_previous == 0 or bad == 0:
                     break
                 stage = 1
-            elif stage == 1:
+                continue
+            if stage == 1:
                 base_energy = energy
                 system.block_gradient(E, m, BW_PREV, brhs, grad)
                 law.internal_force(E, m, 1, grad)
@@ -171,19 +174,16 @@ def open_close(E: ti.template(), m, dt, beta, last):
                             slope += E.xvec[grad + 6 * r + a] * (E.bwork[b, BW_SOL + a] - E.bwork[b, BW_PREV + a])
                 if slope >= 0 or energy_solution <= base_energy + 1e-4 * slope:
                     break  # not a descent direction (coupled friction), or the whole step is taken
-                alpha = 0.5
-                _trial(E, m, alpha)
                 stage = 2
-            else:
-                if alpha <= SMALLEST_STEP or energy <= base_energy + 1e-4 * alpha * slope:
-                    # the shortened step stops before the contacts that change state on the way;
-                    # where none changes there yet, the states change as the solution asks
-                    if law.violations(E, m, 1) > 0:
-                        slot = 1
-                        disp = BW_D
-                    break
-                alpha *= 0.5
-                _trial(E, m, alpha)
+            elif alpha <= SMALLEST_STEP or energy <= base_energy + 1e-4 * alpha * slope:
+                # the shortened step stops before the contacts that change state on the way;
+                # where none changes there yet, the states change as the solution asks
+                if bad > 0:
+                    slot = 1
+                    disp = BW_D
+                break
+            alpha *= 0.5
+            _trial(E, m, alpha)
         for b in range(E.mi[m, MI_B0], E.mi[m, MI_B1]):
             E.bwork[b, BW_ROT] = E.bwork[b, disp + 2]
         changed, excess = law.judge(E, m, slot, not lagged)

@@ -100,7 +100,9 @@ def _force(E: ti.template(), m, c, su, sw, f, ri, rj):
 def contact_terms(E: ti.template(), m):
     """The normal spring of every closed contact on its active line, the shear spring of a
     locked vertex-edge contact, the friction of a sliding one (with its non-symmetric term
-    when coupled to this solve's normal force), §2.8. Returns whether K stays symmetric."""
+    when coupled to this solve's normal force), §2.8, in the order of
+    `kernels.assembly.assemble_contacts`; the three terms of a contact in one loop (one place in
+    the compiled kernel). Returns whether K stays symmetric."""
     p = E.mf[m, MF_PENALTY]
     ks = E.mf[m, MF_SHEAR]
     symmetric = 1
@@ -111,29 +113,56 @@ def contact_terms(E: ti.template(), m):
             q = E.cint[c, CI_LINE]
             ri = E.bint[E.vblock[E.cint[c, 1 + 2 * q]], BI_ROW]
             rj = E.bint[E.vblock[E.cint[c, 2 + 2 * q]], BI_ROW]
-            dn0 = E.cf[c, CF_SCA + q] + E.cf[c, CF_SHIFT + q]
-            _outer(E, m, c, E0 + 2 * q, G0 + 2 * q, E0 + 2 * q, G0 + 2 * q, p, ri, rj)
-            _force(E, m, c, E0 + 2 * q, G0 + 2 * q, -p * dn0, ri, rj)
-            if E.cint[c, CI_KIND] == VE:
-                if st == LOCK:
-                    ds0 = E.cf[c, CF_SCA + 2] + E.cf[c, CF_SHIFT + 2]
-                    _outer(E, m, c, ES, GS, ES, GS, ks, ri, rj)
-                    _force(E, m, c, ES, GS, -ks * ds0, ri, rj)
-                else:
-                    tan = E.cf[c, CF_TAN]
-                    cohesion = E.cf[c, CF_COH] * E.cf[c, CF_LEN] * ti.cast(E.cint[c, CI_BOND], ti.f64)
-                    const = E.cf[c, CF_NF] * tan + cohesion
-                    slope = 0.0
-                    if E.cint[c, CI_COUPLED] != 0:
-                        const = cohesion
-                        slope = p * tan
-                    sgn = ti.cast(E.cint[c, CI_DIR], ti.f64)
-                    # internal force sgn·S(D)·∇ds with S = a − b·(dn0 + ∇dnᵀD)
-                    f = sgn * (const - slope * (E.cf[c, CF_SCA] + E.cf[c, CF_SHIFT]))
-                    _force(E, m, c, ES, GS, -f, ri, rj)
-                    if slope != 0.0:
+            ve = E.cint[c, CI_KIND] == VE
+            tan = E.cf[c, CF_TAN]
+            cohesion = E.cf[c, CF_COH] * E.cf[c, CF_LEN] * ti.cast(E.cint[c, CI_BOND], ti.f64)
+            const = E.cf[c, CF_NF] * tan + cohesion
+            slope = 0.0
+            if E.cint[c, CI_COUPLED] != 0:
+                const = cohesion
+                slope = p * tan
+            sgn = ti.cast(E.cint[c, CI_DIR], ti.f64)
+            for term in range(3):
+                # 0: the normal spring of the active line; 1: the shear spring of a locked
+                # vertex-edge contact, or the friction of a sliding one (internal force
+                # sgn·S(D)·∇ds with S = a − b·(dn0 + ∇dnᵀD)); 2: that friction's coupling term
+                # −sgn·b·∇ds ∇dnᵀ
+                active = 1
+                su = E0 + 2 * q
+                sw = G0 + 2 * q
+                tu = su
+                tw = sw
+                k = p
+                f = -p * (E.cf[c, CF_SCA + q] + E.cf[c, CF_SHIFT + q])
+                if term == 1:
+                    su = ES
+                    sw = GS
+                    tu = ES
+                    tw = GS
+                    if not ve:
+                        active = 0
+                    elif st == LOCK:
+                        k = ks
+                        f = -ks * (E.cf[c, CF_SCA + 2] + E.cf[c, CF_SHIFT + 2])
+                    else:
+                        k = 0.0
+                        f = -sgn * (const - slope * (E.cf[c, CF_SCA] + E.cf[c, CF_SHIFT]))
+                elif term == 2:
+                    su = ES
+                    sw = GS
+                    tu = E0
+                    tw = G0
+                    k = -sgn * slope
+                    f = 0.0
+                    if not (ve and st == SLIDE and slope != 0.0):
+                        active = 0
+                    else:
                         symmetric = 0
-                        _outer(E, m, c, ES, GS, E0, G0, -sgn * slope, ri, rj)
+                if active:
+                    if k != 0.0:
+                        _outer(E, m, c, su, sw, tu, tw, k, ri, rj)
+                    if term < 2:
+                        _force(E, m, c, su, sw, f, ri, rj)
     return symmetric
 
 

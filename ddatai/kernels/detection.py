@@ -5,7 +5,7 @@
 import taichi as ti
 
 from .common import (EDGE_FLOOR, EDGE_FLOOR2, I32_1, I32_2, F64_1, F64_2, KIND_VE, KIND_VV, SLACK, TIE, TWO_PI,
-                     _cross, _pt, _wrap)
+                     _cross, _dot2, _norm2, _pt, _wrap)
 
 
 @ti.func
@@ -14,7 +14,7 @@ def _edge_param(xy: ti.template(), vnext: ti.template(), e, p):
     q0 = _pt(xy, e)
     d = _pt(xy, vnext[e]) - q0
     # a collapsed edge (zero length) projects everything to its start instead of dividing by 0
-    return (_pt(xy, p) - q0).dot(d) / ti.max(d.dot(d), EDGE_FLOOR2)
+    return _dot2(_pt(xy, p) - q0, d) / ti.max(_dot2(d, d), EDGE_FLOOR2)
 
 
 @ti.func
@@ -22,9 +22,9 @@ def _half_overlap(xy: ti.template(), vnext: ti.template(), e, a, b):
     """Half the length of the overlap of segment (a, b) projected on edge e (§3.6)."""
     q0 = _pt(xy, e)
     d = _pt(xy, vnext[e]) - q0
-    l2 = ti.max(d.dot(d), EDGE_FLOOR2)
-    ta = (_pt(xy, a) - q0).dot(d) / l2
-    tb = (_pt(xy, b) - q0).dot(d) / l2
+    l2 = ti.max(_dot2(d, d), EDGE_FLOOR2)
+    ta = _dot2(_pt(xy, a) - q0, d) / l2
+    tb = _dot2(_pt(xy, b) - q0, d) / l2
     lo = ti.max(0.0, ti.min(ta, tb))
     hi = ti.min(1.0, ti.max(ta, tb))
     return 0.5 * ti.max(0.0, hi - lo) * ti.sqrt(l2)
@@ -44,9 +44,9 @@ def _nearer_exit(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), 
     q0 = _pt(xy, a)
     q1 = _pt(xy, vnext[a])
     d = q1 - q0
-    l = ti.max(d.norm(), EDGE_FLOOR)
-    t = (P - q0).dot(d) / (l * l)
-    dn = (P - q0).dot(ti.Vector([d[1], -d[0]]) / l)
+    l = ti.max(_norm2(d), EDGE_FLOOR)
+    t = _dot2(P - q0, d) / (l * l)
+    dn = _dot2(P - q0, ti.Vector([d[1], -d[0]]) / l)
     r0 = P - q0
     r1 = P - q1
     # or nearer than ``depth`` to an end of a (past it: a cut's shared corner, moved a hair)
@@ -65,8 +65,8 @@ def _outside_convex(xy: ti.template(), vnext: ti.template(), vprev: ti.template(
     while j != e:
         q0 = _pt(xy, j)
         d = _pt(xy, vnext[j]) - q0
-        l = ti.max(d.norm(), EDGE_FLOOR)
-        if (P - q0).dot(ti.Vector([d[1], -d[0]]) / l) > -slack:
+        l = ti.max(_norm2(d), EDGE_FLOOR)
+        if _dot2(P - q0, ti.Vector([d[1], -d[0]]) / l) > -slack:
             front = 1
         if not _convex(xy, vnext, vprev, j):
             convex = 0
@@ -84,9 +84,9 @@ def _edge_edge_exit(xy: ti.template(), vnext: ti.template(), vprev: ti.template(
     e, so p cannot have entered that edge."""
     q0 = _pt(xy, e)
     d = _pt(xy, vnext[e]) - q0
-    l = ti.max(d.norm(), EDGE_FLOOR)
+    l = ti.max(_norm2(d), EDGE_FLOOR)
     P = _pt(xy, p)
-    dn = (P - q0).dot(ti.Vector([d[1], -d[0]]) / l)
+    dn = _dot2(P - q0, ti.Vector([d[1], -d[0]]) / l)
     a = vprev[e]
     c = e
     if w == e:
@@ -108,11 +108,11 @@ def _ve_test(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), p, e
     """
     q0 = _pt(xy, e)
     d = _pt(xy, vnext[e]) - q0
-    l = ti.max(d.norm(), EDGE_FLOOR)
+    l = ti.max(_norm2(d), EDGE_FLOOR)
     P = _pt(xy, p)
-    t = (P - q0).dot(d) / (l * l)
+    t = _dot2(P - q0, d) / (l * l)
     n = ti.Vector([d[1], -d[0]]) / l  # outward normal of a CCW edge
-    dn = (P - q0).dot(n)
+    dn = _dot2(P - q0, n)
     ok = 1
     if l <= EDGE_FLOOR:  # a collapsed edge has no normal: no contact (reference.narrow_phase)
         ok = 0
@@ -131,19 +131,19 @@ def _ve_test(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), p, e
             ok = 0
     r1 = _pt(xy, vnext[p]) - P
     r2 = _pt(xy, vprev[p]) - P
-    n1 = r1.norm()
-    n2 = r2.norm()
+    n1 = _norm2(r1)
+    n2 = _norm2(r2)
     # a concave vertex never contacts as a vertex; the vertex's material wedge must lie on the
     # outer side of the edge within the angle tolerance h1
     if _cross(r1, r2) <= 0.0:
         ok = 0
-    if r1.dot(n) < -sin_h1 * n1 or r2.dot(n) < -sin_h1 * n2:
+    if _dot2(r1, n) < -sin_h1 * n1 or _dot2(r2, n) < -sin_h1 * n2:
         ok = 0
     length = 0.0
     if ok == 1:
-        if ti.abs(r1.dot(n)) <= sin_h1 * n1:
+        if ti.abs(_dot2(r1, n)) <= sin_h1 * n1:
             length = _half_overlap(xy, vnext, e, p, vnext[p])
-        elif ti.abs(r2.dot(n)) <= sin_h1 * n2:
+        elif ti.abs(_dot2(r2, n)) <= sin_h1 * n2:
             length = _half_overlap(xy, vnext, e, p, vprev[p])
     return ok, length
 
@@ -171,7 +171,7 @@ def _nearest(xy: ti.template(), P, lo, hi, limit):
     best = -1
     best_d = limit
     for k in range(lo, hi):
-        dist = (_pt(xy, k) - P).norm()
+        dist = _norm2(_pt(xy, k) - P)
         if dist < best_d or (dist == best_d and best == -1):
             best = k
             best_d = dist
