@@ -363,7 +363,7 @@ def block_materials(scene) -> tuple[list[dict], np.ndarray]:
 def run_metadata(scene, model, engine: str = "", why: str = "") -> str:
     """The metadata of a run as JSON text: ddatai version, parameters, units, scene summary, and
     the engine that ran it with the reason (``meta["engine"]``: "fused", "numpy" or "taichi";
-    `ddatai.fused.policy.choose`)."""
+    ``ddatai.fused.policy.choose``)."""
     import dataclasses
     import json
 

@@ -4,7 +4,7 @@ OpenBLAS (NumPy's and SciPy's) starts a thread per core for a LAPACK factorisati
 Taichi's own threads, which keep spinning for a while after a kernel, the two pools compete for
 the cores: on the 2-core CI machine a 64-block model on the kernel path had dense solves of
 0.1–1 s in 3 of 12 runs (docs/guide/performance.md, "Thread pools"), and a factorisation of a
-few hundred unknowns gains nothing from a second thread. `one_blas_thread` limits the BLAS
+few hundred unknowns gains nothing from a second thread. ``one_blas_thread`` limits the BLAS
 libraries loaded in the process to one thread for the duration of a solve (threadpoolctl; a
 no-op without it) and gives them back their count afterwards.
 """

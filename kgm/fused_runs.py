@@ -28,7 +28,7 @@ def judge_fused(members, blocks: frozenset, *, settings: DdaSettings, params: Op
     """The judgements of ``members`` (`kgm.batched.Member`: a scene, its block system, a
     friction and a strength reduction) on the fused engine, in their order; None where the
     engine does not run them (``Params.kernels`` "numpy" or "taichi", or a sub-model with what
-    the engine leaves to today's path: `ddatai.fused.pack.covers`)."""
+    the engine leaves to today's path: ``ddatai.fused.pack.covers``)."""
     from ddatai.fused.pack import Member as Run
     from ddatai.fused.pack import covers
     from ddatai.model import build_model

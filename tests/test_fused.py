@@ -64,8 +64,9 @@ CASES = {
 @pytest.mark.parametrize("case", sorted(CASES))
 def test_fused_steps_follow_the_numpy_path(case):
     """The same steps from the same state (after the NumPy path's equilibrium stage where the
-    case starts from one): positions within the module's tolerance, the same Δt, solves within
-    one a step."""
+    case starts from one): positions within the module's tolerance and the same Δt; the solves of
+    a step differ at most at two steps of the run (round-off tipping a contact across a tolerance
+    of the iteration, as between today's dense and sparse solvers, tests/test_small_models.py)."""
     build, stage = CASES[case]
     scene, params = build()
     params = dataclasses.replace(params or dd.Params(), kernels="numpy", solver="dense")
@@ -82,7 +83,7 @@ def test_fused_steps_follow_the_numpy_path(case):
     assert np.abs(out.state.vertex_xy - ref.vertex_xy).max() <= 1e-3 * moved + 1e-9 * size
     np.testing.assert_allclose(out.records["dt"], [r.dt for r in records], rtol=1e-6)
     solves = np.array([r.oc_total for r in records])
-    assert np.abs(out.records["oc_total"] - solves).max() <= 1
+    assert np.count_nonzero(out.records["oc_total"] != solves) <= 2
 
 
 def test_simulate_on_the_fused_engine_records_the_numpy_path_s_frames():
@@ -101,7 +102,7 @@ def test_simulate_on_the_fused_engine_records_the_numpy_path_s_frames():
     size = float(np.ptp(b.vertices[0], axis=0).max())
     moved = float(np.abs(b.vertices[-1] - b.vertices[0]).max())
     assert np.abs(a.vertices - b.vertices).max() <= 1e-3 * moved + 1e-9 * size
-    assert np.abs(a.steps["oc_total"] - b.steps["oc_total"]).max() <= 1
+    assert np.count_nonzero(a.steps["oc_total"] != b.steps["oc_total"]) <= 2
 
 
 def test_kgm_judgements_on_the_fused_engine_are_the_numpy_path_s():

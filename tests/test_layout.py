@@ -11,11 +11,11 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 #: the engine: what a simulation runs through
-CORE = ("assembly", "backend", "contact_law", "contacts", "cutting", "diagnosis", "energy", "geometry", "iterative", "kernels",
+CORE = ("assembly", "backend", "contact_law", "contacts", "cutting", "diagnosis", "energy", "fused", "geometry", "iterative", "kernels",
         "limit_equilibrium", "mechanisms", "return_mapping", "return_steps",
         "recorder", "records",
         "kinematics", "layout", "model", "model_checks", "narrow", "open_close", "params", "reference", "results", "scene",
-        "solver", "start", "step", "support", "time_step", "water")
+        "solver", "start", "step", "support", "threads", "time_step", "water")
 #: engine modules that reach an adapter only inside one public convenience method, by design
 ALLOWED = {("results", "io.vtk")}  # Results.to_vtk
 

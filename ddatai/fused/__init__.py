@@ -11,8 +11,8 @@ thread a member: a single run, the probes of a bisection round, the samples of a
 member runs as it would alone (its own Δt, its own iterations). The NumPy path stays the
 reference: tests compare the two.
 
-- `ddatai.fused.pack`: members as flat arrays and back (NumPy; `covers` says what it runs);
+- `ddatai.fused.pack`: members as flat arrays and back (NumPy; ``covers`` says what it runs);
 - `ddatai.fused.engine`: launches, more room for contacts, hand-over to today's path;
-- `ddatai.fused.kernel`, `step`, `iterate`, `law`, `system`, `contacts`, `blocks`: the
+- `ddatai.fused.kernel`, ``step``, ``iterate``, ``law``, ``system``, ``contacts``, ``blocks``: the
   Taichi functions, phase by phase.
 """

@@ -1,9 +1,9 @@
 """Per-block work of the fused engine (Taichi functions): polygon integrals (docs/method/dda.md
 §1.2), the mass matrix (§1.3), the displacement of a material point with the exact rotation
 (§5.3), the block terms of K and F (§2.1–2.6) and the update of a block after a step (§5.2,
-§5.4). Each is the per-block loop body of its NumPy twin (`ddatai.geometry.polygon_integrals`,
-`ddatai.geometry.mass_matrix`, `ddatai.kinematics.move_points`, `ddatai.assembly.assemble_blocks`,
-`ddatai.kinematics.update`), in the same order of operations where the twin has one."""
+§5.4). Each is the per-block loop body of its NumPy twin (``ddatai.geometry.polygon_integrals``,
+``ddatai.geometry.mass_matrix``, ``ddatai.kinematics.move_points``, ``ddatai.assembly.assemble_blocks``,
+``ddatai.kinematics.update``), in the same order of operations where the twin has one."""
 
 
 import taichi as ti

@@ -1,9 +1,9 @@
 """The fused engine's contacts of one member (Taichi functions): detection with the step's rules
 (every block pair whose boxes, enlarged by d0/2, overlap, then Shi's narrow phase of
-`ddatai.kernels.detection.pair_contacts`, the same functions as the kernel path), the canonical
-order, the transfer of the last step's memory (`ddatai.contacts.Contacts.start`, §3.7), the
-contact vectors (`ddatai.kernels.assembly.contact_vectors`, §2.8), the second-order shift
-(§5.3) and the memory handed to the next step (`Contacts.memory`)."""
+``ddatai.kernels.detection.pair_contacts``, the same functions as the kernel path), the canonical
+order, the transfer of the last step's memory (``ddatai.contacts.Contacts.start``, §3.7), the
+contact vectors (``ddatai.kernels.assembly.contact_vectors``, §2.8), the second-order shift
+(§5.3) and the memory handed to the next step (``Contacts.memory``)."""
 
 
 import taichi as ti

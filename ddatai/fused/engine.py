@@ -4,9 +4,9 @@ twice the room (from the start of the step that overflowed: nothing is truncated
 member whose step leaves what the engine does to today's path (`ddatai.step.Stepper`), from
 that step's start.
 
-`run` takes `ddatai.fused.pack.Member` values and returns one `Outcome` each; a `Session` holds
+``run`` takes ``ddatai.fused.pack.Member`` values and returns one ``Outcome`` each; a ``Session`` holds
 the arrays of one launch between calls (a single run recorded every few steps). Both start
-Taichi (`ddatai.backend.ensure`); the kernel compiles once for every model size, from Taichi's
+Taichi (``ddatai.backend.ensure``); the kernel compiles once for every model size, from Taichi's
 offline cache after the first time on a machine (`ddatai.fused.policy`).
 """
 

@@ -1,10 +1,10 @@
 """One try of a step of one member in the fused engine (Taichi functions): the block terms and
-the open-close iteration with its line search, as `ddatai.step.Stepper.attempt` and
-`ddatai.open_close.open_close` (docs/method/dda.md §4): each solve takes the contact states at
+the open-close iteration with its line search, as ``ddatai.step.Stepper.attempt`` and
+``ddatai.open_close.open_close`` (docs/method/dda.md §4): each solve takes the contact states at
 the last iterate; from the second solve on a step that overshoots into states that send the
 next one back is shortened by a backtracking (Armijo) line search on the energy; lagged
 friction that stalls goes on coupled. The step's last try at the shortest Δt, where today's
-path holds cycling contacts closed (`open_close.hold_cycling`), is recognised here (a set of
+path holds cycling contacts closed (``open_close.hold_cycling``), is recognised here (a set of
 states met again) and handed to today's path."""
 
 

@@ -1,13 +1,13 @@
 """The fused engine's one kernel: every member of a launch runs in its own thread, step after
 step, up to the launch's step budget, its end (time or step count), a stop, or a step that
-needs more room (`GROW`) or today's path (`DIVERT`). Members that share a launch share nothing
+needs more room (``GROW``) or today's path (``DIVERT``). Members that share a launch share nothing
 else: each runs with its own Δt and its own iterations, as it would alone.
 
 After each accepted step a member records, in its region of ``hist``, its time and the largest
 displacement of its group's blocks from the model's start (the mean displacement of a block's
 vertices; `kgm`'s measure), then stops when that displacement passes its stop distance
-(`STOP_MOVED`) or when its free blocks have moved slower than its rest speed for its rest
-steps (`STOP_REST`, `kgm.judgement.RestCounter`). The kernel compiles once for every model size:
+(``STOP_MOVED``) or when its free blocks have moved slower than its rest speed for its rest
+steps (``STOP_REST``, `kgm.judgement.RestCounter`). The kernel compiles once for every model size:
 sizes and capacities are the arrays' (runtime) shapes and the members' offsets.
 """
 

@@ -1,7 +1,7 @@
 """The contact law and the open-close judgement of one member in the fused engine (Taichi
-functions), contact by contact as `ddatai.contact_law.contact_law_numpy`,
-`ddatai.contact_law.violations_numpy`, `ddatai.contact_law.judge` and
-`ddatai.contact_law.internal_force_numpy` (docs/method/dda.md §2.8, §4.2–4.3): the law's fields
+functions), contact by contact as ``ddatai.contact_law.contact_law_numpy``,
+``ddatai.contact_law.violations_numpy``, ``ddatai.contact_law.judge`` and
+``ddatai.contact_law.internal_force_numpy`` (docs/method/dda.md §2.8, §4.2–4.3): the law's fields
 of one evaluation go to a *slot* of the contact tables (0: at the solution, 1: at the line
 search's trial point)."""
 

@@ -1,10 +1,10 @@
 """Members of a fused launch as the engine's flat arrays, and back (NumPy only, no Taichi).
 
-`pack` lays the members' models and states side by side in the global arrays of
+``pack`` lays the members' models and states side by side in the global arrays of
 `ddatai.fused.layout` (each member in its own coordinates: members share no space, only
-arrays), with a contact region of fixed capacity each; `unpack_state` returns a member's
+arrays), with a contact region of fixed capacity each; ``unpack_state`` returns a member's
 `ddatai.model.State` (its contact memory keyed as today's path keys it), so that a member can go
-on anywhere: in a new launch with more room, or on today's path. `covers` says whether the
+on anywhere: in a new launch with more room, or on today's path. ``covers`` says whether the
 engine runs a model, and why not.
 """
 

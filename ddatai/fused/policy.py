@@ -1,12 +1,12 @@
-"""Which engine runs a simulation, and why (NumPy only, no Taichi): `Params.kernels`
+"""Which engine runs a simulation, and why (NumPy only, no Taichi): ``Params.kernels``
 "fused" asks for the fused engine, "auto" takes it where it pays (docs/guide/performance.md).
 
 The fused engine's one kernel compiles once per machine: Taichi keeps it in its offline cache
 (``~/.cache/taichi/ticache``, or ``TI_OFFLINE_CACHE_FILE_PATH``), and this module leaves a
 marker beside it once the kernel has run, so that "auto" knows a run will not pay the compile.
-A single `ddatai.simulate` of at most `FUSED_BLOCKS` free blocks then runs fused; without the
-compiled kernel, only a run long enough to pay `COMPILE_SECONDS` does. Batches of members
-(`ddatai.fused.engine.run`: kgm's bisections and studies) always run fused where they can.
+A single `ddatai.simulate` of at most ``FUSED_BLOCKS`` free blocks then runs fused; without the
+compiled kernel, only a run long enough to pay ``COMPILE_SECONDS`` does. Batches of members
+(``ddatai.fused.engine.run``: kgm's bisections and studies) always run fused where they can.
 """
 
 from __future__ import annotations

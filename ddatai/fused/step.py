@@ -1,5 +1,5 @@
 """One DDA step of one member in the fused engine (Taichi functions), phase by phase as
-`ddatai.step.Stepper.advance` (docs/method/dda.md §0): Δt (§4.6), detection and transfer (§3),
+``ddatai.step.Stepper.advance`` (docs/method/dda.md §0): Δt (§4.6), detection and transfer (§3),
 tries of the open-close iteration with its line search (§4) until one is accepted (§4.4–4.5),
 the update (§5) and the energy balance. The phases' bodies live in `ddatai.fused.blocks`,
 `ddatai.fused.contacts`, `ddatai.fused.system`, `ddatai.fused.law` and `ddatai.fused.iterate`."""

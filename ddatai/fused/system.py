@@ -1,5 +1,5 @@
 """The linear system of one member in the fused engine (Taichi functions): the contact springs
-and friction of the assumed states (`ddatai.kernels.assembly.assemble_contacts`, §2.8), and a
+and friction of the assumed states (``ddatai.kernels.assembly.assemble_contacts``, §2.8), and a
 factorisation that follows the system's block structure.
 
 K is stored dense (6n × 6n, row-major, in the member's slab) but only its *envelope* is touched:
