@@ -246,6 +246,9 @@ class Params:
     non-symmetric K, an LU); "lagged", N of the last solve as a load (K symmetric, Cholesky,
     falling back to coupled where it stalls). Both accept the same law; lagged took 1.5–2× the
     solves on the benchmark models, more than its cheaper factor saves (`ddatai.open_close`)."""
+    factor_updates: bool = False
+    """Update the last Cholesky factor where contacts change state, in the stage and the lagged
+    iteration (`ddatai.updates`, the ``[cholmod]`` extra); off: no time saved (measured)."""
     oc_state_tolerance: float = 1e-3
     """Open-close convergence, state and motion [-]: a contact's state may differ from what its
     motion calls for (open but overlapping, sliding where it would stick) while the force that
@@ -270,17 +273,11 @@ class Params:
     """Taichi backend for contact detection and assembly: "cpu", "gpu" (CUDA/Vulkan/Metal,
     whichever is present) or "cuda"."""
     kernels: str = "auto"
-    """Where a run's work runs: "fused" (the fused engine, `ddatai.fused`: the whole run of a
-    small model in one Taichi kernel, many runs side by side), "taichi" (today's step, its
-    per-block and per-contact work in Taichi kernels on ``arch``), "numpy" (today's step in
-    vectorised NumPy: no Taichi at all) or "auto": the fused engine where it pays (a model of at
-    most ``ddatai.fused.policy.FUSED_BLOCKS`` free blocks whose compiled kernel is in Taichi's
-    offline cache, or whose run pays its first compile; always for kgm's batches), else NumPy
-    for a model of at most ``ddatai.model.SMALL_MODEL_BLOCKS`` free blocks on the CPU and Taichi
-    beyond. A model the fused engine does not cover (water, bolts, Barton–Bandis joints,
-    shaking, loads varying in time) and runs that record contacts or checkpoints take today's
-    step; ``Results.meta["engine"]`` says which engine ran and why. All give the same results
-    to the tolerances of the open-close iteration (tests compare them)."""
+    """Where a run's work runs: "fused" (`ddatai.fused`: a small model's whole run in one Taichi
+    kernel, many runs side by side), "taichi" (today's step, its per-block and per-contact work in
+    Taichi kernels on ``arch``), "numpy" (today's step in NumPy, no Taichi) or "auto": the fused
+    engine where it pays its kernel (`ddatai.fused.policy`), else NumPy up to ``SMALL_MODEL_BLOCKS``
+    free blocks on the CPU, Taichi beyond; ``Results.meta["engine"]`` says which ran and why."""
 
     def __post_init__(self) -> None:
         def pos(name: str, allow_none: bool = False) -> None:
@@ -323,6 +320,8 @@ class Params:
         _require(self.oc_force_tolerance < 0.1,
                  f"Params.oc_force_tolerance must be < 0.1 (a fraction of a contact's load or strength), "
                  f"got {self.oc_force_tolerance!r}")
+        _require(isinstance(self.factor_updates, bool),
+                 f"Params.factor_updates must be True or False, got {self.factor_updates!r}")
         _require(self.oc_friction in ("lagged", "coupled"),
                  f"Params.oc_friction must be 'lagged' or 'coupled', got {self.oc_friction!r}")
         _require(self.oc_force_reference in ("load", "strength"),

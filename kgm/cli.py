@@ -1,12 +1,14 @@
 """Console command ``kgm``.
 
     kgm analyze SCENE.py [--method rigid|sarma|dda] [--progressive] [--compare] [--gif PATH]
+    kgm wedge INPUT.toml [--png PATH] [--gif PATH] [--stereonet PATH] [--vtp PATH] [--csv PATH]
 
 SCENE.py is a scene script with ``build()`` returning a `ddatai.Scene` or ``(scene, params)``
 (the convention of ``scenes/``). Prints the block types, the candidate key groups (least safe
 first) and the critical group; ``--compare`` adds the paper-layout table of the critical group
 under all three evaluators; ``--gif`` draws the scene with the critical group highlighted
-(for ``dda``: its simulated motion) with `ddatai.render.write_gif`.
+(for ``dda``: its simulated motion) with `ddatai.render.write_gif`. ``kgm wedge`` analyses a
+3D wedge of a rock slope from a TOML file (`kgm.wedges.cli`, docs/kgm/wedge.md).
 """
 
 from __future__ import annotations
@@ -18,7 +20,14 @@ from typing import Optional, Sequence
 
 import numpy as np
 
+from .analysis import analyze, evaluate
+from .build import prepare
+from .judges.run import RunPlan, judge
 from .kinds import LIMIT_EQUILIBRIUM, METHOD_NAMES, METHODS, SAMPLINGS, BlockState, Method, RunEnd, Sampling
+from .report import format_paper_table
+from .settings import DdaSettings, Settings
+from .studies.probabilistic import probabilistic
+from .studies.sampling import read_variables
 
 
 def load_scene(path: str, joints: Optional[str] = None):
@@ -82,20 +91,15 @@ def write_result_gif(path: str, scene, report, params=None, settings=None) -> No
         from ddatai.render import write_gif
     except ImportError:
         raise RuntimeError("--gif needs ddatai.render (write_gif), which this ddatai does not have") from None
-    from .settings import Settings
-
     settings = settings or Settings()
     crit = report.critical
     if report.method == Method.DDA and crit is not None:
-        from .blocks import build_block_system
-        from .dda import judge
-
-        prm = settings.dda.params or params
-        dt = (prm.dt if prm is not None and prm.dt is not None else 0.005)
-        system = build_block_system(scene)
-        j = crit.dda.judgement
-        every = max(1, int(j.duration / dt / 80))
-        _, res, ids = judge(scene, system, crit.blocks, settings=settings.dda, params=params,
+        # the run of the verdict again, recorded: the analysis's problem (its contact gap) and plan
+        problem = prepare(scene, settings=settings, params=params)
+        plan = RunPlan.of(problem.system, crit.blocks, settings.dda, params)
+        dt = plan.params.dt if plan.params.dt is not None else 0.005
+        every = max(1, int(crit.dda.judgement.duration / dt / 80))
+        _, res, ids = judge(problem.scene, problem.system, crit.blocks, settings=settings.dda, params=params,
                             record_every=every)
         labels = np.array([0 if b in crit.blocks else -1 for b in ids])
         title = f"KGM + DDA: group {sorted(crit.blocks)}, {crit.verdict} (FS {crit.fs:.2f})"
@@ -203,7 +207,14 @@ def main(argv: Optional[Sequence[str]] = None, out=None) -> int:
     pr.add_argument("--scheduler", metavar="ADDRESS", help="run on a Dask cluster, e.g. tcp://host:8786")
     pr.add_argument("--out", metavar="CSV", help="append samples to this file as they finish (and resume it)")
     pr.add_argument("--png", metavar="PATH", help="draw how often each block is in the critical group")
+    from .wedges.cli import add_parser as add_wedge_parser
+
+    add_wedge_parser(sub)
     args = parser.parse_args(argv)
+    if args.command == "wedge":
+        from .wedges.cli import run as run_wedge
+
+        return run_wedge(args, out)
     if getattr(args, "force", False):
         from ddatai.cli import _allow_any_size
 
@@ -211,9 +222,6 @@ def main(argv: Optional[Sequence[str]] = None, out=None) -> int:
     if args.command == "probabilistic":
         return _probabilistic(args, out)
 
-    from .report import format_paper_table
-    from .search import analyze, evaluate
-    from .settings import DdaSettings, Settings
 
     try:
         scene, params = load_scene(args.scene, getattr(args, "joints", None))
@@ -240,9 +248,6 @@ def main(argv: Optional[Sequence[str]] = None, out=None) -> int:
 
 def _probabilistic(args, out) -> int:
     from ddatai.parallel import ScriptFunction
-
-    from .studies.probabilistic import probabilistic
-    from .studies.sampling import read_variables
 
     def bar(done, total):
         if sys.stderr.isatty() or done == total:

@@ -10,6 +10,12 @@ asked); a model that slides or falls follows the same path to the iteration's fo
 (``Params.oc_force_tolerance``, 1e-3 of the load), which over a run of n steps moves a block by
 at most that share of its motion: 1e-3 of the largest displacement, plus 1e-9 of the size
 (round-off). Verdicts (stable or not, held or moving) are equal.
+
+The tests that run the fused kernel are in the slow profile (``-m slow``): on a machine whose
+Taichi offline cache does not hold the kernel (CI's is empty) the first of them pays its compile
+(README, "Performance": minutes on 2 cores), then each takes a few seconds (the kernel loaded
+once for the session). The default run checks what needs no kernel: the packing of members and
+the engine's choice.
 """
 
 import dataclasses
@@ -61,6 +67,7 @@ CASES = {
 }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", sorted(CASES))
 def test_fused_steps_follow_the_numpy_path(case):
     """The same steps from the same state (after the NumPy path's equilibrium stage where the
@@ -86,6 +93,7 @@ def test_fused_steps_follow_the_numpy_path(case):
     assert np.count_nonzero(out.records["oc_total"] != solves) <= 2
 
 
+@pytest.mark.slow
 def test_simulate_on_the_fused_engine_records_the_numpy_path_s_frames():
     """`dd.simulate` with ``Params(kernels="fused")``: the same frames (every 7 steps and the last)
     and step records as the NumPy path, within the module's tolerance; ``Results.meta`` names the
@@ -105,22 +113,23 @@ def test_simulate_on_the_fused_engine_records_the_numpy_path_s_frames():
     assert np.count_nonzero(a.steps["oc_total"] != b.steps["oc_total"]) <= 2
 
 
+@pytest.mark.slow
 def test_kgm_judgements_on_the_fused_engine_are_the_numpy_path_s():
     """The block on a 30° plane judged at φ = 20°, 29°, 31° and 40° in one launch (kgm's default)
     and one by one on the NumPy path: the same verdicts, notes and step counts, displacements
     within 1e-3 of δ."""
     import kgm
     import kgm_cases
-    from kgm.batched import Member as Probe, judge_members
-    from kgm.blocks import build_block_system
-    from kgm.judgement import judge
+    from kgm.build import build_block_system
+    from kgm.judges.batch import Member as Probe, judge_members
+    from kgm.judges.run import judge
 
     scene, _, b = kgm_cases.block_on_incline(theta=30.0, width=2.0, height=1.0, friction=35.0, cohesion=0.0)
     system = build_block_system(scene)
     settings = kgm.DdaSettings(duration=0.5)
     probes = [20.0, 29.0, 31.0, 40.0]
     fused = judge_members([Probe(scene=scene, system=system, friction=f) for f in probes], frozenset([b]),
-                          settings=settings, params=dd.Params(dt=2e-3), exact=True)
+                          settings=settings, params=dd.Params(dt=2e-3, kernels="fused"), exact=True)
     for f, j in zip(probes, fused):
         ref = judge(scene, system, frozenset([b]), settings=settings, params=dd.Params(dt=2e-3, kernels="numpy"),
                     friction=f)
@@ -129,6 +138,7 @@ def test_kgm_judgements_on_the_fused_engine_are_the_numpy_path_s():
     assert [j.stable for j in fused] == [False, False, True, True]
 
 
+@pytest.mark.slow
 def test_a_member_whose_contacts_outgrow_their_region_goes_on_with_more():
     """A contact region of one contact: the member is launched again, from the start of the step
     that overflowed, with twice the room, until its contacts fit; the run is the one with room
@@ -146,6 +156,7 @@ def test_a_member_whose_contacts_outgrow_their_region_goes_on_with_more():
     np.testing.assert_array_equal(tight.state.vertex_xy, roomy.state.vertex_xy)
 
 
+@pytest.mark.slow
 def test_a_step_the_engine_cannot_take_is_taken_on_today_s_path():
     """A step that no Δt above the shortest makes converge (``dt_min_ratio`` close to 1, a block
     thrown onto a plane): the fused engine hands it to today's path, which raises the error it
@@ -181,6 +192,19 @@ def test_auto_takes_the_fused_engine_where_it_pays(monkeypatch):
     assert policy.choose(model, steps=10, duration=None, batch=True)[0] == "fused"
     name, why = policy.choose(model, steps=10 ** 7, duration=None, record_contacts=True)
     assert name == "numpy" and "contacts are recorded" in why
+    # kgm's batches: "fused" always; "auto" once the kernel is in the process, or where the
+    # batch pays its load (cached) or its first compile; never on a fresh machine for a few runs
+    auto, fused = dd.Params(), dd.Params(kernels="fused")
+    assert policy.choose_batch(fused, member_steps=10)[0] == "fused"
+    assert policy.choose_batch(dd.Params(kernels="numpy"), member_steps=1e9)[0] == "today"
+    name, why = policy.choose_batch(auto, member_steps=8 * 1000)
+    assert name == "today" and "first compile" in why
+    assert policy.choose_batch(auto, member_steps=1e8)[0] == "fused"
+    monkeypatch.setattr(policy, "kernel_cached", lambda arch="cpu": True)
+    assert policy.choose_batch(auto, member_steps=8 * 1000)[0] == "today"
+    assert policy.choose_batch(auto, member_steps=400 * 1000)[0] == "fused"
+    monkeypatch.setattr(policy, "_loaded", lambda: True)
+    assert policy.choose_batch(auto, member_steps=10)[0] == "fused"
     shaken = dropped_grid(2)[0]
     shaken.set_ground_acceleration(lambda t: (0.1, 0.0))
     name, why = policy.choose(build_model(shaken, params), steps=10, duration=None, batch=True)
@@ -228,3 +252,28 @@ print("ok")
 """
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=900)
     assert proc.returncode == 0 and proc.stdout.strip().endswith("ok"), proc.stderr[-3000:]
+
+
+def test_members_packed_side_by_side_come_back_as_they_went_in():
+    """`ddatai.fused.pack` (NumPy, no Taichi): two members with contact memory (a dropped grid
+    after 20 steps of the NumPy path, Example I after its stage) laid side by side in the
+    engine's arrays come back bit for bit: positions, velocities, stresses, Δt and the contact
+    memory keyed as today's path keys it."""
+    from ddatai.fused.pack import Member, pack, unpack_state
+
+    scene, params = dropped_grid(3)
+    grid = build_model(scene, dataclasses.replace(params, kernels="numpy"))
+    grid_state, _ = _numpy_run(grid, grid.initial_state(), 20)
+    scene, params = example_1.build(friction=14.0)
+    ex1 = build_model(scene, dataclasses.replace(params or dd.Params(), kernels="numpy"))
+    ex1_state, _ = settle(Stepper(ex1), ex1.initial_state())
+    members = [Member(model=grid, state=grid_state, step_end=40), Member(model=ex1, state=ex1_state, step_end=40)]
+    arrays = pack(members, 16)
+    for k, (m, state) in enumerate(zip(members, (grid_state, ex1_state))):
+        back = unpack_state(arrays, k, m)
+        assert len(state.memory.key) > 0
+        for name in ("vertex_xy", "block_velocity", "block_accel", "block_stress", "block_rotation"):
+            np.testing.assert_array_equal(getattr(back, name), getattr(state, name), err_msg=name)
+        assert (back.time, back.step, back.dt) == (state.time, state.step, state.dt)
+        for name in ("key", "state", "line", "omega", "bond", "shear_dir", "dn", "normal_force", "kind"):
+            np.testing.assert_array_equal(getattr(back.memory, name), getattr(state.memory, name), err_msg=name)

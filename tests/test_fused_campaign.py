@@ -4,8 +4,9 @@ run on the fused engine and on today's NumPy path from the same start. No new di
 run that finishes on the NumPy path finishes fused too (or is handed to today's path by the
 engine, which then finishes it), with the campaign's properties (finite values, no
 penetration beyond the limit, no energy created, Coulomb's law at every closed contact); a
-refusal before work is the same refusal. The default run draws a few seeds; ``-m slow`` the
-campaign (60 seeds, ~10 min on 2 cores)."""
+refusal before work is the same refusal. The whole campaign is in the slow profile (``-m slow``:
+8 short and 60 longer scenes, ~10 min on 2 cores once the fused kernel is compiled; README,
+"Performance")."""
 
 from __future__ import annotations
 
@@ -17,6 +18,8 @@ import pytest
 from extreme_cases import build, check, random_domain, random_spec
 
 import ddatai as dd
+
+pytestmark = pytest.mark.slow
 
 
 def _run(spec, kernels: str):
@@ -65,13 +68,11 @@ def test_fused_campaign_cut_domains(seed):
     _compare(random_domain(np.random.default_rng(seed), steps=35))
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("seed", range(4, 34))
 def test_fused_campaign_rock_long(seed):
     _compare(random_spec(np.random.default_rng(1000 + seed), "rock", steps=60))
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("seed", range(4, 34))
 def test_fused_campaign_cut_domains_long(seed):
     _compare(random_domain(np.random.default_rng(seed), steps=60))

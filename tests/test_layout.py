@@ -15,7 +15,7 @@ CORE = ("assembly", "backend", "contact_law", "contacts", "cutting", "diagnosis"
         "limit_equilibrium", "mechanisms", "return_mapping", "return_steps",
         "recorder", "records",
         "kinematics", "layout", "model", "model_checks", "narrow", "open_close", "params", "reference", "results", "scene",
-        "solver", "start", "step", "support", "threads", "time_step", "water")
+        "solver", "pardiso", "updates", "start", "step", "support", "threads", "time_step", "water")
 #: engine modules that reach an adapter only inside one public convenience method, by design
 ALLOWED = {("results", "io.vtk")}  # Results.to_vtk
 
@@ -148,26 +148,33 @@ def test_core_modules_stay_short():
 #: kgm's modules in layers, lowest first (docs/kgm/architecture.md): a module imports only
 #: modules of lower layers, so data flows one way
 KGM_LAYERS = (
-    ("kinds",),
-    ("settings", "blocks"),
-    ("judgement", "report", "toppling"),
-    ("batched", "evaluators"),
-    ("dda",),
-    ("search",),
-    ("studies.sampling", "studies.study"),
-    ("studies.probabilistic",),
-    ("cli",),
+    ("kinds", "wedges.geometry", "wedges.vtk"),         # the vocabulary
+    ("settings", "strength", "wedges.block_theory", "wedges.batched_geometry", "wedges.pictures"),
+    ("system", "wedges.mechanics"),                     # the block system
+    ("build", "faces", "wedges.block", "wedges.batched"),  # Scene -> system, the Problem; group faces
+    ("candidates", "wedges.slope"),                     # key blocks, groups, toppling rows
+    ("judges.evaluation", "judges.limits"),             # the judges ...
+    ("judges.mechanisms", "judges.toppling", "judges.run"),
+    ("judges.fused",),                                  # ... DDA runs on the fused engine ...
+    ("judges.rigid", "judges.batch"),
+    ("judges.sarma", "judges.dda"),
+    ("search",),                                        # greedy growth, enumeration
+    ("report",),                                        # GroupResult, Report, tables
+    ("analysis",),                                      # the entry points
+    ("studies.sampling", "studies.study"),              # studies over many analyses
+    ("studies.probabilistic", "wedges.study"),
+    ("wedges.cli",),
+    ("cli",),                                           # the kgm command
     # former homes, re-exporting their names for one release: nothing in kgm imports them
-    ("probability",),
+    ("blocks", "toppling", "evaluators", "judgement", "batched", "dda", "probability"),
 )
-#: the judges: they take values and return values, and never reach the search, the analyses
-#: built on it, the studies or the command line
-KGM_JUDGES = ("evaluators", "toppling", "judgement", "batched", "dda")
-KGM_ABOVE_JUDGES = ("search", "analysis", "studies", "probability", "cli")
+#: the judges take values and return values, and never reach the search, the analyses built on
+#: it, the studies or the command line
+KGM_ABOVE_JUDGES = ("search", "report", "analysis", "studies", "cli")
 #: no kgm module over this many lines (one concern a module) ...
 KGM_MAX_LINES = 500
 #: ... except these, each to be split along its banners, which must not grow meanwhile
-KGM_OVERSIZE = {"blocks": 876, "evaluators": 709, "toppling": 505}
+KGM_OVERSIZE: dict = {}
 
 
 def _kgm_modules() -> dict[str, Path]:
@@ -208,7 +215,8 @@ def test_kgm_imports_go_down_the_layers():
 
 def test_judges_never_import_search_studies_or_the_command_line():
     graph = _graph()
-    judges = {m for m in _kgm_modules() if m in KGM_JUDGES or m.startswith("judges")}
+    judges = {m for m in _kgm_modules() if m.startswith("judges.")}
+    assert judges
     bad = [f"kgm.{m} -> {t}" for m in sorted(judges) for t in sorted(graph[f"kgm.{m}"])
            if t.removeprefix("kgm.").split(".")[0] in KGM_ABOVE_JUDGES]
     assert not bad, "judges importing what stands above them: " + ", ".join(bad)

@@ -13,6 +13,8 @@ reference: tests compare the two.
 
 - `ddatai.fused.pack`: members as flat arrays and back (NumPy; ``covers`` says what it runs);
 - `ddatai.fused.engine`: launches, more room for contacts, hand-over to today's path;
+- `ddatai.fused.policy`: which engine runs a simulation or a batch of judgements, and why;
+- `ddatai.fused.warm`: the kernel compiled ahead of a session (``python -m ddatai.fused``);
 - `ddatai.fused.kernel`, ``step``, ``iterate``, ``law``, ``system``, ``contacts``, ``blocks``: the
   Taichi functions, phase by phase.
 """

@@ -6,7 +6,8 @@ The fused engine's one kernel compiles once per machine: Taichi keeps it in its 
 marker beside it once the kernel has run, so that "auto" knows a run will not pay the compile.
 A single `ddatai.simulate` of at most ``FUSED_BLOCKS`` free blocks then runs fused; without the
 compiled kernel, only a run long enough to pay ``COMPILE_SECONDS`` does. Batches of members
-(``ddatai.fused.engine.run``: kgm's bisections and studies) always run fused where they can.
+(``ddatai.fused.engine.run``: kgm's bisections and studies) run fused once the kernel is in the
+process, or where they are long enough to pay its load or compile (`choose_batch`).
 """
 
 from __future__ import annotations
@@ -29,6 +30,10 @@ LOAD_SECONDS = 6.0
 #: what a step saves on the fused engine against today's NumPy path for a small model [s]
 #: (benchmarks/small_models.py: ~1–3 ms a step on the NumPy path, a few µs to 0.1 ms fused)
 STEP_SAVING = 1.0e-3
+#: what a member-step of a batch of judgements saves on the fused engine against today's
+#: side-by-side batch [s] (the batch shares a step's overhead among its members: ~36 µs a
+#: member-step among 128, ~0.17 ms among 16; the settling stage, in NumPy on both, not counted)
+BATCH_STEP_SAVING = 5.0e-5
 
 _SOURCES = ("ddatai/fused/arrays.py", "ddatai/fused/blocks.py", "ddatai/fused/contacts.py",
             "ddatai/fused/iterate.py", "ddatai/fused/kernel.py", "ddatai/fused/law.py",
@@ -108,6 +113,31 @@ def choose(model, *, steps: Optional[int], duration: Optional[float], batch: boo
     what = (f"loading the compiled kernel (~{LOAD_SECONDS:.0f} s)" if cached else
             f"the fused kernel's first compile (~{COMPILE_SECONDS:.0f} s; then it is cached)")
     return today, f"a small model, but its {expected:.0f} steps do not pay {what}"
+
+
+def choose_batch(params, *, member_steps: float) -> tuple[str, str]:
+    """("fused" or "today", why) for a batch of judgements (kgm's bisection rounds and studies)
+    of about ``member_steps`` steps in all, under ``params`` (``Params.kernels``): "fused" always
+    takes the fused engine; "auto" takes it once the kernel is in this process, or where the
+    batch's saving pays loading it from Taichi's offline cache (``LOAD_SECONDS``) or, before its
+    first compile on this machine, the compile (``COMPILE_SECONDS``); `ddatai.fused.warm`
+    compiles it ahead of a session."""
+    if params.kernels in ("numpy", "taichi"):
+        return "today", f"Params(kernels={params.kernels!r})"
+    if params.arch not in ("cpu", "cuda", "gpu"):
+        return "today", f"the fused engine runs on the CPU or CUDA, not arch={params.arch!r}"
+    if params.kernels == "fused":
+        return "fused", "Params(kernels='fused')"
+    if _loaded():
+        return "fused", "the fused kernel is in this process"
+    cached = kernel_cached("cpu" if params.arch == "cpu" else "cuda")
+    cost = LOAD_SECONDS if cached else COMPILE_SECONDS
+    if member_steps * BATCH_STEP_SAVING >= cost:
+        what = "loading it from Taichi's offline cache" if cached else "its first compile"
+        return "fused", f"{member_steps:.0f} member-steps pay the fused kernel ({what})"
+    what = (f"loading the compiled kernel (~{LOAD_SECONDS:.0f} s)" if cached else
+            f"the fused kernel's first compile (~{COMPILE_SECONDS:.0f} s; then it is cached)")
+    return "today", f"{member_steps:.0f} member-steps do not pay {what}"
 
 
 def _loaded() -> bool:

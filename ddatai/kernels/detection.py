@@ -1,6 +1,6 @@
 """The narrow phase: Shi's vertex-edge and vertex-vertex rules for each candidate block pair
 (docs/method/dda.md §3.3–3.6), and the ``@ti.func`` tests it is made of (the NumPy twin is
-`ddatai.narrow`, operation for operation)."""
+``ddatai.narrow``, operation for operation)."""
 
 import taichi as ti
 

@@ -38,10 +38,10 @@ from typing import Any, Callable, Mapping, Optional
 
 import numpy as np
 
-from .. import search
-from ..batched import Member, judge_members
-from ..blocks import build_block_system
-from ..dda import evaluate_dda
+from ..analysis import analyze_problem, evaluate_group
+from ..build import Problem, prepare
+from ..judges.batch import Member, judge_members
+from ..judges.dda import dda_evaluation
 from ..kinds import METHOD_NAMES, Method, Sampling
 from ..report import GroupResult
 from ..settings import DdaSettings, Settings
@@ -63,16 +63,13 @@ class _Job:
 
 @dataclass(frozen=True, kw_only=True, eq=False)
 class Screened:
-    """A sample screened by limit equilibrium: its scene, parameters and settings, its critical
-    group by the screening method (None: the sample has no key group, nothing can fail) and its
-    row as that method gives it."""
+    """A sample screened by limit equilibrium: its problem (its scene and block system, the
+    study's settings, the Params its ``build`` returned), its critical group by the screening
+    method (None: the sample has no key group, nothing can fail) and its row as that method
+    gives it."""
 
-    scene: Any
-    """The sample's `ddatai.Scene`."""
-    params: Any
-    """The Params its ``build`` returned (None: none)."""
-    settings: Settings
-    """The study's settings."""
+    problem: Problem
+    """The sample's problem, prepared once: DDA judges its group on the same block system."""
     result: Optional[GroupResult]
     """The critical group by the screening method, or None."""
     row: SampleRow
@@ -86,10 +83,9 @@ def _evaluate(job: _Job, item: tuple) -> SampleRow:
         screened = _screen(job, item)
         if screened.result is None or job.method is not Method.DDA:
             return screened.row
-        result, settings = screened.result, screened.settings
-        dres = evaluate_dda(screened.scene, build_block_system(screened.scene, contact_gap=settings.contact_gap),
-                            frozenset(result.blocks), settings=settings.dda, params=screened.params,
-                            fs_guess=result.fs, with_fs=job.dda_fs, with_friction=False)
+        result, problem = screened.result, screened.problem
+        dres = dda_evaluation(problem, frozenset(result.blocks), fs_guess=result.fs, with_fs=job.dda_fs,
+                              with_friction=False, report=problem.settings.dda.progress)
         return SampleRow(fs=float(dres.fs), failed=not bool(dres.judgement.stable), critical=screened.row.critical)
     except Exception as exc:
         raise _failed(index, values, seed, exc) from exc
@@ -110,25 +106,25 @@ def _screen(job: _Job, item: tuple) -> Screened:
 
     scene, params = build_scene(job.build, **kwargs)
     settings = job.settings or Settings()
+    problem = prepare(scene, settings=settings, params=params)
     # DDA judges the critical group of the screening evaluator (a DDA-ranked search runs
     # DDA on every candidate): the verdict from one run at the sample's strength, FS by
     # strength reduction only when asked (several runs)
     method = job.method.screened_by(settings.screening)
     if job.group is not None:
-        result = search.evaluate(scene, job.group, method, settings=settings, params=params)
+        result = evaluate_group(problem, job.group, method)
     else:
-        result = search.analyze(scene, method, settings=settings, params=params).critical
+        result = analyze_problem(problem, method).critical
     if result is None:
-        return Screened(scene=scene, params=params, settings=settings, result=None,
-                        row=SampleRow(fs=math.inf, failed=False))
-    return Screened(scene=scene, params=params, settings=settings, result=result,
+        return Screened(problem=problem, result=None, row=SampleRow(fs=math.inf, failed=False))
+    return Screened(problem=problem, result=result,
                     row=SampleRow.of_group(result.fs, not bool(result.stable), result.blocks))
 
 
 def _evaluate_batch(job: _Job, items: tuple) -> list:
     """[(index, `SampleRow`)] of DDA verdicts of several samples (``dda_fs`` off): each sample
     screened on its own, then the samples whose critical groups are the same blocks of the same
-    geometry judged side by side in one run (`kgm.batched.judge_members`; the verdict of each is
+    geometry judged side by side in one run (`kgm.judges.batch.judge_members`; the verdict of each is
     the one a run of its own gives). Errors name the sample."""
     rows, groups = {}, {}
     for item in items:
@@ -140,15 +136,14 @@ def _evaluate_batch(job: _Job, items: tuple) -> list:
         if screened.result is None:
             rows[index] = screened.row
             continue
-        member = Member(scene=screened.scene,
-                        system=build_block_system(screened.scene, contact_gap=screened.settings.contact_gap))
-        key = (frozenset(screened.result.blocks), screened.params)
+        member = Member(scene=screened.problem.scene, system=screened.problem.system)
+        key = (frozenset(screened.result.blocks), screened.problem.params)
         groups.setdefault(key, []).append((item, member, screened))
     for (blocks, params), entries in groups.items():
-        settings = entries[0][2].settings
+        settings = entries[0][2].problem.settings
         try:
             verdicts = judge_members([member for _, member, _ in entries], blocks, settings=settings.dda,
-                                     params=params, exact=True)
+                                     params=params, exact=True, report=settings.dda.progress)
         except Exception:
             # which sample: each on its own, so that the error names it
             for item, _, _ in entries:
@@ -233,7 +228,7 @@ def probabilistic(build, variables: Mapping, n: int, *, method: str = Method.SAR
     # script whose workers could not import what the study needs is told what to add
     workers = plan(functools.partial(_evaluate, job), client=client, workers=workers,
                    cost="heavy" if method is Method.DDA else "light", caller="kgm.probabilistic")
-    # DDA verdicts: samples judged side by side, a batch of them per item (kgm.batched.judge_members)
+    # DDA verdicts: samples judged side by side, a batch of them per item (kgm.judges.batch.judge_members)
     size = (settings.dda if settings is not None else DdaSettings()).sample_batch \
         if method is Method.DDA and not dda_fs else 1
     if size > 1:
@@ -259,8 +254,8 @@ def probabilistic(build, variables: Mapping, n: int, *, method: str = Method.SAR
         if writer is not None:
             writer.close()
     table = study_table(n, names, samples, seeds, done)
-    return Study(n=n, pf=float(np.mean(table["failed"])), beta=reliability_index(table["fs"]), table=table, variables=names,
-                 method=method, sampling=sampling, seed=seed, resumed=resumed,
+    return Study(n=n, pf=float(np.mean(table["failed"])), beta=reliability_index(table["fs"]), table=table,
+                 variables=names, method=method, sampling=sampling, seed=seed, resumed=resumed,
                  wall_time=time.perf_counter() - t0)
 
 

@@ -264,9 +264,9 @@ def read_study(path) -> Study:
     for j, r in enumerate(rows):
         table[j] = (int(r["index"]), int(r["seed"]), *[float(r[k]) for k in names], float(r["fs"]),
                     bool(int(r["failed"])), r["critical"])
-    return Study(n=len(rows), pf=float(np.mean(table["failed"])) if len(rows) else math.nan, beta=reliability_index(table["fs"]),
-                 table=table, variables=names, method=identity["method"], sampling=identity["sampling"],
-                 seed=identity["seed"])
+    return Study(n=len(rows), pf=float(np.mean(table["failed"])) if len(rows) else math.nan,
+                 beta=reliability_index(table["fs"]), table=table, variables=names, method=identity["method"],
+                 sampling=identity["sampling"], seed=identity["seed"])
 
 
 # ---------------------------------------------------------------------- the picture
