@@ -14,11 +14,13 @@ Every figure is paired: the two paths alternate in fresh processes, ``--repeats`
    (docs/ntdda.md, §10.1 of the baseline: 0.014 / 0.030 / 0.173 / 1.08 ms).
 2. The equilibrium stage of those models (NumPy, both paths).
 3. `kgm.evaluate(Example I, [0, 1], "dda")`: today's path (the judgements side by side in one
-   NumPy model) against the fused engine, each in a fresh process: the first call (the fused
-   kernel taken from Taichi's offline cache) and a second one in the same process.
+   NumPy model) against the fused engine (``kernels="fused"``), each in a fresh process: the
+   first call (the fused kernel taken from Taichi's offline cache) and a second one in the same
+   process.
 4. Example II's DDA-judged probabilistic study (friction N(22°, 2°), cohesion N(20 kPa, 5 kPa),
-   ``--samples`` samples, 2 workers): samples a second, today's path against the fused engine,
-   and whether the tables are the same.
+   ``--samples`` samples, 2 workers): samples a second, today's path against the fused engine
+   (``kernels="fused"``: each worker loads the kernel once), and whether the tables are the
+   same. Run ``python -m ddatai.fused`` once first: the fused kernel compiled and cached.
 5. From a fresh interpreter to the second step of Example I (``Params(kernels="auto")``).
 """
 
@@ -176,11 +178,11 @@ def main() -> None:
                   f"{med['numpy'] / med['fused']:.0f}× | {first['solves']:.2f}, {got['fused'][0]['solves']:.2f} | "
                   f"{stage:.3f} ({first['stage_solves']}) |", flush=True)
     if "kgm" not in skip:
-        rows = {"numpy": [], "auto": []}
+        rows = {"numpy": [], "fused": []}
         for _ in range(a.repeats):
             for k in rows:
                 rows[k].append(run(KGM.format(root=root, kernels=k)).split())
-        for k, label in (("numpy", "today's path (kernels='numpy')"), ("auto", "fused engine (kernels='auto')")):
+        for k, label in (("numpy", "today's path (kernels='numpy')"), ("fused", "fused engine (kernels='fused')")):
             first = statistics.median(float(r[0]) for r in rows[k])
             second = statistics.median(float(r[1]) for r in rows[k])
             r = rows[k][0]
@@ -188,7 +190,7 @@ def main() -> None:
                   f"{second:.2f} s the second time ({r[4]} DDA runs; FS {float(r[2]):.4f}, critical friction "
                   f"{float(r[3]):.3f}°)", flush=True)
     if "study" not in skip:
-        walls = {"numpy": [], "auto": []}
+        walls = {"numpy": [], "fused": []}
         tables = {}
         for rep in range(max(1, a.repeats - 1)):
             for k in walls:
@@ -198,8 +200,8 @@ def main() -> None:
                 import numpy as np
 
                 tables[k] = np.load(out)
-        same = bool((tables["numpy"] == tables["auto"]).all())
-        for k, label in (("numpy", "today's path"), ("auto", "fused engine")):
+        same = bool((tables["numpy"] == tables["fused"]).all())
+        for k, label in (("numpy", "today's path (kernels='numpy')"), ("fused", "fused engine (kernels='fused')")):
             w = statistics.median(walls[k])
             print(f"\nExample II DDA-judged study, {a.samples} samples, 2 workers, {label}: {w:.1f} s "
                   f"({a.samples / w:.1f} samples/s; runs {', '.join(f'{x:.1f}' for x in walls[k])} s)", flush=True)
