@@ -11,7 +11,7 @@ Every figure is paired: the two paths alternate in fresh processes, ``--repeats`
    its equilibrium stage. "numpy": today's small-model path (`Params(kernels="numpy")`, dense
    LAPACK solves); "fused": the fused engine (`Params(kernels="fused")`, its kernel loaded before
    the timed run). ntdda's time on the same grids from its side-by-side run on a quiet machine
-   (docs/ntdda.md, §10.1 of the baseline: 0.014 / 0.030 / 0.173 / 1.08 ms).
+   (docs/ntdda.md: 0.014 / 0.030 / 0.173 / 1.08 ms).
 2. The equilibrium stage of those models (NumPy, both paths).
 3. `kgm.evaluate(Example I, [0, 1], "dda")`: today's path (the judgements side by side in one
    NumPy model) against the fused engine (``kernels="fused"``), each in a fresh process: the
