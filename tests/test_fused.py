@@ -277,3 +277,35 @@ def test_members_packed_side_by_side_come_back_as_they_went_in():
         assert (back.time, back.step, back.dt) == (state.time, state.step, state.dt)
         for name in ("key", "state", "line", "omega", "bond", "shear_dir", "dn", "normal_force", "kind"):
             np.testing.assert_array_equal(getattr(back.memory, name), getattr(state.memory, name), err_msg=name)
+
+
+@pytest.mark.slow
+def test_a_dda_judged_study_on_the_fused_engine_has_the_numpy_path_s_table(monkeypatch):
+    """Example II's DDA-judged study (friction N(22°, 2°), cohesion N(20 kPa, 5 kPa), 12 samples,
+    one worker, the paper's Δt): the same verdict for every sample on the fused engine (one
+    launch) as on today's path, and the same probability of failure."""
+    from pathlib import Path
+
+    from ddatai.parallel import ScriptFunction
+    from kgm.settings import DdaSettings, Settings
+    from kgm.studies.probabilistic import probabilistic
+    from kgm.studies.sampling import read_variables
+
+    from ddatai.fused import engine
+
+    launched = []
+    run = engine.run
+    monkeypatch.setattr(engine, "run", lambda members, **kw: launched.append(len(members)) or run(members, **kw))
+    root = Path(__file__).resolve().parents[1]
+    variables, correlation = read_variables(root / "docs" / "kgm" / "example_2_vars.toml")
+    build = ScriptFunction(str(root / "scenes" / "example_2.py"))
+    tables = {}
+    for kernels in ("fused", "numpy"):
+        settings = Settings(dda=DdaSettings(params=dd.Params(dt=0.0013, penalty_ratio=1.0, kernels=kernels)))
+        study = probabilistic(build, variables, 12, method="dda", seed=1, group={0, 1}, correlation=correlation,
+                              workers=1, settings=settings)
+        tables[kernels] = (np.asarray(study.table["failed"]).tolist(), study.pf)
+        if kernels == "fused":
+            assert sum(launched) == 12  # every sample judged on the fused engine
+    assert tables["fused"] == tables["numpy"]
+    assert 0 < sum(tables["fused"][0]) < 12
