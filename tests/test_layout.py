@@ -11,11 +11,11 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 #: the engine: what a simulation runs through
-CORE = ("assembly", "backend", "contact_law", "contacts", "cutting", "diagnosis", "energy", "geometry", "iterative", "kernels",
+CORE = ("assembly", "backend", "contact_law", "contacts", "cutting", "diagnosis", "energy", "fused", "geometry", "iterative", "kernels",
         "limit_equilibrium", "mechanisms", "return_mapping", "return_steps",
         "recorder", "records",
         "kinematics", "layout", "model", "model_checks", "narrow", "open_close", "params", "reference", "results", "scene",
-        "solver", "pardiso", "updates", "start", "step", "support", "time_step", "water")
+        "solver", "pardiso", "updates", "start", "step", "support", "threads", "time_step", "water")
 #: engine modules that reach an adapter only inside one public convenience method, by design
 ALLOWED = {("results", "io.vtk")}  # Results.to_vtk
 
@@ -197,6 +197,7 @@ KGM_LAYERS = (
     ("candidates", "wedges.slope"),                     # key blocks, groups, toppling rows
     ("judges.evaluation", "judges.limits"),             # the judges ...
     ("judges.mechanisms", "judges.toppling", "judges.run"),
+    ("judges.fused",),                                  # ... DDA runs on the fused engine ...
     ("judges.rigid", "judges.batch"),
     ("judges.sarma", "judges.dda"),
     ("search",),                                        # greedy growth, enumeration
