@@ -91,6 +91,10 @@ SIGNATURES = {
                  ("dda", K, "<factory>"), ("contact_gap", K, "None")],
     "Study": [(f, K, _NO) for f in ("n", "pf", "beta", "table", "variables", "method", "sampling", "seed")]
     + [("resumed", K, "0"), ("wall_time", K, "0.0")],
+    "SubsetSampling": [("p0", K, "0.1"), ("proposal", K, "'conditional'"), ("spread", K, "None"),
+                       ("max_levels", K, "20")],
+    "ImportanceSampling": [("step", K, "None"), ("tol", K, "0.001"), ("max_iterations", K, "30"),
+                           ("batch", K, "None")],
     # 3D wedges (docs/kgm/wedge.md)
     "Plane": [("dip", P, _NO), ("dip_direction", P, _NO), ("joint", P, "None")],
     "wedge": [("face", P, _NO), ("upper", P, _NO), ("height", P, _NO), ("joints", P, _NO), ("density", K, "2600.0"),

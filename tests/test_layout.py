@@ -205,7 +205,13 @@ KGM_LAYERS = (
     ("search",),                                        # greedy growth, enumeration
     ("report",),                                        # GroupResult, Report, tables
     ("analysis",),                                      # the entry points
+    # small probabilities of failure: the estimators (pure numerics), their pictures and their
+    # outcome in a study's terms, below the study; the study's subset and importance sampling
+    # below kgm.probabilistic, which hands them its sample runner
+    ("studies.reliability",),
+    ("studies.estimates", "studies.plots"),
     ("studies.sampling", "studies.study"),              # studies over many analyses
+    ("studies.rare",),
     ("studies.probabilistic", "wedges.study"),
     ("wedges.cli",),
     ("cli",),                                           # the kgm command
