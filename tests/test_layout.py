@@ -7,15 +7,16 @@ Every import is counted, also those inside functions (they hide a cycle as well 
 from __future__ import annotations
 
 import ast
+import functools
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 #: the engine: what a simulation runs through
-CORE = ("assembly", "backend", "contact_law", "contacts", "cutting", "diagnosis", "energy", "geometry", "iterative", "kernels",
+CORE = ("assembly", "backend", "contact_law", "contacts", "cutting", "diagnosis", "energy", "fused", "geometry", "iterative", "kernels",
         "limit_equilibrium", "mechanisms", "return_mapping", "return_steps",
         "recorder", "records",
         "kinematics", "layout", "model", "model_checks", "narrow", "open_close", "params", "reference", "results", "scene",
-        "solver", "pardiso", "updates", "start", "step", "support", "time_step", "water")
+        "solver", "pardiso", "updates", "start", "step", "support", "threads", "time_step", "water")
 #: engine modules that reach an adapter only inside one public convenience method, by design
 ALLOWED = {("results", "io.vtk")}  # Results.to_vtk
 
@@ -28,6 +29,7 @@ def _module(path: Path) -> str:
     return ".".join(parts)
 
 
+@functools.lru_cache(maxsize=None)
 def _kgm_exports() -> dict[str, str]:
     """kgm's public names and the modules that define them (the lazy map of kgm/__init__.py),
     read from its source: ``from kgm import analyze`` imports `kgm.analysis`."""
@@ -57,7 +59,8 @@ def _imported_by_name(node: ast.Call, package: list[str]):
     return target
 
 
-def _imports(path: Path) -> set[str]:
+@functools.lru_cache(maxsize=None)
+def _imports(path: Path) -> frozenset[str]:
     """The ddatai / kgm modules ``path`` imports (absolute names): import statements (those
     inside functions too), ``importlib.import_module`` of a written name, and the package's
     names reached through it (``from kgm import analyze``, ``import kgm; kgm.analyze``); a
@@ -88,7 +91,7 @@ def _imports(path: Path) -> set[str]:
     if here.startswith("kgm.") or here == "kgm":
         exports = _kgm_exports()
         out = {exports.get(t.removeprefix("kgm."), t) if t.count(".") == 1 else t for t in out}
-    return out
+    return frozenset(out)
 
 
 def _graph() -> dict[str, set[str]]:
@@ -197,6 +200,7 @@ KGM_LAYERS = (
     ("candidates", "wedges.slope"),                     # key blocks, groups, toppling rows
     ("judges.evaluation", "judges.limits"),             # the judges ...
     ("judges.mechanisms", "judges.toppling", "judges.run"),
+    ("judges.fused",),                                  # ... DDA runs on the fused engine ...
     ("judges.rigid", "judges.batch"),
     ("judges.sarma", "judges.dda"),
     ("search",),                                        # greedy growth, enumeration
