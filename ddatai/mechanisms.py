@@ -1,7 +1,7 @@
 """Which blocks the contacts cannot hold in the equilibrium stage (`ddatai.start`): blocks an
 iterate throws away from what holds them, and blocks out of balance that an open-close test
-shows moving as their loads drive them. They are released: they start at t = 0 under sudden
-gravity."""
+shows moving as their loads drive them, and held blocks that settled into the space of released
+ones. They are released: they start at t = 0 under sudden gravity."""
 
 from __future__ import annotations
 
@@ -11,10 +11,10 @@ from scipy.sparse.csgraph import connected_components
 
 from .contacts import Contacts
 from .geometry import displacement_matrix
-from .assembly import load_forces
+from .assembly import contact_vectors, load_forces
 from .kinematics import block_displacement
 from .layout import KIND, LOCK, OPEN, SLIDE, VE
-from .model import State
+from .model import ContactMemory, State
 from .open_close import open_close
 from .records import StepTimer
 
@@ -164,3 +164,28 @@ def loaded_away(stepper, state: State, geom: dict, frame, contacts: Contacts, ou
         return np.zeros(stepper.model.n_blocks, bool), solves
     moving = unbalanced & mechanisms(stepper, state.vertex_xy, geom, tested[1], tested[0], out, size)
     return driven(stepper, state, geom, tested[1], tested[0], moving), solves
+
+
+def sunk_into_released(stepper, state: State, released: np.ndarray, fraction: float) -> np.ndarray:
+    """Held blocks that overlap a released block (back where it was at t = 0) deeper than
+    ``fraction`` × the penetration limit: they settled into the space of a block whose
+    support the stage had taken away: they are released too (`ddatai.start`)."""
+    model = stepper.model
+    out = np.zeros(model.n_blocks, bool)
+    if not released.any():
+        return out
+    held = ~model.block_fixed & ~released
+    cint, length = stepper.detect(state.vertex_xy)
+    contacts = Contacts.start(model, state.vertex_xy, cint, length, ContactMemory.empty(), True)
+    a, b = contacts.block_a, contacts.block_b
+    mixed = (held[a] & released[b]) | (released[a] & held[b])
+    if not mixed.any():
+        return out
+    geom = model.block_geometry(state.vertex_xy)
+    _, sca = contact_vectors(model, state.vertex_xy, geom, contacts)
+    depth = -np.where(contacts.cint[:, KIND] == VE, sca[:, 0], np.maximum(sca[:, 0], sca[:, 1]))
+    deep = mixed & (depth > fraction * model.penetration_limit)
+    out[a[deep]] = True
+    out[b[deep]] = True
+    return out & held
+

@@ -1,0 +1,69 @@
+"""The equilibrium start never makes a model more stable than a slow load does
+(tests/toppling_cases.py, docs/guide/equilibrium_start.md).
+
+The reference for a toppling tilt is the same model loaded slowly from rest without the stage:
+gravity ramped in at the fixed tilt over 20 rocking time constants (`ramp_topples`), the
+loading path of the stage done dynamically. The start's toppling tilt must lie within 0.5° of
+it and never above it (to the 0.05° to which the tests place it). Each case checks four runs
+around ``x``, the upper end of the slow load's bracket measured by benchmarks/toppling_start.py:
+the slow load topples at ``x`` and stands at ``x − 0.05°`` (so its angle R ∈ (x − 0.05°, x]), the
+start topples at ``x`` (S ≤ x < R + 0.05°) and stands at ``x − 0.45°`` (S > R − 0.5°).
+
+The slow profile (``-m slow``, ~N min) bisects both angles over the whole family and checks the
+single columns against the closed form tan θ = b/h.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import ddatai as dd
+from toppling_cases import CASES, column, ramp_topples, scene, start_topples, threshold
+
+#: the slow load's angle is placed to this [degrees]
+RESOLUTION = 0.05
+#: the start's angle may lie this far below the slow load's [degrees]
+BELOW = 0.5
+
+
+def test_a_slender_column_past_its_threshold_topples_from_the_default_start():
+    """b/h = 0.4 (0.4 × 1.0 m, E 10 GPa, ρ 2600 kg/m³, φ 45°) on a plate tilted 23.5°, past its
+    rigid threshold atan(0.4) = 21.8°: it topples (moves more than 0.05 m in 1.5 s) from the
+    default start under `dd.simulate`."""
+    res = dd.simulate(scene(column(0.4, 1.0), 23.5), duration=1.5)
+    assert res.start["released"][0] == 1
+    assert float(np.abs(res.vertices[-1] - res.vertices[0]).max()) > 0.05
+
+
+#: case: x, the upper end of the slow gravity ramp's bracket [degrees] (benchmarks/toppling_start.py)
+DEFAULT_CASES = {"column 0.4": 21.85, "row 3 x 0.25": 24.6}
+
+
+@pytest.mark.parametrize("name", DEFAULT_CASES)
+def test_the_start_topples_within_half_a_degree_below_the_slow_load_never_above(name):
+    case = CASES[name][0]
+    x = DEFAULT_CASES[name]
+    assert ramp_topples(case, x) and not ramp_topples(case, x - RESOLUTION)
+    assert start_topples(case, x), f"the start holds {name} at {x}°, where a slow load topples it"
+    assert not start_topples(case, x - BELOW + RESOLUTION), \
+        f"the start topples {name} at {x - BELOW + RESOLUTION}°, {BELOW}° or more below the slow load"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", list(CASES))
+def test_toppling_family_start_against_slow_load(name):
+    """Bisection of both angles (to RESOLUTION): S ≤ R + RESOLUTION and S > R − BELOW; a single
+    column's slow-load angle within 0.2° below the rigid closed form atan(b/h) (elastic
+    contacts topple a little earlier than a rigid block, never later)."""
+    case, lo, hi = CASES[name]
+    ramp = threshold(lambda th: ramp_topples(case, th), lo, hi, RESOLUTION)
+    start = threshold(lambda th: start_topples(case, th), lo, hi, RESOLUTION)
+    assert start <= ramp + RESOLUTION, (start, ramp)
+    assert start > ramp - BELOW, (start, ramp)
+    closed = case.closed_form()
+    if closed is not None:
+        assert closed - 0.2 < ramp <= closed + RESOLUTION, (ramp, closed)
+        assert math.isclose(start, ramp, abs_tol=BELOW)
