@@ -42,7 +42,8 @@ def main() -> None:
     args = ap.parse_args()
 
     from ddatai.parallel import ScriptFunction
-    from kgm.probability import probabilistic, read_variables
+    from kgm.studies.probabilistic import probabilistic
+    from kgm.studies.sampling import read_variables
     from kgm.settings import DdaSettings, Settings
 
     variables, correlation = read_variables(ROOT / "docs" / "kgm" / "example_2_vars.toml")

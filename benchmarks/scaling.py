@@ -133,16 +133,19 @@ def run_one(family: str, size: int, steps: int, warmup: int, arch: str, solver: 
     start = {}
     t_run = time.perf_counter()
     if protocol == "settled":
+        cpu = time.process_time()
         state, rec = settle(stepper, state)
-        start = dict(start_s=rec.wall_time, start_solves=rec.solves, start_held=rec.held,
+        start = dict(start_s=rec.wall_time, start_cpu_s=time.process_time() - cpu, start_solves=rec.solves, start_held=rec.held,
                      start_released=rec.released, start_factorisations=rec.factorisations,
                      start_welded=bool(rec.welded))
-    records, factorised = [], []
+    records, factorised, cpu = [], [], []
     for k in range(warmup + steps):
+        cpu.append(time.process_time())
         before = stepper.solver.factorisations
         state, record = stepper.step(state)
         records.append(record.row())
         factorised.append(stepper.solver.factorisations - before)
+        cpu[-1] = time.process_time() - cpu[-1]
         if k + 1 == FROM_REST_STEPS and protocol == "settled":
             start["from_rest_ms_per_step"] = (time.perf_counter() - t_run) / FROM_REST_STEPS * 1e3
     all_steps = np.array(records, dtype=dd.STEP_DTYPE)
@@ -155,7 +158,7 @@ def run_one(family: str, size: int, steps: int, warmup: int, arch: str, solver: 
     total = step_wall_time(s)
     out = dict(family=family, blocks=int(model.n_free), all_blocks=int(model.n_blocks), arch=arch,
                solver=stepper.solver.backend + (" numpy" if model.numpy_path else ""), build_s=build_s,
-               ms_per_step=float(np.median(total)) * 1e3,
+               ms_per_step=float(np.median(total)) * 1e3, cpu_ms_per_step=float(np.median(cpu[warmup:])) * 1e3,
                ms_per_oc=float(np.median(total / np.maximum(s["oc_iterations"], 1))) * 1e3,
                oc_per_step=float(np.mean(s["oc_iterations"])), dt_cuts=int(s["dt_cuts"].sum()),
                protocol=protocol, solves_per_step=float(np.mean(s["oc_total"])),
@@ -353,6 +356,11 @@ def main() -> None:
     ap.add_argument("--chart-only", action="store_true",
                     help="only draw OUT/scaling.png (OUT/scaling_settled.png with --protocol settled) again "
                          "from the saved .json")
+    ap.add_argument("--baseline", type=Path, default=None,
+                    help="another checkout of ddatai (the code before a change): each (family, size) runs "
+                         "there and here in turn, --repeat times, in fresh processes, and a paired table "
+                         "(medians, ratio of each pair) is written to OUT/scaling_paired.md")
+    ap.add_argument("--repeat", type=int, default=3, help="pairs per (family, size) with --baseline")
     ap.add_argument("--one", nargs=2, metavar=("FAMILY", "SIZE"), help=argparse.SUPPRESS)
     ap.add_argument("--out", type=Path, default=RESULTS)
     ap.add_argument("--append", action="store_true",
@@ -362,6 +370,9 @@ def main() -> None:
     if a.one:
         print(json.dumps(run_one(a.one[0], int(a.one[1]), a.steps, a.warmup, a.arch, a.solver, a.reference_max,
                                  a.protocol, a.kernels)))
+        return
+    if a.baseline is not None:
+        paired(a)
         return
     rows = []
     suffix = ("" if a.arch == "cpu" else f"_{a.arch}") + ("" if a.protocol == "ntdda" else f"_{a.protocol}")
@@ -423,6 +434,70 @@ def main() -> None:
     (a.out / f"scaling{suffix}.json").write_text(json.dumps(rows, indent=1))
     if rows:
         chart(rows, a.out / f"scaling{suffix}.png")
+
+
+def one_run(tree: Path, family: str, size: int, a) -> "dict | None":
+    """One (family, size) measured by ``tree``'s own benchmarks/scaling.py in a fresh process."""
+    steps = a.steps if a.steps is not None else protocol_steps(size)
+    # this script measures both (the same harness), importing ddatai from ``tree``
+    cmd = [sys.executable, __file__, "--one", family, str(size), "--steps", str(steps),
+           "--warmup", str(a.warmup), "--arch", a.arch, "--solver", a.solver, "--reference-max", "0",
+           "--protocol", a.protocol, "--kernels", a.kernels]
+    proc = subprocess.run(cmd, capture_output=True, text=True, cwd=tree, env={**__import__("os").environ,
+                                                                            "PYTHONPATH": str(tree)})
+    if proc.returncode != 0:
+        print(f"{tree} {family} {size}: failed\n{proc.stderr[-2000:]}", file=sys.stderr)
+        return None
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+#: what the paired table compares: (key, heading, format)
+PAIRED = [("ms_per_step", "ms/step", "{:.1f}"), ("cpu_ms_per_step", "CPU ms/step", "{:.1f}"),
+          ("solves_per_step", "solves/step", "{:.2f}"),
+          ("factorisations_per_step", "factorisations/step", "{:.2f}"), ("start_s", "stage s", "{:.2f}"),
+          ("start_cpu_s", "stage CPU s", "{:.2f}"),
+          ("start_solves", "stage solves", "{:.0f}"), ("start_factorisations", "stage factorisations", "{:.0f}"),
+          ("from_rest_ms_per_step", "stage + 10 steps ms/step", "{:.0f}"), ("peak_mb", "peak MB", "{:.0f}")]
+
+
+def paired(a) -> None:
+    """The sizes measured by the baseline checkout and by this one in turn (B A B A ..., fresh
+    processes), ``--repeat`` pairs each: medians of each and the median of the pairs' ratios."""
+    here = ROOT
+    lines = [f"# Paired scaling, {a.protocol} protocol ({time.strftime('%Y-%m-%d')})", "",
+             f"Machine: {machine()}; B = {a.baseline}, A = {here}; each row: {a.repeat} pairs in fresh "
+             f"processes, B then A, medians (A/B: median of the pairs' ratios).", "",
+             "| family | blocks | what | B | A | A/B |", "|---|---|---|---|---|---|"]
+    for family in a.family.split(","):
+        for size in (int(s) for s in a.sizes.split(",") if s):
+            runs = {"A": [], "B": []}
+            for _ in range(a.repeat):
+                for label, tree in (("B", a.baseline), ("A", here)):
+                    row = one_run(tree, family, size, a)
+                    if row is not None:
+                        runs[label].append(row)
+                        print(f"{label} {family} {size}: {row['ms_per_step']:.1f} ms/step, stage "
+                              f"{row.get('start_s', float('nan')):.2f} s", flush=True)
+            if not runs["A"] or not runs["B"]:
+                continue
+            blocks = runs["A"][0]["blocks"]
+            held = {k: {(r.get("start_held"), r.get("start_released"), r.get("start_welded")) for r in runs[k]}
+                    for k in runs}
+            for key, head, fmt in PAIRED:
+                if key not in runs["A"][0] or key not in runs["B"][0]:
+                    continue
+                va = [r[key] for r in runs["A"]]
+                vb = [r[key] for r in runs["B"]]
+                ratio = [x / y for x, y in zip(va, vb) if y]
+                lines.append(f"| {family} | {blocks:,} | {head} | {fmt.format(np.median(vb))} | "
+                             f"{fmt.format(np.median(va))} | {np.median(ratio):.2f} |" if ratio else
+                             f"| {family} | {blocks:,} | {head} | {fmt.format(np.median(vb))} | {fmt.format(np.median(va))} | – |")
+            lines.append(f"| {family} | {blocks:,} | stage held/released/welded | "
+                         f"{'; '.join(map(str, sorted(held['B'], key=str)))} | {'; '.join(map(str, sorted(held['A'], key=str)))} | |")
+    text = "\n".join(lines)
+    print(text)
+    a.out.mkdir(parents=True, exist_ok=True)
+    (a.out / "scaling_paired.md").write_text(text + "\n")
 
 
 if __name__ == "__main__":

@@ -40,6 +40,7 @@ from .contacts import Contacts
 from .layout import KIND, LOCK, OPEN, SLIDE, VV
 from .model import State
 from .records import StepTimer
+from .updates import Springs, block_rows
 
 #: a lagged-friction iteration (``Params.oc_friction = "lagged"``) goes on with coupled
 #: friction once the contacts still changing have not become fewer for this many solves
@@ -73,18 +74,20 @@ class OpenClose:
 
 
 def solve(stepper, pattern: BlockPattern, data: np.ndarray, rhs: np.ndarray,
-          symmetric: bool = True, reuse: bool = False, krylov: bool = False) -> np.ndarray:
+          symmetric: bool = True, reuse: bool = False, krylov: bool = False, springs=None) -> np.ndarray:
     """Solve K D = F (`ddatai.solver`); returns D as (B, 6) with zeros for fixed blocks.
     ``symmetric=False`` when coupled friction made K non-symmetric; ``reuse`` when K should
     be close to the matrix last factorised (a step's first solve: the same contact states
     at a slightly moved geometry), which the solver then tries to solve with that factor;
     ``krylov`` when K differs from it by a few contacts' states (a later solve of the
-    iteration: GMRES preconditioned by that factor)."""
+    iteration: GMRES preconditioned by that factor); ``springs`` (`ddatai.updates.Springs`) the
+    contact springs of a symmetric K, which the solver follows by rank updates of its factor
+    where CHOLMOD is installed."""
     d = np.zeros((stepper.model.n_blocks, 6))
     if pattern.n_rows == 0:
         return d
     x = stepper.solver.solve(data, pattern.indices, pattern.indptr, rhs, pattern=pattern,
-                             symmetric=symmetric, reuse=reuse, krylov=krylov)
+                             symmetric=symmetric, reuse=reuse, krylov=krylov, springs=springs)
     d[stepper.free_idx] = x.reshape(-1, 6)
     return d
 
@@ -109,6 +112,8 @@ def open_close(stepper, state: State, geom: dict, contacts: Contacts, pattern: B
     if lagged:
         contacts.coupled[:] = False  # friction from the last solve's N: K symmetric
     fewest, since = contacts.n + 1, 0  # the fewest contacts changing, solves since then
+    # the rows of each contact's springs, where the solver follows them by factor updates
+    rows = block_rows(model, contacts) if stepper.solver.updates and stepper.params.factor_updates else None
     seen = {contacts.state.tobytes(): 0}  # each set of states tried, and when (`hold_cycling`)
     history = [contacts.state.copy()]
     held = np.zeros(contacts.n, bool)
@@ -124,8 +129,13 @@ def open_close(stepper, state: State, geom: dict, contacts: Contacts, pattern: B
         # the blocks, and the last factor may still solve it (`ddatai.solver`, reuse)
         # the later solves differ from the last factor by the contacts that changed state
         # since: while they are few, GMRES preconditioned by it (`ddatai.solver`, krylov)
+        # and where CHOLMOD is installed the lagged iteration's K, symmetric at every solve,
+        # follows the springs that changed by updates of the last factor (`ddatai.updates`); a
+        # coupled iteration's K turns non-symmetric at its first sliding contact, and its first
+        # solve is factorised by the backend (PARDISO's Cholesky is cheaper than CHOLMOD's)
+        springs = Springs.of(model, contacts, vec, rows) if symmetric and lagged and rows is not None else None
         solution = solve(stepper, pattern, data, rhs, symmetric=symmetric, reuse=reuse_first and it == 1,
-                         krylov=it > 1)
+                         krylov=it > 1, springs=springs)
         t0 = timer.add("solve", t0)
         if not np.all(np.isfinite(solution)):
             return OpenClose(displacement=None, iterations=it, converged=False,

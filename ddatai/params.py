@@ -246,6 +246,9 @@ class Params:
     non-symmetric K, an LU); "lagged", N of the last solve as a load (K symmetric, Cholesky,
     falling back to coupled where it stalls). Both accept the same law; lagged took 1.5–2× the
     solves on the benchmark models, more than its cheaper factor saves (`ddatai.open_close`)."""
+    factor_updates: bool = False
+    """Update the last Cholesky factor where contacts change state, in the stage and the lagged
+    iteration (`ddatai.updates`, the ``[cholmod]`` extra); off: no time saved (measured)."""
     oc_state_tolerance: float = 1e-3
     """Open-close convergence, state and motion [-]: a contact's state may differ from what its
     motion calls for (open but overlapping, sliding where it would stick) while the force that
@@ -317,6 +320,8 @@ class Params:
         _require(self.oc_force_tolerance < 0.1,
                  f"Params.oc_force_tolerance must be < 0.1 (a fraction of a contact's load or strength), "
                  f"got {self.oc_force_tolerance!r}")
+        _require(isinstance(self.factor_updates, bool),
+                 f"Params.factor_updates must be True or False, got {self.factor_updates!r}")
         _require(self.oc_friction in ("lagged", "coupled"),
                  f"Params.oc_friction must be 'lagged' or 'coupled', got {self.oc_friction!r}")
         _require(self.oc_force_reference in ("load", "strength"),

@@ -25,6 +25,7 @@ from .model import State
 from .limit_equilibrium import unsupported_blocks
 from .open_close import solve
 from .return_steps import anderson, line_search
+from .updates import Springs, block_rows
 from .mechanisms import MECHANISM_SIZE, anchored, loaded_away, mechanisms, test_unbalanced
 
 #: Newmark's β of the stage's system: that of a first step (the stage's pseudo-steps have no
@@ -276,6 +277,7 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
     tensile = np.where(contacts.bond, contacts.tensile * contacts.length, 0.0)
     pen, ks = model.penalty, model.shear_penalty
     disp = np.zeros((model.n_blocks, 6))
+    rows = block_rows(model, contacts) if stepper.solver.updates and p.factor_updates else None
     history: list = []
     flips = np.zeros(contacts.n, np.int64)  # how often each contact opened or closed
     changed = True  # the closed contacts changed: K is factorised
@@ -292,7 +294,10 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
         sca[:, 0] -= guess.gap   # dn from the spring's rest point moved by the opening
         data, rhs = frame.data.copy(), frame.rhs.copy()
         assemble_contacts(stepper.model, contacts, frame.pattern, frame.vec, sca, data, rhs, stepper.serial_scatter)
-        target = solve(stepper, frame.pattern, data, rhs, reuse=not changed)
+        # K changes only where contacts open or close: the last factor solves it otherwise, and
+        # where CHOLMOD is installed its rank updates follow those that do (`ddatai.updates`)
+        springs = Springs.of(model, contacts, frame.vec, rows) if rows is not None else None
+        target = solve(stepper, frame.pattern, data, rhs, reuse=not changed, springs=springs)
         outcome.solves += 1
         if not np.all(np.isfinite(target)):
             outcome.disp = None

@@ -47,12 +47,6 @@ that factor preconditions the next solves.
 
 from __future__ import annotations
 
-import ctypes
-import functools
-import glob
-import os
-import site
-import sys
 import warnings
 from typing import Optional
 
@@ -63,6 +57,10 @@ def available(name: str) -> bool:
     """Whether a backend can be used here."""
     if name in ("scipy", "dense"):
         return True
+    if name == "cholmod":
+        from .updates import available as cholmod_available
+
+        return cholmod_available()
     if name == "pardiso":
         _locate_mkl()
         try:
@@ -90,110 +88,10 @@ def resolve(name: str, unknowns: Optional[int] = None) -> str:
     return name
 
 
+from .pardiso import PardisoError, _locate_mkl, _Pardiso  # noqa: F401 (PardisoError: public)
 from .iterative import (KRYLOV_ACCEPT, KRYLOV_BLOCKS, KRYLOV_ITERATIONS, KRYLOV_RESIDUAL,  # noqa: F401
                         REFINE_ABOVE, REFINE_PASSES, REUSE_FLOOR, REUSE_PASSES, REUSE_RATE, REUSE_RESIDUAL,
-                        _refinement, gmres)
-
-
-def _locate_mkl() -> None:
-    """Tell pypardiso where MKL's runtime is (``PYPARDISO_MKL_RT``) when it sits in this
-    environment's own library folder, as pip installs it. pypardiso looks it up by name, which
-    fails inside a virtual environment, and then globs the whole environment: 0.6–1.4 s on
-    importing pypardiso and again for every solver object it makes. The variable is inherited
-    by worker processes started from this one."""
-    if os.environ.get("PYPARDISO_MKL_RT"):
-        return
-    for folder in (os.path.join(sys.prefix, "lib"), os.path.join(site.USER_BASE or "", "lib")):
-        found = sorted(glob.glob(os.path.join(folder, "libmkl_rt.so*")) +
-                       glob.glob(os.path.join(folder, "libmkl_rt*.dylib")), key=len)
-        if found:
-            os.environ["PYPARDISO_MKL_RT"] = found[0]
-            return
-
-
-@functools.lru_cache(maxsize=None)
-def _mkl_runtime():
-    """MKL's runtime library, loaded once per process (through pypardiso, whose call wrapper
-    copies the index arrays to one-based ones on every call, so ddatai calls the library
-    itself)."""
-    _locate_mkl()
-    import pypardiso
-
-    return pypardiso.PyPardisoSolver().libmkl
-
-
-class PardisoError(RuntimeError):
-    """MKL PARDISO reported an error (its error code is in the message)."""
-
-
-class _Pardiso:
-    """One MKL PARDISO handle for one matrix type, called directly through ctypes.
-
-    ``mtype`` 2 (real SPD, upper triangle) or 11 (real non-symmetric, full storage). Every
-    parameter is set explicitly with ``iparm[0] = 1``: with ``iparm[0] = 0`` MKL replaces them
-    all by its defaults, two steps of iterative refinement on every solve among them (3× the
-    cost of the solve at 1,600 blocks, and not bit-reproducible between runs).
-    """
-
-    def __init__(self, mtype: int):
-        mkl = _mkl_runtime()
-        self._lib = mkl.pardiso
-        self.mtype = mtype
-        self.pt = np.zeros(64, dtype=np.int64)
-        self.iparm = np.zeros(64, dtype=np.int32)
-        ip = self.iparm  # zero-based here; MKL's documentation numbers them from 1
-        ip[0] = 1        # use the values below, not MKL's defaults
-        ip[1] = 2        # fill-reducing ordering: METIS nested dissection
-        ip[7] = 0        # no iterative refinement (a residual check below asks for it)
-        ip[9] = 13 if mtype == 11 else 8  # pivot perturbation 1e-13 / 1e-8
-        ip[10] = 1 if mtype == 11 else 0  # scaling (non-symmetric only)
-        ip[12] = 1 if mtype == 11 else 0  # weighted matching (non-symmetric only)
-        ip[34] = 1       # zero-based ia/ja
-        # conditional numerical reproducibility: the same factor, bit for bit, on every run with
-        # this many threads (MKL's threads otherwise sum in varying order: two runs of a
-        # 400-block slope differed by 5e-13 m after 30 steps, and a chaotic scene then takes
-        # another path); it costs nothing measurable at 1,600 blocks
-        ip[33] = max(1, int(mkl.MKL_Get_Max_Threads()))
-        self.perm = np.zeros(0, dtype=np.int32)
-        self.key = None  # (indptr, indices) the current analysis belongs to
-        self.n = 0
-
-    def call(self, phase: int, data: np.ndarray, indptr: np.ndarray, indices: np.ndarray,
-             rhs: np.ndarray) -> np.ndarray:
-        n = len(indptr) - 1
-        x = np.zeros_like(rhs)
-        err = ctypes.c_int32(0)
-        i32 = ctypes.POINTER(ctypes.c_int32)
-        f64 = ctypes.POINTER(ctypes.c_double)
-        self._lib(self.pt.ctypes.data_as(ctypes.POINTER(ctypes.c_int64)), ctypes.byref(ctypes.c_int32(1)),
-                  ctypes.byref(ctypes.c_int32(1)), ctypes.byref(ctypes.c_int32(self.mtype)),
-                  ctypes.byref(ctypes.c_int32(phase)), ctypes.byref(ctypes.c_int32(n)),
-                  data.ctypes.data_as(f64), indptr.ctypes.data_as(i32), indices.ctypes.data_as(i32),
-                  self.perm.ctypes.data_as(i32), ctypes.byref(ctypes.c_int32(1)),
-                  self.iparm.ctypes.data_as(i32), ctypes.byref(ctypes.c_int32(0)),
-                  rhs.ctypes.data_as(f64), x.ctypes.data_as(f64), ctypes.byref(err))
-        if err.value != 0:
-            raise PardisoError(f"MKL PARDISO error {err.value} in phase {phase}")
-        return x
-
-    def release(self) -> None:
-        if self.key is not None:
-            dummy = np.zeros(1)
-            try:
-                self.call(-1, dummy, np.zeros(self.n + 1, np.int32), np.zeros(1, np.int32), np.zeros(self.n))
-            except PardisoError:
-                pass
-            self.key = None
-
-    @property
-    def perturbed_pivots(self) -> int:
-        """Pivots perturbed in the last factorisation (MKL's iparm(14))."""
-        return int(self.iparm[13])
-
-    @property
-    def refinement_steps(self) -> int:
-        """Iterative refinement steps MKL performed in the last solve (MKL's iparm(7))."""
-        return int(self.iparm[6])
+                        _refinement, gmres, refine_to_roundoff)
 
 
 class SparseSolver:
@@ -221,6 +119,14 @@ class SparseSolver:
         self.reused = 0          # solves done by refinement with an earlier factor (``reuse``)
         self.krylov = 0          # solves done by GMRES with an earlier factor (``krylov``)
         self.krylov_iterations = 0  # GMRES iterations of those
+        self.updated = 0         # solves done by CHOLMOD rank updates of the last factor (``springs``)
+        # the CHOLMOD factor that follows the contact springs (`ddatai.updates`), where the
+        # [cholmod] extra is installed and the system is solved sparse
+        self._updating = None
+        if self.backend != "dense" and available("cholmod"):
+            from .updates import UpdatedFactor
+
+            self._updating = UpdatedFactor()
 
     def __del__(self):
         for h in getattr(self, "_handles", {}).values():
@@ -229,13 +135,27 @@ class SparseSolver:
             except Exception:  # noqa: BLE001 - interpreter shutdown
                 pass
 
+    @property
+    def updates(self) -> bool:
+        """Whether symmetric solves given their ``springs`` follow them by CHOLMOD's rank updates
+        (`ddatai.updates`: the [cholmod] extra, a sparse backend)."""
+        return self._updating is not None
+
     def solve(self, data: np.ndarray, indices: np.ndarray, indptr: np.ndarray, rhs: np.ndarray,
               pattern: object = None, symmetric: bool = True, reuse: bool = False,
-              krylov: bool = False) -> np.ndarray:
+              krylov: bool = False, springs=None) -> np.ndarray:
         """x with K x = ``rhs``. ``reuse``: K is expected to be close to the last matrix
         factorised (module docstring): try refinement with that factor first. ``krylov``: K
-        differs from it by the terms of a few contacts: try GMRES preconditioned by it first."""
+        differs from it by the terms of a few contacts: try GMRES preconditioned by it first.
+        ``springs`` (`ddatai.updates.Springs`, a symmetric K): the contact springs in K; where
+        CHOLMOD is installed, K is solved by rank updates of the last factor while its springs
+        differ from that factor's by few terms, and factorised by CHOLMOD otherwise (so that
+        the next solves can update it)."""
         n = len(indptr) - 1
+        if springs is not None and symmetric and self._updating is not None:
+            return self._solve_updating(data, indices, indptr, rhs, n, springs, reuse)
+        if self._updating is not None:
+            self._updating.forget()  # another K: its factor no longer follows the springs
         if krylov:
             x = self._solve_krylov(data, indices, indptr, rhs, n)
             if x is not None:
@@ -251,6 +171,40 @@ class SparseSolver:
         # the matrix of the factor, against which a Krylov solve measures its change
         self._factored_data = np.array(data, dtype=np.float64)
         return self._factorise(data, indices, indptr, rhs, n, symmetric)
+
+    def _solve_updating(self, data, indices, indptr, rhs, n, springs, reuse) -> np.ndarray:
+        """The symmetric solve with springs (`solve`): by updates of the factor in hand, each
+        checked by its residual against K and refined as a reused factor is (`_refinement`);
+        a step's first solve (``reuse``, another step's vectors) by refinement with the last
+        factor first; otherwise a CHOLMOD factorisation, or the backend's LU where K is not
+        positive definite."""
+        u = self._updating
+        b = np.ascontiguousarray(rhs, dtype=np.float64)
+        if u.factor is not None and self._same(self._factor[1] if self._factor else None, indptr, indices) \
+                and u.update(springs, n):
+            from scipy.sparse import csr_matrix
+
+            k = csr_matrix((data, indices, indptr), shape=(n, n))
+            x, residual, done = refine_to_roundoff(k, b, u.solve(b), u.solve)
+            if done:
+                self._factor = (True, (indptr, indices), u.factor.solve_A)
+                self._factored_data = np.array(data, dtype=np.float64)
+                self.updated += 1
+                self.last_residual = residual
+                return x
+        elif reuse:
+            x = self._solve_reusing(data, indices, indptr, rhs, n, True)
+            if x is not None:
+                self.reused += 1
+                u.forget()  # the factor is of the last step's K, not of these springs
+                return x
+        self.factorisations += 1
+        self._factored_data = np.array(data, dtype=np.float64)
+        if u.factorise(data, indices, indptr, n, self._same, springs):
+            self._factor = (True, (indptr, indices), u.factor.solve_A)
+            return u.solve(b)
+        self.lu_factorisations += 1  # not positive definite: LU
+        return self._factorise(data, indices, indptr, rhs, n, False)
 
     def factor_solve(self, rhs: np.ndarray) -> "np.ndarray | None":
         """K⁻¹·rhs with the last factor (the matrix last factorised); None without one."""

@@ -46,7 +46,7 @@ nitpicky = True  # every cross-reference must resolve
 default_role = "obj"  # `Results` in a docstring links to its page
 # names outside the project (the Python and NumPy/SciPy documentation is not fetched: the build
 # needs no network), and words in backticks in the docstrings of the time step's modules
-# (ddatai/step.py, start.py, solver.py, kernels.py), which are being restructured: private
+# (ddatai/step.py, start.py, solver.py, kernels/), which are being restructured: private
 # helpers and members of modules documented by their module docstring only
 nitpick_ignore_regex = [
     (r"py:.*", r"(enum|numpy|np|scipy|pickle|multiprocessing|concurrent|collections|typing|pathlib)(\..*)?"),

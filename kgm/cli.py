@@ -1,12 +1,14 @@
 """Console command ``kgm``.
 
     kgm analyze SCENE.py [--method rigid|sarma|dda] [--progressive] [--compare] [--gif PATH]
+    kgm wedge INPUT.toml [--png PATH] [--gif PATH] [--stereonet PATH] [--vtp PATH] [--csv PATH]
 
 SCENE.py is a scene script with ``build()`` returning a `ddatai.Scene` or ``(scene, params)``
 (the convention of ``scenes/``). Prints the block types, the candidate key groups (least safe
 first) and the critical group; ``--compare`` adds the paper-layout table of the critical group
 under all three evaluators; ``--gif`` draws the scene with the critical group highlighted
-(for ``dda``: its simulated motion) with `ddatai.render.write_gif`.
+(for ``dda``: its simulated motion) with `ddatai.render.write_gif`. ``kgm wedge`` analyses a
+3D wedge of a rock slope from a TOML file (`kgm.wedges.cli`, docs/kgm/wedge.md).
 """
 
 from __future__ import annotations
@@ -17,6 +19,15 @@ import time
 from typing import Optional, Sequence
 
 import numpy as np
+
+from .analysis import analyze, evaluate
+from .build import prepare
+from .judges.run import RunPlan, judge
+from .kinds import LIMIT_EQUILIBRIUM, METHOD_NAMES, METHODS, SAMPLINGS, BlockState, Method, RunEnd, Sampling
+from .report import format_paper_table
+from .settings import DdaSettings, Settings
+from .studies.probabilistic import probabilistic
+from .studies.sampling import read_variables
 
 
 def load_scene(path: str, joints: Optional[str] = None):
@@ -80,20 +91,15 @@ def write_result_gif(path: str, scene, report, params=None, settings=None) -> No
         from ddatai.render import write_gif
     except ImportError:
         raise RuntimeError("--gif needs ddatai.render (write_gif), which this ddatai does not have") from None
-    from .settings import Settings
-
     settings = settings or Settings()
     crit = report.critical
-    if report.method == "dda" and crit is not None:
-        from .blocks import build_block_system
-        from .dda import judge
-
-        prm = settings.dda.params or params
-        dt = (prm.dt if prm is not None and prm.dt is not None else 0.005)
-        system = build_block_system(scene)
-        j = crit.dda.judgement
-        every = max(1, int(j.duration / dt / 80))
-        _, res, ids = judge(scene, system, crit.blocks, settings=settings.dda, params=params,
+    if report.method == Method.DDA and crit is not None:
+        # the run of the verdict again, recorded: the analysis's problem (its contact gap) and plan
+        problem = prepare(scene, settings=settings, params=params)
+        plan = RunPlan.of(problem.system, crit.blocks, settings.dda, params)
+        dt = plan.params.dt if plan.params.dt is not None else 0.005
+        every = max(1, int(crit.dda.judgement.duration / dt / 80))
+        _, res, ids = judge(problem.scene, problem.system, crit.blocks, settings=settings.dda, params=params,
                             record_every=every)
         labels = np.array([0 if b in crit.blocks else -1 for b in ids])
         title = f"KGM + DDA: group {sorted(crit.blocks)}, {crit.verdict} (FS {crit.fs:.2f})"
@@ -108,10 +114,10 @@ def write_result_gif(path: str, scene, report, params=None, settings=None) -> No
         title = f"progressive {report.method}: {len(report.removed)} groups removed"
     elif crit is not None and crit.block_modes:
         # a toppling group: each block coloured by its state at limit equilibrium
-        states = ["toppling", "sliding", "stable"]
+        states = [BlockState.TOPPLING, BlockState.SLIDING, BlockState.STABLE]
         for b, state in crit.block_modes.items():
             labels[b] = states.index(state)
-        names = [f"{state} (critical group)" for state in states]
+        names = [f"{state.value} (critical group)" for state in states]
         title = (f"{report.method}: {crit.mode.kind.value} of {len(crit.blocks)} blocks, FS {crit.fs:.2f} "
                  f"({crit.verdict})")
     else:
@@ -140,7 +146,7 @@ def _print_report(rep, out) -> None:
             d = crit.dda
             j = d.judgement
             ran = (f"was at rest after {j.simulated:.2f} s of T = {j.duration:.2f} s, {j.displacement:.4f} m "
-                   f"from its start" if j.note == "at rest" else
+                   f"from its start" if j.end is RunEnd.AT_REST else
                    f"moved {j.displacement:.4f} m in {j.simulated:.2f} s")
             print(f"  DDA: {len(d.runs)} runs, {d.wall_time:.1f} s; at the scene's strength the group {ran} "
                   f"(criterion {j.threshold:.4f} m); "
@@ -177,7 +183,7 @@ def main(argv: Optional[Sequence[str]] = None, out=None) -> int:
     an = sub.add_parser("analyze", help="find and judge the key groups of a scene")
     an.add_argument("scene", help="scene script with build() -> Scene or (Scene, Params), or a SECTION.dxf")
     an.add_argument("--joints", metavar="TOML", help="a SECTION.dxf's material and joint layers")
-    an.add_argument("--method", choices=("rigid", "sarma", "dda"), default="sarma")
+    an.add_argument("--method", choices=METHOD_NAMES, default=Method.SARMA.value)
     an.add_argument("--progressive", action="store_true", help="remove unstable groups and repeat")
     an.add_argument("--seismic", metavar="KH[,KV]", type=_seismic,
                     help="pseudo-static seismic coefficients (kh towards +x, kv upwards) [-], rigid and sarma")
@@ -192,8 +198,8 @@ def main(argv: Optional[Sequence[str]] = None, out=None) -> int:
     pr.add_argument("scene", help="scene script whose build(**sample) takes the variables as keyword arguments")
     pr.add_argument("--vars", required=True, metavar="TOML", help="variables file (distributions, correlation)")
     pr.add_argument("--n", type=int, default=1000, help="samples (default 1000)")
-    pr.add_argument("--method", choices=("rigid", "sarma", "dda"), default="sarma")
-    pr.add_argument("--sampling", choices=("monte-carlo", "latin-hypercube"), default="monte-carlo")
+    pr.add_argument("--method", choices=METHOD_NAMES, default=Method.SARMA.value)
+    pr.add_argument("--sampling", choices=SAMPLINGS, default=Sampling.MONTE_CARLO.value)
     pr.add_argument("--seed", type=int, default=0)
     pr.add_argument("--group", metavar="IDS", help="judge this group (comma-separated block ids) in every sample")
     pr.add_argument("--workers", type=int, default=None,
@@ -201,7 +207,14 @@ def main(argv: Optional[Sequence[str]] = None, out=None) -> int:
     pr.add_argument("--scheduler", metavar="ADDRESS", help="run on a Dask cluster, e.g. tcp://host:8786")
     pr.add_argument("--out", metavar="CSV", help="append samples to this file as they finish (and resume it)")
     pr.add_argument("--png", metavar="PATH", help="draw how often each block is in the critical group")
+    from .wedges.cli import add_parser as add_wedge_parser
+
+    add_wedge_parser(sub)
     args = parser.parse_args(argv)
+    if args.command == "wedge":
+        from .wedges.cli import run as run_wedge
+
+        return run_wedge(args, out)
     if getattr(args, "force", False):
         from ddatai.cli import _allow_any_size
 
@@ -209,9 +222,6 @@ def main(argv: Optional[Sequence[str]] = None, out=None) -> int:
     if args.command == "probabilistic":
         return _probabilistic(args, out)
 
-    from .report import format_paper_table
-    from .search import analyze, evaluate
-    from .settings import DdaSettings, Settings
 
     try:
         scene, params = load_scene(args.scene, getattr(args, "joints", None))
@@ -221,7 +231,7 @@ def main(argv: Optional[Sequence[str]] = None, out=None) -> int:
         _print_report(rep, out)
         if args.compare and rep.critical is not None:
             t0 = time.perf_counter()
-            methods = ("rigid", "sarma") if args.seismic else ("rigid", "sarma", "dda")   # dda: no k·W
+            methods = LIMIT_EQUILIBRIUM if args.seismic else METHODS   # dda: no k·W
             rows = [evaluate(scene, rep.critical.blocks, m, settings=settings, params=params, seismic=args.seismic)
                     if m != rep.method else rep.critical for m in methods]
             print("", file=out)
@@ -238,8 +248,6 @@ def main(argv: Optional[Sequence[str]] = None, out=None) -> int:
 
 def _probabilistic(args, out) -> int:
     from ddatai.parallel import ScriptFunction
-
-    from .probability import probabilistic, read_variables
 
     def bar(done, total):
         if sys.stderr.isatty() or done == total:

@@ -1,15 +1,22 @@
 """Results of a KGM analysis: `GroupResult` (one evaluated group), `Report` (a whole analysis),
-the failure-surface polylines and the text tables (docs/kgm/method.md §3.5)."""
+the failure-surface polylines and the text tables (docs/kgm/method.md §3.5).
+
+A group's row is made in one place from what its judges returned: `group_result` from a
+limit-equilibrium `kgm.judges.evaluation.Evaluation` (its surface and loads with it), and
+`judged_by_dda` the same row with the DDA judge's FS, critical friction and verdict (every
+other field kept: a field added to `GroupResult` reaches both)."""
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Optional, Sequence
 
 import numpy as np
 
-from .blocks import DISTANCE_TOL, BlockSystem, Mode
+from .system import DISTANCE_TOL, BlockSystem
+from .judges.evaluation import Evaluation, Mode, critical_friction_of
+from .kinds import BlockState, Method, ModeKind
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -29,14 +36,14 @@ class GroupResult:
     """Governing failure mode from limit equilibrium (for dda: from the screening evaluator)."""
     surface: tuple = ()
     """Critical failure surface: polylines (k, 2) [m] of the contacts on which the group slides."""
-    evaluator: str = "rigid"
+    evaluator: str = Method.RIGID
     """Evaluator that gave ``fs`` and ``critical_friction``: 'rigid', 'sarma' or 'dda'."""
     seed: Optional[int] = None
     """Key block the greedy search grew the group from."""
     iteration: int = 0
     """Removal round of a progressive analysis (0: the first)."""
     dda: Optional[object] = None
-    """`kgm.dda.DdaEvaluation` of a DDA-judged group (runs, times, verdict), else None."""
+    """`kgm.DdaEvaluation` of a DDA-judged group (runs, times, verdict), else None."""
     water_force: Optional[float] = None
     """Water force ∫p ds on the group's failure surface (the uplift U of its sliding and
     sheared contacts) [N/m]; None: the scene has no water table."""
@@ -50,7 +57,7 @@ class GroupResult:
     governs; for dda: the screening evaluator's)."""
     rejected: tuple = ()
     """Why the other modes the limit-equilibrium evaluator looked for are not admissible, one
-    line each (``kgm.evaluators.Evaluation.rejected``)."""
+    line each (``kgm.judges.evaluation.Evaluation.rejected``)."""
 
     @property
     def verdict(self) -> str:
@@ -101,6 +108,41 @@ class Report:
     def table(self) -> str:
         """Candidate groups as a text table (least safe first)."""
         return format_groups(self.groups)
+
+
+# ---------------------------------------------------------------------- a group's row
+def group_result(system: BlockSystem, blocks: frozenset, evaluation: Evaluation, method: Method, fs_target: float,
+                 *, seed: Optional[int] = None, iteration: int = 0) -> GroupResult:
+    """The row of a group judged by limit equilibrium (``method``): FS, critical friction,
+    verdict against ``fs_target``, governing mode and failure surface, the water, bolt and
+    seismic loads of the system where it has them."""
+    return GroupResult(blocks=blocks, fs=evaluation.fs, critical_friction=critical_friction_of(evaluation),
+                       stable=evaluation.fs >= fs_target, mode=evaluation.mode,
+                       surface=contact_polylines(system, evaluation.mode.sliding_contacts), evaluator=method,
+                       seed=seed, iteration=iteration, modes=evaluation.modes, rejected=evaluation.rejected,
+                       **_loads_of(system, blocks, evaluation))
+
+
+def judged_by_dda(row: GroupResult, dda) -> GroupResult:
+    """The row of a group (judged by limit equilibrium) with the DDA judge's answer
+    (`kgm.DdaEvaluation`): its FS, critical friction and verdict at the scene's strength; the
+    mode, surface and loads stay the screening method's."""
+    return replace(row, fs=dda.fs, critical_friction=dda.critical_friction, stable=dda.judgement.stable,
+                   evaluator=Method.DDA, dda=dda)
+
+
+def _loads_of(system: BlockSystem, blocks: frozenset, ev: Evaluation) -> dict:
+    """The water, bolt and seismic loads of a group for its report row (only those present)."""
+    members = sorted(blocks)
+    out = {}
+    if system.contact_water is not None:
+        surface = np.concatenate([ev.mode.sliding_contacts, ev.mode.sheared_contacts]).astype(np.int64)
+        out["water_force"] = float(system.contact_water[np.unique(surface)].sum())
+    if system.block_bolt is not None:
+        out["bolt_force"] = float(np.hypot(*(system.block_bolt[members] + system.block_passive[members]).sum(axis=0)))
+    if system.block_seismic is not None:
+        out["seismic"] = system.seismic
+    return out
 
 
 # ---------------------------------------------------------------------- surfaces
@@ -187,19 +229,19 @@ def format_groups(groups: Sequence[GroupResult]) -> str:
 
 
 #: Words for a mode in the tables.
-_MODE_WORDS = {"lifting": "lifting (the loads pull it off every contact)",
-               "sliding": "rigid sliding on one plane",
-               "rotation": "rigid rotation about a vertex",
-               "sarma": "Sarma mechanism (the blocks slide apart, shearing the joints between them)",
-               "toppling": "block toppling (Goodman–Bray row)",
-               "none": "no admissible mode (stable by geometry)"}
+_MODE_WORDS = {ModeKind.LIFTING: "lifting (the loads pull it off every contact)",
+               ModeKind.SLIDING: "rigid sliding on one plane",
+               ModeKind.ROTATION: "rigid rotation about a vertex",
+               ModeKind.SARMA: "Sarma mechanism (the blocks slide apart, shearing the joints between them)",
+               ModeKind.TOPPLING: "block toppling (Goodman–Bray row)",
+               ModeKind.NONE: "no admissible mode (stable by geometry)"}
 
 
 def _explain_lines(g: GroupResult) -> list[str]:
     """'governs: ...', 'also admissible: ...', 'not admissible: ...' lines of a group."""
     lines = []
-    if g.mode.kind.value == "none":
-        lines.append(f"governs: {_MODE_WORDS['none']}")
+    if g.mode.kind == ModeKind.NONE:
+        lines.append(f"governs: {_MODE_WORDS[ModeKind.NONE]}")
     else:
         lines.append(f"governs: {_MODE_WORDS.get(g.mode.kind.value, g.mode.kind.value)}, FS {_fmt(g.mode.fs)}")
     others = [m for m in g.modes if m is not g.mode]
@@ -213,8 +255,8 @@ def _block_modes_line(steps) -> str:
     """'stable {13-15}; toppling {3-12}; sliding {0-2}': blocks by state, top to toe, runs of
     consecutive ids joined."""
     parts = []
-    for state in ("stable", "toppling", "sliding"):
-        ids = sorted(s.block for s in steps if s.state.value == state)
+    for state in (BlockState.STABLE, BlockState.TOPPLING, BlockState.SLIDING):
+        ids = sorted(s.block for s in steps if s.state == state)
         if not ids:
             continue
         runs, start = [], ids[0]
@@ -222,7 +264,7 @@ def _block_modes_line(steps) -> str:
             if b != a + 1:
                 runs.append(f"{start}" if start == a else f"{start}-{a}")
                 start = b
-        parts.append(f"{state} {{{', '.join(runs)}}}")
+        parts.append(f"{state.value} {{{', '.join(runs)}}}")
     return "; ".join(parts)
 
 
@@ -245,7 +287,7 @@ def format_toppling(mode: Mode) -> str:
 def format_paper_table(results: Sequence[GroupResult], *, title: str = "") -> str:
     """The layout of the paper's comparison: method, factor of safety, critical friction
     angle, verdict (one row per evaluator of the same group), as a Markdown table."""
-    names = {"rigid": "KGM (rigid group)", "sarma": "SKGM (Sarma)", "dda": "KGM + DDA (developed)"}
+    names = {Method.RIGID: "KGM (rigid group)", Method.SARMA: "SKGM (Sarma)", Method.DDA: "KGM + DDA (developed)"}
     out = []
     if title:
         out.append(title)

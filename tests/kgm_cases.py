@@ -50,6 +50,19 @@ def block_on_incline(theta=30.0, width=10.0, height=1.0, friction=25.0, cohesion
     return scene, base, block
 
 
+def block_above_incline(offset, theta=30.0):
+    """`block_on_incline`'s 10 × 1 m block moved ``offset`` [m] along the plane's
+    normal (> 0: a gap, < 0: an overlap); the model is ~25 m across."""
+    t = np.array([np.cos(np.radians(theta)), -np.sin(np.radians(theta))])
+    n = np.array([np.sin(np.radians(theta)), np.cos(np.radians(theta))])
+    scene = dd.Scene(gravity=9.81)
+    scene.add_block([-5 * t - 3 * n, 25 * t - 3 * n, 25 * t, -5 * t], material=ROCK, fixed=True)
+    p0 = offset * n
+    scene.add_block([p0, p0 + 10 * t, p0 + 10 * t + n, p0 + n], material=ROCK)
+    scene.set_joint(dd.Joint(friction=35.0, cohesion=20e3))
+    return scene
+
+
 def tapered_block():
     """A trapezoid narrowing toward its free top, wedged between two fixed blocks (type IV)."""
     scene = dd.Scene(gravity=G)

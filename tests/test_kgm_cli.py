@@ -57,3 +57,25 @@ def test_analyze_by_dda_says_when_the_verdict_run_stopped_at_rest(tmp_path):
     assert main(["analyze", str(script), "--method", "dda"], out=out) == 0
     text = out.getvalue()
     assert "at the scene's strength the group was at rest after" in text and "of T = " in text
+
+
+def test_the_gif_of_a_dda_analysis_runs_the_analysed_problem(monkeypatch):
+    """``--gif`` of a DDA analysis runs the verdict's judgement again, recorded: on the block
+    system the analysis judged, its contact gap included. A block drawn 5 cm above its plane
+    rests on it under ``Settings(contact_gap=0.06)``: the recorded run holds the plane in its
+    sub-model (a rebuild with the default gap, 2.6 mm here, would simulate the block alone)."""
+    from types import SimpleNamespace
+
+    import ddatai.render
+    import kgm
+    from kgm.cli import write_result_gif
+    from kgm_cases import block_above_incline
+
+    scene = block_above_incline(0.05)
+    settings = kgm.Settings(contact_gap=0.06, dda=kgm.DdaSettings(duration=0.02))
+    crit = SimpleNamespace(blocks=frozenset({1}), verdict="stable", fs=1.4,
+                           dda=SimpleNamespace(judgement=SimpleNamespace(duration=0.02)))
+    seen = {}
+    monkeypatch.setattr(ddatai.render, "write_gif", lambda res, path, **kw: seen.update(kw, blocks=res.n_blocks))
+    write_result_gif("unused.gif", scene, SimpleNamespace(method="dda", critical=crit), None, settings)
+    assert seen["blocks"] == 2 and list(seen["labels"]) == [-1, 0]

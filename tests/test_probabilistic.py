@@ -281,7 +281,27 @@ def test_cli_reads_a_variables_file_and_writes_the_study(tmp_path):
     ({"x": {"distribution": "truncated-normal", "mean": 1.0, "sd": 1.0, "min": 0.0}}, lambda d: d.ppf(0) == 0.0),
 ])
 def test_variables_file_distributions(spec, check):
-    from kgm.probability import variables_from_mapping
+    from kgm.studies.sampling import variables_from_mapping
 
     variables, _ = variables_from_mapping(spec)
     assert check(variables["x"])
+
+
+def test_the_study_file_gives_back_the_rows_it_was_given(tmp_path):
+    """A sample's row (`kgm.studies.study.SampleRow`) written to the study file reads back
+    bit for bit (floats by repr, nan and inf included), with its critical group's ids."""
+    from kgm.studies.study import SampleRow, StudyFile, read_samples
+
+    identity = dict(n=3, seed=0, sampling="monte-carlo", method="dda", variables=["friction"])
+    rows = {0: SampleRow(fs=math.nan, failed=True, critical=(0, 1)), 1: SampleRow(fs=math.inf, failed=False),
+            2: SampleRow(fs=0.1 + 0.2, failed=False, critical=(3, 12))}
+    out = StudyFile(tmp_path / "study.csv", identity, ("friction",))
+    for i, row in rows.items():
+        out.append(i, 10 + i, [30.0 + i / 3], row)
+    out.close()
+    back = read_samples(tmp_path / "study.csv", identity, ("friction",))
+    assert sorted(back) == sorted(rows)
+    for i, row in rows.items():
+        assert np.float64(back[i].fs).tobytes() == np.float64(row.fs).tobytes()
+        assert (back[i].failed, back[i].critical, back[i].critical_text) == (row.failed, row.critical,
+                                                                              " ".join(map(str, row.critical)))

@@ -1,0 +1,305 @@
+"""The narrow phase: Shi's vertex-edge and vertex-vertex rules for each candidate block pair
+(docs/method/dda.md §3.3–3.6), and the ``@ti.func`` tests it is made of (the NumPy twin is
+``ddatai.narrow``, operation for operation)."""
+
+import taichi as ti
+
+from .common import (EDGE_FLOOR, EDGE_FLOOR2, I32_1, I32_2, F64_1, F64_2, KIND_VE, KIND_VV, SLACK, TIE, TWO_PI,
+                     _cross, _pt, _wrap)
+
+
+@ti.func
+def _edge_param(xy: ti.template(), vnext: ti.template(), e, p):
+    """Projection parameter of vertex p on edge e (0 at its start, 1 at its end)."""
+    q0 = _pt(xy, e)
+    d = _pt(xy, vnext[e]) - q0
+    # a collapsed edge (zero length) projects everything to its start instead of dividing by 0
+    return (_pt(xy, p) - q0).dot(d) / ti.max(d.dot(d), EDGE_FLOOR2)
+
+
+@ti.func
+def _half_overlap(xy: ti.template(), vnext: ti.template(), e, a, b):
+    """Half the length of the overlap of segment (a, b) projected on edge e (§3.6)."""
+    q0 = _pt(xy, e)
+    d = _pt(xy, vnext[e]) - q0
+    l2 = ti.max(d.dot(d), EDGE_FLOOR2)
+    ta = (_pt(xy, a) - q0).dot(d) / l2
+    tb = (_pt(xy, b) - q0).dot(d) / l2
+    lo = ti.max(0.0, ti.min(ta, tb))
+    hi = ti.min(1.0, ti.max(ta, tb))
+    return 0.5 * ti.max(0.0, hi - lo) * ti.sqrt(l2)
+
+
+@ti.func
+def _convex(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), p):
+    P = _pt(xy, p)
+    return _cross(_pt(xy, vnext[p]) - P, _pt(xy, vprev[p]) - P) > 0.0
+
+
+@ti.func
+def _nearer_exit(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), P, depth, a, c):
+    """Whether point P, at normal distance ``depth`` (< 0) from an edge, lies less deep behind
+    the line of edge a (or in front of it), projecting onto a, or nearer than |depth| to an end
+    of a, where a meets that edge at the convex corner c (`narrow._Rows.nearer_exit`)."""
+    q0 = _pt(xy, a)
+    q1 = _pt(xy, vnext[a])
+    d = q1 - q0
+    l = ti.max(d.norm(), EDGE_FLOOR)
+    t = (P - q0).dot(d) / (l * l)
+    dn = (P - q0).dot(ti.Vector([d[1], -d[0]]) / l)
+    r0 = P - q0
+    r1 = P - q1
+    # or nearer than ``depth`` to an end of a (past it: a cut's shared corner, moved a hair)
+    near = (t < 0.0 and r0[0] * r0[0] + r0[1] * r0[1] < depth * depth) or \
+        (t > 1.0 and r1[0] * r1[0] + r1[1] * r1[1] < depth * depth)
+    return _convex(xy, vnext, vprev, c) and ((dn > depth and t >= -SLACK and t <= 1.0 + SLACK) or near)
+
+
+@ti.func
+def _outside_convex(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), P, e, slack):
+    """Whether point P lies in front of some edge of the convex block of edge e (or on its line,
+    within ``slack``): outside it, or on its boundary (`narrow.narrow_phase`)."""
+    convex = _convex(xy, vnext, vprev, e)
+    front = 0
+    j = vnext[e]
+    while j != e:
+        q0 = _pt(xy, j)
+        d = _pt(xy, vnext[j]) - q0
+        l = ti.max(d.norm(), EDGE_FLOOR)
+        if (P - q0).dot(ti.Vector([d[1], -d[0]]) / l) > -slack:
+            front = 1
+        if not _convex(xy, vnext, vprev, j):
+            convex = 0
+        j = vnext[j]
+    return convex and front == 1
+
+
+@ti.func
+def _edge_edge_exit(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), p, e, w, d9):
+    """Whether vertex p, put on edge e by the edge-edge rule of the vertex pair (p, w), w an end
+    of e, lies behind e's line (beyond round-off) but less deep behind (or in front of) the
+    line of the edge meeting e at its far, convex corner, projecting onto it (it entered that
+    edge: §3.3 rule 3), or deeper than d9 (the window of rule 2): no contact of e
+    (`narrow._VertexPairs`). The edge at w is no exit: p's own edge lies along
+    e, so p cannot have entered that edge."""
+    q0 = _pt(xy, e)
+    d = _pt(xy, vnext[e]) - q0
+    l = ti.max(d.norm(), EDGE_FLOOR)
+    P = _pt(xy, p)
+    dn = (P - q0).dot(ti.Vector([d[1], -d[0]]) / l)
+    a = vprev[e]
+    c = e
+    if w == e:
+        a = vnext[e]
+        c = vnext[e]
+    out = 0
+    if dn < -SLACK * d9:
+        if _nearer_exit(xy, vnext, vprev, P, dn, a, c) or dn < -d9:
+            out = 1
+    return out
+
+
+@ti.func
+def _ve_test(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), p, e,
+             d0, d9, sin_h1, check_projection):
+    """Distance and entrance-angle criteria for vertex p against edge e (§3.3, §3.4).
+
+    Returns (accepted, contact length L of an edge-edge contact or 0).
+    """
+    q0 = _pt(xy, e)
+    d = _pt(xy, vnext[e]) - q0
+    l = ti.max(d.norm(), EDGE_FLOOR)
+    P = _pt(xy, p)
+    t = (P - q0).dot(d) / (l * l)
+    n = ti.Vector([d[1], -d[0]]) / l  # outward normal of a CCW edge
+    dn = (P - q0).dot(n)
+    ok = 1
+    if l <= EDGE_FLOOR:  # a collapsed edge has no normal: no contact (reference.narrow_phase)
+        ok = 0
+    if check_projection != 0:
+        if t < 0.0 or t > 1.0:
+            ok = 0
+    if dn > d0 or dn < -d9:
+        ok = 0
+    if dn < -SLACK * d9 and ok == 1:
+        # behind the edge's line, but nearer the line of the edge that meets it at a convex
+        # corner (or in front of it: outside the block): the vertex entered, or lies on, that
+        # edge, not this one (§3.3, the shortest exit)
+        if _nearer_exit(xy, vnext, vprev, P, dn, vprev[e], e) or \
+                _nearer_exit(xy, vnext, vprev, P, dn, vnext[e], vnext[e]) or \
+                _outside_convex(xy, vnext, vprev, P, e, SLACK * d9):
+            ok = 0
+    r1 = _pt(xy, vnext[p]) - P
+    r2 = _pt(xy, vprev[p]) - P
+    n1 = r1.norm()
+    n2 = r2.norm()
+    # a concave vertex never contacts as a vertex; the vertex's material wedge must lie on the
+    # outer side of the edge within the angle tolerance h1
+    if _cross(r1, r2) <= 0.0:
+        ok = 0
+    if r1.dot(n) < -sin_h1 * n1 or r2.dot(n) < -sin_h1 * n2:
+        ok = 0
+    length = 0.0
+    if ok == 1:
+        if ti.abs(r1.dot(n)) <= sin_h1 * n1:
+            length = _half_overlap(xy, vnext, e, p, vnext[p])
+        elif ti.abs(r2.dot(n)) <= sin_h1 * n2:
+            length = _half_overlap(xy, vnext, e, p, vprev[p])
+    return ok, length
+
+
+@ti.func
+def _emit(out_int: ti.template(), out_len: ti.template(), count: ti.template(),
+          kind, v0, e0, v1, e1, length):
+    k = ti.atomic_add(count[0], 1)
+    if k < out_int.shape[0]:
+        out_int[k, 0] = kind
+        out_int[k, 1] = v0
+        out_int[k, 2] = e0
+        out_int[k, 3] = v1
+        out_int[k, 4] = e1
+        out_len[k] = length
+
+
+@ti.func
+def _nearest(xy: ti.template(), P, lo, hi, limit):
+    """Index of the vertex in [lo, hi) nearest to P within `limit` (ties: lowest index), or -1."""
+    best = -1
+    best_d = limit
+    for k in range(lo, hi):
+        dist = (_pt(xy, k) - P).norm()
+        if dist < best_d or (dist == best_d and best == -1):
+            best = k
+            best_d = dist
+    return best
+
+
+@ti.func
+def _vertex_vertex(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), ia, ib,
+                   d0, d9, sin_h1, h1, out_int: ti.template(), out_len: ti.template(),
+                   count: ti.template()):
+    """Vertices ia (block A) and ib (block B) are mutual nearest within d0 (§3.3 case 1, §3.4)."""
+    cP = _convex(xy, vnext, vprev, ia)
+    cQ = _convex(xy, vnext, vprev, ib)
+    if cP and not cQ:
+        # concave Q: P against both edges meeting at Q
+        for s in ti.static(range(2)):
+            e = vprev[ib] if s == 0 else ib
+            ok, length = _ve_test(xy, vnext, vprev, ia, e, d0, d9, sin_h1, 0)
+            if ok == 1:
+                _emit(out_int, out_len, count, KIND_VE, ia, e, -1, -1, length)
+    elif cQ and not cP:
+        for s in ti.static(range(2)):
+            e = vprev[ia] if s == 0 else ia
+            ok, length = _ve_test(xy, vnext, vprev, ib, e, d0, d9, sin_h1, 0)
+            if ok == 1:
+                _emit(out_int, out_len, count, KIND_VE, ib, e, -1, -1, length)
+    elif cP and cQ:
+        P = _pt(xy, ia)
+        Q = _pt(xy, ib)
+        rA1 = _pt(xy, vnext[ia]) - P
+        rA2 = _pt(xy, vprev[ia]) - P
+        rB1 = _pt(xy, vnext[ib]) - Q
+        rB2 = _pt(xy, vprev[ib]) - Q
+        a1 = ti.atan2(rA1[1], rA1[0])
+        a2 = ti.atan2(rA2[1], rA2[0])
+        b1 = ti.atan2(rB1[1], rB1[0])
+        b2 = ti.atan2(rB2[1], rB2[0])
+        wA = _wrap(a2 - a1, 0.0)
+        wB = _wrap(b2 - b1, 0.0)
+        e5 = _wrap(b1 - a2, -h1)  # free gap between A's edge (prev->P) and B's edge (Q->next)
+        e6 = _wrap(a1 - b2, -h1)  # free gap between B's edge (prev->Q) and A's edge (P->next)
+        # the two wedges do not overlap (beyond h1) iff the four angles go once around
+        if ti.abs(wA + wB + e5 + e6 - TWO_PI) < 1e-6:
+            if e5 < h1 or e6 < h1:
+                # edge-edge: A's edge (prev[ia], ia) parallel to B's edge (ib, next[ib]) (e5),
+                # or A's edge (ia, next[ia]) parallel to B's edge (prev[ib], ib) (e6); the
+                # contact vertex v is whichever lies inside the other's edge e (ties: A's),
+                # its partner w an end of e, and `end` the far end of v's edge along the line
+                v, e, end, w = ia, ib, vprev[ia], ib
+                if e5 < h1:
+                    tP = _edge_param(xy, vnext, ib, ia)
+                    tQ = _edge_param(xy, vnext, vprev[ia], ib)
+                    if ti.min(tP, 1.0 - tP) < ti.min(tQ, 1.0 - tQ) - TIE:
+                        v, e, end, w = ib, vprev[ia], vnext[ib], ia
+                else:
+                    tP = _edge_param(xy, vnext, vprev[ib], ia)
+                    tQ = _edge_param(xy, vnext, ia, ib)
+                    if ti.min(tP, 1.0 - tP) >= ti.min(tQ, 1.0 - tQ) - TIE:
+                        v, e, end, w = ia, vprev[ib], vnext[ia], ib
+                    else:
+                        v, e, end, w = ib, ia, vprev[ib], ia
+                if _edge_edge_exit(xy, vnext, vprev, v, e, w, d9) == 0:
+                    _emit(out_int, out_len, count, KIND_VE, v, e, -1, -1, _half_overlap(xy, vnext, e, v, end))
+                else:
+                    # parallel, but v entered the edge at the far corner or lies deeper than d9
+                    # (§3.3): v against both edges meeting at w, by the vertex-edge rules
+                    for s in ti.static(range(2)):
+                        e2 = vprev[w] if s == 0 else w
+                        ok, length = _ve_test(xy, vnext, vprev, v, e2, d0, d9, sin_h1, 0)
+                        if ok == 1:
+                            _emit(out_int, out_len, count, KIND_VE, v, e2, -1, -1, length)
+            else:
+                # genuine vertex-vertex: the entrance lines are the edges across the smaller gap
+                # (e5 unless e6 is clearly smaller, so equal gaps do not flip between steps)
+                eA = ib
+                eB = vprev[ia]
+                if e5 > e6 + h1:
+                    eA = vprev[ib]
+                    eB = ia
+                if _edge_edge_exit(xy, vnext, vprev, ia, eA, ib, d9) == 0 and \
+                        _edge_edge_exit(xy, vnext, vprev, ib, eB, ia, d9) == 0:
+                    _emit(out_int, out_len, count, KIND_VV, ia, eA, ib, eB, 0.0)
+                else:
+                    # a vertex behind its entrance line entered the edge at the line's far
+                    # corner, or lies beyond d9 (§3.3 rule 3): each vertex against both edges
+                    # meeting at the other, by the vertex-edge rules
+                    for s in ti.static(range(4)):
+                        v = ia if s < 2 else ib
+                        w = ib if s < 2 else ia
+                        e2 = vprev[w] if s % 2 == 0 else w
+                        ok, length = _ve_test(xy, vnext, vprev, v, e2, d0, d9, sin_h1, 0)
+                        if ok == 1:
+                            _emit(out_int, out_len, count, KIND_VE, v, e2, -1, -1, length)
+
+
+@ti.kernel
+def narrow_phase(pairs: I32_2, xy: F64_2, voff: I32_1, vnext: I32_1, vprev: I32_1,
+                 d0: ti.f64, d9: ti.f64, h1: ti.f64, out_int: I32_2, out_len: F64_1, count: I32_1):
+    """Shi's narrow phase for each candidate block pair (A < B) (docs/method/dda.md §3.3–3.6).
+
+    out_int rows: (kind, vertex0, edge0, vertex1, edge1); out_len: contact length.
+    """
+    sin_h1 = ti.sin(h1)
+    for p in range(pairs.shape[0]):
+        A = pairs[p, 0]
+        B = pairs[p, 1]
+        a0, a1 = voff[A], voff[A + 1]
+        b0, b1 = voff[B], voff[B + 1]
+        # 1. vertex pairs closer than d0 (mutual nearest): vertex-vertex rules
+        for ia in range(a0, a1):
+            P = _pt(xy, ia)
+            ib = _nearest(xy, P, b0, b1, d0)
+            if ib >= 0:
+                if _nearest(xy, _pt(xy, ib), a0, a1, d0) == ia:
+                    _vertex_vertex(xy, vnext, vprev, ia, ib, d0, d9, sin_h1, h1, out_int, out_len, count)
+        # 2. vertices of A against edges of B, and 3. vertices of B against edges of A,
+        # skipping a vertex whose mutual-nearest partner is an end of the edge (that pair was
+        # handled above). A vertex near an edge's end that is not that end's mutual nearest
+        # (the end pairs with another vertex) is tested here: skipping it by distance alone
+        # lost the contact of a wedge's tip sliding along a joint next to the other block's
+        # corner while the tip sank into it
+        for s in ti.static(range(2)):
+            v_lo, v_hi = (a0, a1) if s == 0 else (b0, b1)
+            e_lo, e_hi = (b0, b1) if s == 0 else (a0, a1)
+            for iv in range(v_lo, v_hi):
+                P = _pt(xy, iv)
+                partner = _nearest(xy, P, e_lo, e_hi, d0)
+                if partner >= 0:
+                    if _nearest(xy, _pt(xy, partner), v_lo, v_hi, d0) != iv:
+                        partner = -1
+                for ie in range(e_lo, e_hi):
+                    if partner != ie and partner != vnext[ie]:
+                        ok, length = _ve_test(xy, vnext, vprev, iv, ie, d0, d9, sin_h1, 1)
+                        if ok == 1:
+                            _emit(out_int, out_len, count, KIND_VE, iv, ie, -1, -1, length)

@@ -1,0 +1,13 @@
+"""Studies over many analyses (docs/kgm/probabilistic.md), the top of kgm's pipeline below the
+command line (docs/kgm/architecture.md):
+
+* `kgm.studies.sampling` – the uncertain inputs: variables, their Gaussian copula, the
+  per-sample seeds, the variables file;
+* `kgm.studies.study` – the outcome: `Study`, one sample's `SampleRow`, the study file (write,
+  append, resume, read) and the picture of the block frequencies;
+* `kgm.studies.probabilistic` – `kgm.probabilistic`: samples → analysis of each → `SampleRow`
+  → `Study`.
+
+A sweep of a group's factor of safety over one input would be a fourth module here, sharing the
+sample runner.
+"""

@@ -1,0 +1,295 @@
+"""Probabilistic key group analysis: probability of failure from sampled rock properties and
+joint geometry (the probabilistic key group method, docs/kgm/probabilistic.md).
+
+``kgm.probabilistic(build, variables, n)`` draws ``n`` samples of the uncertain inputs, builds
+the scene of each with ``build(**sample)`` (a scene script's ``build`` works as it is), finds
+its critical key group and that group's factor of safety with the chosen evaluator (rigid,
+Sarma or DDA) and collects them into a `Study`: the probability of failure P(FS < 1), the
+reliability index, the FS distribution, how often each block belongs to the critical group, and
+a table of every sample with its seed, so that any sample can be run again exactly.
+
+The samples (`kgm.studies.sampling`: Monte Carlo or Latin hypercube, correlated by a Gaussian
+copula) are all drawn before any work from the study's seed, so the table does not depend on the
+number of workers or on the order in which samples complete. Each sample is screened by limit
+equilibrium (`Screened`); under DDA its critical group is then judged on its real geometry, the
+samples whose groups are the same judged side by side in one run. Its outcome is a
+`kgm.studies.study.SampleRow`, appended to the study file as it completes.
+
+Execution (`ddatai.parallel`): by default rigid and Sarma samples (limit equilibrium, about a
+millisecond each) run in this process, where they are fastest, and DDA samples (seconds each)
+on one local worker process per CPU; ``workers=`` chooses, and ``client=`` (a
+``dask.distributed.Client`` or a scheduler address) runs them on a Dask cluster. A script that
+starts a study at its top level without an ``if __name__ == "__main__":`` block still gets its
+result by default (in this process, with a warning saying what to add); asked for worker
+processes explicitly, it stops before any work with one line saying what to add. With ``out=``
+every sample is appended to a CSV file as it completes (`kgm.studies.study`); a study started
+again with the same arguments reads the samples already there and runs only the others.
+"""
+
+from __future__ import annotations
+
+import functools
+import inspect
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, Mapping, Optional
+
+import numpy as np
+
+from ..analysis import analyze_problem, evaluate_group
+from ..build import Problem, prepare
+from ..judges.batch import Member, judge_members
+from ..judges.dda import dda_evaluation
+from ..kinds import METHOD_NAMES, Method, Sampling
+from ..report import GroupResult
+from ..settings import DdaSettings, Settings
+from .sampling import sample_seeds, sample_variables
+from .study import SampleRow, Study, StudyFile, read_samples, reliability_index, study_table
+
+# ---------------------------------------------------------------------- one sample
+@dataclass(frozen=True)
+class _Job:
+    """What a worker needs to evaluate samples (picklable)."""
+
+    build: Callable
+    method: Method
+    settings: Any
+    group: Optional[frozenset]
+    pass_seed: bool
+    dda_fs: bool = False
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class Screened:
+    """A sample screened by limit equilibrium: its problem (its scene and block system, the
+    study's settings, the Params its ``build`` returned), its critical group by the screening
+    method (None: the sample has no key group, nothing can fail) and its row as that method
+    gives it."""
+
+    problem: Problem
+    """The sample's problem, prepared once: DDA judges its group on the same block system."""
+    result: Optional[GroupResult]
+    """The critical group by the screening method, or None."""
+    row: SampleRow
+    """The sample's row by the screening method."""
+
+
+def _evaluate(job: _Job, item: tuple) -> SampleRow:
+    """The row of one sample; errors name the sample."""
+    index, values, seed = item
+    try:
+        screened = _screen(job, item)
+        if screened.result is None or job.method is not Method.DDA:
+            return screened.row
+        result, problem = screened.result, screened.problem
+        dres = dda_evaluation(problem, frozenset(result.blocks), fs_guess=result.fs, with_fs=job.dda_fs,
+                              with_friction=False, report=problem.settings.dda.progress)
+        return SampleRow(fs=float(dres.fs), failed=not bool(dres.judgement.stable), critical=screened.row.critical)
+    except Exception as exc:
+        raise _failed(index, values, seed, exc) from exc
+
+
+def _failed(index, values, seed, exc) -> RuntimeError:
+    return RuntimeError(f"sample {index} ({_describe(values)}, seed {seed}) failed: {type(exc).__name__}: {exc}")
+
+
+def _screen(job: _Job, item: tuple) -> Screened:
+    """The sample built and its critical group found by the screening method (or by the job's
+    limit-equilibrium method)."""
+    index, values, seed = item
+    kwargs = dict(values)
+    if job.pass_seed:
+        kwargs["seed"] = int(seed)
+    from ddatai.io.scenefile import build_scene
+
+    scene, params = build_scene(job.build, **kwargs)
+    settings = job.settings or Settings()
+    problem = prepare(scene, settings=settings, params=params)
+    # DDA judges the critical group of the screening evaluator (a DDA-ranked search runs
+    # DDA on every candidate): the verdict from one run at the sample's strength, FS by
+    # strength reduction only when asked (several runs)
+    method = job.method.screened_by(settings.screening)
+    if job.group is not None:
+        result = evaluate_group(problem, job.group, method)
+    else:
+        result = analyze_problem(problem, method).critical
+    if result is None:
+        return Screened(problem=problem, result=None, row=SampleRow(fs=math.inf, failed=False))
+    return Screened(problem=problem, result=result,
+                    row=SampleRow.of_group(result.fs, not bool(result.stable), result.blocks))
+
+
+def _evaluate_batch(job: _Job, items: tuple) -> list:
+    """[(index, `SampleRow`)] of DDA verdicts of several samples (``dda_fs`` off): each sample
+    screened on its own, then the samples whose critical groups are the same blocks of the same
+    geometry judged side by side in one run (`kgm.judges.batch.judge_members`; the verdict of each is
+    the one a run of its own gives). Errors name the sample."""
+    rows, groups = {}, {}
+    for item in items:
+        index, values, seed = item
+        try:
+            screened = _screen(job, item)
+        except Exception as exc:
+            raise _failed(index, values, seed, exc) from exc
+        if screened.result is None:
+            rows[index] = screened.row
+            continue
+        member = Member(scene=screened.problem.scene, system=screened.problem.system)
+        key = (frozenset(screened.result.blocks), screened.problem.params)
+        groups.setdefault(key, []).append((item, member, screened))
+    for (blocks, params), entries in groups.items():
+        settings = entries[0][2].problem.settings
+        try:
+            verdicts = judge_members([member for _, member, _ in entries], blocks, settings=settings.dda,
+                                     params=params, exact=True, report=settings.dda.progress)
+        except Exception:
+            # which sample: each on its own, so that the error names it
+            for item, _, _ in entries:
+                rows[item[0]] = _evaluate(job, item)
+            continue
+        for (item, _, screened), j in zip(entries, verdicts):
+            rows[item[0]] = SampleRow(fs=math.nan, failed=not j.stable, critical=screened.row.critical)
+    return [(item[0], rows[item[0]]) for item in items]
+
+
+def _describe(values: Mapping) -> str:
+    return ", ".join(f"{k}={v:.6g}" if isinstance(v, float) else f"{k}={v}" for k, v in values.items())
+
+
+# ---------------------------------------------------------------------- the study
+def probabilistic(build, variables: Mapping, n: int, *, method: str = Method.SARMA,
+                  sampling: str = Sampling.MONTE_CARLO, seed: int = 0, correlation: Optional[Mapping] = None,
+                  group=None, settings=None, client=None, workers: Optional[int] = None,
+                  out=None, geometry_seed: Optional[bool] = None, progress: Optional[Callable] = None,
+                  dda_fs: bool = False) -> Study:
+    """Probability of failure of a slope with uncertain inputs (module docstring).
+
+    Parameters
+    ----------
+    build : ``build(**sample) -> Scene`` or ``-> (Scene, Params)``: a function defined at the
+        top level of an importable module, or the path of a scene script (its ``build``).
+    variables : name -> frozen `scipy.stats` distribution (normal, lognormal, truncated normal,
+        uniform, triangular...) or a constant; each name is a keyword argument of ``build``.
+    n : samples.
+    method : evaluator of each sample's critical group: 'rigid', 'sarma' or 'dda'.
+    sampling : 'monte-carlo' or 'latin-hypercube'.
+    seed : seed of the study (the samples and the per-sample seeds follow from it).
+    correlation : {(name1, name2): ρ} between sampled variables (Gaussian copula).
+    group : evaluate this group of blocks in every sample instead of searching for the
+        critical one (faster; block ids must mean the same blocks in every sample).
+    settings : `kgm.Settings` of the analyses.
+    client : None (this machine), a ``dask.distributed.Client`` or a scheduler address.
+    workers : local worker processes. None: in this process for 'rigid' and 'sarma' (a
+        limit-equilibrium sample takes milliseconds: worker processes would cost more
+        than they save), one per CPU for 'dda'; 1: in this process; N: N processes (the
+        table is the same whatever the number).
+    out : CSV file to which every sample is appended as it completes; an existing file of the
+        same study is resumed (its samples are not run again).
+    geometry_seed : pass each sample's seed to ``build(seed=...)`` (a new joint-set
+        realisation per sample); None: when ``build`` has a ``seed`` parameter.
+    progress : called as ``progress(done, n)`` after each completed sample.
+    dda_fs : with ``method="dda"``, also find each sample's FS by strength reduction (several
+        DDA runs a sample); by default only the verdict at the sample's strength (one run),
+        which is all P_f needs, and ``fs`` is nan.
+    """
+    from ddatai.parallel import ScriptFunction, check_execution, plan, run
+
+    t0 = time.perf_counter()
+    if method not in METHOD_NAMES:
+        raise ValueError(f"method must be one of {METHOD_NAMES}, got {method!r}")
+    method = Method(method)
+    if isinstance(build, (str, Path)):
+        build = ScriptFunction(str(build))
+    if not callable(build):
+        raise ValueError(f"build must be a function or the path of a scene script, got {type(build).__name__}")
+    check_execution(client, workers)
+    if not isinstance(seed, int) or isinstance(seed, bool):
+        raise ValueError(f"seed must be an integer, got {seed!r}")
+    if settings is not None:
+        if not isinstance(settings, Settings):
+            raise ValueError(f"settings must be a kgm.Settings, got {type(settings).__name__}")
+    pass_seed = _check_build(build, variables, geometry_seed)
+    samples = sample_variables(variables, n, sampling=sampling, seed=seed, correlation=correlation)
+    seeds = sample_seeds(seed, n)
+    names = tuple(variables)
+    group = None if group is None else frozenset(int(b) for b in group)
+    identity = dict(n=n, seed=seed, sampling=sampling, method=method, variables=list(names),
+                    group=None if group is None else sorted(group), dda_fs=bool(dda_fs))
+
+    done: dict = {}
+    if out is not None:
+        done = read_samples(Path(out), identity, names)
+    resumed = len(done)
+    items = [(i, {k: _scalar(samples[k][i]) for k in names}, int(seeds[i])) for i in range(n) if i not in done]
+    job = _Job(build=build, method=method, settings=settings, group=group, pass_seed=pass_seed, dda_fs=bool(dda_fs))
+    # before any work: this process for limit-equilibrium samples, processes for DDA, and a
+    # script whose workers could not import what the study needs is told what to add
+    workers = plan(functools.partial(_evaluate, job), client=client, workers=workers,
+                   cost="heavy" if method is Method.DDA else "light", caller="kgm.probabilistic")
+    # DDA verdicts: samples judged side by side, a batch of them per item (kgm.judges.batch.judge_members)
+    size = (settings.dda if settings is not None else DdaSettings()).sample_batch \
+        if method is Method.DDA and not dda_fs else 1
+    if size > 1:
+        # one batch a worker or more (a larger batch shares a step among more samples: per
+        # sample a batch of 128 costs a fifth of one of 16); none larger than asked
+        sharing = 1 if client is None and workers == 1 else _n_workers(client, workers)
+        size = max(1, min(size, -(-len(items) // sharing)))
+        batches = [tuple(items[i:i + size]) for i in range(0, len(items), size)]
+        results = run(functools.partial(_evaluate_batch, job), [(b[0][0], b) for b in batches],
+                      client=client, workers=workers, chunk=1)
+        flat = (row for _, rows in results for row in rows)
+    else:
+        flat = run(functools.partial(_evaluate, job), [(it[0], it) for it in items], client=client, workers=workers)
+    writer = StudyFile(Path(out), identity, names) if out is not None else None
+    try:
+        for index, row in flat:
+            done[index] = row
+            if writer is not None:
+                writer.append(index, int(seeds[index]), [samples[k][index] for k in names], row)
+            if progress is not None:
+                progress(len(done), n)
+    finally:
+        if writer is not None:
+            writer.close()
+    table = study_table(n, names, samples, seeds, done)
+    return Study(n=n, pf=float(np.mean(table["failed"])), beta=reliability_index(table["fs"]), table=table,
+                 variables=names, method=method, sampling=sampling, seed=seed, resumed=resumed,
+                 wall_time=time.perf_counter() - t0)
+
+
+def _n_workers(client, workers: Optional[int]) -> int:
+    """How many evaluate at once: the local workers, or the Dask cluster's."""
+    if client is None:
+        from ddatai.parallel import default_workers
+
+        return workers or default_workers()
+    try:
+        return max(1, len(client.scheduler_info()["workers"]))
+    except Exception:
+        return 1
+
+
+def _scalar(v):
+    return float(v) if isinstance(v, (np.floating, float)) else v.item() if isinstance(v, np.generic) else v
+
+
+def _check_build(build, variables: Mapping, geometry_seed: Optional[bool]) -> bool:
+    """Whether to pass ``seed=``; raises if ``build`` does not take a variable's name."""
+    fn = build.resolve() if hasattr(build, "resolve") else build
+    try:
+        sig = inspect.signature(fn)
+    except (TypeError, ValueError):
+        return bool(geometry_seed)
+    params = sig.parameters
+    var_kw = any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values())
+    for k in variables:
+        if k not in params and not var_kw:
+            raise ValueError(f"variable {k!r} is not a parameter of build{sig} ({getattr(fn, '__name__', fn)})")
+    takes_seed = "seed" in params or var_kw
+    if geometry_seed and not takes_seed:
+        raise ValueError(f"geometry_seed=True but build{sig} has no 'seed' parameter")
+    return takes_seed and "seed" in params if geometry_seed is None else bool(geometry_seed)
+
+

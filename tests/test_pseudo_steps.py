@@ -1,0 +1,52 @@
+"""The equilibrium stage's pseudo-steps (`ddatai.start`, docs/method/dda.md §8.12) are a
+fixed-point iteration on the geometry: each solves the static increment at the last one's settled
+shape, without the geometric stiffness of the blocks' own weight. Its increments therefore shrink
+by the ratio of the weight to the buckling weight, q·H³ / (7.837·E·I) for a free-standing column
+under its own weight (Greenhill: the critical height l = 1.986·(E·I/q)^(1/3)), and it stops
+contracting — the stage ends ``unsettled`` — exactly where the column buckles under its weight.
+Checked on stacks of ntdda's soft grid (E = 100 MPa, ρ = 2000 kg/m³), 8 blocks wide, whose
+monolithic critical height is 59.7 m."""
+
+import numpy as np
+import pytest
+
+import ddatai as dd
+from ddatai import start
+from ddatai.model import build_model
+from ddatai.step import Stepper
+from tests.test_start import soft_stack
+
+WIDTH = 8.0          # m
+DENSITY, YOUNG = 2000.0, 1e8
+#: Greenhill's critical height of a clamped column of this width under its own weight [m]
+CRITICAL_HEIGHT = 1.986 * (YOUNG * WIDTH ** 2 / 12.0 / (DENSITY * 9.81)) ** (1.0 / 3.0)
+
+
+def _increments(monkeypatch, height: int) -> tuple[list, object]:
+    increments = []
+    measure = start.block_displacement
+
+    def logged(model, xy, geom, disp):
+        out = measure(model, xy, geom, disp)
+        increments.append(float(out.max(initial=0.0)))
+        return out
+
+    monkeypatch.setattr(start, "block_displacement", logged)
+    scene, params = soft_stack(int(WIDTH), height)
+    model = build_model(scene, params)
+    _, record = start.settle(Stepper(model), model.initial_state())
+    return increments, record
+
+
+@pytest.mark.parametrize("height", [40, 64])
+def test_the_pseudo_steps_contract_by_the_weight_over_the_buckling_weight(monkeypatch, height):
+    """The ratio of the second and third pseudo-steps' increments is (H / l_cr)³ within 10 %
+    (the joints add E/p = 10 % to the blocks' compliance, so the stack is a little softer than a
+    monolithic column): 0.30 at 40 m, which settles, 1.23 at 64 m, where the stage stops
+    contracting and ends unsettled, every block held."""
+    increments, record = _increments(monkeypatch, height)
+    ratio = increments[2] / increments[1]
+    greenhill = (height / CRITICAL_HEIGHT) ** 3
+    assert ratio == pytest.approx(greenhill, rel=0.1)
+    assert record.unsettled == (greenhill > 1.0)
+    assert record.held == int(WIDTH) * height and not record.welded
