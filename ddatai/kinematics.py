@@ -5,6 +5,7 @@ blocks with the same functions.
 """
 
 from __future__ import annotations
+import os
 
 from typing import Optional
 
@@ -101,7 +102,7 @@ def settle_points(model: Model, state: State, geom: dict, disp: np.ndarray) -> S
 
 
 def update(model: Model, state: State, geom: dict, disp: np.ndarray, contacts: Contacts, dt: float,
-           vertex_xy: Optional[np.ndarray] = None) -> State:
+           vertex_xy: Optional[np.ndarray] = None, impact: Optional[np.ndarray] = None) -> State:
     """The state after an accepted step: vertices and points moved (exact rotation, §5.3),
     stresses (§5.4), velocities and accelerations (§5.2), bolts, and the contact memory that
     the next step starts from. ``vertex_xy``: the vertices moved by ``disp``, when already
@@ -114,6 +115,9 @@ def update(model: Model, state: State, geom: dict, disp: np.ndarray, contacts: C
     carried = p.velocity_carry * state.block_velocity
     block_accel = (disp - carried * dt) / (beta * dt * dt) - (0.5 / beta - 1.0) * state.block_accel
     velocity = carried + dt * block_accel
+    if impact is not None and os.environ.get("PLASTIC","1")=="1":
+        velocity[impact] = disp[impact] / dt
+        block_accel[impact] = 0.0
     velocity[m.block_fixed] = 0.0
     block_accel[m.block_fixed] = 0.0
     radius = block_radius(m, state.vertex_xy, geom["centroid"])

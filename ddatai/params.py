@@ -162,6 +162,11 @@ class Params:
     step then grows back towards ``dt`` (at most ``dt_growth`` per step)."""
     dt_max: float = 0.01
     """Largest automatic time step [s]."""
+    impact_overshoot: Optional[float] = 0.01
+    """An automatic or fixed step ends where an open contact closing at the step start's
+    velocities has closed by this fraction of the penetration limit (`time_step.approach_bound`):
+    an impact starts a step with its contact just closed (docs/method/dda.md §4.6). ``None``:
+    no bound [-]."""
     dt_min_ratio: float = 1e-4
     """Smallest time step, as a fraction of ``dt`` (or ``dt_max``) [-]. A step that cannot be
     made to converge above it stops the run with a `SimulationError`."""

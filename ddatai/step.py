@@ -48,7 +48,7 @@ from .open_close import open_close
 from .records import StepRecord, StepTimer
 from .results import SimulationError
 from .solver import SparseSolver
-from .time_step import choose_time_step, end_on
+from .time_step import approach_bound, choose_time_step, end_on
 
 
 class PenaltyWarning(UserWarning):
@@ -157,6 +157,8 @@ class Stepper:
 
         contacts, vec, sca = self.find_contacts(state, geom)
         t0 = timer.add("contacts", t0)
+        bound, closing = approach_bound(model, state, contacts, vec, sca, dt)
+        dt = end_on(max(bound, min(dt, self.shortest_time_step())), state.time, t_end)
 
         cuts = oc_total = 0
         while True:
@@ -173,7 +175,15 @@ class Stepper:
         t0 = _time.perf_counter()
         if self.softening:
             accumulate_slip(model, attempt.contacts, attempt.vec, attempt.displacement)
-        new_state = update(model, state, geom, attempt.displacement, attempt.contacts, dt, attempt.vertex_xy)
+        impact = None
+        if closing.any():
+            hit = closing & (attempt.contacts.state != OPEN)
+            if hit.any():
+                impact = np.zeros(model.n_blocks, bool)
+                impact[attempt.contacts.block_a[hit]] = True
+                impact[attempt.contacts.block_b[hit]] = True
+        new_state = update(model, state, geom, attempt.displacement, attempt.contacts, dt, attempt.vertex_xy,
+                           impact=impact)
         t0 = timer.add("update", t0)
         new_state, energy, work = self.energy_balance(state, new_state, geom, contacts, attempt, dt)
         timer.add("energy", t0)
