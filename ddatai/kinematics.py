@@ -5,7 +5,6 @@ blocks with the same functions.
 """
 
 from __future__ import annotations
-import os
 
 from typing import Optional
 
@@ -115,8 +114,12 @@ def update(model: Model, state: State, geom: dict, disp: np.ndarray, contacts: C
     carried = p.velocity_carry * state.block_velocity
     block_accel = (disp - carried * dt) / (beta * dt * dt) - (0.5 / beta - 1.0) * state.block_accel
     velocity = carried + dt * block_accel
-    if impact is not None and os.environ.get("PLASTIC","1")=="1":
-        velocity[impact] = disp[impact] / dt
+    if impact is not None:
+        # plastic impacts: the impacted blocks leave at the step's mean velocity
+        # (`impacts.plastic_velocity`), their acceleration history ends with the impulse
+        from .impacts import plastic_velocity
+
+        velocity = plastic_velocity(m, geom, disp, velocity, impact, dt)
         block_accel[impact] = 0.0
     velocity[m.block_fixed] = 0.0
     block_accel[m.block_fixed] = 0.0

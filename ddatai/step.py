@@ -48,7 +48,8 @@ from .open_close import open_close
 from .records import StepRecord, StepTimer
 from .results import SimulationError
 from .solver import SparseSolver
-from .time_step import approach_bound, choose_time_step, end_on
+from .impacts import approach_bound
+from .time_step import choose_time_step, end_on
 
 
 class PenaltyWarning(UserWarning):
@@ -176,12 +177,11 @@ class Stepper:
         if self.softening:
             accumulate_slip(model, attempt.contacts, attempt.vec, attempt.displacement)
         impact = None
-        if closing.any():
-            hit = closing & (attempt.contacts.state != OPEN)
-            if hit.any():
-                impact = np.zeros(model.n_blocks, bool)
-                impact[attempt.contacts.block_a[hit]] = True
-                impact[attempt.contacts.block_b[hit]] = True
+        hit = closing & (attempt.contacts.state != OPEN)  # impacts: closing contacts that closed
+        if hit.any():
+            impact = np.zeros(model.n_blocks, bool)
+            impact[attempt.contacts.block_a[hit]] = True
+            impact[attempt.contacts.block_b[hit]] = True
         new_state = update(model, state, geom, attempt.displacement, attempt.contacts, dt, attempt.vertex_xy,
                            impact=impact)
         t0 = timer.add("update", t0)
