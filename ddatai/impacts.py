@@ -27,18 +27,23 @@ from .time_step import choose_time_step
 #: the impact step: this many inverse frequencies √(m/p) of the contact spring, long beside the
 #: spring's period so that the step's implicit solve settles it
 IMPACT_OMEGA = 20.0
-
+#: the step before a closing ends this fraction of an impact step before it: the impact step
+#: then starts at the contact (what the step's mean velocity carries of the flight before it
+#: is this fraction of the approach)
 IMPACT_LEAD = 0.05
 
 
 def approach_bound(model: Model, state: State, contacts, vec: np.ndarray, sca: np.ndarray,
                    dt: float) -> tuple[float, np.ndarray]:
-    """Δt bounded so that no contact closes by more than the allowed overshoot within the step,
-    and no shorter than the impact step: a contact of gap g (0 once closed) closing at rate r
-    (its normal distance's rate at the step start's velocities, e·v_a + g·v_b of
-    docs/method/dda.md §2.8.1) bounds the step to max((g + δ)/r, Ω/ω), δ = ``impact_overshoot``
-    × the penetration limit, ω = √(p/m) the contact spring's frequency with m the lighter free
-    block's mass, Ω = ``IMPACT_OMEGA`` (docs/method/dda.md §4.6)."""
+    """The step's Δt where a contact is about to close (module docstring), and which contacts
+    this step is the impact step of. A contact of gap g (0 once closed) closing at rate r (the
+    rate of its normal distance at the step start's velocities, e·v_a + g·v_b of
+    docs/method/dda.md §2.8.1) closes within the step when r·Δt > g + δ, δ =
+    ``Params.impact_overshoot`` × the penetration limit (a contact at rest does not close).
+    Its impact step is τ = IMPACT_OMEGA/ω, ω = √(p/m) the contact spring's frequency, m the
+    lighter free block's mass. Where it closes later than τ, the step ends IMPACT_LEAD·τ before
+    (in flight); else this is its impact step, τ long (at most the displacement rule's Δt,
+    without its growth limit). Returns (Δt, the contacts impacting)."""
     frac = model.params.impact_overshoot
     none = np.zeros(contacts.n, bool)
     if frac is None or contacts.n == 0 or state.step == 0:
@@ -68,11 +73,10 @@ def approach_bound(model: Model, state: State, contacts, vec: np.ndarray, sca: n
         # in flight: the step ends IMPACT_LEAD of an impact step before the first closing
         return float(min(dt, np.min(t_close[early] - IMPACT_LEAD * impact[early]))), none
     # the impact: a step long beside the contact spring's period, which its implicit solve
-    # then settles (the plastic impact of `kinematics.update`)
-    # at most what the displacement rule allows without the growth limit
+    # settles (the plastic impact of `plastic_velocity`), at most what the displacement rule
+    # allows without its growth limit (a lead step shortened by a closing does not hold it back)
     rule = choose_time_step(model, state.replace(dt=0.0), geom)
     return float(min(rule, impact.max())), closing
-
 
 
 def plastic_velocity(model: Model, geom: dict, disp: np.ndarray, velocity: np.ndarray,

@@ -163,10 +163,11 @@ class Params:
     dt_max: float = 0.01
     """Largest automatic time step [s]."""
     impact_overshoot: Optional[float] = 0.01
-    """An automatic or fixed step ends where an open contact closing at the step start's
-    velocities has closed by this fraction of the penetration limit (`time_step.approach_bound`):
-    an impact starts a step with its contact just closed (docs/method/dda.md §4.6). ``None``:
-    no bound [-]."""
+    """Impacts (`ddatai.impacts`, docs/method/dda.md §4.6): a contact that the step start's
+    velocities close by more than this fraction of the penetration limit within a step is an
+    impact. The step before it ends just before it closes, the impact step is 20/√(p/m) long,
+    and the impacted blocks leave it without a rebound (a plastic impact, Housner's). ``None``:
+    impacts are left to the step as it comes (the integrator's rebound, §5.1) [-]."""
     dt_min_ratio: float = 1e-4
     """Smallest time step, as a fraction of ``dt`` (or ``dt_max``) [-]. A step that cannot be
     made to converge above it stops the run with a `SimulationError`."""
@@ -294,6 +295,7 @@ class Params:
         pos("dt", allow_none=True)
         pos("dt_max")
         pos("penalty", allow_none=True)
+        pos("impact_overshoot", allow_none=True)
         for name in ("penalty_ratio", "shear_ratio", "fixed_point_ratio", "max_displacement_ratio",
                      "open_tolerance", "oc_force_tolerance", "oc_state_tolerance", "penetration_ratio", "angle_tolerance",
                      "dt_min_ratio"):
