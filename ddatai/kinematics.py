@@ -101,7 +101,7 @@ def settle_points(model: Model, state: State, geom: dict, disp: np.ndarray) -> S
 
 
 def update(model: Model, state: State, geom: dict, disp: np.ndarray, contacts: Contacts, dt: float,
-           vertex_xy: Optional[np.ndarray] = None, impact: Optional[np.ndarray] = None) -> State:
+           vertex_xy: Optional[np.ndarray] = None) -> State:
     """The state after an accepted step: vertices and points moved (exact rotation, §5.3),
     stresses (§5.4), velocities and accelerations (§5.2), bolts, and the contact memory that
     the next step starts from. ``vertex_xy``: the vertices moved by ``disp``, when already
@@ -114,13 +114,6 @@ def update(model: Model, state: State, geom: dict, disp: np.ndarray, contacts: C
     carried = p.velocity_carry * state.block_velocity
     block_accel = (disp - carried * dt) / (beta * dt * dt) - (0.5 / beta - 1.0) * state.block_accel
     velocity = carried + dt * block_accel
-    if impact is not None:
-        # plastic impacts: the impacted blocks leave at the step's mean velocity
-        # (`impacts.plastic_velocity`), their acceleration history ends with the impulse
-        from .impacts import plastic_velocity
-
-        velocity = plastic_velocity(m, geom, disp, velocity, impact, dt)
-        block_accel[impact] = 0.0
     velocity[m.block_fixed] = 0.0
     block_accel[m.block_fixed] = 0.0
     radius = block_radius(m, state.vertex_xy, geom["centroid"])

@@ -48,7 +48,7 @@ from .open_close import open_close
 from .records import StepRecord, StepTimer
 from .results import SimulationError
 from .solver import SparseSolver
-from .impacts import approach_bound
+from .impacts import approach_bound, plastic_velocity
 from .time_step import choose_time_step, end_on
 
 
@@ -182,8 +182,14 @@ class Stepper:
             impact = np.zeros(model.n_blocks, bool)
             impact[attempt.contacts.block_a[hit]] = True
             impact[attempt.contacts.block_b[hit]] = True
-        new_state = update(model, state, geom, attempt.displacement, attempt.contacts, dt, attempt.vertex_xy,
-                           impact=impact)
+        new_state = update(model, state, geom, attempt.displacement, attempt.contacts, dt, attempt.vertex_xy)
+        if impact is not None and not self.params.static:
+            # plastic impacts: the impacted blocks leave at the step's mean velocity
+            # (`impacts.plastic_velocity`), their acceleration history ends with the impulse
+            accel = new_state.block_accel.copy()
+            accel[impact] = 0.0
+            new_state = new_state.replace(block_velocity=plastic_velocity(
+                model, geom, attempt.displacement, new_state.block_velocity, impact, dt), block_accel=accel)
         t0 = timer.add("update", t0)
         new_state, energy, work = self.energy_balance(state, new_state, geom, contacts, attempt, dt)
         timer.add("energy", t0)
