@@ -275,11 +275,11 @@ class Params:
     """Taichi backend for contact detection and assembly: "cpu", "gpu" (CUDA/Vulkan/Metal,
     whichever is present) or "cuda"."""
     kernels: str = "auto"
-    """Where a step's per-block and per-contact work runs: "taichi" (the Taichi kernels, on
-    ``arch``), "numpy" (their vectorised NumPy twins: no kernel launch, no Taichi at all) or
-    "auto" (NumPy for a model of at most ``ddatai.model.SMALL_MODEL_BLOCKS`` free blocks on the
-    CPU, where a kernel launch costs more than the work; Taichi otherwise). Both give the same
-    results to round-off (tests compare them)."""
+    """Where a run's work runs: "fused" (`ddatai.fused`: a small model's whole run in one Taichi
+    kernel, many runs side by side), "taichi" (today's step, its per-block and per-contact work in
+    Taichi kernels on ``arch``), "numpy" (today's step in NumPy, no Taichi) or "auto": the fused
+    engine where it pays its kernel (`ddatai.fused.policy`), else NumPy up to ``SMALL_MODEL_BLOCKS``
+    free blocks on the CPU, Taichi beyond; ``Results.meta["engine"]`` says which ran and why."""
 
     def __post_init__(self) -> None:
         def pos(name: str) -> None:
@@ -328,8 +328,8 @@ class Params:
         _require(self.dt_min_ratio < 1.0, f"Params.dt_min_ratio must be < 1, got {self.dt_min_ratio!r}")
         _require(self.solver in ("auto", "scipy", "pardiso", "dense"),
                  f"Params.solver must be 'auto', 'scipy', 'pardiso' or 'dense', got {self.solver!r}")
-        _require(self.kernels in ("auto", "taichi", "numpy"),
-                 f"Params.kernels must be 'auto', 'taichi' or 'numpy', got {self.kernels!r}")
+        _require(self.kernels in ("auto", "taichi", "numpy", "fused"),
+                 f"Params.kernels must be 'auto', 'fused', 'taichi' or 'numpy', got {self.kernels!r}")
         _require(isinstance(self.arch, str) and self.arch in ("cpu", "gpu", "cuda", "vulkan", "metal"),
                  f"Params.arch must be one of 'cpu', 'gpu', 'cuda', 'vulkan', 'metal', got {self.arch!r}")
         _require(isinstance(self.initial_equilibrium, bool),

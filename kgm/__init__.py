@@ -54,6 +54,7 @@ _EXPORTS = {
     "BlockState": "kinds", "BlockStep": "judges.toppling",
     "probabilistic": "studies.probabilistic", "Study": "studies.study", "read_study": "studies.study",
     "sample_variables": "studies.sampling",
+    "SubsetSampling": "studies.rare", "ImportanceSampling": "studies.rare",
     # 3D: wedges and key blocks of a rock slope (docs/kgm/wedge.md)
     "Plane": "wedges.geometry", "wedge": "wedges.slope", "Wedge": "wedges.block",
     "TensionCrack": "wedges.slope", "Support": "wedges.block", "polyhedral_block": "wedges.block",

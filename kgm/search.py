@@ -14,6 +14,7 @@ entry points that run rounds of it are `kgm.analysis`.
 
 from __future__ import annotations
 
+import importlib
 import math
 from dataclasses import dataclass
 from typing import Optional
@@ -26,6 +27,17 @@ from .judges.sarma import evaluate_sarma
 from .kinds import Method
 from .settings import Settings
 from .system import BlockSystem
+
+#: The names this module held before the entry points moved up to `kgm.analysis` and the rows
+#: to `kgm.report`, and their homes now (``module`` or ``module:name``): they resolve on first use (PEP 562), for one release,
+#: so that old imports keep working without the search importing what stands above it.
+FORMER_NAMES = {
+    "analyze": "analysis", "evaluate": "analysis", "factor_of_safety": "analysis",
+    "critical_friction": "analysis", "exhaustive": "analysis",
+    "GroupResult": "report", "Report": "report", "contact_polylines": "report",
+    "build_block_system": "build", "check_group": "faces", "classify_blocks": "judges.rigid",
+    "critical_friction_of": "judges.evaluation", "METHODS": "kinds:METHOD_NAMES",
+}
 
 #: The limit-equilibrium judge of each method that can screen candidates.
 JUDGES = {Method.RIGID: evaluate_rigid, Method.SARMA: evaluate_sarma}
@@ -153,3 +165,12 @@ def _grow_row(system: BlockSystem, group: frozenset, ev: Evaluation, evaluate, s
         if ev2.fs < ev.fs - settings.growth_tolerance and (best is None or ev2.fs < best[1].fs):
             best = (row, ev2)
     return best
+
+
+def __getattr__(name: str):
+    """A former name of this module (`FORMER_NAMES`), from its new home."""
+    home = FORMER_NAMES.get(name)
+    if home is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    module, _, attribute = home.partition(":")
+    return getattr(importlib.import_module(f"kgm.{module}"), attribute or name)

@@ -154,3 +154,43 @@ def jointed_scene(friction=30.0, seed=0):
             scene.set_fixed(b)
     scene.set_joint(dd.Joint(friction=friction))
     return scene
+
+
+#: `incline_scene_killing` kills its process for a friction angle above this [degrees]
+KILL_ABOVE = 44.17
+#: environment variable naming a file: `incline_scene_dies_once` kills its process while the file
+#: does not exist (and creates it)
+DIE_ONCE = "KGM_CASES_DIE_ONCE"
+
+
+def incline_scene_killing(friction=30.0, cohesion=0.0):
+    """`incline_scene`, except that a sample with friction above `KILL_ABOVE` kills the worker
+    process that builds it, every time (a sample that always crashes its worker)."""
+    if friction > KILL_ABOVE:
+        from worker_cases import kill_this_worker
+
+        kill_this_worker()
+    return incline_scene(friction=friction, cohesion=cohesion)
+
+
+def incline_scene_dies_once(friction=30.0, cohesion=0.0):
+    """`incline_scene`, except that the first sample with friction above 40° built while the
+    file named by `DIE_ONCE` does not exist creates it and kills its worker (a worker lost once,
+    to a cause outside the sample)."""
+    import os
+
+    mark = os.environ.get(DIE_ONCE)
+    if mark and friction > 40.0 and not os.path.exists(mark):
+        open(mark, "w").close()
+        from worker_cases import kill_this_worker
+
+        kill_this_worker()
+    return incline_scene(friction=friction, cohesion=cohesion)
+
+
+def planar_scene(friction=30.0, cohesion=25e3):
+    """`planar_slope` (H = 20 m, face 60°, plane 30°, crack 5 m) as a ``build(**sample) ->
+    Scene`` for probabilistic studies: the sliding block is block 0, FS = `hoek_bray_fs`."""
+    scene, block = planar_slope(friction=friction, cohesion=cohesion)
+    assert block == 0
+    return scene

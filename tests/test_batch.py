@@ -215,11 +215,12 @@ def test_a_batch_whose_step_cuts_dt_judges_its_members_again():
     """With a fixed Δt of 40 ms the block at φ = 5° accelerates until a step moves it too far and
     Δt is cut: its batch no longer takes the steps the others take alone, so the members not yet
     decided are judged again (in halves): every verdict, step count and displacement is still its
-    own run's."""
+    own run's. (Today's side-by-side batch, ``Params(kernels="numpy")``: the fused engine runs
+    every member alone, tests/test_fused.py.)"""
     scene, _, b = kgm_cases.block_on_incline(theta=THETA, width=2.0, height=1.0, friction=35.0, cohesion=0.0)
     system = build_block_system(scene)
     settings = kgm.DdaSettings(duration=1.5, stop_ratio=400.0)
-    params = dd.Params(dt=0.04)
+    params = dd.Params(dt=0.04, kernels="numpy")
     probes = [(5.0, 1.0), (29.5, 1.0), (40.0, 1.0), (25.0, 1.0)]
     many = judge_members([Member(scene=scene, system=system, friction=f, reduction=r) for f, r in probes],
                          frozenset([b]), settings=settings, params=params, exact=True)

@@ -79,3 +79,32 @@ def test_the_gif_of_a_dda_analysis_runs_the_analysed_problem(monkeypatch):
     monkeypatch.setattr(ddatai.render, "write_gif", lambda res, path, **kw: seen.update(kw, blocks=res.n_blocks))
     write_result_gif("unused.gif", scene, SimpleNamespace(method="dda", critical=crit), None, settings)
     assert seen["blocks"] == 2 and list(seen["labels"]) == [-1, 0]
+
+
+def test_analyze_takes_the_contact_gap(tmp_path, capsys):
+    """``--contact-gap M`` is `kgm.Settings.contact_gap`: a 10 × 1 m block drawn 5 cm above its
+    30° plane (φ 35°, c 20 kPa) is free of it with the default gap (a lifting group, FS 0) and
+    rests on it at 6 cm, where its FS is the plane's closed form (tan φ + c·L/(W cos θ)) /
+    tan θ; a negative gap is refused in one line."""
+    import math
+
+    script = tmp_path / "block_above.py"
+    script.write_text(
+        "import sys\n"
+        f"sys.path.insert(0, {str(ROOT / 'tests')!r})\n"
+        "from kgm_cases import block_above_incline\n"
+        "def build():\n"
+        "    return block_above_incline(0.05)\n")
+    from kgm_cases import ROCK
+
+    weight = ROCK.density * 9.81 * 10.0
+    theta = math.radians(30.0)
+    exact = (math.tan(math.radians(35.0)) + 20e3 * 10.0 / (weight * math.cos(theta))) / math.tan(theta)
+    out = io.StringIO()
+    assert main(["analyze", str(script), "--method", "rigid"], out=out) == 0
+    assert "critical friction 90.00°, mode lifting, unstable" in out.getvalue()
+    out = io.StringIO()
+    assert main(["analyze", str(script), "--method", "rigid", "--contact-gap", "0.06"], out=out) == 0
+    assert f"critical key group [1]: FS {exact:.3f}" in out.getvalue()
+    assert main(["analyze", str(script), "--contact-gap", "-1"], out=io.StringIO()) == 2
+    assert "contact_gap must be None or a distance >= 0 m" in capsys.readouterr().err

@@ -145,9 +145,11 @@ def _start(monkeypatch, with_updates: bool):
     return record, stepper.solver.updated, state
 
 
+@pytest.mark.slow
 @needs_cholmod
 def test_the_start_holds_and_releases_the_same_blocks_with_and_without_updates(monkeypatch):
-    """`scenes/jointed_slope.py`'s equilibrium stage on the sparse path, ``Params(factor_updates=True)``:
+    """(Slow profile: two starts of the 75-block slope, ~30 s on 2 cores.)
+    `scenes/jointed_slope.py`'s equilibrium stage on the sparse path, ``Params(factor_updates=True)``:
     with CHOLMOD's updates
     (most of its solves after a contact opens or closes update the factor) it holds and releases
     the same blocks as with a factorisation at every change (50 held, the 25 that limit

@@ -10,6 +10,7 @@ calling the search, the analyses, the studies or the command line above it.
 * `kgm.judges.sarma` – their statics, FS and critical friction (SKGM);
 * `kgm.judges.toppling` – the Goodman–Bray recursion of a toppling row;
 * `kgm.judges.run` – one DDA run of a group and its verdict (`RunPlan`, `run_judgement`);
-* `kgm.judges.batch` – many DDA runs side by side in one model;
+* `kgm.judges.fused` – many DDA runs in one launch of the fused engine, one thread each;
+* `kgm.judges.batch` – many DDA runs side by side in one model (or on the fused engine);
 * `kgm.judges.dda` – the factor of safety and critical friction on DDA verdicts.
 """

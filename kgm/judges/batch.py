@@ -23,6 +23,7 @@ from ..kinds import RunEnd
 from ..settings import DdaSettings
 from ..strength import Strength
 from ..system import BlockSystem
+from .fused import judge_fused
 from .run import (Report, RestCounter, RunPlan, StopRun, block_displacements, block_speeds, run_judgement, sub_scene,
                   verdict)
 
@@ -81,6 +82,11 @@ def judge_members(members, blocks: frozenset, *, settings: DdaSettings, params: 
     for the members that had not failed when a batched run diverged. ``report`` is called with
     each judgement as it is made. Returns the judgements in the order of ``members``.
     """
+    # the fused engine (ddatai.fused) where it pays: every member in its own thread of one launch,
+    # as alone (exact by construction)
+    fused = judge_fused(members, blocks, settings=settings, params=params, removed=removed, report=report)
+    if fused is not None:
+        return fused
     from ddatai.batch import batch_model, combined_state, member_constants, member_states, side_by_side
     from ddatai.model import build_model
     from ddatai.results import SimulationError

@@ -32,11 +32,13 @@ import functools
 import inspect
 import math
 import time
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Mapping, Optional
 
 import numpy as np
+from ddatai.workers import WorkerLost
 
 from ..analysis import analyze_problem, evaluate_group
 from ..build import Problem, prepare
@@ -45,8 +47,14 @@ from ..judges.dda import dda_evaluation
 from ..kinds import METHOD_NAMES, Method, Sampling
 from ..report import GroupResult
 from ..settings import DdaSettings, Settings
-from .sampling import sample_seeds, sample_variables
-from .study import SampleRow, Study, StudyFile, read_samples, reliability_index, study_table
+from .rare import Transform, rare_sampling, rare_study
+from .sampling import _check_sampling, sample_seeds, sample_variables
+from .study import SampleRow, Study, StudyFile, monte_carlo_cov, pf_of, read_samples, reliability_index, study_table
+
+#: most DDA samples judged side by side in one batch of a study: a batch's verdicts are saved
+#: when it ends, about every 5 s of a worker's time on Example II (40 samples a batch cost ~15 %
+#: more a sample than 80, measured on 2 workers) [-]
+SAVED_BATCH = 40
 
 # ---------------------------------------------------------------------- one sample
 @dataclass(frozen=True)
@@ -172,9 +180,14 @@ def probabilistic(build, variables: Mapping, n: int, *, method: str = Method.SAR
         top level of an importable module, or the path of a scene script (its ``build``).
     variables : name -> frozen `scipy.stats` distribution (normal, lognormal, truncated normal,
         uniform, triangular...) or a constant; each name is a keyword argument of ``build``.
-    n : samples.
+    n : samples (subset simulation: samples a level; importance sampling: importance samples,
+        after FORM's evaluations).
     method : evaluator of each sample's critical group: 'rigid', 'sarma' or 'dda'.
-    sampling : 'monte-carlo' or 'latin-hypercube'.
+    sampling : 'monte-carlo' or 'latin-hypercube'; for small probabilities of failure
+        'subset' (subset simulation) or 'importance' (FORM, then importance sampling at its
+        design point), or their settings `kgm.SubsetSampling` / `kgm.ImportanceSampling`
+        (`kgm.studies.rare`, docs/kgm/reliability.md): the limit state FS − 1, under DDA the
+        strength-reduction factor of every sample.
     seed : seed of the study (the samples and the per-sample seeds follow from it).
     correlation : {(name1, name2): ρ} between sampled variables (Gaussian copula).
     group : evaluate this group of blocks in every sample instead of searching for the
@@ -189,7 +202,8 @@ def probabilistic(build, variables: Mapping, n: int, *, method: str = Method.SAR
         same study is resumed (its samples are not run again).
     geometry_seed : pass each sample's seed to ``build(seed=...)`` (a new joint-set
         realisation per sample); None: when ``build`` has a ``seed`` parameter.
-    progress : called as ``progress(done, n)`` after each completed sample.
+    progress : called as ``progress(done, n)`` after each completed sample (subset and
+        importance sampling: ``progress(evaluations, None)``, their number not known ahead).
     dda_fs : with ``method="dda"``, also find each sample's FS by strength reduction (several
         DDA runs a sample); by default only the verdict at the sample's strength (one run),
         which is all P_f needs, and ``fs`` is nan.
@@ -210,6 +224,11 @@ def probabilistic(build, variables: Mapping, n: int, *, method: str = Method.SAR
     if settings is not None:
         if not isinstance(settings, Settings):
             raise ValueError(f"settings must be a kgm.Settings, got {type(settings).__name__}")
+    options = rare_sampling(sampling)
+    if options is not None:  # subset simulation, importance sampling
+        return _rare(build, variables, n, options, method=method, seed=seed, correlation=correlation, group=group,
+                     settings=settings, client=client, workers=workers, out=out, geometry_seed=geometry_seed,
+                     progress=progress, t0=t0)
     pass_seed = _check_build(build, variables, geometry_seed)
     samples = sample_variables(variables, n, sampling=sampling, seed=seed, correlation=correlation)
     seeds = sample_seeds(seed, n)
@@ -233,18 +252,23 @@ def probabilistic(build, variables: Mapping, n: int, *, method: str = Method.SAR
         if method is Method.DDA and not dda_fs else 1
     if size > 1:
         # one batch a worker or more (a larger batch shares a step among more samples: per
-        # sample a batch of 128 costs a fifth of one of 16); none larger than asked
+        # sample a batch of 128 costs a fifth of one of 16); none larger than asked, nor than
+        # SAVED_BATCH: a batch's samples reach the file when the batch ends
         sharing = 1 if client is None and workers == 1 else _n_workers(client, workers)
-        size = max(1, min(size, -(-len(items) // sharing)))
+        size = max(1, min(size, SAVED_BATCH, -(-len(items) // sharing)))
         batches = [tuple(items[i:i + size]) for i in range(0, len(items), size)]
-        results = run(functools.partial(_evaluate_batch, job), [(b[0][0], b) for b in batches],
-                      client=client, workers=workers, chunk=1)
-        flat = (row for _, rows in results for row in rows)
+        flat = _rows_of_batches(run(functools.partial(_evaluate_batch, job), [(b[0][0], b) for b in batches],
+                                    client=client, workers=workers, chunk=1, split=_split_batch))
     else:
         flat = run(functools.partial(_evaluate, job), [(it[0], it) for it in items], client=client, workers=workers)
     writer = StudyFile(Path(out), identity, names) if out is not None else None
+    by_index = {it[0]: it for it in items}
     try:
         for index, row in flat:
+            if isinstance(row, WorkerLost):
+                warnings.warn(f"kgm.probabilistic: sample {index} ({_describe(by_index[index][1])}, seed "
+                              f"{int(seeds[index])}) recorded as lost: {row}", RuntimeWarning, stacklevel=2)
+                row = SampleRow.given_up()
             done[index] = row
             if writer is not None:
                 writer.append(index, int(seeds[index]), [samples[k][index] for k in names], row)
@@ -254,9 +278,48 @@ def probabilistic(build, variables: Mapping, n: int, *, method: str = Method.SAR
         if writer is not None:
             writer.close()
     table = study_table(n, names, samples, seeds, done)
-    return Study(n=n, pf=float(np.mean(table["failed"])), beta=reliability_index(table["fs"]), table=table,
-                 variables=names, method=method, sampling=sampling, seed=seed, resumed=resumed,
-                 wall_time=time.perf_counter() - t0)
+    return Study(n=n, pf=pf_of(table), beta=reliability_index(table["fs"]), table=table, variables=names,
+                 method=method, sampling=sampling, seed=seed, resumed=resumed,
+                 wall_time=time.perf_counter() - t0, pf_cov=monte_carlo_cov(table), evaluations=n)
+
+
+def _rare(build, variables: Mapping, n: int, options, *, method: Method, seed: int, correlation, group, settings,
+          client, workers, out, geometry_seed, progress, t0: float) -> Study:
+    """Subset simulation or importance sampling (`kgm.studies.rare`) on this module's samples:
+    each evaluation a sample as `_evaluate` runs it, under DDA with its FS by strength
+    reduction (the limit state; a verdict alone gives the estimators nothing to climb)."""
+    from ddatai.parallel import plan
+
+    _check_sampling(variables, n, Sampling.MONTE_CARLO, correlation)
+    if geometry_seed:
+        raise ValueError(f"geometry_seed=True with sampling={options.name.value!r}: a new joint realisation per "
+                         "sample is not a variable of the limit state these estimators follow; use Monte Carlo")
+    _check_build(build, variables, False)
+    transform = Transform(variables, correlation)
+    if transform.dim == 0:
+        raise ValueError(f"sampling={options.name.value!r} needs at least one variable with a distribution")
+    group = None if group is None else frozenset(int(b) for b in group)
+    job = _Job(build=build, method=method, settings=settings, group=group, pass_seed=False,
+               dda_fs=method is Method.DDA)
+    fn = functools.partial(_evaluate, job)
+    workers = plan(fn, client=client, workers=workers, cost="heavy" if method is Method.DDA else "light",
+                   caller="kgm.probabilistic")
+    return rare_study(fn, transform, options, n, method=method, seed=seed, group=group, client=client,
+                      workers=workers, out=out, progress=progress, describe=_describe, t0=t0)
+
+
+def _split_batch(batch: tuple) -> list:
+    """A batch of samples as its single samples (run alone after a worker died running it)."""
+    return [(item[0], (item,)) for item in batch]
+
+
+def _rows_of_batches(results):
+    """(index, row) of each sample of each batch's results; a lost one as it comes."""
+    for index, rows in results:
+        if isinstance(rows, WorkerLost):
+            yield index, rows
+        else:
+            yield from rows
 
 
 def _n_workers(client, workers: Optional[int]) -> int:

@@ -19,10 +19,10 @@ from typing import Mapping, Optional
 
 import numpy as np
 
-from ..kinds import SAMPLINGS, Sampling
+from ..kinds import DRAWN_SAMPLINGS, SAMPLINGS, Sampling
 
 #: names a variable cannot take: the other columns of a study's table
-RESERVED = ("seed", "index", "fs", "failed", "critical")
+RESERVED = ("seed", "index", "fs", "failed", "critical", "lost")
 
 
 def sample_variables(variables: Mapping, n: int, *, sampling: str = Sampling.MONTE_CARLO, seed: int = 0,
@@ -89,6 +89,10 @@ def _check_sampling(variables, n, sampling, correlation) -> None:
         raise ValueError(f"n (number of samples) must be an integer >= 1, got {n!r}")
     if sampling not in SAMPLINGS:
         raise ValueError(f"sampling must be one of {SAMPLINGS}, got {sampling!r}")
+    if sampling not in DRAWN_SAMPLINGS:
+        raise ValueError(f"sample_variables draws {', '.join(map(repr, map(str, DRAWN_SAMPLINGS)))} samples; "
+                         f"{sampling!r} samples are drawn by their estimator as it goes (kgm.probabilistic, "
+                         "docs/kgm/reliability.md)")
     if correlation is not None and not isinstance(correlation, Mapping):
         raise ValueError("correlation must be a mapping {(name1, name2): rho}")
 
