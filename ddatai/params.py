@@ -162,6 +162,8 @@ class Params:
     step then grows back towards ``dt`` (at most ``dt_growth`` per step)."""
     dt_max: float = 0.01
     """Largest automatic time step [s]."""
+    impact_overshoot: Optional[float] = 0.01
+    """Impacts: closing past this × the penetration limit (`ddatai.impacts`; None: off) [-]."""
     dt_min_ratio: float = 1e-4
     """Smallest time step, as a fraction of ``dt`` (or ``dt_max``) [-]. A step that cannot be
     made to converge above it stops the run with a `SimulationError`."""
@@ -280,18 +282,15 @@ class Params:
     free blocks on the CPU, Taichi beyond; ``Results.meta["engine"]`` says which ran and why."""
 
     def __post_init__(self) -> None:
-        def pos(name: str, allow_none: bool = False) -> None:
+        def pos(name: str) -> None:
             v = getattr(self, name)
-            if v is None and allow_none:
+            if v is None and name in ("dt", "penalty", "impact_overshoot"):  # None: automatic / off
                 return
             _require(_finite(v) and v > 0, f"Params.{name} must be a finite number > 0, got {v!r}")
 
-        pos("dt", allow_none=True)
-        pos("dt_max")
-        pos("penalty", allow_none=True)
-        for name in ("penalty_ratio", "shear_ratio", "fixed_point_ratio", "max_displacement_ratio",
+        for name in ("dt", "penalty", "impact_overshoot", "penalty_ratio", "shear_ratio", "fixed_point_ratio", "max_displacement_ratio",
                      "open_tolerance", "oc_force_tolerance", "oc_state_tolerance", "penetration_ratio", "angle_tolerance",
-                     "dt_min_ratio"):
+                     "dt_min_ratio", "dt_max"):
             pos(name)
         _require(_finite(self.dt_growth) and self.dt_growth >= 1.0,
                  f"Params.dt_growth must be >= 1, got {self.dt_growth!r}")
