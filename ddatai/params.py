@@ -163,7 +163,7 @@ class Params:
     dt_max: float = 0.01
     """Largest automatic time step [s]."""
     impact_overshoot: Optional[float] = 0.01
-    """Impacts: closing past this × the penetration limit (`ddatai.impacts`; None: off) [-]."""
+    """Impacts: closing past this × the penetration limit (``ddatai.impacts``; None: off) [-]."""
     dt_min_ratio: float = 1e-4
     """Smallest time step, as a fraction of ``dt`` (or ``dt_max``) [-]. A step that cannot be
     made to converge above it stops the run with a `SimulationError`."""

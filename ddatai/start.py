@@ -119,7 +119,7 @@ MAX_PSEUDO_STEPS = 8
 #: fraction of the load that a contact's blocks carry
 BALANCE_ROUNDOFF = 1e-12
 #: a held block that the stage settled into a released block deeper than this fraction of the
-#: penetration limit is released too (`mechanisms.sunk_into_released`): ~1e-5·w0, far beyond a
+#: penetration limit is released too (``mechanisms.sunk_into_released``): ~1e-5·w0, far beyond a
 #: held block's elastic settlement towards a neighbour and far below an overlap that kicks
 SUNK_FRACTION = 0.01
 #: a pseudo-step whose increment is at least this fraction of the last one's does not contract:

@@ -2,7 +2,7 @@
 
 A worker process can die in the middle of an item: the kernel's out-of-memory killer, a crash
 in a native library, a user's ``kill``. `concurrent.futures.ProcessPoolExecutor` then breaks as
-a whole (`BrokenProcessPool`): every pending item fails, including those running on the other,
+a whole (``BrokenProcessPool``): every pending item fails, including those running on the other,
 healthy workers, and a study saves nothing of them. Here each worker holds one chunk at a time
 over its own pipe and sends back each item's result as it completes, so the parent knows, when
 a worker dies, exactly which item was running on it:

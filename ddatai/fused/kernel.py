@@ -7,7 +7,7 @@ After each accepted step a member records, in its region of ``hist``, its time a
 displacement of its group's blocks from the model's start (the mean displacement of a block's
 vertices; `kgm`'s measure), then stops when that displacement passes its stop distance
 (``STOP_MOVED``) or when its free blocks have moved slower than its rest speed for its rest
-steps (``STOP_REST``, `kgm.judgement.RestCounter`). The kernel compiles once for every model size:
+steps (``STOP_REST``, ``kgm.judgement.RestCounter``). The kernel compiles once for every model size:
 sizes and capacities are the arrays' (runtime) shapes and the members' offsets.
 """
 

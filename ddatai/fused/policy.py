@@ -7,7 +7,7 @@ marker beside it once the kernel has run, so that "auto" knows a run will not pa
 A single `ddatai.simulate` of at most ``FUSED_BLOCKS`` free blocks then runs fused; without the
 compiled kernel, only a run long enough to pay ``COMPILE_SECONDS`` does. Batches of members
 (``ddatai.fused.engine.run``: kgm's bisections and studies) run fused once the kernel is in the
-process, or where they are long enough to pay its load or compile (`choose_batch`).
+process, or where they are long enough to pay its load or compile (``choose_batch``).
 """
 
 from __future__ import annotations

@@ -280,7 +280,7 @@ def pair_contacts(xy: ti.template(), vnext: ti.template(), vprev: ti.template(),
                   d0, d9, sin_h1, h1, out_int: ti.template(), out_len: ti.template(),
                   count: ti.template(), slot, base, cap):
     """The contacts of the block pair whose vertices are ``a0:a1`` (A) and ``b0:b1`` (B), by
-    Shi's rules (docs/method/dda.md §3.3–3.6), appended to an output region (`_emit`)."""
+    Shi's rules (docs/method/dda.md §3.3–3.6), appended to an output region (``_emit``)."""
     # 1. vertex pairs closer than d0 (mutual nearest): vertex-vertex rules
     for ia in range(a0, a1):
         P = _pt(xy, ia)

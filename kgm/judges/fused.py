@@ -5,7 +5,7 @@ the kernel: past ``stop_ratio``·δ (stopped early), at rest for ``rest_steps`` 
 The verdict is taken from each run's history as `kgm.judges.run.run_judgement` takes it. A
 member whose step leaves what the engine does goes on on today's path from that step's start.
 
-Which engine judges a batch is `ddatai.fused.policy.choose_batch`'s: "fused" always, "auto"
+Which engine judges a batch is ``ddatai.fused.policy.choose_batch``'s: "fused" always, "auto"
 where the batch pays the kernel (in the process already, loaded from Taichi's offline cache, or
 compiled the first time on the machine; docs/guide/performance.md).
 

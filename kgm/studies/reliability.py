@@ -189,7 +189,7 @@ def subset_simulation(g: Callable, dim: int, *, n: int = 1000, p0: float = 0.1, 
 
     ``n`` samples a level; ``p0`` the levels' conditional probability (n·p0 chains of 1/p0
     states: both must be whole numbers); ``proposal`` each component's proposal in the
-    modified Metropolis chains, 'conditional' or 'random-walk' (`_propose`); ``spread`` its
+    modified Metropolis chains, 'conditional' or 'random-walk' (``_propose``); ``spread`` its
     standard deviation σ ≤ 1 [-], None: adapted (the seeds' standard deviation per component
     times a factor that follows the chains' acceptance towards `ACCEPTANCE`);
     ``max_levels`` the most levels; ``progress(level)`` is called with each `Level` as it
