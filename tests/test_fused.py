@@ -28,19 +28,7 @@ from ddatai.model import build_model
 from ddatai.start import settle
 from ddatai.step import Stepper
 from scenes import example_1
-
-
-def dropped_grid(n: int = 3):
-    """n × n stiff blocks dropped 5 mm onto a fixed base: impacts, sliding, lock-slide changes."""
-    s = dd.Scene(gravity=9.81)
-    rock = dd.Material(density=2500.0, young=5e9, poisson=0.25)
-    s.add_block([(-1, -1), (n + 1, -1), (n + 1, 0), (-1, 0)], material=rock, fixed=True)
-    for j in range(n):
-        for i in range(n):
-            y = 0.005 + j * 1.001
-            s.add_block([(i, y), (i + 1, y), (i + 1, y + 1), (i, y + 1)], material=rock)
-    s.set_joint(dd.Joint(friction=30.0))
-    return s, dd.Params(dt=1e-3)
+from test_small_models import dropped_grid
 
 
 def _numpy_run(model, state, steps):
