@@ -14,7 +14,6 @@ workers or on the order in which samples complete.
 from __future__ import annotations
 
 import math
-from pathlib import Path
 from typing import Mapping, Optional
 
 import numpy as np
@@ -171,19 +170,6 @@ def variables_from_mapping(spec: Mapping) -> tuple[dict, dict]:
 
 def read_variables(path) -> tuple[dict, dict]:
     """`variables_from_mapping` of a TOML file."""
-    try:
-        import tomllib
-    except ImportError:  # Python 3.10
-        try:
-            import tomli as tomllib
-        except ImportError as exc:
-            raise ValueError("reading a variables file needs Python 3.11 (tomllib) or pip install tomli") from exc
-    path = Path(path)
-    if not path.is_file():
-        raise ValueError(f"variables file not found: {path}")
-    with open(path, "rb") as fh:
-        try:
-            spec = tomllib.load(fh)
-        except tomllib.TOMLDecodeError as exc:
-            raise ValueError(f"{path}: not valid TOML: {exc}") from None
-    return variables_from_mapping(spec)
+    from ddatai.io.tomlfile import read_toml
+
+    return variables_from_mapping(read_toml(path, "variables file"))
