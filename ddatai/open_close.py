@@ -35,6 +35,7 @@ import numpy as np
 from scipy.sparse import csr_matrix
 
 from .assembly import BlockPattern, assemble_contacts, second_order
+from .lever_arm import midstep_lever_arms, with_lever_arms
 from .contact_law import ContactLaw, contact_law, internal_force, judge, violations
 from .contacts import Contacts
 from .layout import KIND, LOCK, OPEN, SLIDE, VV
@@ -71,6 +72,11 @@ class OpenClose:
     coulomb: float = 0.0
     """Largest |shear force| − Coulomb strength N·tanφ + c·L of a closed contact in the last
     solve [N/m] (when converged)."""
+    vec: Optional[np.ndarray] = None
+    """The contact vectors of the last solve, with their mid-step lever arms (when converged)."""
+    system: Optional[tuple] = None
+    """(K's CSR data, whether K is symmetric) of the last solve (when converged; the impact
+    velocity's projection solves with it, `ddatai.impacts`)."""
 
 
 def solve(stepper, pattern: BlockPattern, data: np.ndarray, rhs: np.ndarray,
@@ -117,10 +123,15 @@ def open_close(stepper, state: State, geom: dict, contacts: Contacts, pattern: B
     seen = {contacts.state.tobytes(): 0}  # each set of states tried, and when (`hold_cycling`)
     history = [contacts.state.copy()]
     held = np.zeros(contacts.n, bool)
+    start_vec = vec  # the contact vectors at the step's start; each solve's have its lever arms
     for it in range(1, max_iterations + 1):
         t0 = _time.perf_counter()
         data, rhs = data0.copy(), rhs0.copy()
         shift = second_order(model, contacts, state, geom, rotation, rhs)
+        # the contacts' lever arms at mid-step (`ddatai.lever_arm`, §5.3)
+        columns, lever_shift = midstep_lever_arms(model, contacts, state.vertex_xy, geom["centroid"], rotation)
+        vec = with_lever_arms(start_vec, columns)
+        shift += lever_shift
         block_rhs = rhs.copy()
         assemble_contacts(model, contacts, pattern, vec, sca + shift, data, rhs, stepper.serial_scatter)
         t0 = timer.add("assembly", t0)
@@ -163,7 +174,8 @@ def open_close(stepper, state: State, geom: dict, contacts: Contacts, pattern: B
             verdict = replace(verdict, changed=True)  # solved again without the tension's friction
         if not verdict.changed and disp is solution:
             return OpenClose(displacement=disp, iterations=it, converged=True, changing=verdict.bad,
-                             friction=verdict.friction, coulomb=verdict.coulomb)
+                             friction=verdict.friction, coulomb=verdict.coulomb, vec=vec,
+                             system=(data, symmetric))
         previous = disp
         if hold_cycles:
             hold_cycling(contacts, seen, history, held)

@@ -40,15 +40,16 @@ from .assembly import BlockPattern, assemble_blocks, contact_vectors, load_force
 from .contact_law import accumulate_slip
 from .contacts import Contacts, _Buffers, detect_contacts
 from .diagnosis import failure_message
+from .geometry import mass_matrix
 from .energy import state_energy, step_work
 from .kinematics import max_vertex_displacement, move_points, newmark_beta, update
 from .layout import KIND, LOCK, OPEN, SLIDE, VV
 from .model import Model, State
-from .open_close import open_close
+from .open_close import open_close, solve
 from .records import StepRecord, StepTimer
 from .results import SimulationError
 from .solver import SparseSolver
-from .impacts import approach_bound, plastic_velocity
+from .impacts import approach_bound, impacted, plastic_start
 from .time_step import choose_time_step, end_on
 
 
@@ -87,6 +88,7 @@ class Attempt:
     culprit_force: float = 0.0             # normal force of the deepest contact [N/m] (inverted: the block's largest step strain)
     culprit_start: float = 0.0             # penetration of the deepest contact at the step's start [m]
     changing: int = 0                      # contacts still changing state (open-close failure)
+    system: Optional[tuple] = None         # (K's CSR data, symmetric) of the accepted solve
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -173,23 +175,19 @@ class Stepper:
             cuts += 1
             dt = self.shorter_time_step(attempt, state, dt)
 
+        start = state
+        impact = impacted(model, closing, attempt.contacts)
+        if impact.any() and not self.params.static:
+            # a plastic impact at the step's start (`ddatai.impacts`): the impacted blocks take
+            # the step again from their velocity projected onto what its closed contacts admit
+            start = plastic_start(state, self.impact_projection(state, geom, attempt, dt), impact)
+            again = self.attempt(start, geom, contacts, vec, sca, dt, timer)
+            oc_total += again.iterations
+            start, attempt = (start, again) if again.ok else (state, attempt)
         t0 = _time.perf_counter()
         if self.softening:
             accumulate_slip(model, attempt.contacts, attempt.vec, attempt.displacement)
-        impact = None
-        hit = closing & (attempt.contacts.state != OPEN)  # impacts: closing contacts that closed
-        if hit.any():
-            impact = np.zeros(model.n_blocks, bool)
-            impact[attempt.contacts.block_a[hit]] = True
-            impact[attempt.contacts.block_b[hit]] = True
-        new_state = update(model, state, geom, attempt.displacement, attempt.contacts, dt, attempt.vertex_xy)
-        if impact is not None and not self.params.static:
-            # plastic impacts: the impacted blocks leave at the step's mean velocity
-            # (`impacts.plastic_velocity`), their acceleration history ends with the impulse
-            accel = new_state.block_accel.copy()
-            accel[impact] = 0.0
-            new_state = new_state.replace(block_velocity=plastic_velocity(
-                model, geom, attempt.displacement, new_state.block_velocity, impact, dt), block_accel=accel)
+        new_state = update(model, start, geom, attempt.displacement, attempt.contacts, dt, attempt.vertex_xy)
         t0 = timer.add("update", t0)
         new_state, energy, work = self.energy_balance(state, new_state, geom, contacts, attempt, dt)
         timer.add("energy", t0)
@@ -205,6 +203,22 @@ class Stepper:
             # change is no work done in a step)
             new_state = new_state.replace(energy=None)
         return StepOutcome(state=new_state, record=record, contacts=attempt.contacts, friction=attempt.friction)
+
+    def impact_projection(self, state: State, geom: dict, attempt: Attempt, dt: float) -> np.ndarray:
+        """(B, 6) the velocity the step started with (carried, k·v), projected onto what the
+        accepted solve's closed contacts admit: K⁻¹·(ρM/(βΔt²))·k·v with the solve's K (the
+        mass-metric projection as p → ∞, `ddatai.impacts`); one more solve with its factor."""
+        model = self.model
+        data, symmetric = attempt.system
+        beta = newmark_beta(self.params, state)
+        free = self.free_idx
+        mass = model.block_density[free, None, None] * mass_matrix(
+            geom["area"][free], geom["s1"][free], geom["s2"][free], geom["s3"][free])
+        carried = self.params.velocity_carry * state.block_velocity[free]
+        rhs = np.zeros(6 * self.pattern.n_rows)
+        rows = model.block_dof[free].astype(np.int64)
+        rhs[(6 * rows)[:, None] + np.arange(6)] = np.einsum("nij,nj->ni", mass, carried) / (beta * dt * dt)
+        return solve(self, self.pattern, data, rhs, symmetric=symmetric, reuse=True)
 
     def follow_load(self, attempt: Attempt) -> bool:
         """Raise the automatic penalty (``Params.penalty = None``) for the rest of the run when
@@ -285,7 +299,7 @@ class Stepper:
             return Attempt(ok=False, cause="open-close", iterations=oc.iterations, culprits=pairs,
                            changing=len(bad))
         t0 = _time.perf_counter()
-        accepted = self.accept(state, geom, contacts, vec, oc, start_dn=contacts0.dn)
+        accepted = self.accept(state, geom, contacts, vec if oc.vec is None else oc.vec, oc, start_dn=contacts0.dn)
         timer.add("accept", t0)
         return accepted
 
@@ -308,7 +322,7 @@ class Stepper:
         ratio = umax / m.max_step
         result = Attempt(ok=True, displacement=disp, vertex_xy=moved_xy, contacts=contacts, iterations=oc.iterations,
                          max_displacement=umax, max_penetration=max(pen, 0.0), ratio=ratio,
-                         friction=oc.friction, vec=vec, coulomb=oc.coulomb)
+                         friction=oc.friction, vec=vec, coulomb=oc.coulomb, system=oc.system)
         if ratio > p.displacement_reject:
             return replace(result, ok=False, cause="displacement")
         # a block that the step turns inside out (its area (1+εx)(1+εy) − (γxy/2)² times the
