@@ -322,7 +322,7 @@ class Stepper:
         ratio = umax / m.max_step
         result = Attempt(ok=True, displacement=disp, vertex_xy=moved_xy, contacts=contacts, iterations=oc.iterations,
                          max_displacement=umax, max_penetration=max(pen, 0.0), ratio=ratio,
-                         friction=oc.friction, vec=vec, coulomb=oc.coulomb, system=oc.system)
+                         friction=oc.friction, vec=vec, coulomb=oc.coulomb, system=getattr(oc, "system", None))
         if ratio > p.displacement_reject:
             return replace(result, ok=False, cause="displacement")
         # a block that the step turns inside out (its area (1+εx)(1+εy) − (γxy/2)² times the

@@ -83,12 +83,13 @@ def test_stiff_fixed_plate_does_not_set_the_automatic_penalty():
     runs = [dd.simulate(s, duration=0.5, record_every=1000) for s in (stiff, same)]
     assert np.array_equal(runs[0].steps["dt"], runs[1].steps["dt"])
     assert np.array_equal(runs[0].centroid[-1], runs[1].centroid[-1])
-    # Δt stays at dt_max = 10 ms but where the rows land: the impact steps of √(m/p)·20 = 8.2 ms
-    # (`ddatai.impacts`) and two cuts as the 2 cm gaps close (55 steps, 2.4 ms the shortest; 51
-    # steps and no cut before impacts were resolved); with the plate's 200 GPa penalty the cuts
-    # went down to 2.9e-4 s
+    # Δt stays at dt_max = 10 ms but where the rows land: a lead step that ends just before a
+    # row's contacts close (as short as that leaves: 0.23 ms) and the impact step of
+    # √(m/p)·20 = 8.2 ms after it (`ddatai.impacts`), no cut (56 steps; 51 steps and no cut
+    # before impacts were resolved); with the plate's 200 GPa penalty the cuts went down to
+    # 2.9e-4 s, 128 steps for 1 s
     assert runs[0].time[-1] == pytest.approx(0.5) and runs[0].steps["dt_cuts"].sum() <= 2
-    assert runs[0].steps["dt"].min() >= 0.002
+    assert len(runs[0].steps) <= 64
     assert_stable(runs[0], 1.0)
 
 
