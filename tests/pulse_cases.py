@@ -133,29 +133,43 @@ def overturning_threshold(b: float, h: float, frequency: float, low: float, high
 
 def dda_response(b: float, h: float, amplitude: float, frequency: float, duration: float = 3.0,
                  params=None) -> tuple[bool, float]:
-    """(whether the block overturns, its largest tilt [rad]) in ddatai with the default
-    `Params`: the block of `rocking_cases.scene` standing upright, the ground shaken by the
-    pulse."""
+    """(whether the block overturns, its largest tilt [rad]) in ddatai with ``params`` (the
+    defaults): the block of `rocking_cases.scene` standing upright, the ground shaken by the
+    pulse (`Scene.set_ground_acceleration`). The run stops once the verdict is known: the block
+    past twice its overturning angle (falling), or the pulse over with the block's energy
+    below the top of its potential (it cannot overturn any more; the tilt it can still reach
+    is counted, as the referee counts it)."""
     sc = scene(b, h, 0.0)
     a_g = pulse(amplitude, frequency)
     sc.set_ground_acceleration(lambda t: (a_g(t), 0.0))
     model = dd.build_model(sc, params)
     start = model.vertex_offset[1]
     alpha = math.atan(b / h)
+    p2 = 3.0 * G / (4.0 * 0.5 * math.hypot(b, h))
     peak = [0.0]
 
     def watch(state, _record):
         d = state.vertex_xy[start + 1] - state.vertex_xy[start]
-        peak[0] = max(peak[0], abs(math.atan2(d[1], d[0])))
-        if peak[0] > 2.0 * alpha:
-            raise _Fallen
+        tilt = abs(math.atan2(d[1], d[0]))
+        peak[0] = max(peak[0], tilt)
+        if tilt > 2.0 * alpha:
+            raise _Verdict(True)
+        if state.time >= 1.0 / frequency and tilt < alpha:
+            energy = state.block_velocity[1, 2] ** 2 / (2.0 * p2) + math.cos(alpha - tilt)
+            if energy < 1.0:
+                peak[0] = max(peak[0], alpha - math.acos(energy))
+                raise _Verdict(False)
 
     try:
         dd.simulate(sc, params, duration=duration, progress=watch, model=model, record_every=10 ** 9)
-    except _Fallen:
-        return True, peak[0]
+    except _Verdict as verdict:
+        return verdict.overturned, peak[0]
     return False, peak[0]
 
 
-class _Fallen(Exception):
-    """The block has passed twice its overturning angle: it is falling over."""
+class _Verdict(Exception):
+    """The run's verdict is known (`dda_response`)."""
+
+    def __init__(self, overturned: bool):
+        super().__init__()
+        self.overturned = overturned
