@@ -47,6 +47,11 @@ E = 5 GPa, ν = 0.25; 1 m × 1 m blocks on a real inclined fixed base unless sta
   ½ g (sinθ − cosθ tanφ) t².
 - bonded_column: ten bonded 1 m blocks (φ = 30°, c = T = 100 kPa) on a fixed base, dynamic,
   0.5 s; largest relative error of σy over every block and frame, exact −ρ g (k − ½) h.
+- rocking: a 0.5 m × 2 m block (ρ = 2600 kg/m³, E = 10 GPa, friction 80°) released on a corner
+  at half its overturning angle; largest relative error of its first five peaks against
+  Housner's (each impact keeps the angular momentum about the new corner, r = 1 − 1.5 sin²α;
+  tests/rocking_cases.py). Its error is the impacts' and the free swings' energy (docs/method/
+  dda.md §4.6, §5.3), and does not fall monotonically with a fixed Δt.
 """
 
 from __future__ import annotations
@@ -395,9 +400,40 @@ def bonded_column_case() -> Case:
                 "over the run", T, build, record_every=1)
 
 
+def rocking_case() -> Case:
+    """The 0.5 × 2 m block of tests/rocking_cases.py released at half its overturning angle,
+    five impacts against Housner's peaks."""
+    if str(ROOT / "tests") not in sys.path:
+        sys.path.insert(0, str(ROOT / "tests"))
+    from rocking_cases import housner_duration, housner_peaks, scene
+
+    b, h, fraction, n = 0.5, 2.0, 0.5, 5
+
+    def build():
+        sc = scene(b, h, fraction)
+        exact = housner_peaks(b, h, fraction, n)
+
+        def measure(res):
+            start = res.vertex_offset[1]
+            d = res.vertices[:, start + 1] - res.vertices[:, start]
+            tilt = np.arctan2(d[:, 1], d[:, 0])
+            sign = np.sign(tilt)
+            halves = np.split(np.abs(tilt), np.nonzero(sign[1:] * sign[:-1] < 0)[0] + 1)
+            peaks = np.array([x.max() for x in halves[1:n + 1]])
+            if len(peaks) < n:
+                return 1.0, f"WRONG: {len(peaks)} impacts"
+            return float(np.max(np.abs(peaks / exact - 1.0))), ""
+        return sc, measure
+
+    return Case("rocking", "rocking block (b/h = 0.25, 5 impacts)", "largest relative error of the "
+                "first five peaks against Housner's", 1.05 * housner_duration(b, h, fraction, n), build,
+                record_every=1)
+
+
 def all_cases() -> list[Case]:
     return [sliding_case(), resting_case(), free_flight_case(), pushed_block_case(), column_case(),
-            toppling_case(), newmark_case(), launched_case(), cohesive_case(), bonded_column_case()]
+            toppling_case(), newmark_case(), launched_case(), cohesive_case(), bonded_column_case(),
+            rocking_case()]
 
 
 # ----------------------------------------------------------------------------- sweeps

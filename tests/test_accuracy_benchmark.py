@@ -111,7 +111,7 @@ def test_quick_benchmark_writes_its_table_and_chart(tmp_path):
     cells = [c.strip() for c in rows[0].strip("|").split("|")[1:]]
     header = next(line for line in proc.stdout.splitlines() if line.startswith("| parameters"))
     names = [c.strip() for c in header.strip("|").split("|")[1:]]
-    assert len(cells) == len(names) == 10
+    assert len(cells) == len(names) == 11
     errors = dict(zip(names, (float(c.split("·")[0]) for c in cells)))
     assert errors["sliding (30° plane, friction 20°)"] < 1e-3
     assert errors["free flight"] < 1e-10
@@ -120,10 +120,12 @@ def test_quick_benchmark_writes_its_table_and_chart(tmp_path):
     for name in names:
         if name.startswith(("launched", "cohesive", "bonded")):
             assert errors[name] < 0.01, name
+    # the rocking block's five peaks, within the 5 % of Housner's (tests/test_rocking.py)
+    assert errors["rocking block (b/h = 0.25, 5 impacts)"] < 0.05
     md = (tmp_path / "accuracy.md").read_text()
     assert "| **defaults** |" in md and "Machine:" in md
     rows = (tmp_path / "accuracy.csv").read_text().splitlines()
-    assert rows[0].startswith("case,group,parameters,error,wall_s") and len(rows) == 1 + 10 * 2
+    assert rows[0].startswith("case,group,parameters,error,wall_s") and len(rows) == 1 + 11 * 2
     # the chart is drawn with matplotlib, the [plot] extra; without it the run says so
     import importlib.util
 
