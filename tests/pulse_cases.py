@@ -23,7 +23,7 @@ import math
 import numpy as np
 
 import ddatai as dd
-from rocking_cases import G, scene
+from rocking_cases import DEFAULTS, G, scene
 
 #: events: the state's tolerance of the integration [rad, rad/s]
 RTOL, ATOL = 1e-10, 1e-12
@@ -134,7 +134,7 @@ def overturning_threshold(b: float, h: float, frequency: float, low: float, high
 def dda_response(b: float, h: float, amplitude: float, frequency: float, duration: float = 3.0,
                  params=None) -> tuple[bool, float]:
     """(whether the block overturns, its largest tilt [rad]) in ddatai with ``params`` (the
-    defaults): the block of `rocking_cases.scene` standing upright, the ground shaken by the
+    defaults on today's step, `rocking_cases.DEFAULTS`): the block of `rocking_cases.scene` standing upright, the ground shaken by the
     pulse (`Scene.set_ground_acceleration`). The run stops once the verdict is known: the block
     past twice its overturning angle (falling), or the pulse over with the block's energy
     below the top of its potential (it cannot overturn any more; the tilt it can still reach
@@ -142,6 +142,7 @@ def dda_response(b: float, h: float, amplitude: float, frequency: float, duratio
     sc = scene(b, h, 0.0)
     a_g = pulse(amplitude, frequency)
     sc.set_ground_acceleration(lambda t: (a_g(t), 0.0))
+    params = DEFAULTS if params is None else params
     model = dd.build_model(sc, params)
     start = model.vertex_offset[1]
     alpha = math.atan(b / h)
