@@ -49,7 +49,7 @@ from .open_close import open_close, solve
 from .records import StepRecord, StepTimer
 from .results import SimulationError
 from .solver import SparseSolver
-from .impacts import approach_bound, impacted, plastic_start
+from .impacts import approach_bound, impacted, negligible, plastic_start
 from .time_step import choose_time_step, end_on
 
 
@@ -180,10 +180,12 @@ class Stepper:
         if impact.any() and not self.params.static:
             # a plastic impact at the step's start (`ddatai.impacts`): the impacted blocks take
             # the step again from their velocity projected onto what its closed contacts admit
-            start = plastic_start(state, self.impact_projection(state, geom, attempt, dt), impact)
-            again = self.attempt(start, geom, contacts, vec, sca, dt, timer)
-            oc_total += again.iterations
-            start, attempt = (start, again) if again.ok else (state, attempt)
+            projected = self.impact_projection(state, geom, attempt, dt)
+            if not negligible(model, state, geom, projected, impact):
+                start = plastic_start(state, projected, impact)
+                again = self.attempt(start, geom, contacts, vec, sca, dt, timer)
+                oc_total += again.iterations
+                start, attempt = (start, again) if again.ok else (state, attempt)
         t0 = _time.perf_counter()
         if self.softening:
             accumulate_slip(model, attempt.contacts, attempt.vec, attempt.displacement)
