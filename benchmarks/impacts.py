@@ -7,7 +7,9 @@ with the default `Params` or with ``impact_overshoot=None`` (impacts left to the
 CASE: ``example1-8`` (Example I at φ 8°, its group slides, 2 s), ``example1-14`` (φ 14°, held,
 2 s), ``rocking`` (the 0.5 × 2 m block of tests/rocking_cases.py, five impacts), ``pile`` (a
 6 × 6 pile of 1 m blocks falling 2 cm row onto row onto a plate, 1 s). Prints the steps, the
-time-step cuts and the wall time of the run.
+time-step cuts and the wall time of the run. benchmarks/results/impacts.md: the rocking block
+and Example I paired against the code before the lever arms at mid-step and the plastic impact
+at the step's start.
 """
 
 from __future__ import annotations
