@@ -78,7 +78,7 @@ def tilt_peaks(b: float, h: float, fraction: float, n: int, params=None) -> tupl
         d = state.vertex_xy[start + 1] - state.vertex_xy[start]
         tilt.append(math.atan2(d[1], d[0]))
 
-    res = dd.simulate(sc, params, duration=1.05 * housner_duration(b, h, fraction, n), progress=watch,
+    res = dd.simulate(sc, params, duration=1.05 * housner_duration(b, h, fraction, n), progress=watch, record_every=10 ** 9,
                       model=model)
     tilt = np.array(tilt)
     sign = np.sign(tilt)
