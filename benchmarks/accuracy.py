@@ -425,9 +425,12 @@ def rocking_case() -> Case:
             return float(np.max(np.abs(peaks / exact - 1.0))), ""
         return sc, measure
 
+    # today's step (`ddatai.step`): the fused engine, which "auto" takes for a small model once
+    # its kernel is loaded in the process, has neither the resolved impacts nor the lever arms
+    # at mid-step yet (38–90 % errors here)
     return Case("rocking", "rocking block (b/h = 0.25, 5 impacts)", "largest relative error of the "
                 "first five peaks against Housner's", 1.05 * housner_duration(b, h, fraction, n), build,
-                record_every=1)
+                base_params={"kernels": "numpy"}, record_every=1)
 
 
 def all_cases() -> list[Case]:
