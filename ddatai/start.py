@@ -112,6 +112,7 @@ from .model import ContactMemory, State
 from .open_close import solve
 from .mechanisms import FALL_IN_SIZES, mechanisms, sunk_into_released
 from .return_mapping import STAGE_BETA, Frame, coupled, return_mapping, subset_contacts
+from .turn_on import feasible, turn_on
 #: at most this many pseudo-steps (each re-solves the increment at the settled geometry; the
 #: second is ~strain × the first, the third round-off)
 MAX_PSEUDO_STEPS = 8
@@ -158,6 +159,9 @@ class StartRecord:
     one before: a tall, soft stack whose load grows with its deflection faster than its
     stiffness): the stage ended at the last pseudo-step's equilibrium and the run's dynamics
     takes the deflection from there (module docstring, 5.)."""
+    turn_on_steps: int = 0
+    """Steps of the slow gravity turn-on that settled the stage's doubt (`ddatai.turn_on`; 0:
+    none ran) [-]."""
 
 
 #: the record of a model with nothing to settle
@@ -184,7 +188,8 @@ def settle(stepper, state: State, welded: bool = False) -> tuple[State, StartRec
     geom = model.block_geometry(state.vertex_xy)
     size = np.sqrt(geom["area"])
     dt_static = _pseudo_time_step(stepper, geom, size)
-    settled, record, converged = _stage(stepper, state, size, dt_static, t0, welded=welded)
+    settled, record, converged = _stage(stepper, state, size, dt_static, t0, welded=welded,
+                                        slow=not welded and feasible(model))
     if not converged:
         # no frictional equilibrium found: start from the welded one, each contact then at most
         # at its strength (module docstring, 6.), rather than under sudden gravity
@@ -195,20 +200,29 @@ def settle(stepper, state: State, welded: bool = False) -> tuple[State, StartRec
 
 
 def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
-           welded: bool = False) -> tuple[State, StartRecord, bool]:
+           welded: bool = False, slow: bool = False) -> tuple[State, StartRecord, bool]:
     """Pseudo-steps with Δt = ``dt`` (the static pseudo time step) until the increment is
     round-off, each the return-mapping iteration of `return_mapping` (``welded``: one solve
     with the touching contacts held, `_welded_step`, the contacts then taking the joint law,
-    `_unweld`). Returns (state, record, whether every pseudo-step found its equilibrium)."""
+    `_unweld`). ``slow``: blocks in doubt (`return_mapping`, ``doubt``) are settled by a slow
+    turn-on of the weight (`_turned_on`); where it moves a block away, the stage is done again
+    releasing them. Returns (state, record, whether every pseudo-step found its equilibrium)."""
     model = stepper.model
     free = ~model.block_fixed
     initial = state
     released = np.zeros(model.n_blocks, bool)
     solves = 0
     while True:
+        doubt = np.zeros(model.n_blocks, bool) if slow else None
         state, last, memory, n, stalled, unsettled, failed = _pseudo_steps(stepper, initial, state, released, size,
-                                                                           dt, welded)
+                                                                           dt, welded, doubt)
         solves += n
+        if doubt is not None and doubt.any() and not failed:
+            done = _turned_on(stepper, initial, released, solves, t0)
+            if done is not None:
+                return done[0], done[1], True
+            again, record, converged = _stage(stepper, initial, size, dt, t0, welded)
+            return again, replace(record, solves=solves + record.solves), converged
         if failed:
             return initial, StartRecord(solves=solves, held=0, released=int(np.count_nonzero(free)),
                                         settlement=0.0, at_strength=0,
@@ -245,9 +259,9 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
 
 
 def _pseudo_steps(stepper, initial: State, state: State, released: np.ndarray, size: np.ndarray, dt: float,
-                  welded: bool):
+                  welded: bool, doubt: "np.ndarray | None" = None):
     """The pseudo-steps of `_stage` from ``state`` with the ``released`` blocks out (updated in
-    place with the blocks it releases). Returns (state, the last pseudo-step's contacts, their
+    place with the blocks it releases; ``doubt``: with those in doubt, `return_mapping`). Returns (state, the last pseudo-step's contacts, their
     memory, solves, stalled, unsettled, whether a pseudo-step found no equilibrium)."""
     model = stepper.model
     free = ~model.block_fixed
@@ -273,7 +287,7 @@ def _pseudo_steps(stepper, initial: State, state: State, released: np.ndarray, s
                 # pseudo-step first, which takes the first one's linearisation error out)
                 break
             disp, n, found, contacts, stalled = return_mapping(stepper, state, geom, contacts, dt, released,
-                                                                size, frame)
+                                                                size, frame, doubt)
         solves += n
         if disp is None:  # no equilibrium found
             return state, last, memory, solves, stalled, unsettled, True
@@ -308,6 +322,36 @@ def _pseudo_steps(stepper, initial: State, state: State, released: np.ndarray, s
             # pseudo-step would stall the same way; the first steps settle what is left
             break
     return state, last, memory, solves, stalled, unsettled, False
+
+
+def _turned_on(stepper, initial: State, released: np.ndarray, solves: int, t0: float):
+    """The model turned on slowly from ``initial`` with the ``released`` blocks out of the way
+    (`ddatai.turn_on`), those put back where they were at t = 0, and held blocks that settled
+    into their space released too (``mechanisms.sunk_into_released``). Returns (state, record),
+    or None where a block moved away in the turn-on."""
+    model = stepper.model
+    free = ~model.block_fixed
+    slow = turn_on(stepper, initial, released)
+    if slow is None:
+        return None
+    state, steps = slow
+    released = released.copy()
+    while True:
+        state = _restore(model, state, initial, released)
+        sunk = sunk_into_released(stepper, state, released, SUNK_FRACTION)
+        if not sunk.any():
+            break
+        released |= sunk
+    held = free & ~released
+    moved = np.hypot(*(state.vertex_xy - initial.vertex_xy).T)
+    # the released blocks waited out of the way: every contact of the turn-on is a held block's
+    at_strength = int(np.count_nonzero(state.memory.state == SLIDE))
+    record = StartRecord(solves=solves, held=int(np.count_nonzero(held)),
+                         released=int(np.count_nonzero(free & released)),
+                         settlement=float(np.max(moved[held[model.vertex_block]], initial=0.0)),
+                         at_strength=at_strength, wall_time=_time.perf_counter() - t0, stalled=True,
+                         turn_on_steps=steps)
+    return state, record
 
 
 def balanced(stepper, frame: Frame, contacts: Contacts, geom: dict, size: np.ndarray) -> bool:
