@@ -39,10 +39,11 @@ from .limit_equilibrium import applicable
 from .mechanisms import MECHANISM_SIZE
 from .model import State
 
-#: the weight is turned on over this many rocking time constants (`rocking_time`): a column past
-#: its threshold by δ rotates as δ·(cosh(t/τ) − 1), so a slower load changes the threshold by
-#: less than the 0.05° to which the toppling family places it (tests/toppling_cases.py)
-RAMP_TIMES = 20.0
+#: the weight is turned on over this many rocking time constants (`rocking_time`) ...
+RAMP_TIMES = 10.0
+#: ... and then held for this many, in which a column past its threshold by δ rotates as
+#: δ·(cosh(t/τ) − 1): 0.1° past it, by 0.05 rad
+HOLD_TIMES = 4.0
 #: a turn-on that would take more steps than this (at ``Params.dt_max``) is not run
 MAX_STEPS = 1000
 #: blocks that the stage released for certain wait this many free-part extents below the model
@@ -65,8 +66,8 @@ def feasible(model) -> bool:
     if not np.any(model.gravity != 0.0) or np.any(model.initial_stress[~model.block_fixed] != 0.0):
         return False
     free = ~model.block_fixed
-    ramp = RAMP_TIMES * rocking_time(model, model.vertex_xy0, free)
-    return ramp <= MAX_STEPS * model.params.dt_max
+    end = (RAMP_TIMES + HOLD_TIMES) * rocking_time(model, model.vertex_xy0, free)
+    return end <= MAX_STEPS * model.params.dt_max
 
 
 def _smoothstep(t: float, ramp: float) -> float:
@@ -87,7 +88,8 @@ def turn_on(stepper, initial: State, released: np.ndarray) -> Optional[tuple[Sta
     turned = free & ~released
     if not turned.any():
         return None
-    ramp = RAMP_TIMES * rocking_time(model, initial.vertex_xy, turned)
+    tau = rocking_time(model, initial.vertex_xy, turned)
+    ramp, end = RAMP_TIMES * tau, (RAMP_TIMES + HOLD_TIMES) * tau
     gravity = model.gravity.copy()
 
     def ground(t: float) -> tuple:
@@ -105,8 +107,8 @@ def turn_on(stepper, initial: State, released: np.ndarray) -> Optional[tuple[Sta
     watched = turned[model.vertex_block]
     runner = Stepper(slow)
     try:
-        while state.time < ramp * (1.0 - 1e-12):
-            state = runner.advance(state, t_end=ramp).state
+        while state.time < end * (1.0 - 1e-12):
+            state = runner.advance(state, t_end=end).state
             moved = np.hypot(*(state.vertex_xy - xy).T)
             if np.any(moved[watched] > limit[watched]):
                 return None  # a block moves away under a slow load: a mechanism
