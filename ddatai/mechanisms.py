@@ -196,3 +196,21 @@ def sunk_into_released(stepper, state: State, released: np.ndarray, fraction: fl
     out[b[deep]] = True
     return out & held
 
+
+def restore(model, state: State, initial: State, blocks: np.ndarray) -> State:
+    """``state`` with the given blocks (and their points) back where ``initial`` has them: a
+    released block starts where it was at t = 0."""
+    v = blocks[model.vertex_block]
+    xy = np.where(v[:, None], initial.vertex_xy, state.vertex_xy)
+    b = blocks[:, None]
+
+    def points(now, then, owner):
+        return np.where(blocks[owner][:, None], then, now) if len(owner) else now
+
+    return state.replace(
+        vertex_xy=xy, block_stress=np.where(b, initial.block_stress, state.block_stress),
+        block_rotation=np.where(blocks, initial.block_rotation, state.block_rotation),
+        fixed_point_xy=points(state.fixed_point_xy, initial.fixed_point_xy, model.fixed_point_block),
+        load_xy=points(state.load_xy, initial.load_xy, model.load_block),
+        measured_xy=points(state.measured_xy, initial.measured_xy, model.measured_block),
+        geometry=model.block_geometry(xy))

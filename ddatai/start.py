@@ -59,7 +59,13 @@ solve of the model under its weight, the point loads at t = 0 and its initial st
    open-close iteration of a static step with their contacts at the strength sliding
    (``test_unbalanced``); where it converges, those that move away in it on which their loads
    do positive work are mechanisms (friction only resists: a block that friction pushed away
-   against its loads is held). Where nothing more is released and the return mapping still
+   against its loads is held). Where limit equilibrium holds every block, neither outcome of
+   that test proves a block held or moving (the static problem of non-associated friction has
+   many solutions: a stack of columns leaning on each other has admissible forces whether it
+   stands or not); in a model loaded by its weight alone and small enough, the blocks in doubt
+   are settled by a slow turn-on of the weight (`ddatai.turn_on`, ``StartRecord.turn_on_steps``):
+   its last state is handed over where nothing moved away, else they are released (in doubt,
+   release). Where nothing more is released and the return mapping still
    stalls, the stage ends there (``StartRecord.stalled``): its contacts are handed over at
    most at their strength, and the first steps settle the forces left out of balance, a
    fraction of the load. Models with bolts or a water table, whose forces the program does
@@ -110,7 +116,7 @@ from .kinematics import block_displacement, settle_points
 from .layout import E0, KIND, LOCK, OPEN, SLIDE, VE
 from .model import ContactMemory, State
 from .open_close import solve
-from .mechanisms import FALL_IN_SIZES, mechanisms, sunk_into_released
+from .mechanisms import FALL_IN_SIZES, mechanisms, restore, sunk_into_released
 from .return_mapping import STAGE_BETA, Frame, coupled, return_mapping, subset_contacts
 from .turn_on import feasible, turn_on
 #: at most this many pseudo-steps (each re-solves the increment at the settled geometry; the
@@ -294,7 +300,7 @@ def _pseudo_steps(stepper, initial: State, state: State, released: np.ndarray, s
         if found.any():
             # a released block starts from where it was at t = 0
             released |= found
-            state = _restore(model, state, initial, found)
+            state = restore(model, state, initial, found)
             geom = state.geometry
         held = free & ~released
         disp[~held] = 0.0
@@ -337,7 +343,7 @@ def _turned_on(stepper, initial: State, released: np.ndarray, solves: int, t0: f
     state, steps = slow
     released = released.copy()
     while True:
-        state = _restore(model, state, initial, released)
+        state = restore(model, state, initial, released)
         sunk = sunk_into_released(stepper, state, released, SUNK_FRACTION)
         if not sunk.any():
             break
@@ -383,24 +389,6 @@ def balanced(stepper, frame: Frame, contacts: Contacts, geom: dict, size: np.nda
     allowed = BALANCE_ROUNDOFF * level[rows]
     return bool(np.all(residual[:, :2] <= allowed[:, None]) and
                 np.all(residual[:, 2:] <= (allowed * size[rows])[:, None]))
-
-
-def _restore(model, state: State, initial: State, blocks: np.ndarray) -> State:
-    """``state`` with the given blocks (and their points) back where ``initial`` has them."""
-    v = blocks[model.vertex_block]
-    xy = np.where(v[:, None], initial.vertex_xy, state.vertex_xy)
-    b = blocks[:, None]
-
-    def points(now, then, owner):
-        return np.where(blocks[owner][:, None], then, now) if len(owner) else now
-
-    return state.replace(
-        vertex_xy=xy, block_stress=np.where(b, initial.block_stress, state.block_stress),
-        block_rotation=np.where(blocks, initial.block_rotation, state.block_rotation),
-        fixed_point_xy=points(state.fixed_point_xy, initial.fixed_point_xy, model.fixed_point_block),
-        load_xy=points(state.load_xy, initial.load_xy, model.load_block),
-        measured_xy=points(state.measured_xy, initial.measured_xy, model.measured_block),
-        geometry=model.block_geometry(xy))
 
 
 def _pseudo_time_step(stepper, geom, size) -> float:

@@ -40,10 +40,10 @@ from .mechanisms import MECHANISM_SIZE
 from .model import State
 
 #: the weight is turned on over this many rocking time constants (`rocking_time`) ...
-RAMP_TIMES = 10.0
+RAMP_TIMES = 20.0
 #: ... and then held for this many, in which a column past its threshold by δ rotates as
-#: δ·(cosh(t/τ) − 1): 0.1° past it, by 0.05 rad
-HOLD_TIMES = 4.0
+#: δ·(cosh(t/τ) − 1): 0.1° past it, by 2.6 rad (the slow load of tests/toppling_cases.py)
+HOLD_TIMES = 8.0
 #: a turn-on that would take more steps than this (at ``Params.dt_max``) is not run
 MAX_STEPS = 1000
 #: blocks that the stage released for certain wait this many free-part extents below the model
