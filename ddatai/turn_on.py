@@ -45,7 +45,7 @@ RAMP_TIMES = 20.0
 #: δ·(cosh(t/τ) − 1): 0.1° past it, by 2.6 rad (the slow load of tests/toppling_cases.py)
 HOLD_TIMES = 8.0
 #: a turn-on that would take more steps than this (at ``Params.dt_max``) is not run
-MAX_STEPS = 1000
+MAX_STEPS = 2000
 #: blocks that the stage released for certain wait this many free-part extents below the model
 AWAY = 4.0
 

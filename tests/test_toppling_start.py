@@ -95,3 +95,28 @@ def test_toppling_family_start_against_slow_load(name):
     closed = case.closed_form()
     if closed is not None:
         assert closed - 0.2 < ramp <= closed + RESOLUTION, (ramp, closed)
+
+
+def _turn_on_of(theta: float, b: float = 0.02, h: float = 0.08):
+    """`ddatai.turn_on.turn_on` of a b × h column (E 10 GPa, φ 45°) on a plate tilted by
+    ``theta``, nothing released; and the model."""
+    from ddatai.step import Stepper
+    from ddatai.turn_on import turn_on
+
+    model = dd.build_model(scene(column(b, h), theta))
+    return turn_on(Stepper(model), model.initial_state(), np.zeros(model.n_blocks, bool)), model
+
+
+def test_the_slow_turn_on_hands_over_a_standing_column_at_rest_and_gives_up_on_a_toppling_one():
+    """A 0.02 × 0.08 m column (rigid threshold atan(0.25) = 14.04°): 1° short of it the turn-on
+    (28 rocking time constants √(4R/3g) = 0.075 s: 2.1 s, ~210 steps) ends with the column
+    settled by its elastic settlement (< 1e-5 m: its weight on 10 GPa rock and the contact
+    springs), at rest at t = 0; 1° past it the column rocks away on its corner and the turn-on
+    gives up (the stage then releases it)."""
+    held, model = _turn_on_of(13.0)
+    assert held is not None
+    state, steps = held
+    assert state.time == 0.0 and state.step == 0 and steps > 100
+    assert np.all(state.block_velocity == 0.0)
+    assert float(np.abs(state.vertex_xy - model.vertex_xy0).max()) < 1e-5
+    assert _turn_on_of(15.0)[0] is None
