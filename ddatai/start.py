@@ -60,12 +60,10 @@ solve of the model under its weight, the point loads at t = 0 and its initial st
    (``test_unbalanced``); where it converges, those that move away in it on which their loads
    do positive work are mechanisms (friction only resists: a block that friction pushed away
    against its loads is held). Where limit equilibrium holds every block, neither outcome of
-   that test proves a block held or moving (the static problem of non-associated friction has
-   many solutions: a stack of columns leaning on each other has admissible forces whether it
-   stands or not); in a model loaded by its weight alone and small enough, the blocks in doubt
-   are settled by a slow turn-on of the weight (`ddatai.turn_on`, ``StartRecord.turn_on_steps``):
-   its last state is handed over where nothing moved away, else they are released (in doubt,
-   release). Where nothing more is released and the return mapping still
+   that test proves anything (non-associated friction: many static solutions); in a small model
+   loaded by its weight alone, a slow turn-on of the weight settles the doubt (`ddatai.turn_on`):
+   its last state is handed over where nothing moved away, else the blocks in doubt are released.
+   Where nothing more is released and the return mapping still
    stalls, the stage ends there (``StartRecord.stalled``): its contacts are handed over at
    most at their strength, and the first steps settle the forces left out of balance, a
    fraction of the load. Models with bolts or a water table, whose forces the program does
@@ -211,7 +209,7 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
     round-off, each the return-mapping iteration of `return_mapping` (``welded``: one solve
     with the touching contacts held, `_welded_step`, the contacts then taking the joint law,
     `_unweld`). ``slow``: blocks in doubt (`return_mapping`, ``doubt``) are settled by a slow
-    turn-on of the weight (`_turned_on`); where it moves a block away, the stage is done again
+    turn-on of the weight (`turn_on`); where it moves a block away, the stage is done again
     releasing them. Returns (state, record, whether every pseudo-step found its equilibrium)."""
     model = stepper.model
     free = ~model.block_fixed
@@ -224,9 +222,16 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
                                                                            dt, welded, doubt)
         solves += n
         if doubt is not None and doubt.any() and not failed:
-            done = _turned_on(stepper, initial, released, solves, t0)
-            if done is not None:
-                return done[0], done[1], True
+            slow_end = turn_on(stepper, initial, released, SUNK_FRACTION)
+            if slow_end is not None:
+                state, released, steps = slow_end
+                held = free & ~released
+                moved = np.hypot(*(state.vertex_xy - initial.vertex_xy).T)[held[model.vertex_block]]
+                return state, StartRecord(
+                    solves=solves, held=int(np.count_nonzero(held)), released=int(np.count_nonzero(free & released)),
+                    settlement=float(np.max(moved, initial=0.0)), stalled=True, turn_on_steps=steps,
+                    at_strength=int(np.count_nonzero(state.memory.state == SLIDE)),  # all held blocks'
+                    wall_time=_time.perf_counter() - t0), True
             again, record, converged = _stage(stepper, initial, size, dt, t0, welded)
             return again, replace(record, solves=solves + record.solves), converged
         if failed:
@@ -328,36 +333,6 @@ def _pseudo_steps(stepper, initial: State, state: State, released: np.ndarray, s
             # pseudo-step would stall the same way; the first steps settle what is left
             break
     return state, last, memory, solves, stalled, unsettled, False
-
-
-def _turned_on(stepper, initial: State, released: np.ndarray, solves: int, t0: float):
-    """The model turned on slowly from ``initial`` with the ``released`` blocks out of the way
-    (`ddatai.turn_on`), those put back where they were at t = 0, and held blocks that settled
-    into their space released too (``mechanisms.sunk_into_released``). Returns (state, record),
-    or None where a block moved away in the turn-on."""
-    model = stepper.model
-    free = ~model.block_fixed
-    slow = turn_on(stepper, initial, released)
-    if slow is None:
-        return None
-    state, steps = slow
-    released = released.copy()
-    while True:
-        state = restore(model, state, initial, released)
-        sunk = sunk_into_released(stepper, state, released, SUNK_FRACTION)
-        if not sunk.any():
-            break
-        released |= sunk
-    held = free & ~released
-    moved = np.hypot(*(state.vertex_xy - initial.vertex_xy).T)
-    # the released blocks waited out of the way: every contact of the turn-on is a held block's
-    at_strength = int(np.count_nonzero(state.memory.state == SLIDE))
-    record = StartRecord(solves=solves, held=int(np.count_nonzero(held)),
-                         released=int(np.count_nonzero(free & released)),
-                         settlement=float(np.max(moved[held[model.vertex_block]], initial=0.0)),
-                         at_strength=at_strength, wall_time=_time.perf_counter() - t0, stalled=True,
-                         turn_on_steps=steps)
-    return state, record
 
 
 def balanced(stepper, frame: Frame, contacts: Contacts, geom: dict, size: np.ndarray) -> bool:

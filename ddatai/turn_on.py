@@ -36,7 +36,7 @@ from typing import Optional
 import numpy as np
 
 from .limit_equilibrium import applicable
-from .mechanisms import MECHANISM_SIZE
+from .mechanisms import MECHANISM_SIZE, restore, sunk_into_released
 from .model import State
 
 #: the weight is turned on over this many rocking time constants (`rocking_time`) ...
@@ -75,11 +75,14 @@ def _smoothstep(t: float, ramp: float) -> float:
     return x * x * (3.0 - 2.0 * x)
 
 
-def turn_on(stepper, initial: State, released: np.ndarray) -> Optional[tuple[State, int]]:
+def turn_on(stepper, initial: State, released: np.ndarray,
+            sunk_fraction: float) -> Optional[tuple[State, np.ndarray, int]]:
     """The model from ``initial`` (t = 0) under its weight turned on slowly (module docstring),
-    the ``released`` blocks out of the way. Returns the state at the end of the ramp, at rest at
-    t = 0, where no block moved further than MECHANISM_SIZE of its size (the ``released``
-    blocks still out of the way: the caller restores them) and the steps it took, else None."""
+    the ``released`` blocks out of the way. Where no block moved further than MECHANISM_SIZE of
+    its size, returns (the state at the end, at rest at t = 0, the released blocks back where
+    they were at t = 0; the released blocks, with the held ones that settled into their space
+    deeper than ``sunk_fraction`` of the penetration limit, `sunk_into_released`; the steps it
+    took), else None."""
     from .results import SimulationError
     from .step import Stepper
 
@@ -114,5 +117,13 @@ def turn_on(stepper, initial: State, released: np.ndarray) -> Optional[tuple[Sta
                 return None  # a block moves away under a slow load: a mechanism
     except SimulationError:
         return None
-    return state.replace(time=0.0, step=0, block_velocity=initial.block_velocity.copy(),
-                         block_accel=np.zeros_like(initial.block_accel), dt=0.0, accel=0.0, energy=None), state.step
+    steps = state.step
+    state = state.replace(time=0.0, step=0, block_velocity=initial.block_velocity.copy(),
+                          block_accel=np.zeros_like(initial.block_accel), dt=0.0, accel=0.0, energy=None)
+    released = released.copy()
+    while True:
+        state = restore(model, state, initial, released)
+        sunk = sunk_into_released(stepper, state, released, sunk_fraction)
+        if not sunk.any():
+            return state, released, steps
+        released |= sunk
