@@ -198,6 +198,17 @@ class Params:
     so contacts loaded beyond them slide or open at once (`ddatai.start`; the usual first stage
     of UDEC/3DEC and FLAC models, and ntdda's gravity turn-on phase). False: gravity is switched
     on suddenly at t = 0 (Shi, ntdda without its gravity phase)."""
+    start_turn_on: bool = False
+    """Where the equilibrium stage is in doubt (limit equilibrium holds every block, its return
+    mapping stalls, the open–close test proves nothing), settle it by a slow turn-on of the
+    weight (`ddatai.turn_on`: the run's own steps, the weight ramped over 20 rocking time
+    constants and held for 8) instead of releasing the blocks in doubt under sudden gravity;
+    only in a model loaded by its weight alone whose free part is a few metres at most. Near a
+    stack's toppling tilt the start then follows the slow load of the model as given, at its
+    cost (5–15 s for the stacks of docs/guide/equilibrium_start.md). Off: release in doubt,
+    which topples stacks of square blocks up to 4° before a slow load does; on, the start lands
+    inside the slow load's own scatter, which on those stacks spans up to 2.5° and can lie
+    above the lowest tilt at which a slow load topples them."""
     static: bool = False
     """Static (quasi-static) analysis: block velocities are reset to zero after every step."""
     dynamic_ratio: float = 1.0
@@ -334,6 +345,8 @@ class Params:
                  f"Params.arch must be one of 'cpu', 'gpu', 'cuda', 'vulkan', 'metal', got {self.arch!r}")
         _require(isinstance(self.initial_equilibrium, bool),
                  f"Params.initial_equilibrium must be True or False, got {self.initial_equilibrium!r}")
+        _require(isinstance(self.start_turn_on, bool),
+                 f"Params.start_turn_on must be True or False, got {self.start_turn_on!r}")
         _require(isinstance(self.bond_breaks_on_slip, bool),
                  f"Params.bond_breaks_on_slip must be True or False, got {self.bond_breaks_on_slip!r}")
 

@@ -60,8 +60,8 @@ solve of the model under its weight, the point loads at t = 0 and its initial st
    (``test_unbalanced``); where it converges, those that move away in it on which their loads
    do positive work are mechanisms (friction only resists: a block that friction pushed away
    against its loads is held). Where limit equilibrium holds every block, neither outcome of
-   that test proves anything (non-associated friction: many static solutions); in a small model
-   loaded by its weight alone, a slow turn-on of the weight settles the doubt (`ddatai.turn_on`):
+   that test proves anything (non-associated friction: many static solutions); with
+   ``Params.start_turn_on``, a slow turn-on of the weight settles the doubt (`ddatai.turn_on`):
    its last state is handed over where nothing moved away, else the blocks in doubt are released.
    Where nothing more is released and the return mapping still
    stalls, the stage ends there (``StartRecord.stalled``): its contacts are handed over at
@@ -193,7 +193,7 @@ def settle(stepper, state: State, welded: bool = False) -> tuple[State, StartRec
     size = np.sqrt(geom["area"])
     dt_static = _pseudo_time_step(stepper, geom, size)
     settled, record, converged = _stage(stepper, state, size, dt_static, t0, welded=welded,
-                                        slow=not welded and feasible(model))
+                                        slow=not welded and model.params.start_turn_on and feasible(model))
     if not converged:
         # no frictional equilibrium found: start from the welded one, each contact then at most
         # at its strength (module docstring, 6.), rather than under sudden gravity
