@@ -199,16 +199,9 @@ class Params:
     of UDEC/3DEC and FLAC models, and ntdda's gravity turn-on phase). False: gravity is switched
     on suddenly at t = 0 (Shi, ntdda without its gravity phase)."""
     start_turn_on: bool = False
-    """Where the equilibrium stage is in doubt (limit equilibrium holds every block, its return
-    mapping stalls, the open–close test proves nothing), settle it by a slow turn-on of the
-    weight (`ddatai.turn_on`: the run's own steps, the weight ramped over 20 rocking time
-    constants and held for 8) instead of releasing the blocks in doubt under sudden gravity;
-    only in a model loaded by its weight alone whose free part is a few metres at most. Near a
-    stack's toppling tilt the start then follows the slow load of the model as given, at its
-    cost (5–15 s for the stacks of docs/guide/equilibrium_start.md). Off: release in doubt,
-    which topples stacks of square blocks up to 4° before a slow load does; on, the start lands
-    inside the slow load's own scatter, which on those stacks spans up to 2.5° and can lie
-    above the lowest tilt at which a slow load topples them."""
+    """Where the stage is in doubt, settle it by a slow turn-on of the weight (`ddatai.turn_on`)
+    instead of releasing the blocks in doubt: the start then follows a slow load, at its cost,
+    and inside its scatter (docs/guide/equilibrium_start.md, why it is off by default)."""
     static: bool = False
     """Static (quasi-static) analysis: block velocities are reset to zero after every step."""
     dynamic_ratio: float = 1.0
@@ -330,8 +323,6 @@ class Params:
         _require(self.oc_force_tolerance < 0.1,
                  f"Params.oc_force_tolerance must be < 0.1 (a fraction of a contact's load or strength), "
                  f"got {self.oc_force_tolerance!r}")
-        _require(isinstance(self.factor_updates, bool),
-                 f"Params.factor_updates must be True or False, got {self.factor_updates!r}")
         _require(self.oc_friction in ("lagged", "coupled"),
                  f"Params.oc_friction must be 'lagged' or 'coupled', got {self.oc_friction!r}")
         _require(self.oc_force_reference in ("load", "strength"),
@@ -343,12 +334,9 @@ class Params:
                  f"Params.kernels must be 'auto', 'fused', 'taichi' or 'numpy', got {self.kernels!r}")
         _require(isinstance(self.arch, str) and self.arch in ("cpu", "gpu", "cuda", "vulkan", "metal"),
                  f"Params.arch must be one of 'cpu', 'gpu', 'cuda', 'vulkan', 'metal', got {self.arch!r}")
-        _require(isinstance(self.initial_equilibrium, bool),
-                 f"Params.initial_equilibrium must be True or False, got {self.initial_equilibrium!r}")
-        _require(isinstance(self.start_turn_on, bool),
-                 f"Params.start_turn_on must be True or False, got {self.start_turn_on!r}")
-        _require(isinstance(self.bond_breaks_on_slip, bool),
-                 f"Params.bond_breaks_on_slip must be True or False, got {self.bond_breaks_on_slip!r}")
+        for name in ("factor_updates", "initial_equilibrium", "start_turn_on", "bond_breaks_on_slip"):
+            _require(isinstance(getattr(self, name), bool),
+                     f"Params.{name} must be True or False, got {getattr(self, name)!r}")
 
     @property
     def velocity_carry(self) -> float:

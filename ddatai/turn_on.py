@@ -11,18 +11,21 @@ under sudden gravity: the contact springs overshoot the static forces, and a sta
 load holds several degrees past the start's tilt topples (docs/guide/equilibrium_start.md).
 
 The reference for a threshold is the model loaded slowly from rest (docs/method/dda.md §8.12),
-and with ``Params.start_turn_on`` that is what settles the doubt: the model is run from t = 0 with its weight turned on over
-RAMP_TIMES rocking time constants of its free part (`rocking_time`, Housner's
-√(4R/(3g)), R half the diagonal of the free blocks' bounding box), by a ground acceleration
-(1 − s(t))·g that the run's own steps carry (s a smoothstep from 0 to 1; §2.4, the ground's
-frame), the blocks that the stage released for certain moved out of the way. Where no block
-moves further than MECHANISM_SIZE of its size, the model stands under its whole weight: the
-turn-on's last state is handed over at rest (held blocks settled, contact springs carrying
-their forces, contacts at their strength as the steps left them). Where one does, the turn-on
-stops and the stage releases the blocks in doubt (in doubt, release).
+and with ``Params.start_turn_on`` that is what settles the doubt: the model is run from t = 0
+with its weight turned on over RAMP_TIMES rocking time constants of its free part
+(`rocking_time`, Housner's √(4R/(3g)), R half the diagonal of the free blocks' bounding box),
+by a ground acceleration (1 − s(t))·g that the run's own steps carry (s a smoothstep from 0 to
+1; §2.4, the ground's frame), then held for HOLD_TIMES, the blocks that the stage released for
+certain moved out of the way. Where no block moves further than MECHANISM_SIZE of its size, the
+model stands under its whole weight: the turn-on's last state is handed over at rest (held
+blocks settled, contact springs carrying their forces, contacts at their strength as the steps
+left them). Where one does, the turn-on stops and the stage releases the blocks in doubt (in
+doubt, release). Off by default: on stacks of square blocks the slow load's own outcome near
+the threshold scatters by up to 2.5° with the ramp's rate and the model's frame, and a start
+that follows one slow load can lie above another (docs/guide/equilibrium_start.md).
 
-The turn-on costs about RAMP_TIMES·τ / dt_max steps; a model whose turn-on would take more than
-MAX_STEPS (a slope tens of metres high: τ ≈ 1–4 s) keeps the release in doubt. It applies to
+The turn-on costs about (RAMP_TIMES + HOLD_TIMES)·τ / dt_max steps; a model whose turn-on would
+take more than MAX_STEPS (a slope tens of metres high: τ ≈ 1–4 s) keeps the release in doubt. It applies to
 models loaded by gravity alone (no point loads, initial stresses, bolts or water, whose ramps
 the stage would have to invent), without a ground acceleration of their own.
 """

@@ -235,8 +235,8 @@ def goodman_bray(friction: float) -> dd.Scene:
     full, _ = toppling_slope.build(friction=friction)
     sc = dd.Scene(gravity=G)
     for spec in full.blocks:
-        sc.add_block(np.asarray(spec.vertices) * GB_SCALE, material=replace(spec.material, young=spec.material.young * GB_SCALE),
-                     fixed=spec.fixed)
+        soft = replace(spec.material, young=spec.material.young * GB_SCALE)
+        sc.add_block(np.asarray(spec.vertices) * GB_SCALE, material=soft, fixed=spec.fixed)
     sc.set_joint(dd.Joint(friction=friction, cohesion=0.0, tensile=0.0))
     return sc
 
