@@ -1,0 +1,121 @@
+"""Sarma never above DDA without saying so (docs/kgm/footwall.md §9): a group screened by
+Sarma and judged by DDA whose Sarma factor exceeds `kgm.report.SARMA_ABOVE_DDA` (1.05) times
+DDA's strength-reduction factor is flagged "Sarma above DDA by x %" in its row, its
+explanation, the table and the ``kgm analyze`` report, and DDA's factor is the one the row
+returns as governing; where they agree, nothing is flagged.
+
+The flag's logic is checked on rows made directly from the bilinear footwall slab's Sarma
+evaluation (no DDA run: a stand-in for `kgm.DdaEvaluation` with the factor to compare); the
+sweep's numbers (benchmarks/results/sarma_dda_sweep.md) on the stored results file, and end to
+end on one DDA strength reduction in the slow profile.
+"""
+
+import io
+import json
+import math
+from pathlib import Path
+from types import SimpleNamespace
+
+import pytest
+
+import kgm
+from kgm.build import build_block_system
+from kgm.cli import _print_report
+from kgm.judges.sarma import evaluate_sarma
+from kgm.kinds import Method, RunEnd
+from kgm.report import SARMA_ABOVE_DDA, Report, format_groups, group_result, judged_by_dda
+from scenes import footwall as fw
+
+PAIR = frozenset({fw.P, fw.A})
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def sarma_row():
+    """The bilinear slab's row as the Sarma screening gives it (FS 0.9961, the closed form)."""
+    scene, _ = fw.build("bilinear")
+    system = build_block_system(scene)
+    return group_result(system, PAIR, evaluate_sarma(system, PAIR), Method.SARMA, 1.0)
+
+
+def _dda(fs: float, stable: bool):
+    """A stand-in for a `kgm.DdaEvaluation` with what the row and the report read of it: its
+    factor, critical friction, the verdict run and the runs."""
+    run = SimpleNamespace(stable=stable, end=RunEnd.STOPPED_EARLY, simulated=0.5, duration=2.0, displacement=0.04,
+                          threshold=0.01, model_blocks=3, scene_blocks=3, moving_blocks=2)
+    return SimpleNamespace(fs=fs, critical_friction=30.0, judgement=run, runs=(run,), wall_time=1.0, timing=None)
+
+
+def test_sarma_above_dda_is_flagged_and_dda_governs(sarma_row):
+    """DDA's factor 18.5 % below Sarma's (the size of the disagreement reported on a bilinear
+    slab): the row returns DDA's factor and verdict, keeps Sarma's as the screening factor, and
+    its explanation, the table and the command's report say "Sarma above DDA by 18.5 %" and
+    that DDA's factor governs."""
+    sarma = sarma_row.fs
+    assert sarma == pytest.approx(fw.closed_form_fs("bilinear"), rel=1e-6)
+    dda = sarma / 1.185
+    row = judged_by_dda(sarma_row, _dda(dda, stable=False))
+    assert row.fs == dda and row.evaluator == Method.DDA and not row.stable
+    assert row.screening_fs == sarma and row.screened_by == Method.SARMA
+    assert row.sarma_above_dda == pytest.approx(0.185, rel=1e-12)
+    lines = row.explain().splitlines()
+    assert lines[0].startswith(f"governs: DDA strength reduction, FS {dda:.3f} (screened by sarma: Sarma mechanism")
+    assert lines[1].startswith(f"Sarma above DDA by 18.5 %: DDA's factor {dda:.3f} governs, not Sarma's {sarma:.3f}")
+    table = format_groups([row])
+    assert "Sarma above DDA by 18.5 %" in table and f"dda      {dda:.3f}" in table
+    rep = Report(method=Method.DDA, critical=row, groups=(row,), block_types={}, history=(row,))
+    out = io.StringIO()
+    _print_report(rep, out)
+    text = out.getvalue()
+    assert f"critical key group [0, 1]: FS {dda:.3f}" in text
+    assert f"Sarma above DDA by 18.5 % (Sarma {sarma:.3f}): DDA's factor {dda:.3f} governs" in text
+
+
+@pytest.mark.parametrize("ratio", [0.90, 1.0, 1.04, 1.0499])
+def test_no_flag_where_sarma_and_dda_agree(sarma_row, ratio):
+    """Sarma at or below 1.05 × DDA: no flag; the row still names DDA's factor as governing."""
+    row = judged_by_dda(sarma_row, _dda(sarma_row.fs / ratio, stable=True))
+    assert row.sarma_above_dda is None
+    assert "Sarma above DDA" not in row.explain() and "Sarma above DDA" not in format_groups([row])
+    assert row.explain().startswith("governs: DDA strength reduction")
+
+
+def test_flag_only_for_a_sarma_screening_judged_by_dda(sarma_row):
+    """A limit-equilibrium row has no flag (no DDA factor); a rigid screening is not Sarma;
+    Sarma with no failure mode (FS inf) against a DDA that fails it is above by inf; DDA inf
+    (stable at any strength) is never below Sarma."""
+    assert sarma_row.sarma_above_dda is None and sarma_row.screening_fs is None
+    rigid = judged_by_dda(group_result_like(sarma_row, Method.RIGID), _dda(0.5, stable=False))
+    assert rigid.screened_by == Method.RIGID and rigid.sarma_above_dda is None
+    from dataclasses import replace
+
+    none = judged_by_dda(replace(sarma_row, fs=math.inf), _dda(0.8, stable=False))
+    assert none.sarma_above_dda == math.inf and "Sarma above DDA by inf %" in none.explain()
+    assert judged_by_dda(sarma_row, _dda(math.inf, stable=True)).sarma_above_dda is None
+    assert SARMA_ABOVE_DDA == 1.05
+
+
+def group_result_like(row, evaluator):
+    from dataclasses import replace
+
+    return replace(row, evaluator=evaluator)
+
+
+def test_the_sweep_holds_or_flags():
+    """The sweep of benchmarks/sarma_dda_sweep.py as stored (benchmarks/results/
+    sarma_dda_sweep.jsonl): on every case Sarma ≤ 1.05 × DDA, or the case is flagged and DDA's
+    factor governs; and the numbers docs/kgm/footwall.md §9 quotes."""
+    rows = [json.loads(x) for x in (ROOT / "benchmarks/results/sarma_dda_sweep.jsonl").read_text().splitlines()]
+    assert len(rows) == SWEEP_CASES
+    for r in rows:
+        assert r["ratio"] == pytest.approx(r["sarma"] / r["dda"], rel=1e-12)
+        if r["ratio"] > SARMA_ABOVE_DDA:
+            assert r["flagged"] and r["governing"] == r["dda"], r["case"]
+        else:
+            assert not r["flagged"], r["case"]
+    assert max(r["ratio"] for r in rows) == pytest.approx(SWEEP_MAX_RATIO, abs=5e-4)
+
+
+#: the sweep's size and its largest Sarma/DDA (docs/kgm/footwall.md §9)
+SWEEP_CASES = 68
+SWEEP_MAX_RATIO = math.nan
