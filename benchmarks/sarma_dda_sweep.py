@@ -84,7 +84,8 @@ def run_case(opts: dict) -> dict:
     dda = kgm.evaluate(scene, group, "dda", params=params)
     t2 = time.perf_counter()
     return dict(case=opts, closed_form=closed_form(opts), rigid=fw.rigid_fs("bilinear", **opts),
-                sarma=sarma.fs, sarma_mode=sarma.mode.kind.value, dda=dda.fs, dda_runs=len(dda.dda.runs),
+                sarma=sarma.fs, sarma_mode=sarma.mode.kind.value,
+                unbalanced=getattr(sarma.mode, "unbalanced_moment", ""), dda=dda.fs, dda_runs=len(dda.dda.runs),
                 ratio=sarma.fs / dda.fs, flagged=getattr(dda, "sarma_above_dda", None) is not None,
                 governing=dda.fs, sarma_s=t1 - t0, dda_s=t2 - t1)
 
@@ -95,16 +96,17 @@ def summary(rows: list[dict]) -> str:
     worst = max(rows, key=lambda r: r["ratio"])
     lines = [f"cases: {len(rows)}; Sarma/DDA: min {min(ratios):.3f}, median {sorted(ratios)[len(ratios) // 2]:.3f}, "
              f"max {max(ratios):.3f} ({_name(worst['case'])}); above {RATIO}: {len(above)}, flagged: "
-             f"{sum(r['flagged'] for r in above)}"]
+             f"{sum(r['flagged'] for r in above)}; Sarma's moment unbalanced: {sum(bool(r.get('unbalanced')) for r in rows)} "
+             f"(of them above {RATIO}: {sum(bool(r.get('unbalanced')) for r in above)})"]
     lines.append("")
-    lines.append("| ψ | β | toe m | J2 | φ | c kPa | closed form | rigid | Sarma | mode | DDA | Sarma/DDA | flag |")
-    lines.append("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    lines.append("| ψ | β | toe m | J2 | φ | c kPa | closed form | rigid | Sarma | mode | moment | DDA | Sarma/DDA | flag |")
+    lines.append("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         c = r["case"]
         lines.append(f"| {c['dip']:g} | {c['toe_dip']:g} | {toe_height(c):.1f} | "
                      f"{'⊥ bedding' if c['cross_dip'] is None else 'vertical'} | {c['friction']:g} | "
                      f"{c['cohesion'] / 1e3:g} | {r['closed_form']:.4f} | {r['rigid']:.4f} | {r['sarma']:.4f} | "
-                     f"{r['sarma_mode']} | {r['dda']:.4f} | {r['ratio']:.3f} | {'yes' if r['flagged'] else ''} |")
+                     f"{r['sarma_mode']} | {'unbalanced' if r.get('unbalanced') else ''} | {r['dda']:.4f} | {r['ratio']:.3f} | {'yes' if r['flagged'] else ''} |")
     return "\n".join(lines)
 
 

@@ -281,6 +281,9 @@ def _explain_lines(g: GroupResult) -> list[str]:
                          f"{_fmt(g.screening_fs)} (docs/kgm/footwall.md §9)")
     else:
         lines.append(f"governs: {mode}")
+    if g.mode.unbalanced_moment:
+        lines.append(f"moment not balanced: {g.mode.unbalanced_moment}; Sarma's translation is on the unsafe "
+                     f"side here, judge the group with DDA (docs/kgm/footwall.md §9)")
     others = [m for m in g.modes if m is not g.mode]
     if others:
         lines.append("also admissible (safer): " + ", ".join(f"{m.kind.value} {_fmt(m.fs)}" for m in others))

@@ -48,6 +48,12 @@ class Mode:
     """Block toppling only: the Goodman–Bray recursion at limit equilibrium (strength reduced
     by FS), one `kgm.BlockStep` per member (stable, toppling or sliding, with its
     forces), top block first."""
+    unbalanced_moment: str = ""
+    """Sarma mechanisms: where the translation leaves a member's moment unbalanced at limit
+    equilibrium — no points on its faces at which the face forces balance the moment of its
+    loads, so the member would turn and a face open at one end — which member and which way;
+    '' where every member balances. The translational FS then lies on the unsafe side
+    (docs/kgm/footwall.md §9)."""
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)

@@ -53,6 +53,7 @@ class _Statics:
     admissible: bool       # N >= 0 everywhere, unslipped shear within its limit
     normal: np.ndarray     # (f,) normal force of each face [N/m] (0 on open faces)
     why: str = ""          # what is not admissible (tension on a face, shear beyond its limit)
+    face_force: Optional[np.ndarray] = None  # (f, 2) force of each closed face on its member a [N/m]
 
 
 def _system(mech: Mechanism, faces: Faces, force: np.ndarray, weight: np.ndarray,
@@ -124,7 +125,13 @@ def _statics(mech: Mechanism, faces: Faces, force: np.ndarray, weight: np.ndarra
             sol, ok, why = alt, True, ""
     normal = np.zeros(len(faces.a))
     normal[closed] = sol[:len(closed)]
-    return _Statics(k=float(sol[-1]), admissible=ok, normal=normal, why=why)
+    face_force = np.zeros((len(faces.a), 2))
+    for col, k in enumerate(closed):  # the columns of `_system`
+        n_k, s = sol[col], mech.slip_sign[k]
+        face_force[k] = n_k * faces.normal[k] - s * (faces.cl[k] / reduction + n_k * tphi[k]) * faces.tangent[k]
+    for j, k in enumerate(stuck):
+        face_force[k] += sol[len(closed) + j] * faces.tangent[k]
+    return _Statics(k=float(sol[-1]), admissible=ok, normal=normal, why=why, face_force=face_force)
 
 
 def _statics_at(mech: Mechanism, faces: Faces, force: np.ndarray, weight: np.ndarray,
@@ -256,6 +263,12 @@ def sarma_checks(system: BlockSystem, blocks: frozenset, removed: frozenset = fr
                 why = f"no root of K(F) for F in [{F_MIN:g}, {F_MAX:g}] has admissible forces: " + "; ".join(rejected)
             notes.append(f"Sarma mechanism {label}: {why}")
             continue
+        turning = ""
+        if fs > 0.0 and passive is None:
+            at_limit = _statics_at(mech, faces, _loaded(force, passive, mech, fs), weight, fs)
+            if at_limit is not None and at_limit.face_force is not None:
+                turning = unbalanced_moment(mech, faces, at_limit.face_force, system.block_moment[members],
+                                            float(weight.sum() * system.scale))
         kc = _statics_at(mech, faces, _loaded(force, passive, mech, 1.0), weight, 1.0, check=False)
         phi_c = _mechanism_critical_friction(mech, faces, _loaded(force, passive, mech, 1.0), weight)
         if phi_c is None:
@@ -271,8 +284,54 @@ def sarma_checks(system: BlockSystem, blocks: frozenset, removed: frozenset = fr
         modes.append(Mode(kind=ModeKind.SARMA, fs=fs, critical_friction=phi_c,
                           sliding_contacts=np.sort(sliding), sheared_contacts=np.sort(sheared),
                           block_velocity=vel,
-                          critical_acceleration=(kc.k if kc is not None else math.nan)))
+                          critical_acceleration=(kc.k if kc is not None else math.nan),
+                          unbalanced_moment=turning))
     return modes, notes
+
+
+def unbalanced_moment(mech: Mechanism, faces: Faces, face_force: np.ndarray, moment: np.ndarray,
+                      size: float) -> str:
+    """'' where the members of a mechanism at limit equilibrium can balance their moments, else
+    which member turns and which way (`kgm.Mode.unbalanced_moment`).
+
+    Sarma's statics balance forces only. Each closed face's force may act anywhere on the face
+    (its normal stress distribution is free, compressive since N ≥ 0), so about the origin it
+    gives its member a moment between those of the force at the face's two ends; the members
+    balance when moments M_k within these ranges exist with, for every member i,
+    moment_i + Σ_{a_k = i} M_k − Σ_{b_k = i} M_k = 0 (a shared face acts on both sides at one
+    point: +M_k on a, −M_k on b). This is Sarma's (1979) acceptability check that the line of
+    thrust stays within the slices, for any group: a small linear feasibility problem.
+    ``moment``: (n,) the members' active moments about the origin [N·m/m] (K = 0 at the limit);
+    ``size``: a force times a length [N·m/m] the tolerance is relative to."""
+    from scipy.optimize import linprog
+
+    closed = np.flatnonzero(mech.closed)
+    if faces.ends is None or len(closed) == 0:
+        return ""
+    ends = faces.ends[closed]                                   # (c, 2, 2)
+    f = face_force[closed]
+    arm = ends[:, :, 0] * f[:, None, 1] - ends[:, :, 1] * f[:, None, 0]   # (c, 2): p × F at each end
+    lo, hi = arm.min(axis=1), arm.max(axis=1)
+    n = len(moment)
+    a_eq = np.zeros((n, len(closed)))
+    for col, k in enumerate(closed):
+        a_eq[faces.a[k], col] += 1.0
+        if faces.b[k] >= 0:
+            a_eq[faces.b[k], col] -= 1.0
+    tol = 1e-9 * max(size, 1.0)
+    scale = max(float(np.abs(arm).max()), float(np.abs(moment).max()), 1.0)
+    res = linprog(np.zeros(len(closed)), A_eq=a_eq, b_eq=-moment / scale,
+                  bounds=list(zip((lo - tol) / scale, (hi + tol) / scale)), method="highs")
+    if res.status == 0:
+        return ""
+    for i in range(n):   # a member that cannot balance even with its shared faces free
+        low = moment[i] + np.where(a_eq[i] > 0, lo, 0.0).sum() - np.where(a_eq[i] < 0, hi, 0.0).sum()
+        high = moment[i] + np.where(a_eq[i] > 0, hi, 0.0).sum() - np.where(a_eq[i] < 0, lo, 0.0).sum()
+        if low > tol or high < -tol:
+            way = "counter-clockwise" if low > tol else "clockwise"
+            return (f"block {faces.members[i] if faces.members else i} would turn {way}: no points on its "
+                    f"faces balance its moment (at least {min(abs(low), abs(high)) / 1e3:.3g} kN·m/m left)")
+    return "the members would turn: no points on their faces balance their moments together"
 
 
 def _loaded(force: np.ndarray, passive: Optional[np.ndarray], mech: Mechanism, reduction: float) -> np.ndarray:
