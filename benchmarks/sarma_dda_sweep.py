@@ -27,9 +27,12 @@ import platform
 import sys
 import time
 from pathlib import Path
+from types import SimpleNamespace
+from typing import Optional
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository root: scenes/
 import kgm  # noqa: E402
+from kgm.report import judged_by_dda  # noqa: E402
 from scenes import footwall as fw  # noqa: E402
 
 #: the flag's threshold: Sarma above this times DDA's factor is reported (kgm.report.SARMA_ABOVE_DDA)
@@ -75,19 +78,30 @@ def closed_form(opts: dict) -> float:
         return math.nan
 
 
-def run_case(opts: dict) -> dict:
+def run_case(opts: dict, stored: Optional[dict] = None) -> dict:
+    """One case: Sarma's evaluation and DDA's strength reduction of the pair, and the DDA row
+    (`kgm.report.judged_by_dda`) with its flag. ``stored``: a row of an earlier run of this
+    sweep whose DDA factor is taken instead of running DDA again (the DDA judge is the same:
+    only the Sarma side and the row are recomputed; the row says ``dda_reused``)."""
     scene, params = fw.build("bilinear", **opts)
     group = sorted({fw.P, fw.A})
     t0 = time.perf_counter()
     sarma = kgm.evaluate(scene, group, "sarma")
     t1 = time.perf_counter()
-    dda = kgm.evaluate(scene, group, "dda", params=params)
+    if stored is None:
+        dda = kgm.evaluate(scene, group, "dda", params=params)
+        runs = len(dda.dda.runs)
+    else:
+        done = SimpleNamespace(fs=stored["dda"], critical_friction=math.nan,
+                               judgement=SimpleNamespace(stable=stored["dda"] >= 1.0))
+        dda, runs = judged_by_dda(sarma, done), stored["dda_runs"]
     t2 = time.perf_counter()
     return dict(case=opts, closed_form=closed_form(opts), rigid=fw.rigid_fs("bilinear", **opts),
                 sarma=sarma.fs, sarma_mode=sarma.mode.kind.value,
-                unbalanced=getattr(sarma.mode, "unbalanced_moment", ""), dda=dda.fs, dda_runs=len(dda.dda.runs),
+                unbalanced=getattr(sarma.mode, "unbalanced_moment", ""), dda=dda.fs, dda_runs=runs,
                 ratio=sarma.fs / dda.fs, flagged=getattr(dda, "sarma_above_dda", None) is not None,
-                governing=dda.fs, sarma_s=t1 - t0, dda_s=t2 - t1)
+                governing=dda.fs, dda_reused=stored is not None, sarma_s=t1 - t0,
+                dda_s=stored["dda_s"] if stored else t2 - t1)
 
 
 def summary(rows: list[dict]) -> str:
@@ -121,16 +135,19 @@ def main() -> None:
     ap.add_argument("--out", default="benchmarks/results/sarma_dda_sweep.jsonl")
     ap.add_argument("--limit", type=int, default=None, help="only the first N cases")
     ap.add_argument("--summary", action="store_true", help="print the summary of --out and stop")
+    ap.add_argument("--dda-from", metavar="JSONL", help="take the DDA factors of the cases an earlier run of "
+                    "this sweep stored there (Sarma and the flag recomputed)")
     args = ap.parse_args()
     out = Path(args.out)
     if not args.summary:
         done = [json.loads(x) for x in out.read_text().splitlines()] if out.exists() else []
         seen = [r["case"] for r in done]
         print(f"machine: {platform.processor() or platform.machine()}, Python {platform.python_version()}", flush=True)
+        earlier = ([json.loads(x) for x in Path(args.dda_from).read_text().splitlines()] if args.dda_from else [])
         for opts in cases()[:args.limit]:
             if opts in seen:
                 continue
-            r = run_case(opts)
+            r = run_case(opts, next((e for e in earlier if e["case"] == opts), None))
             with out.open("a") as fh:
                 fh.write(json.dumps(r) + "\n")
             print(f"{_name(opts)}: closed {r['closed_form']:.4f} Sarma {r['sarma']:.4f} ({r['sarma_mode']}) "

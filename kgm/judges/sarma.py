@@ -11,7 +11,9 @@ force distribution). The factor of safety is the least F at which K(F) falls thr
 admissible forces, the critical friction angle the φ with K = 0 at F = 1, every root found
 (`kgm.judges.limits`). Like Sarma's slices, the mechanisms see only the faces: a block corner
 that would have to cut into the rock at a joint junction is not checked — DDA checks it on the
-real geometry (scenes/example_2.py).
+real geometry (scenes/example_2.py). The statics balance forces only; at the limit the members'
+moments are checked (`unbalanced_moment`), and a mode whose members cannot balance them says so
+(`kgm.Mode.unbalanced_moment`): its translation is on the unsafe side (docs/kgm/footwall.md §9).
 
 `evaluate_sarma`: the least safe of the rigid modes (`kgm.judges.rigid`), these mechanisms and
 block toppling (`kgm.judges.toppling`), §5.3.
