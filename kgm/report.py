@@ -259,7 +259,7 @@ def format_groups(groups: Sequence[GroupResult]) -> str:
 #: Words for a mode in the tables.
 _MODE_WORDS = {ModeKind.LIFTING: "lifting (the loads pull it off every contact)",
                ModeKind.SLIDING: "rigid sliding on one plane",
-               ModeKind.ROTATION: "rigid rotation about a vertex",
+               ModeKind.ROTATION: "rigid rotation (about a vertex, or turning while it slides on two points)",
                ModeKind.SARMA: "Sarma mechanism (the blocks slide apart, shearing the joints between them)",
                ModeKind.TOPPLING: "block toppling (Goodman–Bray row)",
                ModeKind.NONE: "no admissible mode (stable by geometry)"}

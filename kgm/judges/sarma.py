@@ -31,6 +31,7 @@ from ..kinds import ModeKind
 from ..system import BARTON_ITERATIONS, BARTON_TOL, BlockSystem
 from .evaluation import Evaluation, Mode, governing
 from .toppling import with_toppling
+from .turning import turning_mode
 from .limits import F_MAX, F_MIN, PHI_MAX, first_limit, pencil_roots, scan_roots, smallest_singular
 from .mechanisms import Faces, Mechanism, face_name, mechanism_label, mechanisms, merge_faces
 from .rigid import rigid_modes
@@ -43,8 +44,16 @@ def evaluate_sarma(system: BlockSystem, blocks: frozenset, removed: frozenset = 
     modes = rigid_modes(system, blocks, removed, rejected=rejected)
     if len(blocks) > 1 and not any(m.fs == 0.0 for m in modes):
         found, why = sarma_checks(system, blocks, removed)
-        modes += found
         rejected += why
+        if any(m.unbalanced_moment for m in found):
+            # a translation that cannot balance its members' moments: the group turns
+            # (docs/kgm/footwall.md §9); where a turning mode exists it replaces them
+            turn = turning_mode(system, blocks, removed)
+            if turn is not None:
+                rejected += [f"Sarma mechanism, FS {m.fs:.3f}: moment not balanced: {m.unbalanced_moment} "
+                             f"(the group turns instead)" for m in found if m.unbalanced_moment]
+                found = [m for m in found if not m.unbalanced_moment] + [turn]
+        modes += found
     return governing(with_toppling(system, blocks, removed, modes, rejected), rejected)
 
 
