@@ -31,7 +31,7 @@ from ..kinds import ModeKind
 from ..system import BARTON_ITERATIONS, BARTON_TOL, BlockSystem
 from .evaluation import Evaluation, Mode, governing
 from .toppling import with_toppling
-from .turning import turning_mode
+from .turning import slide_balances, turning_mode
 from .limits import F_MAX, F_MIN, PHI_MAX, first_limit, pencil_roots, scan_roots, smallest_singular
 from .mechanisms import Faces, Mechanism, face_name, mechanism_label, mechanisms, merge_faces
 from .rigid import rigid_modes
@@ -45,17 +45,43 @@ def evaluate_sarma(system: BlockSystem, blocks: frozenset, removed: frozenset = 
     if len(blocks) > 1 and not any(m.fs == 0.0 for m in modes):
         found, why = sarma_checks(system, blocks, removed)
         rejected += why
-        if any(m.unbalanced_moment for m in found):
-            # a translation that cannot balance its members' moments: the group turns
-            # (docs/kgm/footwall.md §9); where a turning mode exists it replaces them
-            turn = turning_mode(system, blocks, removed)
-            if turn is not None:
-                rejected += [f"Sarma mechanism, FS {m.fs:.3f}: moment not balanced: {m.unbalanced_moment} "
-                             f"(the group turns instead)" for m in found if m.unbalanced_moment]
-                found = [m for m in found if not m.unbalanced_moment] + [turn]
-        modes += found
+        modes, more = _turning(system, blocks, removed, modes, found)
+        rejected += more
     return governing(with_toppling(system, blocks, removed, modes, rejected), rejected)
 
+
+
+def _turning(system: BlockSystem, blocks: frozenset, removed: frozenset, rigid: list, sarma: list
+             ) -> tuple[list[Mode], list[str]]:
+    """The rigid and Sarma modes of a group with the translations (rigid slides, Sarma
+    mechanisms) that cannot balance their moments at their limit taken out (docs/kgm/footwall.md
+    §9). Where another translation balances them, its forces are admissible at every F up to its
+    limit (a stronger joint only widens the bounds), so the group stands there and the
+    unbalanced ones are no limit states; where none does, no admissible equilibrium holds the
+    group at any translation's limit: it turns, and its turning on two sliding points
+    (`kgm.judges.turning`) replaces them. Returns (modes, one line for each translation taken
+    out)."""
+    modes = rigid + sarma
+    moves = [m for m in modes if m.kind in (ModeKind.SLIDING, ModeKind.SARMA)]
+
+    def unbalanced(m: Mode) -> str:
+        if m.kind == ModeKind.SARMA:
+            return m.unbalanced_moment
+        return "" if slide_balances(system, blocks, m) else "the resultant's line crosses the face off the face"
+
+    why = {id(m): unbalanced(m) for m in moves}
+    gone = [m for m in moves if why[id(m)]]
+    if not gone:
+        return modes, []
+    held = [m for m in moves if not why[id(m)]]
+    turn = None if held else turning_mode(system, blocks, removed)
+    if not held and turn is None:
+        return modes, []
+    instead = (f"a translation that balances them holds the group up to FS {min(m.fs for m in held):.3f}" if held
+               else "the group turns instead")
+    notes = [f"{m.kind.value}, FS {m.fs:.3f}: moment not balanced at its limit: {why[id(m)]} ({instead})"
+             for m in gone]
+    return [m for m in modes if not why.get(id(m))] + ([turn] if turn is not None else []), notes
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)

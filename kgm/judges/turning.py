@@ -73,6 +73,23 @@ def turning_mode(system: BlockSystem, blocks: frozenset, removed: frozenset = fr
     return best
 
 
+def slide_balances(system: BlockSystem, blocks: frozenset, mode: Mode) -> bool:
+    """Whether a rigid slide of the group (``mode``, kind SLIDING) balances its moment at its
+    limit: the face's reaction, −r at the limit, must act at a point of the face (the line of r
+    must cross the face between its ends; several pooled contacts share it in any proportion, so
+    any point between their extreme ends will do)."""
+    members = np.array(sorted(blocks))
+    r = system.block_force[members].sum(axis=0)
+    m0 = float(system.block_moment[members].sum())
+    k = np.asarray(mode.sliding_contacts, dtype=np.int64)
+    if len(k) == 0:
+        return True
+    ends = np.concatenate([system.contact_start[k], system.contact_end[k]])
+    arm = ends[:, 0] * r[1] - ends[:, 1] * r[0]           # p × r at each end
+    tol = 1e-9 * float(np.hypot(*r)) * system.scale
+    return bool(arm.min() - tol <= m0 <= arm.max() + tol)
+
+
 def _pair(system, r, m0, ends, normals, contact, i, j, tol) -> Optional[Mode]:
     """The turning mode on points i and j, if it is admissible and has a limit."""
     p, n = ends[[i, j]], normals[[i, j]]
