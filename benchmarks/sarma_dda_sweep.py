@@ -98,7 +98,7 @@ def run_case(opts: dict, stored: Optional[dict] = None) -> dict:
     t2 = time.perf_counter()
     return dict(case=opts, closed_form=closed_form(opts), rigid=fw.rigid_fs("bilinear", **opts),
                 sarma=sarma.fs, sarma_mode=sarma.mode.kind.value,
-                unbalanced=getattr(sarma.mode, "unbalanced_moment", ""), dda=dda.fs, dda_runs=runs,
+                unbalanced=[r for r in sarma.rejected if "moment not balanced" in r], dda=dda.fs, dda_runs=runs,
                 ratio=sarma.fs / dda.fs, flagged=getattr(dda, "sarma_above_dda", None) is not None,
                 governing=dda.fs, dda_reused=stored is not None, sarma_s=t1 - t0,
                 dda_s=stored["dda_s"] if stored else t2 - t1)
@@ -110,17 +110,18 @@ def summary(rows: list[dict]) -> str:
     worst = max(rows, key=lambda r: r["ratio"])
     lines = [f"cases: {len(rows)}; Sarma/DDA: min {min(ratios):.3f}, median {sorted(ratios)[len(ratios) // 2]:.3f}, "
              f"max {max(ratios):.3f} ({_name(worst['case'])}); above {RATIO}: {len(above)}, flagged: "
-             f"{sum(r['flagged'] for r in above)}; Sarma's moment unbalanced: {sum(bool(r.get('unbalanced')) for r in rows)} "
-             f"(of them above {RATIO}: {sum(bool(r.get('unbalanced')) for r in above)})"]
+             f"{sum(r['flagged'] for r in above)}; translations taken out, their moments unbalanced: "
+             f"{sum(bool(r.get('unbalanced')) for r in rows)}; turning governs: "
+             f"{sum(r['sarma_mode'] == 'rotation' for r in rows)}"]
     lines.append("")
-    lines.append("| ψ | β | toe m | J2 | φ | c kPa | closed form | rigid | Sarma | mode | moment | DDA | Sarma/DDA | flag |")
+    lines.append("| ψ | β | toe m | J2 | φ | c kPa | closed form | rigid | Sarma | mode | out | DDA | Sarma/DDA | flag |")
     lines.append("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         c = r["case"]
         lines.append(f"| {c['dip']:g} | {c['toe_dip']:g} | {toe_height(c):.1f} | "
                      f"{'⊥ bedding' if c['cross_dip'] is None else 'vertical'} | {c['friction']:g} | "
                      f"{c['cohesion'] / 1e3:g} | {r['closed_form']:.4f} | {r['rigid']:.4f} | {r['sarma']:.4f} | "
-                     f"{r['sarma_mode']} | {'unbalanced' if r.get('unbalanced') else ''} | {r['dda']:.4f} | {r['ratio']:.3f} | {'yes' if r['flagged'] else ''} |")
+                     f"{r['sarma_mode']} | {len(r.get('unbalanced') or []) or ''} | {r['dda']:.4f} | {r['ratio']:.3f} | {'yes' if r['flagged'] else ''} |")
     return "\n".join(lines)
 
 

@@ -22,8 +22,8 @@ import pytest
 import kgm
 from kgm.build import build_block_system
 from kgm.cli import _print_report
-from kgm.judges.sarma import evaluate_sarma
-from kgm.kinds import Method, RunEnd
+from kgm.judges.sarma import evaluate_sarma, sarma_checks
+from kgm.kinds import Method, ModeKind, RunEnd
 from kgm.report import SARMA_ABOVE_DDA, Report, format_groups, group_result, judged_by_dda
 from scenes import footwall as fw
 
@@ -166,17 +166,42 @@ def test_sarma_checks_the_moments_of_its_members():
     assert lo < 0.0 < hi
     lo_t, hi_t = _slab_moment_range(**TURNING)
     assert lo_t > 0.0
-    _, system = None, build_block_system(fw.build("bilinear")[0])
+    system = build_block_system(fw.build("bilinear")[0])
     assert evaluate_sarma(system, PAIR).mode.unbalanced_moment == ""
+    assert sarma_checks(system, PAIR)[0][0].unbalanced_moment == ""
+    scene, _ = fw.build("bilinear", **TURNING)
+    system = build_block_system(scene)
+    (mode,), _ = sarma_checks(system, PAIR)
+    assert mode.fs == pytest.approx(fw.closed_form_fs("bilinear", **TURNING), rel=1e-6)
+    assert mode.unbalanced_moment.startswith(f"block {fw.A} would turn counter-clockwise")
+    left = float(mode.unbalanced_moment.split("at least ")[1].split(" kN")[0])
+    assert left == pytest.approx(lo_t / 1e3, rel=5e-3)  # printed to three significant digits
+
+
+def test_a_group_that_cannot_translate_turns():
+    """On TURNING no translation balances its moments at its limit (the Sarma mechanism's slab
+    turns; the rigid slide on J1 has its resultant off J1): the pair turns as one body, K down
+    the bedding and B out along J1, at F9's factor 0.7446 (by hand, scenes/footwall.py
+    `turning_fs`), which governs; the row says why the translations gave way. Where a
+    translation balances (the default slab), it governs as before (F7)."""
     scene, _ = fw.build("bilinear", **TURNING)
     system = build_block_system(scene)
     ev = evaluate_sarma(system, PAIR)
-    assert ev.fs == pytest.approx(fw.closed_form_fs("bilinear", **TURNING), rel=1e-6)
-    assert ev.mode.unbalanced_moment.startswith(f"block {fw.A} would turn counter-clockwise")
-    left = float(ev.mode.unbalanced_moment.split("at least ")[1].split(" kN")[0])
-    assert left == pytest.approx(lo_t / 1e3, rel=5e-3)  # printed to three significant digits
+    expected = fw.turning_fs("bilinear", **TURNING)
+    assert expected == pytest.approx(0.74461, abs=1e-5)
+    assert ev.mode.kind == ModeKind.ROTATION and ev.fs == pytest.approx(expected, rel=1e-6)
+    geo = fw.geometry("bilinear", **TURNING)
+    ends = {tuple(np.round(p, 6)) for k in ev.mode.sliding_contacts
+            for p in (system.contact_start[k], system.contact_end[k])}
+    assert tuple(np.round(geo["K"], 6)) in ends and tuple(np.round(geo["B"], 6)) in ends
     row = group_result(system, PAIR, ev, Method.SARMA, 1.0)
-    assert "moment not balanced: block 1 would turn counter-clockwise" in row.explain()
+    text = row.explain()
+    assert text.startswith("governs: rigid rotation (about a vertex, or turning while it slides on two points), "
+                           "FS 0.745")
+    assert ("not admissible: sarma, FS 0.908: moment not balanced at its limit: block 1 would turn "
+            "counter-clockwise") in text and "(the group turns instead)" in text
+    default = evaluate_sarma(build_block_system(fw.build("bilinear")[0]), PAIR)
+    assert default.mode.kind == ModeKind.SARMA and default.fs == pytest.approx(fw.closed_form_fs("bilinear"), rel=1e-6)
 
 
 @pytest.mark.slow
