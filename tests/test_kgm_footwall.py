@@ -158,8 +158,8 @@ def test_bilinear_slab_root_beside_a_pole_of_k():
     lines = crit.explain().splitlines()
     assert lines[0].startswith("governs: Sarma mechanism") and "FS 0.996" in lines[0]
     assert not any(line.startswith("also admissible") for line in lines)
-    assert ("not admissible: sliding, FS 1.277: moment not balanced at its limit: the resultant's line crosses "
-            "the face off the face (a translation that balances them holds the group up to FS 0.996)") in lines
+    assert ("not admissible: sliding, FS 1.277: moment not balanced at its limit: the resultant's line misses "
+            "the face (a translation that balances them holds the group up to FS 0.996)") in lines
 
 
 @pytest.mark.parametrize("case, options", [

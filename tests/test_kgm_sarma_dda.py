@@ -105,8 +105,8 @@ def group_result_like(row, evaluator):
 def test_the_sweep_holds_or_flags():
     """The sweep of benchmarks/sarma_dda_sweep.py as stored (benchmarks/results/
     sarma_dda_sweep.jsonl, docs/kgm/footwall.md §9): 68 cases; on every one Sarma ≤ 1.05 × DDA,
-    or the case is flagged and DDA's factor governs; the largest Sarma/DDA is 1.131 and three
-    cases are flagged. The stored Sarma factors of the flagged cases and of the case that was
+    or the case is flagged and DDA's factor governs; Sarma/DDA lies in [0.720, 1.131], three
+    cases are flagged; twelve turn (F9), the ten without cohesion within 0.8 % of DDA. The stored Sarma factors of the flagged cases and of the case that was
     worst before (TURNING, 1.217) are today's evaluator's."""
     rows = [json.loads(x) for x in (ROOT / "benchmarks/results/sarma_dda_sweep.jsonl").read_text().splitlines()]
     assert len(rows) == 68
@@ -119,6 +119,10 @@ def test_the_sweep_holds_or_flags():
     assert max(r["ratio"] for r in rows) == pytest.approx(1.131, abs=5e-4)
     above = [r for r in rows if r["ratio"] > SARMA_ABOVE_DDA]
     assert len(above) == 3
+    assert min(r["ratio"] for r in rows) == pytest.approx(0.720, abs=5e-4)
+    turned = [r for r in rows if r["sarma_mode"] == "rotation"]
+    assert len(turned) == 12
+    assert max(abs(r["ratio"] - 1.0) for r in turned if r["case"]["cohesion"] == 0.0) < 0.008
     turning = next(r for r in rows if r["case"] == TURNING)
     for r in above + [turning]:
         system = build_block_system(fw.build("bilinear", **r["case"])[0])

@@ -67,7 +67,7 @@ def _turning(system: BlockSystem, blocks: frozenset, removed: frozenset, rigid: 
     def unbalanced(m: Mode) -> str:
         if m.kind == ModeKind.SARMA:
             return m.unbalanced_moment
-        return "" if slide_balances(system, blocks, m) else "the resultant's line crosses the face off the face"
+        return "" if slide_balances(system, blocks, m) else "the resultant's line misses the face"
 
     why = {id(m): unbalanced(m) for m in moves}
     gone = [m for m in moves if why[id(m)]]
@@ -326,22 +326,28 @@ def sarma_checks(system: BlockSystem, blocks: frozenset, removed: frozenset = fr
     return modes, notes
 
 
+#: Largest group whose moment check enumerates its member subsets (2^n cuts); larger ones
+#: solve the same feasibility problem as a linear programme [-].
+CUT_MEMBERS = 12
+
+
 def unbalanced_moment(mech: Mechanism, faces: Faces, face_force: np.ndarray, moment: np.ndarray,
                       size: float) -> str:
     """'' where the members of a mechanism at limit equilibrium can balance their moments, else
-    which member turns and which way (`kgm.Mode.unbalanced_moment`).
+    which members turn and which way (`kgm.Mode.unbalanced_moment`).
 
     Sarma's statics balance forces only. Each closed face's force may act anywhere on the face
     (its normal stress distribution is free, compressive since N ≥ 0), so about the origin it
-    gives its member a moment between those of the force at the face's two ends; the members
-    balance when moments M_k within these ranges exist with, for every member i,
-    moment_i + Σ_{a_k = i} M_k − Σ_{b_k = i} M_k = 0 (a shared face acts on both sides at one
-    point: +M_k on a, −M_k on b). This is Sarma's (1979) acceptability check that the line of
-    thrust stays within the slices, for any group: a small linear feasibility problem.
-    ``moment``: (n,) the members' active moments about the origin [N·m/m] (K = 0 at the limit);
-    ``size``: a force times a length [N·m/m] the tolerance is relative to."""
-    from scipy.optimize import linprog
-
+    gives its member a moment M_k between those of the force at the face's two ends; the members
+    balance when such M_k exist with, for every member i, moment_i + Σ_{a_k = i} M_k −
+    Σ_{b_k = i} M_k = 0 (a shared face acts on both sides at one point). This is Sarma's (1979)
+    acceptability check that the line of thrust stays within the slices, for any group. The
+    equations are a flow network (members and the rock as nodes, faces as arcs with bounds), so
+    by Hoffman's circulation theorem they have a solution iff every set S of members can be
+    balanced by the faces that cross its boundary, each within its bounds: 2^n − 1 interval
+    checks (a linear programme beyond `CUT_MEMBERS`). ``moment``: (n,) the members' active
+    moments about the origin [N·m/m] (K = 0 at the limit); ``size``: a force times a length
+    [N·m/m] the tolerance is relative to."""
     closed = np.flatnonzero(mech.closed)
     if faces.ends is None or len(closed) == 0:
         return ""
@@ -350,25 +356,38 @@ def unbalanced_moment(mech: Mechanism, faces: Faces, face_force: np.ndarray, mom
     arm = ends[:, :, 0] * f[:, None, 1] - ends[:, :, 1] * f[:, None, 0]   # (c, 2): p × F at each end
     lo, hi = arm.min(axis=1), arm.max(axis=1)
     n = len(moment)
-    a_eq = np.zeros((n, len(closed)))
-    for col, k in enumerate(closed):
-        a_eq[faces.a[k], col] += 1.0
-        if faces.b[k] >= 0:
-            a_eq[faces.b[k], col] -= 1.0
     tol = 1e-9 * max(size, 1.0)
-    scale = max(float(np.abs(arm).max()), float(np.abs(moment).max()), 1.0)
-    res = linprog(np.zeros(len(closed)), A_eq=a_eq, b_eq=-moment / scale,
-                  bounds=list(zip((lo - tol) / scale, (hi + tol) / scale)), method="highs")
-    if res.status == 0:
-        return ""
-    for i in range(n):   # a member that cannot balance even with its shared faces free
-        low = moment[i] + np.where(a_eq[i] > 0, lo, 0.0).sum() - np.where(a_eq[i] < 0, hi, 0.0).sum()
-        high = moment[i] + np.where(a_eq[i] > 0, hi, 0.0).sum() - np.where(a_eq[i] < 0, lo, 0.0).sum()
+    a, b = faces.a[closed], faces.b[closed]
+    if n > CUT_MEMBERS:
+        return _moments_by_programme(a, b, lo, hi, moment, tol)
+    for mask in sorted(range(1, 2 ** n), key=lambda m: bin(m).count("1")):   # single members first
+        inside = np.array([(mask >> i) & 1 for i in range(n)], dtype=bool)
+        sign = inside[a].astype(float) - np.where(b >= 0, inside[np.maximum(b, 0)], False)
+        m_s = float(moment[inside].sum())
+        low = m_s + float(np.where(sign > 0, lo, 0.0).sum() - np.where(sign < 0, hi, 0.0).sum())
+        high = m_s + float(np.where(sign > 0, hi, 0.0).sum() - np.where(sign < 0, lo, 0.0).sum())
         if low > tol or high < -tol:
             way = "counter-clockwise" if low > tol else "clockwise"
-            return (f"block {faces.members[i] if faces.members else i} would turn {way}: no points on its "
-                    f"faces balance its moment (at least {min(abs(low), abs(high)) / 1e3:.3g} kN·m/m left)")
-    return "the members would turn: no points on their faces balance their moments together"
+            ids = [faces.members[i] if faces.members else i for i in np.flatnonzero(inside)]
+            who = f"block {ids[0]} would turn" if len(ids) == 1 else f"blocks {ids} would turn together"
+            return (f"{who} {way}: no points on the faces balance the moment (at least "
+                    f"{min(abs(low), abs(high)) / 1e3:.3g} kN·m/m left)")
+    return ""
+
+
+def _moments_by_programme(a, b, lo, hi, moment, tol) -> str:
+    """`unbalanced_moment`'s feasibility problem as a linear programme (large groups)."""
+    from scipy.optimize import linprog
+
+    n = len(moment)
+    a_eq = np.zeros((n, len(a)))
+    a_eq[a, np.arange(len(a))] += 1.0
+    inner = np.flatnonzero(b >= 0)
+    a_eq[b[inner], inner] -= 1.0
+    scale = max(float(np.abs(lo).max()), float(np.abs(hi).max()), float(np.abs(moment).max()), 1.0)
+    res = linprog(np.zeros(len(a)), A_eq=a_eq, b_eq=-moment / scale,
+                  bounds=list(zip((lo - tol) / scale, (hi + tol) / scale)), method="highs")
+    return "" if res.status == 0 else "the members would turn: no points on their faces balance their moments"
 
 
 def _loaded(force: np.ndarray, passive: Optional[np.ndarray], mech: Mechanism, reduction: float) -> np.ndarray:
