@@ -25,7 +25,8 @@ joints share one strength (φ, c), no tensile strength; ρ = 2500 kg/m³.
 
 ``closed_form_fs`` gives each case's limit-equilibrium answer computed by hand from the
 geometry (the referee of tests/test_kgm_footwall.py and benchmarks/kgm_examples.py);
-``rigid_fs`` the answer of the group glued into one body.
+``rigid_fs`` the answer of the group glued into one body; ``turning_fs`` that of the bilinear
+pair turning as one body on two sliding points (docs/kgm/footwall.md §9).
 
 Run ``python scenes/footwall.py`` (plain DDA run of the bilinear case) or
 ``kgm analyze scenes/footwall.py``.

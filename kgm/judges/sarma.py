@@ -13,10 +13,12 @@ admissible forces, the critical friction angle the φ with K = 0 at F = 1, every
 that would have to cut into the rock at a joint junction is not checked — DDA checks it on the
 real geometry (scenes/example_2.py). The statics balance forces only; at the limit the members'
 moments are checked (`unbalanced_moment`), and a mode whose members cannot balance them says so
-(`kgm.Mode.unbalanced_moment`): its translation is on the unsafe side (docs/kgm/footwall.md §9).
+(`kgm.Mode.unbalanced_moment`) and is no limit state (docs/kgm/footwall.md §9).
 
 `evaluate_sarma`: the least safe of the rigid modes (`kgm.judges.rigid`), these mechanisms and
-block toppling (`kgm.judges.toppling`), §5.3.
+block toppling (`kgm.judges.toppling`), §5.3; translations (rigid slides, Sarma mechanisms) that
+cannot balance their moments taken out, and where none can, the group's turning on two sliding
+points (`kgm.judges.turning`).
 """
 
 from __future__ import annotations
