@@ -121,7 +121,8 @@ def summary(rows: list[dict]) -> str:
         lines.append(f"| {c['dip']:g} | {c['toe_dip']:g} | {toe_height(c):.1f} | "
                      f"{'⊥ bedding' if c['cross_dip'] is None else 'vertical'} | {c['friction']:g} | "
                      f"{c['cohesion'] / 1e3:g} | {r['closed_form']:.4f} | {r['rigid']:.4f} | {r['sarma']:.4f} | "
-                     f"{r['sarma_mode']} | {len(r.get('unbalanced') or []) or ''} | {r['dda']:.4f} | {r['ratio']:.3f} | {'yes' if r['flagged'] else ''} |")
+                     f"{r['sarma_mode']} | {len(r.get('unbalanced') or []) or ''} | {r['dda']:.4f} | "
+                     f"{r['ratio']:.3f} | {'yes' if r['flagged'] else ''} |")
     return "\n".join(lines)
 
 

@@ -106,8 +106,9 @@ def test_the_sweep_holds_or_flags():
     """The sweep of benchmarks/sarma_dda_sweep.py as stored (benchmarks/results/
     sarma_dda_sweep.jsonl, docs/kgm/footwall.md §9): 68 cases; on every one Sarma ≤ 1.05 × DDA,
     or the case is flagged and DDA's factor governs; Sarma/DDA lies in [0.720, 1.131], three
-    cases are flagged; twelve turn (F9), the ten without cohesion within 0.8 % of DDA. The stored Sarma factors of the flagged cases and of the case that was
-    worst before (TURNING, 1.217) are today's evaluator's."""
+    cases are flagged; twelve turn (F9), the ten without cohesion within 0.8 % of DDA. The
+    stored Sarma factors of the flagged cases and of the case that was worst before (TURNING,
+    1.217) are today's evaluator's."""
     rows = [json.loads(x) for x in (ROOT / "benchmarks/results/sarma_dda_sweep.jsonl").read_text().splitlines()]
     assert len(rows) == 68
     for r in rows:
@@ -154,7 +155,8 @@ def _slab_moment_range(**options):
     xy = geo["A"]
     x, y = xy[:, 0], xy[:, 1]
     cross = x * np.roll(y, -1) - np.roll(x, -1) * y
-    centroid = np.array([((x + np.roll(x, -1)) * cross).sum(), ((y + np.roll(y, -1)) * cross).sum()]) / (3 * cross.sum())
+    centroid = (np.array([((x + np.roll(x, -1)) * cross).sum(), ((y + np.roll(y, -1)) * cross).sum()])
+                / (3 * cross.sum()))
 
     def moment(p, force):
         return p[0] * force[1] - p[1] * force[0]
@@ -216,8 +218,8 @@ def test_a_group_that_cannot_translate_turns():
 
 @pytest.mark.slow
 def test_sarma_and_dda_end_to_end():
-    """Two cases of the sweep end to end (~60–90 s on 2 shared cores: Sarma and one DDA
-    strength reduction each). TURNING: Sarma's translation (0.908, F7) used to be 21.7 % above
+    """Two cases of the sweep end to end (~50 s on 2 shared cores, up to ~90 s loaded: Sarma
+    and one DDA strength reduction each). TURNING: Sarma's translation (0.908, F7) used to be 21.7 % above
     DDA; the pair turns on two points (F9, 0.7446) and DDA's factor is that within its
     bisection width plus its friction resolution Δtanφ ≈ a_r/(g cosβ) relative to tanφ/FS
     (docs/kgm/method.md §6.3): no flag. STRONG: Sarma's balanced translation (1.846) stays more
