@@ -52,8 +52,8 @@ class Mode:
     """Sarma mechanisms: where the translation leaves a member's moment unbalanced at limit
     equilibrium — no points on its faces at which the face forces balance the moment of its
     loads, so the member would turn and a face open at one end — which member and which way;
-    '' where every member balances. The translational FS then lies on the unsafe side
-    (docs/kgm/footwall.md §9)."""
+    '' where every member balances. Such a mode is no limit state: `kgm.evaluate_sarma` takes
+    it out and says why (docs/kgm/footwall.md §9)."""
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)

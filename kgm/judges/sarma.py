@@ -62,8 +62,11 @@ def _turning(system: BlockSystem, blocks: frozenset, removed: frozenset, rigid: 
     unbalanced ones are no limit states; where none does, no admissible equilibrium holds the
     group at any translation's limit: it turns, and its turning on two sliding points
     (`kgm.judges.turning`) replaces them. Returns (modes, one line for each translation taken
-    out)."""
+    out). Passive bolts, whose resistance depends on the motion, are left to the translations:
+    with them nothing is taken out."""
     modes = rigid + sarma
+    if system.block_passive is not None:
+        return modes, []
     moves = [m for m in modes if m.kind in (ModeKind.SLIDING, ModeKind.SARMA)]
 
     def unbalanced(m: Mode) -> str:

@@ -1,7 +1,8 @@
 """The group turning as one body while it slides on two points (docs/kgm/footwall.md §9).
 
-Where a Sarma mechanism cannot balance its members' moments at its limit
-(`kgm.judges.sarma.unbalanced_moment`), the group does not translate: it turns. On the steep
+Where no translation of a group — no rigid slide, no Sarma mechanism — balances its moments at
+its limit (`kgm.judges.sarma.unbalanced_moment`, `slide_balances`), the group does not
+translate: it turns. On the steep
 bilinear footwall slabs the slab's lower end lifts off the bedding and the pair turns as one
 body, its upper end K sliding down the bedding and the toe block's kink B sliding out along J1
 (DDA shows it). Such a rigid motion keeps contact at two points, each sliding on its own face:
