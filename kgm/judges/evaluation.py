@@ -37,7 +37,8 @@ class Mode:
     direction: Optional[np.ndarray] = None
     """(2,) unit sliding direction of a rigid translation [-]."""
     pivot: Optional[np.ndarray] = None
-    """(2,) rotation centre of a toppling mode [m]."""
+    """(2,) rotation centre of a rotation mode: the vertex, or the instantaneous centre of a
+    turning on two sliding points (`kgm.judges.turning`) [m]."""
     block_velocity: Optional[dict] = None
     """Relative velocity (2,) of every member in a Sarma mechanism, normalised to max 1 [-]."""
     critical_acceleration: Optional[float] = None
