@@ -220,3 +220,114 @@ def assemble_contacts(cint: I32_2, state: I8_1, line: I8_1, vblock: I32_1, dof: 
                     if friction_slope[c] != 0.0:
                         _outer(vec, c, ES, GS, E0, G0, -sgn * friction_slope[c], ri, rj, sij, sji,
                                diag_slot, stride, data)
+
+
+# ------------------------------------------------------------------ re-assembly after a judgement
+# Between the solves of one open-close iteration the contact vectors stay, so K changes only in
+# the 6×6 blocks of the contacts whose state changed; F changes at every contact (the
+# second-order shift, the friction of the last solve's normal force). K's changed blocks are
+# summed again from the block terms (`ddatai.reassembly`): the same additions in the same order
+# as `assemble_contacts`, restricted to those blocks, and F by the loads alone.
+@ti.func
+def _outer_rows_where(vec: ti.template(), c, s, t_own, t_other, k, r, r_other, off_slot, own, off,
+                      diag_slot: ti.template(), stride: ti.template(), data: ti.template()):
+    """`_outer_rows` restricted to the diagonal block of r (``own``) and the block at
+    ``off_slot`` (``off``)."""
+    if r >= 0:
+        base = diag_slot[r]
+        st = stride[r]
+        for a in range(6):
+            va = k * vec[c, s, a]
+            if own:
+                for b in range(6):
+                    ti.atomic_add(data[base + a * st + b], va * vec[c, t_own, b])
+            if r_other >= 0 and off:
+                for b in range(6):
+                    ti.atomic_add(data[off_slot + a * st + b], va * vec[c, t_other, b])
+
+
+@ti.func
+def _outer_where(vec: ti.template(), c, su, sw, tu, tw, k, ri, rj, sij, sji, own_i, own_j, off,
+                 diag_slot: ti.template(), stride: ti.template(), data: ti.template()):
+    """`_outer` restricted to the diagonal blocks ``own_i``, ``own_j`` and, with ``off``, the
+    pair's off-diagonal blocks."""
+    _outer_rows_where(vec, c, su, tu, tw, k, ri, rj, sij, own_i, off, diag_slot, stride, data)
+    _outer_rows_where(vec, c, sw, tw, tu, k, rj, ri, sji, own_j, off, diag_slot, stride, data)
+
+
+@ti.kernel
+def assemble_contact_stiffness(visit: I32_1, cint: I32_2, state: I8_1, line: I8_1, vblock: I32_1, dof: I32_1,
+                               vec: F64_3, friction_slope: F64_1, shear_dir: I8_1, slot_ab: I32_1,
+                               slot_ba: I32_1, diag_slot: I32_1, stride: I32_1, row_on: I8_1, pair_on: I8_1,
+                               penalty: ti.f64, shear_penalty: ti.f64, data: F64_1, serial: ti.template()):
+    """The K terms of `assemble_contacts` of the contacts ``visit`` (ascending), added only to
+    the diagonal blocks of the block-rows with ``row_on`` and to the off-diagonal blocks of the
+    contacts with ``pair_on`` (each contact's pair of blocks): with those blocks reset to the
+    block terms first, they come out as a full assembly gives them."""
+    ti.loop_config(serialize=serial)
+    for n in range(visit.shape[0]):
+        c = visit[n]
+        st = state[c]
+        if st != STATE_OPEN:
+            q = ti.cast(line[c], ti.i32)
+            ri = dof[vblock[cint[c, 1 + 2 * q]]]
+            rj = dof[vblock[cint[c, 2 + 2 * q]]]
+            sij = slot_ab[c]
+            sji = slot_ba[c]
+            if q == 1:
+                sij = slot_ba[c]
+                sji = slot_ab[c]
+            own_i = False
+            own_j = False
+            if ri >= 0:
+                own_i = row_on[ri] != 0
+            if rj >= 0:
+                own_j = row_on[rj] != 0
+            off = pair_on[c] != 0
+            _outer_where(vec, c, E0 + 2 * q, G0 + 2 * q, E0 + 2 * q, G0 + 2 * q, penalty, ri, rj, sij, sji,
+                         own_i, own_j, off, diag_slot, stride, data)
+            if cint[c, 0] == KIND_VE:
+                if st == STATE_LOCK:
+                    _outer_where(vec, c, ES, GS, ES, GS, shear_penalty, ri, rj, sij, sji, own_i, own_j, off,
+                                 diag_slot, stride, data)
+                elif friction_slope[c] != 0.0:
+                    sgn = ti.cast(shear_dir[c], ti.f64)
+                    _outer_where(vec, c, ES, GS, E0, G0, -sgn * friction_slope[c], ri, rj, sij, sji,
+                                 own_i, own_j, off, diag_slot, stride, data)
+
+
+@ti.kernel
+def assemble_contact_loads(cint: I32_2, state: I8_1, line: I8_1, vblock: I32_1, dof: I32_1, vec: F64_3,
+                           sca: F64_2, friction_const: F64_1, friction_slope: F64_1, shear_dir: I8_1,
+                           penalty: ti.f64, shear_penalty: ti.f64, rhs: F64_1, serial: ti.template()):
+    """The F terms of `assemble_contacts` alone, in its order: −k·d0·∇d of each spring and the
+    friction load of each sliding contact."""
+    ti.loop_config(serialize=serial)
+    for c in range(cint.shape[0]):
+        st = state[c]
+        if st != STATE_OPEN:
+            q = ti.cast(line[c], ti.i32)
+            ri = dof[vblock[cint[c, 1 + 2 * q]]]
+            rj = dof[vblock[cint[c, 2 + 2 * q]]]
+            d0 = sca[c, q]
+            for a in range(6):
+                if ri >= 0:
+                    ti.atomic_add(rhs[6 * ri + a], -penalty * d0 * vec[c, E0 + 2 * q, a])
+                if rj >= 0:
+                    ti.atomic_add(rhs[6 * rj + a], -penalty * d0 * vec[c, G0 + 2 * q, a])
+            if cint[c, 0] == KIND_VE:
+                if st == STATE_LOCK:
+                    ds0 = sca[c, 2]
+                    for a in range(6):
+                        if ri >= 0:
+                            ti.atomic_add(rhs[6 * ri + a], -shear_penalty * ds0 * vec[c, ES, a])
+                        if rj >= 0:
+                            ti.atomic_add(rhs[6 * rj + a], -shear_penalty * ds0 * vec[c, GS, a])
+                else:
+                    sgn = ti.cast(shear_dir[c], ti.f64)
+                    f = sgn * (friction_const[c] - friction_slope[c] * sca[c, 0])
+                    for a in range(6):
+                        if ri >= 0:
+                            ti.atomic_add(rhs[6 * ri + a], -f * vec[c, ES, a])
+                        if rj >= 0:
+                            ti.atomic_add(rhs[6 * rj + a], -f * vec[c, GS, a])
