@@ -2,7 +2,7 @@
 return, to check that a restructuring of the package changes nothing (as
 ``benchmarks/behaviour.py`` does for the engine).
 
-    python benchmarks/kgm_behaviour.py record FILE [--no-dda]   # run the set, write FILE
+    python benchmarks/kgm_behaviour.py record FILE [--no-dda] [--only REGEX]   # run the set, write FILE
     python benchmarks/kgm_behaviour.py compare A B [--subset]   # every case of A and B identical?
 
 The set:
@@ -23,11 +23,16 @@ The set:
   ``--progressive``) and ``probabilistic`` of Example II (rigid), stdout and stderr with wall
   times masked; the GIF of a DDA analysis (the arrays of its run).
 
+The record of the code before kgm was laid out as a pipeline (docs/kgm/architecture.md) is
+``benchmarks/results/kgm_behaviour.jsonl.gz`` (a name ending in .gz is read and written
+compressed); the layout's record is identical to it bit for bit.
+
 Every value is written exactly (floats by ``repr``, which round-trips), one case a line; wall
 times are left out. Fields are recorded by name, the fields the result types had when the
 recorder was written, so a field added later does not change the record. ``--no-dda`` leaves out
 every case that runs DDA, and the Sarma search of the 141-block jointed slope (minutes): a
-quick check after each move. ``compare``
+quick check after each move; ``--only REGEX`` runs the cases whose names match (e.g. the DDA
+cases of Example I: ``--only 'example_1.*dda'``). ``compare``
 prints each case that differs (the first differing value) and exits 1 if any does, or if a case
 is only in one file (unless ``--subset``: then only the cases of both are compared).
 """
@@ -36,6 +41,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import gzip
 import hashlib
 import io
 import json
@@ -302,11 +308,20 @@ def cases(dda: bool):
 
 
 # ---------------------------------------------------------------------- record and compare
-def record(path: Path, dda: bool) -> None:
+def _open(path: Path, mode: str):
+    """A record file, gzip-compressed when its name ends in .gz."""
+    if path.suffix == ".gz":
+        return gzip.open(path, mode + "t", encoding="utf-8")
+    return open(path, mode, encoding="utf-8")
+
+
+def record(path: Path, dda: bool, only: str = "") -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     t_all = time.perf_counter()
-    with open(path, "w", encoding="utf-8") as fh:
+    with _open(path, "w") as fh:
         for name, heavy, fn in cases(dda):
+            if only and not re.search(only, name):
+                continue
             t0 = time.perf_counter()
             value = exact(fn())
             line = json.dumps({"case": name, "heavy": heavy, "value": value}, ensure_ascii=False, sort_keys=True)
@@ -319,7 +334,9 @@ def record(path: Path, dda: bool) -> None:
 
 def _load(path: Path) -> dict:
     out = {}
-    for line in path.read_text(encoding="utf-8").splitlines():
+    with _open(path, "r") as fh:
+        lines = fh.read().splitlines()
+    for line in lines:
         row = json.loads(line)
         out[row["case"]] = row
     return out
@@ -360,10 +377,16 @@ def compare(a: Path, b: Path, subset: bool) -> int:
 
 
 if __name__ == "__main__":
-    args = [a for a in sys.argv[1:] if not a.startswith("--")]
-    flags = {a for a in sys.argv[1:] if a.startswith("--")}
+    argv = sys.argv[1:]
+    only = ""
+    if "--only" in argv:
+        i = argv.index("--only")
+        only = argv[i + 1] if i + 1 < len(argv) else ""
+        del argv[i:i + 2]
+    args = [a for a in argv if not a.startswith("--")]
+    flags = {a for a in argv if a.startswith("--")}
     if len(args) == 2 and args[0] == "record" and flags <= {"--no-dda"}:
-        record(Path(args[1]), dda="--no-dda" not in flags)
+        record(Path(args[1]), dda="--no-dda" not in flags, only=only)
     elif len(args) == 3 and args[0] == "compare" and flags <= {"--subset"}:
         raise SystemExit(compare(Path(args[1]), Path(args[2]), "--subset" in flags))
     else:

@@ -119,8 +119,7 @@ def write_dda_gif(path: Path, scene, params, group, row, settings) -> None:
     import numpy as np
 
     from ddatai.render import write_gif
-    from kgm.blocks import build_block_system
-    from kgm.dda import judge
+    from kgm import build_block_system, judge
 
     dt = params.dt if params is not None and params.dt is not None else 0.005
     judgement = row.dda.judgement

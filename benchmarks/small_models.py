@@ -1,26 +1,34 @@
-"""Small models: the fixed cost of a step, paired NumPy path against Taichi kernels, and what a
-user of the paper's method feels.
+"""Small models: the fused engine against today's NumPy path, ntdda beside them, and what a user of
+the paper's method feels.
 
-    python benchmarks/small_models.py [--repeats 3] [--steps 200]
+    python benchmarks/small_models.py [--repeats 3] [--steps 2000] [--samples 200]
 
-1. Per step, after the equilibrium stage, on ntdda's grid scene (`scaling.grid_scene`: n × n unit
-   blocks on a fixed base, Δt = 1 ms, p = 1e9) of 1, 4, 16, 64 and 256 blocks and on the paper's
-   Example I (4 blocks, φ = 14°): the small-model path (`Params(kernels="numpy",
-   solver="dense")`, what "auto" picks up to `SMALL_MODEL_BLOCKS`) and the Taichi kernels with a
-   sparse solver (`kernels="taichi"`, PARDISO when installed), each in its own fresh process,
-   interleaved A/B ``--repeats`` times; medians. ntdda's per-step times on the same grids (its
-   recorded side-by-side run on this machine type, docs/ntdda.md) are printed beside them.
-2. The equilibrium stage's wall time and solves on the same models.
-3. From a fresh interpreter to the second step of Example I (the import, the model, the stage and
-   one step; Taichi's offline cache warm).
-4. `kgm.evaluate(Example I scene, [0, 1], "dda")`: the DDA verdict with its critical-friction
-   bisection, wall time.
+Every figure is paired: the two paths alternate in fresh processes, ``--repeats`` times; medians.
+
+1. Per step of a single small model, start excluded, amortised over a ``--steps`` run: ntdda's
+   grid scene (`scaling.grid_scene`: n × n unit blocks on a fixed base, Δt = 1 ms, p = 1e9) of
+   1, 4, 16 and 64 blocks from ntdda's sudden start, and the paper's Example I (φ = 14°) after
+   its equilibrium stage. "numpy": today's small-model path (`Params(kernels="numpy")`, dense
+   LAPACK solves); "fused": the fused engine (`Params(kernels="fused")`, its kernel loaded before
+   the timed run). ntdda's time on the same grids from its side-by-side run on a quiet machine
+   (docs/ntdda.md: 0.014 / 0.030 / 0.173 / 1.08 ms).
+2. The equilibrium stage of those models (NumPy, both paths).
+3. `kgm.evaluate(Example I, [0, 1], "dda")`: today's path (the judgements side by side in one
+   NumPy model) against the fused engine (``kernels="fused"``), each in a fresh process: the
+   first call (the fused kernel taken from Taichi's offline cache) and a second one in the same
+   process.
+4. Example II's DDA-judged probabilistic study (friction N(22°, 2°), cohesion N(20 kPa, 5 kPa),
+   ``--samples`` samples, 2 workers): samples a second, today's path against the fused engine
+   (``kernels="fused"``: each worker loads the kernel once), and whether the tables are the
+   same. Run ``python -m ddatai.fused`` once first: the fused kernel compiled and cached.
+5. From a fresh interpreter to the second step of Example I (``Params(kernels="auto")``).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import platform
 import statistics
 import subprocess
@@ -28,18 +36,17 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-#: ntdda, ms per step on the same n × n grids, side by side on this machine type (2-core EPYC,
-#: shared): the project's recorded comparison (docs/ntdda.md)
-NTDDA_MS = {1: 0.020, 4: 0.041, 16: 0.164, 64: 2.03, 256: 26.5}
-PATHS = {"numpy": dict(kernels="numpy", solver="dense"), "taichi": dict(kernels="taichi", solver="auto")}
+#: ntdda, ms per step on the same n × n grids from its sudden start, side by side on a quiet
+#: 2-core machine (docs/ntdda.md; the project's recorded comparison)
+NTDDA_MS = {1: 0.014, 4: 0.030, 16: 0.173, 64: 1.08}
 
-ONE = """
-import dataclasses, json, sys, time
+STEP = """
+import json, sys, time
 sys.path[:0] = [{root!r}, {root!r} + "/benchmarks"]
+import dataclasses
 import numpy as np
 import ddatai as dd
 from ddatai.model import build_model
-from ddatai.records import STEP_PHASES
 from ddatai.start import settle
 from ddatai.step import Stepper
 case, path, steps = {case!r}, {path!r}, {steps}
@@ -49,23 +56,73 @@ if case == "example_1":
 else:
     from scaling import grid_scene
     scene, params = grid_scene(int(case))
-params = dataclasses.replace(params, **{options!r})
+    params = dataclasses.replace(params, initial_equilibrium=False)  # ntdda's sudden start
+params = dataclasses.replace(params, kernels="numpy", solver="dense")
 model = build_model(scene, params)
 stepper = Stepper(model)
+state = model.initial_state()
 t = time.perf_counter()
-state, start = settle(stepper, model.initial_state())
+stage_solves = 0
+if params.initial_equilibrium:
+    state, start = settle(stepper, state)
+    stage_solves = start.solves
 stage = time.perf_counter() - t
-for _ in range(10):  # warm-up: compilation, the first factorisation
-    state, _ = stepper.step(state)
-times, solves = [], []
-for _ in range(steps):
+if path == "numpy":
+    for _ in range(10):  # warm-up: the first factorisations
+        state, _ = stepper.step(state)
     t = time.perf_counter()
-    state, record = stepper.step(state)
-    times.append(time.perf_counter() - t)
-    solves.append(record.oc_total)
-print(json.dumps(dict(ms=1e3 * float(np.median(times)), solves=float(np.mean(solves)), stage_s=stage,
-                      stage_solves=start.solves, welded=start.welded, blocks=model.n_free,
-                      solver=stepper.solver.backend, numpy_path=model.numpy_path)))
+    solves = 0
+    for _ in range(steps):
+        state, record = stepper.step(state)
+        solves += record.oc_total
+    wall = time.perf_counter() - t
+else:
+    from ddatai.fused import engine
+    from ddatai.fused.pack import Member
+    engine.run([Member(model=model, state=state, step_end=state.step + 10)])  # the kernel, loaded
+    t = time.perf_counter()
+    out = engine.run([Member(model=model, state=state, step_end=state.step + steps, record=True)])[0]
+    wall = time.perf_counter() - t
+    solves = int(out.records["oc_total"].sum())
+    assert out.status == "done", out.status
+print(json.dumps(dict(ms=1e3 * wall / steps, solves=solves / steps, stage_s=stage, stage_solves=stage_solves,
+                      blocks=model.n_free)))
+"""
+
+KGM = """
+import dataclasses, sys, time
+sys.path.insert(0, {root!r})
+import kgm
+from scenes import example_1
+scene, params = example_1.build()
+params = dataclasses.replace(params, kernels={kernels!r})
+walls = []
+for _ in range(2):
+    t = time.perf_counter()
+    row = kgm.evaluate(scene, [0, 1], "dda", params=params)
+    walls.append(time.perf_counter() - t)
+print(walls[0], walls[1], row.fs, row.critical_friction, len(row.dda.runs))
+"""
+
+STUDY = """
+import sys, time
+sys.path.insert(0, {root!r})
+from pathlib import Path
+import numpy as np
+import ddatai as dd
+from ddatai.parallel import ScriptFunction
+from kgm.studies.probabilistic import probabilistic
+from kgm.studies.sampling import read_variables
+from kgm.settings import DdaSettings, Settings
+variables, correlation = read_variables(Path({root!r}) / "docs" / "kgm" / "example_2_vars.toml")
+build = ScriptFunction({root!r} + "/scenes/example_2.py")
+settings = Settings(dda=DdaSettings(params=dd.Params(dt=0.0013, penalty_ratio=1.0, kernels={kernels!r})))
+t = time.perf_counter()
+study = probabilistic(build, variables, {n}, method="dda", seed=1, group={{0, 1}}, correlation=correlation,
+                      workers=2, settings=settings)
+wall = time.perf_counter() - t
+np.save({out!r}, study.table["failed"])
+print(wall, study.pf)
 """
 
 FIRST_STEP = """
@@ -76,24 +133,13 @@ sys.path.insert(0, {root!r})
 import ddatai as dd
 from scenes import example_1
 scene, params = example_1.build(friction=14.0)
-dd.simulate(scene, params, steps=2)
-print(time.perf_counter() - t0)
-"""
-
-KGM = """
-import sys, time
-sys.path.insert(0, {root!r})
-import kgm
-from scenes import example_1
-scene, params = example_1.build()
-t = time.perf_counter()
-row = kgm.evaluate(scene, [0, 1], "dda", params=params)
-print(time.perf_counter() - t, row.fs, row.critical_friction, len(row.dda.runs))
+res = dd.simulate(scene, params, steps=2)
+print(time.perf_counter() - t0, res.meta["engine"]["name"])
 """
 
 
-def run(code: str) -> str:
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
+def run(code: str, timeout: int = 3600) -> str:
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=timeout)
     if proc.returncode != 0:
         raise RuntimeError(proc.stderr[-3000:])
     return proc.stdout.strip().splitlines()[-1]
@@ -102,39 +148,69 @@ def run(code: str) -> str:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--steps", type=int, default=200)
-    ap.add_argument("--cases", default="1,4,16,64,256,example_1")
-    ap.add_argument("--no-kgm", action="store_true")
+    ap.add_argument("--steps", type=int, default=2000)
+    ap.add_argument("--cases", default="1,4,16,64,example_1")
+    ap.add_argument("--samples", type=int, default=200)
+    ap.add_argument("--skip", default="", help="comma-separated parts to skip: steps, kgm, study, first")
     a = ap.parse_args()
-    print(f"machine: {platform.machine()} {platform.processor() or ''}, Python {platform.python_version()}; "
-          f"medians of {a.repeats} fresh processes a path, A/B interleaved, {a.steps} steps each after 10 "
-          f"warm-up steps\n")
-    print("| model | blocks | ntdda ms/step | NumPy path ms/step | Taichi kernels ms/step | Taichi / NumPy | "
-          "NumPy / ntdda | solves/step | stage: NumPy s (solves) | stage: Taichi s |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
-    for case in a.cases.split(","):
-        got = {p: [] for p in PATHS}
+    skip = set(filter(None, a.skip.split(",")))
+    print(f"machine: {platform.machine()} {platform.processor() or ''}, {os.cpu_count()} CPUs, Python "
+          f"{platform.python_version()}; load {os.getloadavg()[0]:.1f}; medians of {a.repeats} fresh processes "
+          f"a path, A/B interleaved\n")
+    root = str(ROOT)
+    if "steps" not in skip:
+        print(f"| model | free blocks | ntdda ms/step | NumPy path ms/step | fused ms/step | fused / ntdda | "
+              f"NumPy / fused | solves/step (NumPy, fused) | stage s (solves) |")
+        print("|---|---|---|---|---|---|---|---|---|")
+        for case in a.cases.split(","):
+            got = {p: [] for p in ("numpy", "fused")}
+            for _ in range(a.repeats):
+                for path in got:
+                    got[path].append(json.loads(run(STEP.format(root=root, case=case, path=path, steps=a.steps))))
+            med = {p: statistics.median(r["ms"] for r in rows) for p, rows in got.items()}
+            first = got["numpy"][0]
+            nt = NTDDA_MS.get(first["blocks"]) if case != "example_1" else None
+            name = "Example I (φ 14°)" if case == "example_1" else f"grid {case} (sudden start)"
+            stage = statistics.median(r["stage_s"] for r in got["numpy"])
+            ratio = f"{med['fused'] / nt:.2f}×" if nt else "–"
+            print(f"| {name} | {first['blocks']} | {nt if nt is not None else '–'} | {med['numpy']:.3f} | "
+                  f"{med['fused']:.4f} | {ratio} | "
+                  f"{med['numpy'] / med['fused']:.0f}× | {first['solves']:.2f}, {got['fused'][0]['solves']:.2f} | "
+                  f"{stage:.3f} ({first['stage_solves']}) |", flush=True)
+    if "kgm" not in skip:
+        rows = {"numpy": [], "fused": []}
         for _ in range(a.repeats):
-            for path, options in PATHS.items():
-                got[path].append(json.loads(run(ONE.format(root=str(ROOT), case=case, path=path,
-                                                           steps=a.steps, options=options))))
-        med = {p: statistics.median(r["ms"] for r in rows) for p, rows in got.items()}
-        stage = {p: statistics.median(r["stage_s"] for r in rows) for p, rows in got.items()}
-        first = got["numpy"][0]
-        name = "Example I (φ 14°)" if case == "example_1" else f"grid {case}"
-        nt = NTDDA_MS.get(first["blocks"]) if case != "example_1" else None
-        print(f"| {name} | {first['blocks']} | {nt if nt is not None else '–'} | {med['numpy']:.3f} | "
-              f"{med['taichi']:.3f} | {med['taichi'] / med['numpy']:.1f}× | "
-              f"{(med['numpy'] / nt) if nt else float('nan'):.1f}× | {first['solves']:.2f} | "
-              f"{stage['numpy']:.3f} ({first['stage_solves']}{', welded' if first['welded'] else ''}) | "
-              f"{stage['taichi']:.3f} |", flush=True)
-    firsts = sorted(float(run(FIRST_STEP.format(root=str(ROOT)))) for _ in range(a.repeats))
-    print(f"\nfresh interpreter to the second step of Example I: median {statistics.median(firsts):.2f} s "
-          f"({', '.join(f'{f:.2f}' for f in firsts)})")
-    if not a.no_kgm:
-        wall, fs, phi, runs = run(KGM.format(root=str(ROOT))).split()
-        print(f"kgm.evaluate(Example I, [0, 1], 'dda'): {float(wall):.2f} s ({runs} DDA runs; FS {float(fs):.3f}, "
-              f"critical friction {float(phi):.2f}°)")
+            for k in rows:
+                rows[k].append(run(KGM.format(root=root, kernels=k)).split())
+        for k, label in (("numpy", "today's path (kernels='numpy')"), ("fused", "fused engine (kernels='fused')")):
+            first = statistics.median(float(r[0]) for r in rows[k])
+            second = statistics.median(float(r[1]) for r in rows[k])
+            r = rows[k][0]
+            print(f"\nkgm.evaluate(Example I, [0, 1], 'dda'), {label}: {first:.2f} s in a fresh process, "
+                  f"{second:.2f} s the second time ({r[4]} DDA runs; FS {float(r[2]):.4f}, critical friction "
+                  f"{float(r[3]):.3f}°)", flush=True)
+    if "study" not in skip:
+        walls = {"numpy": [], "fused": []}
+        tables = {}
+        for rep in range(max(1, a.repeats - 1)):
+            for k in walls:
+                out = f"/tmp/ddatai_study_{k}.npy"
+                wall, pf = run(STUDY.format(root=root, kernels=k, n=a.samples, out=out)).split()
+                walls[k].append(float(wall))
+                import numpy as np
+
+                tables[k] = np.load(out)
+        same = bool((tables["numpy"] == tables["fused"]).all())
+        for k, label in (("numpy", "today's path (kernels='numpy')"), ("fused", "fused engine (kernels='fused')")):
+            w = statistics.median(walls[k])
+            print(f"\nExample II DDA-judged study, {a.samples} samples, 2 workers, {label}: {w:.1f} s "
+                  f"({a.samples / w:.1f} samples/s; runs {', '.join(f'{x:.1f}' for x in walls[k])} s)", flush=True)
+        print(f"the same verdicts on both paths: {same}")
+    if "first" not in skip:
+        firsts = [run(FIRST_STEP.format(root=root)).split() for _ in range(a.repeats)]
+        med = statistics.median(float(f[0]) for f in firsts)
+        print(f"\nfresh interpreter to the second step of Example I: median {med:.2f} s "
+              f"({', '.join(f[0][:5] for f in firsts)}; engine: {firsts[0][1]})")
 
 
 if __name__ == "__main__":

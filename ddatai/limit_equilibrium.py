@@ -293,7 +293,10 @@ class _DenseFactor:
     def __init__(self, matrix: np.ndarray):
         from scipy.linalg import cho_factor
 
-        self.factor = cho_factor(matrix, check_finite=False)
+        from .threads import one_blas_thread
+
+        with one_blas_thread():  # a few hundred rows: no gain from threads (`ddatai.threads`)
+            self.factor = cho_factor(matrix, check_finite=False)
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         from scipy.linalg import cho_solve

@@ -1,7 +1,7 @@
 """Which blocks the contacts cannot hold in the equilibrium stage (`ddatai.start`): blocks an
 iterate throws away from what holds them, and blocks out of balance that an open-close test
-shows moving as their loads drive them. They are released: they start at t = 0 under sudden
-gravity."""
+shows moving as their loads drive them, and held blocks that settled into the space of released
+ones. They are released: they start at t = 0 under sudden gravity."""
 
 from __future__ import annotations
 
@@ -11,10 +11,10 @@ from scipy.sparse.csgraph import connected_components
 
 from .contacts import Contacts
 from .geometry import displacement_matrix
-from .assembly import load_forces
+from .assembly import contact_vectors, load_forces
 from .kinematics import block_displacement
 from .layout import KIND, LOCK, OPEN, SLIDE, VE
-from .model import State
+from .model import ContactMemory, State
 from .open_close import open_close
 from .records import StepTimer
 
@@ -156,11 +156,43 @@ def loaded_away(stepper, state: State, geom: dict, frame, contacts: Contacts, ou
                 out: np.ndarray, size: np.ndarray, converged_only: bool = False) -> tuple[np.ndarray, int]:
     """The blocks out of balance where the return mapping stopped (`out_of_balance`) that move
     away in the open-close test (`test_unbalanced`) as their loads drive them (`driven`):
-    mechanisms. ``converged_only``: only where that iteration converged (an unconverged iterate
-    throws blocks that a converged one holds). Returns (mechanism, solves)."""
+    mechanisms. ``converged_only``: where that iteration does not converge, every out-of-balance
+    block (an unconverged iterate throws blocks that a converged one holds, but nothing then
+    proves them held: in doubt, release). Returns (mechanism, solves)."""
     unbalanced = out_of_balance(stepper.model, contacts, outcome)
     tested, solves = test_unbalanced(stepper, state, geom, frame, contacts, outcome, guess, unbalanced)
-    if tested is None or (converged_only and not tested[2]):
+    if tested is None:
         return np.zeros(stepper.model.n_blocks, bool), solves
+    if converged_only and not tested[2]:
+        # the test did not converge: nothing proves these blocks held, and a stage handing them
+        # over held would start a toppling stack at rest (forces that non-associated friction
+        # cannot reach exist for it). In doubt, they are released: a block released but stable
+        # stays where it is in the first steps (docs/guide/equilibrium_start.md)
+        return unbalanced & ~out, solves
     moving = unbalanced & mechanisms(stepper, state.vertex_xy, geom, tested[1], tested[0], out, size)
     return driven(stepper, state, geom, tested[1], tested[0], moving), solves
+
+
+def sunk_into_released(stepper, state: State, released: np.ndarray, fraction: float) -> np.ndarray:
+    """Held blocks that overlap a released block (back where it was at t = 0) deeper than
+    ``fraction`` × the penetration limit: they settled into the space of a block whose
+    support the stage had taken away: they are released too (`ddatai.start`)."""
+    model = stepper.model
+    out = np.zeros(model.n_blocks, bool)
+    if not released.any():
+        return out
+    held = ~model.block_fixed & ~released
+    cint, length = stepper.detect(state.vertex_xy)
+    contacts = Contacts.start(model, state.vertex_xy, cint, length, ContactMemory.empty(), True)
+    a, b = contacts.block_a, contacts.block_b
+    mixed = (held[a] & released[b]) | (released[a] & held[b])
+    if not mixed.any():
+        return out
+    geom = model.block_geometry(state.vertex_xy)
+    _, sca = contact_vectors(model, state.vertex_xy, geom, contacts)
+    depth = -np.where(contacts.cint[:, KIND] == VE, sca[:, 0], np.maximum(sca[:, 0], sca[:, 1]))
+    deep = mixed & (depth > fraction * model.penetration_limit)
+    out[a[deep]] = True
+    out[b[deep]] = True
+    return out & held
+

@@ -415,7 +415,8 @@ def build_model(scene: Scene, params: Optional[Params] = None, *,
         fixed_point_penalty=params.fixed_point_ratio * float(penalty),
         params=params,
         numpy_path=params.kernels == "numpy" or (
-            params.kernels == "auto" and params.arch == "cpu" and int(np.count_nonzero(~fixed)) <= SMALL_MODEL_BLOCKS),
+            params.kernels in ("auto", "fused") and params.arch == "cpu"
+            and int(np.count_nonzero(~fixed)) <= SMALL_MODEL_BLOCKS),
         **_support_arrays(scene, xy0, offset, origin),
         **_barton_arrays(joints),
     )

@@ -5,9 +5,9 @@ Used by `ddatai.sweep` and `kgm.probabilistic`. Three ways to run, chosen by the
 ``client`` and ``workers`` arguments:
 
 - ``workers=1`` (and no client): in this process, in order;
-- ``workers=N > 1`` (and no client): a pool of N local worker processes
-  (`concurrent.futures.ProcessPoolExecutor`, ``spawn`` start method, so every worker starts its
-  own Taichi runtime once, the first time it needs one);
+- ``workers=N > 1`` (and no client): N local worker processes (`ddatai.workers`, ``spawn``
+  start method, so every worker starts its own Taichi runtime once, the first time it needs
+  one), each sending every item's result back as it completes;
 - a ``dask.distributed.Client``, or a scheduler address such as ``"tcp://host:8786"``: the
   cluster's workers (``pip install ddatai[dask]``).
 
@@ -17,7 +17,14 @@ shipping every item to them costs more than it saves; items that take seconds (a
 one worker process per CPU.
 
 Work is sent in chunks of several items (one task per chunk) so that a cheap evaluation is not
-dominated by the cost of a task. The function and its items must be picklable: a function
+dominated by the cost of a task.
+
+**Lost workers.** A worker process killed in the middle of an item (the out-of-memory killer, a
+crash in a native library) loses that item only: it runs again on another worker, and an item
+that was running when its worker died twice is yielded as `ddatai.workers.WorkerLost` in place
+of its result while the rest completes (`ddatai.workers`). A Dask cluster runs a task again on
+its own when its worker dies (the scheduler's ``allowed-failures``); a chunk that exhausts them
+runs again as single items, and a single item that does is yielded as `WorkerLost`. The function and its items must be picklable: a function
 defined at the top level of an importable module, or of the script being run (a scene script
 loaded by path is run by `ScriptFunction`).
 
@@ -267,11 +274,20 @@ def plan(fn: Callable, *, client=None, workers: Optional[int] = None, cost: str 
 
 
 def run(fn: Callable, items: Sequence[tuple[int, Any]], *, client=None, workers: Optional[int] = None,
-        chunk: Optional[int] = None) -> Iterator[tuple[int, Any]]:
+        chunk: Optional[int] = None, split: Optional[Callable] = None,
+        max_deaths: int = 2) -> Iterator[tuple[int, Any]]:
     """Evaluate ``fn(item)`` for every ``(index, item)``; yields ``(index, result)`` in
     completion order (any order: callers key results by index). An exception in ``fn`` is
     raised here, naming nothing more than ``fn`` did: callers wrap ``fn`` to name the item.
-    ``workers=None`` means one process per CPU here: callers decide it first with `plan`."""
+    ``workers=None`` means one process per CPU here: callers decide it first with `plan`.
+
+    A worker process that dies (killed, crashed) loses only the item it was running: that item
+    runs again on another worker (``split(item) -> [(index, part)]`` gives the parts of a
+    divisible item, each run alone), and one that was running when its worker died
+    ``max_deaths`` times is yielded as `ddatai.workers.WorkerLost` in place of its result
+    (`ddatai.workers`; on a Dask cluster, after the cluster's own retries). In this process
+    (``workers=1``) there is no worker to lose. `Executor` runs batch after batch on the same
+    workers."""
     check_execution(client, workers)
     items = list(items)
     if not items:
@@ -280,54 +296,105 @@ def run(fn: Callable, items: Sequence[tuple[int, Any]], *, client=None, workers:
         for index, item in items:
             yield index, fn(item)
         return
-    n_workers = workers or default_workers()
-    # about 4 chunks per worker keeps them all busy to the end; at most 64 items a chunk so that
-    # results (and a resumable study's file) arrive often
-    size = chunk or max(1, min(64, len(items) // (4 * n_workers) or 1))
-    chunks = _chunks(items, size)
-    if client is None:
-        if n_workers == 1:
-            for index, item in items:
-                yield index, fn(item)
+    with Executor(fn, client=client, workers=workers) as executor:
+        yield from executor.run(items, chunk=chunk, split=split, max_deaths=max_deaths)
+
+
+class Executor:
+    """Runs ``fn`` on batch after batch of items with the same workers (`run`'s three ways: in
+    this process, on local worker processes started once, or on a Dask cluster, connected
+    once): a study that chooses each batch from the results of the one before (subset
+    simulation's chains, `kgm.studies.reliability`) starts no worker per batch. A context
+    manager; `close` stops the workers."""
+
+    def __init__(self, fn: Callable, *, client=None, workers: Optional[int] = None):
+        check_execution(client, workers)
+        self.fn = fn
+        self.n_workers = 1 if client is None and workers == 1 else (workers or default_workers())
+        self._client, self._own, self._pool = client, False, None
+
+    def __enter__(self) -> "Executor":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close(kill=exc[0] is not None)
+
+    def close(self, *, kill: bool = False) -> None:
+        if self._pool is not None:
+            self._pool.close(kill=kill)
+            self._pool = None
+        if self._own:
+            self._client.close()
+            self._own, self._client = False, None
+
+    def run(self, items: Sequence[tuple[int, Any]], *, chunk: Optional[int] = None, split: Optional[Callable] = None,
+            max_deaths: int = 2) -> Iterator[tuple[int, Any]]:
+        """`run` of these items on this executor's workers."""
+        items = list(items)
+        if not items:
             return
-        yield from _run_processes(fn, chunks, n_workers)
-    else:
-        yield from _run_dask(fn, chunks, client)
+        if self._client is None and self.n_workers == 1:
+            for index, item in items:
+                yield index, self.fn(item)
+            return
+        # about 4 chunks per worker keeps them all busy to the end; at most 64 items a chunk (local
+        # workers send each item's result back as it completes; a Dask task returns its chunk whole)
+        size = chunk or max(1, min(64, len(items) // (4 * self.n_workers) or 1))
+        chunks = _chunks(items, size)
+        if self._client is None:
+            from .workers import ProcessPool
+
+            if self._pool is None:
+                self._pool = ProcessPool(self.fn, self.n_workers)
+            yield from self._pool.run(chunks, split=split, max_deaths=max_deaths)
+            return
+        if isinstance(self._client, str):
+            try:
+                from dask.distributed import Client
+            except ImportError as exc:  # pragma: no cover - depends on the environment
+                raise ImportError("running on a Dask cluster needs dask.distributed: pip install ddatai[dask]") \
+                    from exc
+            self._client, self._own = Client(self._client), True
+        yield from _run_dask(self.fn, chunks, self._client, split, max_deaths)
 
 
-def _run_processes(fn, chunks, n_workers: int) -> Iterator[tuple[int, Any]]:
-    import multiprocessing
-    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
-
-    # spawn, not fork: a forked child would inherit a half-initialised Taichi runtime or MKL
-    # thread pool of the parent
-    with ProcessPoolExecutor(max_workers=n_workers, mp_context=multiprocessing.get_context("spawn")) as pool:
-        pending = {pool.submit(_run_chunk, fn, c) for c in chunks}
-        try:
-            while pending:
-                done, pending = wait(pending, return_when=FIRST_COMPLETED)
-                for future in done:
-                    yield from future.result()
-        finally:
-            for future in pending:
-                future.cancel()
-
-
-def _run_dask(fn, chunks, client) -> Iterator[tuple[int, Any]]:
+def _run_dask(fn, chunks, client, split, max_deaths: int) -> Iterator[tuple[int, Any]]:
     try:
-        from dask.distributed import Client, as_completed
+        from dask.distributed import as_completed
+        from distributed.scheduler import KilledWorker
     except ImportError as exc:  # pragma: no cover - depends on the environment
         raise ImportError("running on a Dask cluster needs dask.distributed: pip install ddatai[dask]") from exc
-    own = isinstance(client, str)
-    if own:
-        client = Client(client)
+    from .workers import WorkerLost
+
+    # the scheduler runs a task again when its worker dies, up to its 'allowed-failures';
+    # then the task errs with KilledWorker: a chunk of several items runs again as single
+    # items (the one that kills its workers takes none of the others with it again), a
+    # divisible item as its parts, and a single item once more; a single item that errs so
+    # twice is given up (WorkerLost). A worker's death charges the task it was running and
+    # any queued on it (the scheduler's 'worker-saturation'), hence the second chance.
+    chunk_of = {client.submit(_run_chunk, fn, c, pure=False): c for c in chunks}
+    killed: dict = {}  # index -> KilledWorker errors of the item alone
+    pending = as_completed(list(chunk_of))
     try:
-        futures = [client.submit(_run_chunk, fn, c, pure=False) for c in chunks]
-        try:
-            for future in as_completed(futures):
-                yield from future.result()
-        finally:
-            client.cancel([f for f in futures if not f.done()])
+        for future in pending:
+            c = chunk_of.pop(future)
+            try:
+                results = future.result()
+            except KilledWorker as exc:
+                parts = [[it] for it in c] if len(c) > 1 else \
+                    [[p] for p in (split(c[0][1]) if split is not None else None) or ()]
+                if len(parts) < 2:
+                    index = c[0][0]
+                    killed[index] = killed.get(index, 0) + 1
+                    if killed[index] >= max_deaths:
+                        yield index, WorkerLost(deaths=killed[index] * (int(exc.allowed_failures) + 1))
+                        continue
+                    parts = [c]
+                for part in parts:
+                    f = client.submit(_run_chunk, fn, part, pure=False)
+                    chunk_of[f] = part
+                    pending.add(f)
+                continue
+            yield from results
     finally:
-        if own:
-            client.close()
+        client.cancel([f for f in chunk_of if not f.done()])

@@ -162,6 +162,8 @@ class Params:
     step then grows back towards ``dt`` (at most ``dt_growth`` per step)."""
     dt_max: float = 0.01
     """Largest automatic time step [s]."""
+    impact_overshoot: Optional[float] = 0.01
+    """Impacts: closing past this × the penetration limit (``ddatai.impacts``; None: off) [-]."""
     dt_min_ratio: float = 1e-4
     """Smallest time step, as a fraction of ``dt`` (or ``dt_max``) [-]. A step that cannot be
     made to converge above it stops the run with a `SimulationError`."""
@@ -273,25 +275,22 @@ class Params:
     """Taichi backend for contact detection and assembly: "cpu", "gpu" (CUDA/Vulkan/Metal,
     whichever is present) or "cuda"."""
     kernels: str = "auto"
-    """Where a step's per-block and per-contact work runs: "taichi" (the Taichi kernels, on
-    ``arch``), "numpy" (their vectorised NumPy twins: no kernel launch, no Taichi at all) or
-    "auto" (NumPy for a model of at most ``ddatai.model.SMALL_MODEL_BLOCKS`` free blocks on the
-    CPU, where a kernel launch costs more than the work; Taichi otherwise). Both give the same
-    results to round-off (tests compare them)."""
+    """Where a run's work runs: "fused" (`ddatai.fused`: a small model's whole run in one Taichi
+    kernel, many runs side by side), "taichi" (today's step, its per-block and per-contact work in
+    Taichi kernels on ``arch``), "numpy" (today's step in NumPy, no Taichi) or "auto": the fused
+    engine where it pays its kernel (`ddatai.fused.policy`), else NumPy up to ``SMALL_MODEL_BLOCKS``
+    free blocks on the CPU, Taichi beyond; ``Results.meta["engine"]`` says which ran and why."""
 
     def __post_init__(self) -> None:
-        def pos(name: str, allow_none: bool = False) -> None:
+        def pos(name: str) -> None:
             v = getattr(self, name)
-            if v is None and allow_none:
+            if v is None and name in ("dt", "penalty", "impact_overshoot"):  # None: automatic / off
                 return
             _require(_finite(v) and v > 0, f"Params.{name} must be a finite number > 0, got {v!r}")
 
-        pos("dt", allow_none=True)
-        pos("dt_max")
-        pos("penalty", allow_none=True)
-        for name in ("penalty_ratio", "shear_ratio", "fixed_point_ratio", "max_displacement_ratio",
+        for name in ("dt", "penalty", "impact_overshoot", "penalty_ratio", "shear_ratio", "fixed_point_ratio", "max_displacement_ratio",
                      "open_tolerance", "oc_force_tolerance", "oc_state_tolerance", "penetration_ratio", "angle_tolerance",
-                     "dt_min_ratio"):
+                     "dt_min_ratio", "dt_max"):
             pos(name)
         _require(_finite(self.dt_growth) and self.dt_growth >= 1.0,
                  f"Params.dt_growth must be >= 1, got {self.dt_growth!r}")
@@ -329,8 +328,8 @@ class Params:
         _require(self.dt_min_ratio < 1.0, f"Params.dt_min_ratio must be < 1, got {self.dt_min_ratio!r}")
         _require(self.solver in ("auto", "scipy", "pardiso", "dense"),
                  f"Params.solver must be 'auto', 'scipy', 'pardiso' or 'dense', got {self.solver!r}")
-        _require(self.kernels in ("auto", "taichi", "numpy"),
-                 f"Params.kernels must be 'auto', 'taichi' or 'numpy', got {self.kernels!r}")
+        _require(self.kernels in ("auto", "taichi", "numpy", "fused"),
+                 f"Params.kernels must be 'auto', 'fused', 'taichi' or 'numpy', got {self.kernels!r}")
         _require(isinstance(self.arch, str) and self.arch in ("cpu", "gpu", "cuda", "vulkan", "metal"),
                  f"Params.arch must be one of 'cpu', 'gpu', 'cuda', 'vulkan', 'metal', got {self.arch!r}")
         _require(isinstance(self.initial_equilibrium, bool),

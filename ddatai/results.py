@@ -360,8 +360,10 @@ def block_materials(scene) -> tuple[list[dict], np.ndarray]:
     return materials, np.array(index, np.int64)
 
 
-def run_metadata(scene, model) -> str:
-    """The metadata of a run as JSON text: ddatai version, parameters, units, scene summary."""
+def run_metadata(scene, model, engine: str = "", why: str = "") -> str:
+    """The metadata of a run as JSON text: ddatai version, parameters, units, scene summary, and
+    the engine that ran it with the reason (``meta["engine"]``: "fused", "numpy" or "taichi";
+    ``ddatai.fused.policy.choose``)."""
     import dataclasses
     import json
 
@@ -384,6 +386,8 @@ def run_metadata(scene, model) -> str:
     }
     meta = {"ddatai_version": __version__, "params": dataclasses.asdict(model.params),
             "units": UNITS, "scene": summary}
+    if engine:
+        meta["engine"] = {"name": engine, "why": why}
     return json.dumps(meta, sort_keys=True, default=float)
 
 

@@ -103,7 +103,11 @@ def simulate(scene: Scene, params: Optional[Params] = None, duration: Optional[f
                          record_every=record_every, record_contacts=record_contacts)
     stepper = Stepper(model)
     recorder = Recorder(model, record_contacts)
-    recorder.metadata = run_metadata(scene, model)
+    from .fused.policy import choose
+
+    engine, why = choose(model, steps=steps, duration=duration, record_contacts=record_contacts,
+                         checkpoint=checkpoint is not None, resume=resume is not None)
+    recorder.metadata = run_metadata(scene, model, engine=engine, why=why)
     recorder.block_material = block_materials(scene)[1]
     if resume is not None:
         state = saved.state
@@ -126,6 +130,15 @@ def simulate(scene: Scene, params: Optional[Params] = None, duration: Optional[f
                (steps is not None and s.step >= steps)
 
     try:
+        if engine == "fused" and not finished(state):
+            # the fused engine (ddatai.fused): the run in few launches; a step it hands over
+            # goes on here, on today's path, from that step's start
+            from .fused import single
+
+            state, fused_model, _ = single.run(model, state, recorder, duration=duration, steps=steps,
+                                               record_every=record_every, progress=progress)
+            if fused_model.penalty != model.penalty:
+                stepper.model, stepper.penalty_warned = fused_model, True
         while not finished(state):
             try:
                 outcome = stepper.advance(state, t_end=duration)

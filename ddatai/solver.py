@@ -298,7 +298,13 @@ class SparseSolver:
 
     def _solve_dense(self, data, indices, indptr, rhs, n, symmetric) -> np.ndarray:
         """LAPACK on the dense K: Cholesky when K is symmetric (LU if it turns out not positive
-        definite), LU with partial pivoting otherwise."""
+        definite), LU with partial pivoting otherwise; BLAS on one thread (`ddatai.threads`)."""
+        from .threads import one_blas_thread
+
+        with one_blas_thread():
+            return self._solve_dense_one_thread(data, indices, indptr, rhs, n, symmetric)
+
+    def _solve_dense_one_thread(self, data, indices, indptr, rhs, n, symmetric) -> np.ndarray:
         from scipy.linalg import LinAlgError, LinAlgWarning, cho_factor, cho_solve, lu_factor, lu_solve
 
         k = self._dense(data, indices, indptr, n)

@@ -65,7 +65,9 @@ solve of the model under its weight, the point loads at t = 0 and its initial st
    fraction of the load. Models with bolts or a water table, whose forces the program does
    not carry, are tested by the open-close iteration alone. A mechanism is *released*: its contacts
    leave the stage and it starts at t = 0 from its initial position under sudden gravity (as
-   without the stage), and the others are solved again from where they were.
+   without the stage), and the others are solved again from where they were. A held block that
+   the stage settled into a released one (deeper than SUNK_FRACTION of the penetration limit)
+   leant on it: it is released too and the stage is solved again from t = 0.
 5. The held blocks move by the solution (their elastic settlement), their stresses and contact
    springs carry the equilibrium forces, and their velocities are the scene's initial ones:
    each contact is handed over locked, its lock point moved by its slip, and a contact at its
@@ -108,7 +110,7 @@ from .kinematics import block_displacement, settle_points
 from .layout import E0, KIND, LOCK, OPEN, SLIDE, VE
 from .model import ContactMemory, State
 from .open_close import solve
-from .mechanisms import FALL_IN_SIZES, mechanisms
+from .mechanisms import FALL_IN_SIZES, mechanisms, sunk_into_released
 from .return_mapping import STAGE_BETA, Frame, coupled, return_mapping, subset_contacts
 #: at most this many pseudo-steps (each re-solves the increment at the settled geometry; the
 #: second is ~strain × the first, the third round-off)
@@ -116,6 +118,10 @@ MAX_PSEUDO_STEPS = 8
 #: round-off of the balance of the settled geometry that ends the pseudo-steps (`balanced`), as a
 #: fraction of the load that a contact's blocks carry
 BALANCE_ROUNDOFF = 1e-12
+#: a held block that the stage settled into a released block deeper than this fraction of the
+#: penetration limit is released too (``mechanisms.sunk_into_released``): ~1e-5·w0, far beyond a
+#: held block's elastic settlement towards a neighbour and far below an overlap that kicks
+SUNK_FRACTION = 0.01
 #: a pseudo-step whose increment is at least this fraction of the last one's does not contract:
 #: the stage ends at the last one's equilibrium (``_stage``)
 GEOMETRY_CONTRACTION = 1.0
@@ -198,6 +204,53 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
     free = ~model.block_fixed
     initial = state
     released = np.zeros(model.n_blocks, bool)
+    solves = 0
+    while True:
+        state, last, memory, n, stalled, unsettled, failed = _pseudo_steps(stepper, initial, state, released, size,
+                                                                           dt, welded)
+        solves += n
+        if failed:
+            return initial, StartRecord(solves=solves, held=0, released=int(np.count_nonzero(free)),
+                                        settlement=0.0, at_strength=0,
+                                        wall_time=_time.perf_counter() - t0), False
+        # a held block that settled into a released one would start overlapping it: the first
+        # steps would throw both apart (the run's penalty raised many times over, its first
+        # steps out of Coulomb's law: docs/method/dda.md §8.12). Its equilibrium leaned on the
+        # released block: in doubt, it is released too, and the rest is solved again from t = 0
+        sunk = sunk_into_released(stepper, state, released, SUNK_FRACTION)
+        if not sunk.any():
+            break
+        released |= sunk
+        state = initial
+    if solves == 0:
+        return initial, NOTHING, True
+    at_strength: set = set()
+    if last is not None and welded:
+        _unweld(stepper, last)
+    if last is not None:
+        # contacts sliding at their strength are handed over locked at it (force-continuous):
+        # the stage ends in an equilibrium of springs, and they keep their bonds
+        sliding = _lock_at_strength(stepper, last, state.vertex_xy)
+        at_strength |= _keys(last, sliding)
+        memory = last.memory(stepper.params.bond_breaks_on_slip)
+    held = free & ~released
+    moved = np.hypot(*(state.vertex_xy - initial.vertex_xy).T)
+    settlement = float(np.max(moved[held[model.vertex_block]], initial=0.0))
+    record = StartRecord(solves=solves, held=int(np.count_nonzero(held)),
+                         released=int(np.count_nonzero(free & released)), settlement=settlement,
+                         at_strength=len(at_strength & set(memory.key.tolist())),
+                         wall_time=_time.perf_counter() - t0, welded=welded, stalled=stalled,
+                         unsettled=unsettled)
+    return state.replace(memory=memory), record, True
+
+
+def _pseudo_steps(stepper, initial: State, state: State, released: np.ndarray, size: np.ndarray, dt: float,
+                  welded: bool):
+    """The pseudo-steps of `_stage` from ``state`` with the ``released`` blocks out (updated in
+    place with the blocks it releases). Returns (state, the last pseudo-step's contacts, their
+    memory, solves, stalled, unsettled, whether a pseudo-step found no equilibrium)."""
+    model = stepper.model
+    free = ~model.block_fixed
     memory = ContactMemory.empty()
     last = None  # the contacts of the last pseudo-step
     solves = 0
@@ -223,9 +276,7 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
                                                                 size, frame)
         solves += n
         if disp is None:  # no equilibrium found
-            return initial, StartRecord(solves=solves, held=0, released=int(np.count_nonzero(free)),
-                                        settlement=0.0, at_strength=0,
-                                        wall_time=_time.perf_counter() - t0), False
+            return state, last, memory, solves, stalled, unsettled, True
         if found.any():
             # a released block starts from where it was at t = 0
             released |= found
@@ -256,26 +307,7 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
             # the return mapping stalled where limit equilibrium holds every block: another
             # pseudo-step would stall the same way; the first steps settle what is left
             break
-    if solves == 0:
-        return initial, NOTHING, True
-    at_strength: set = set()
-    if last is not None and welded:
-        _unweld(stepper, last)
-    if last is not None:
-        # contacts sliding at their strength are handed over locked at it (force-continuous):
-        # the stage ends in an equilibrium of springs, and they keep their bonds
-        sliding = _lock_at_strength(stepper, last, state.vertex_xy)
-        at_strength |= _keys(last, sliding)
-        memory = last.memory(stepper.params.bond_breaks_on_slip)
-    held = free & ~released
-    moved = np.hypot(*(state.vertex_xy - initial.vertex_xy).T)
-    settlement = float(np.max(moved[held[model.vertex_block]], initial=0.0))
-    record = StartRecord(solves=solves, held=int(np.count_nonzero(held)),
-                         released=int(np.count_nonzero(free & released)), settlement=settlement,
-                         at_strength=len(at_strength & set(memory.key.tolist())),
-                         wall_time=_time.perf_counter() - t0, welded=welded, stalled=stalled,
-                         unsettled=unsettled)
-    return state.replace(memory=memory), record, True
+    return state, last, memory, solves, stalled, unsettled, False
 
 
 def balanced(stepper, frame: Frame, contacts: Contacts, geom: dict, size: np.ndarray) -> bool:

@@ -48,6 +48,7 @@ from .open_close import open_close
 from .records import StepRecord, StepTimer
 from .results import SimulationError
 from .solver import SparseSolver
+from .impacts import approach_bound, plastic_velocity
 from .time_step import choose_time_step, end_on
 
 
@@ -157,6 +158,8 @@ class Stepper:
 
         contacts, vec, sca = self.find_contacts(state, geom)
         t0 = timer.add("contacts", t0)
+        bound, closing = approach_bound(model, state, contacts, vec, sca, dt)
+        dt = end_on(max(bound, min(dt, self.shortest_time_step())), state.time, t_end)
 
         cuts = oc_total = 0
         while True:
@@ -173,7 +176,20 @@ class Stepper:
         t0 = _time.perf_counter()
         if self.softening:
             accumulate_slip(model, attempt.contacts, attempt.vec, attempt.displacement)
+        impact = None
+        hit = closing & (attempt.contacts.state != OPEN)  # impacts: closing contacts that closed
+        if hit.any():
+            impact = np.zeros(model.n_blocks, bool)
+            impact[attempt.contacts.block_a[hit]] = True
+            impact[attempt.contacts.block_b[hit]] = True
         new_state = update(model, state, geom, attempt.displacement, attempt.contacts, dt, attempt.vertex_xy)
+        if impact is not None and not self.params.static:
+            # plastic impacts: the impacted blocks leave at the step's mean velocity
+            # (`impacts.plastic_velocity`), their acceleration history ends with the impulse
+            accel = new_state.block_accel.copy()
+            accel[impact] = 0.0
+            new_state = new_state.replace(block_velocity=plastic_velocity(
+                model, geom, attempt.displacement, new_state.block_velocity, impact, dt), block_accel=accel)
         t0 = timer.add("update", t0)
         new_state, energy, work = self.energy_balance(state, new_state, geom, contacts, attempt, dt)
         timer.add("energy", t0)

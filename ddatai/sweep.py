@@ -11,7 +11,10 @@ for ``duration`` seconds and measures it: by default the largest displacement of
 block's centroid, the largest speed at the end, the steps, Δt cuts and open–close iterations,
 the simulated time reached and whether it finished (a run that diverges is a row with
 ``finished = False`` and its cause, not an exception); ``measure(results) -> {name: number}``
-adds the caller's own columns.
+adds the caller's own columns. A run whose worker process dies (killed by the out-of-memory
+killer, a crash in a native library) runs again on another worker; one that kills its worker
+twice is a row with ``finished = False`` and a ``cause`` that says so (`ddatai.workers`), and
+the other runs complete.
 """
 
 from __future__ import annotations
@@ -103,6 +106,7 @@ def sweep(build, grid_or_samples, *, duration: float, measure: Optional[Callable
     what to add) and stops before any work, with one line saying what to add, when it asks
     for worker processes (`ddatai.parallel.plan`)."""
     from .parallel import ScriptFunction, check_execution, plan, run
+    from .workers import WorkerLost
 
     if isinstance(build, str) or hasattr(build, "__fspath__"):
         build = ScriptFunction(str(build))
@@ -118,6 +122,10 @@ def sweep(build, grid_or_samples, *, duration: float, measure: Optional[Callable
     workers = plan(fn, client=client, workers=workers, cost="heavy", caller="ddatai.sweep")
     for index, row in run(fn, list(enumerate(runs)), client=client,
                           workers=workers, chunk=1):
+        if isinstance(row, WorkerLost):
+            # a run that killed its worker process twice: a row saying so, the others go on
+            row = dict(finished=False, cause=f"lost: {row}", time_reached=np.nan, steps=0, dt_cuts=0,
+                       oc_iterations=0, max_displacement=np.nan, final_speed=np.nan, wall_time=np.nan)
         rows[index] = row
         if progress is not None:
             progress(len(rows), len(runs))
@@ -126,7 +134,7 @@ def sweep(build, grid_or_samples, *, duration: float, measure: Optional[Callable
 
 def _to_table(runs: list[dict], rows: list[dict]) -> np.ndarray:
     params = list(runs[0])
-    extra = [k for k in rows[0] if k not in BASE_COLUMNS and k not in ("finished", "cause")]
+    extra = list(dict.fromkeys(k for r in rows for k in r if k not in BASE_COLUMNS))
     width = max([len(r["cause"]) for r in rows] + [1])
 
     def kind(values):

@@ -8,9 +8,9 @@ spring of a locked vertex-edge one (§2.8). Lagged friction (and the stage's ret
 contacts are all springs) keeps K symmetric positive definite, so a contact that opens, closes,
 locks, slides or changes line changes K by a term of rank one or two, and the Cholesky factor of
 the last K becomes the factor of the next one by CHOLMOD's update and downdate
-(``cholmod_updown``, Davis & Hager) instead of a new factorisation: `Springs` names the springs
-in one K, `Springs.columns` the columns √p·a (√k_s·s) added and removed between two of them, and
-`UpdatedFactor` keeps the factor, its analysis (one per sparsity pattern) and the springs it
+(``cholmod_updown``, Davis & Hager) instead of a new factorisation: ``Springs`` names the springs
+in one K, ``Springs.columns`` the columns √p·a (√k_s·s) added and removed between two of them, and
+``UpdatedFactor`` keeps the factor, its analysis (one per sparsity pattern) and the springs it
 stands for.
 
 What an update costs, measured on the 1,537-block slope's K (9,222 unknowns, 2-core Xeon, one
@@ -18,7 +18,7 @@ thread; docs/guide/performance.md): a rank-r update about r/300 of a numeric fac
 first after a factorisation also converts the supernodal factor to the simplicial form the
 update needs, about 1/30 of one), and a solve with the updated factor about 1/20. So a solve
 whose springs differ from the factor's by at most ``UPDATE_RANK`` columns is done by updates
-(`ddatai.solver.SparseSolver.solve`, ``springs``); more, or once the updates since the last factorisation add
+(``ddatai.solver.SparseSolver.solve``, ``springs``); more, or once the updates since the last factorisation add
 up to ``ACCUMULATED_RANK`` columns, factorise. Each updated solve is checked against K itself
 (its residual, with refinement by the updated factor, as a factor reused between steps), so
 the round-off of many updates can cost a factorisation, never accuracy.
@@ -70,8 +70,8 @@ def why_unavailable() -> str:
 class Springs:
     """The contact springs in one K: for each contact the line of its normal spring (−1: open)
     and whether it has a shear spring, with the contact vectors and penalties they are made of.
-    Two `Springs` of the same contact vectors (``vec``, the same array) differ by the
-    rank-one terms of `Springs.columns`."""
+    Two ``Springs`` of the same contact vectors (``vec``, the same array) differ by the
+    rank-one terms of ``Springs.columns``."""
 
     vec: np.ndarray          # (m, N_SLOTS, 6) the contact vectors of the step (`ddatai.assembly.contact_vectors`)
     rows: np.ndarray         # (m, 2, 2) block-row of blocks i and j of line 0 and line 1 (−1: fixed)
@@ -93,7 +93,7 @@ class Springs:
 
     def same_terms(self, other: "Springs") -> bool:
         """Whether ``other``'s springs are made of the same vectors (the same step's geometry)
-        and penalties, so that the two K differ only by `Springs.columns`."""
+        and penalties, so that the two K differ only by ``Springs.columns``."""
         return (other is not None and other.vec is self.vec and len(other.normal) == len(self.normal)
                 and other.penalty == self.penalty and other.shear_penalty == self.shear_penalty)
 
@@ -105,7 +105,7 @@ class Springs:
                 np.flatnonzero(self.shear & ~other.shear), np.flatnonzero(other.shear & ~self.shear))
 
     def rank(self, other: "Springs") -> int:
-        """How many rank-one terms separate the two K (`Springs.columns`)."""
+        """How many rank-one terms separate the two K (``Springs.columns``)."""
         return int(sum(len(k) for k in self.changed(other)))
 
     def columns(self, other: "Springs", n: int):

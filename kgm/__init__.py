@@ -9,9 +9,15 @@ Method) and judges them with three evaluators (docs/kgm/method.md):
   Shahami, Yarahmadi Bafghi & Fatehi Marji), FS by strength reduction.
 
 ``"rigid"`` and ``"sarma"`` also check block toppling of a row of blocks (Goodman & Bray 1976,
-`kgm.toppling`) and take the least safe admissible mechanism. The scene's water table and rock
-bolts (active pretension, passive capacity) enter every evaluator, and ``seismic=(kh, kv)`` adds
-a pseudo-static load to the limit-equilibrium ones (docs/method/water_bolts.md).
+`kgm.judges.toppling`) and take the least safe admissible mechanism. The scene's water table
+and rock bolts (active pretension, passive capacity) enter every evaluator, and
+``seismic=(kh, kv)`` adds a pseudo-static load to the limit-equilibrium ones
+(docs/method/water_bolts.md).
+
+The package is a one-way pipeline (docs/kgm/architecture.md): the scene's `kgm.build.Problem`
+(made once per analysis) → candidates (`kgm.candidates`) → judges (`kgm.judges`) → search
+(`kgm.search`) → report (`kgm.report`) → analyses (`kgm.analysis`) → studies (`kgm.studies`)
+→ the ``kgm`` command (`kgm.cli`); the method names and other words are `kgm.kinds`.
 
 >>> import kgm
 >>> rep = kgm.analyze(scene, method="sarma")                      # doctest: +SKIP
@@ -32,22 +38,23 @@ import importlib
 
 # public name -> module that defines it (PEP 562 lazy attributes)
 _EXPORTS = {
-    "analyze": "search", "evaluate": "search", "factor_of_safety": "search",
-    "critical_friction": "search", "exhaustive": "search", "key_blocks": "search",
+    "analyze": "analysis", "evaluate": "analysis", "factor_of_safety": "analysis",
+    "critical_friction": "analysis", "exhaustive": "analysis", "key_blocks": "candidates",
     "Settings": "settings", "DdaSettings": "settings",
     "Report": "report", "GroupResult": "report", "format_paper_table": "report",
     "format_groups": "report", "format_toppling": "report",
-    "BlockSystem": "blocks", "build_block_system": "blocks", "classify_blocks": "blocks",
-    "removable_arc": "blocks", "is_removable": "blocks", "rigid_modes": "blocks",
-    "Mode": "blocks", "ModeKind": "blocks",
-    "evaluate_rigid": "evaluators", "evaluate_sarma": "evaluators", "sarma_modes": "evaluators",
-    "sarma_checks": "evaluators",
-    "DdaJudgement": "dda", "DdaEvaluation": "dda", "DdaTiming": "dda", "judge": "dda",
-    "sub_scene": "dda",
-    "toppling_mode": "toppling", "toppling_row": "toppling", "toppling_check": "toppling", "BlockState": "toppling",
-    "BlockStep": "toppling",
+    "BlockSystem": "system", "build_block_system": "build", "classify_blocks": "judges.rigid",
+    "removable_arc": "faces", "is_removable": "faces", "rigid_modes": "judges.rigid",
+    "Mode": "judges.evaluation", "ModeKind": "kinds",
+    "evaluate_rigid": "judges.rigid", "evaluate_sarma": "judges.sarma", "sarma_modes": "judges.sarma",
+    "sarma_checks": "judges.sarma",
+    "DdaJudgement": "judges.run", "DdaEvaluation": "judges.dda", "DdaTiming": "judges.dda",
+    "judge": "judges.run", "sub_scene": "judges.run",
+    "toppling_mode": "judges.toppling", "toppling_row": "candidates", "toppling_check": "judges.toppling",
+    "BlockState": "kinds", "BlockStep": "judges.toppling",
     "probabilistic": "studies.probabilistic", "Study": "studies.study", "read_study": "studies.study",
     "sample_variables": "studies.sampling",
+    "SubsetSampling": "studies.rare", "ImportanceSampling": "studies.rare",
     # 3D: wedges and key blocks of a rock slope (docs/kgm/wedge.md)
     "Plane": "wedges.geometry", "wedge": "wedges.slope", "Wedge": "wedges.block",
     "TensionCrack": "wedges.slope", "Support": "wedges.block", "polyhedral_block": "wedges.block",

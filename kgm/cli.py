@@ -1,6 +1,6 @@
 """Console command ``kgm``.
 
-    kgm analyze SCENE.py [--method rigid|sarma|dda] [--progressive] [--compare] [--gif PATH]
+    kgm analyze SCENE.py [--method rigid|sarma|dda] [--progressive] [--compare] [--contact-gap M] [--gif PATH]
     kgm wedge INPUT.toml [--png PATH] [--gif PATH] [--stereonet PATH] [--vtp PATH] [--csv PATH]
 
 SCENE.py is a scene script with ``build()`` returning a `ddatai.Scene` or ``(scene, params)``
@@ -9,6 +9,12 @@ first) and the critical group; ``--compare`` adds the paper-layout table of the 
 under all three evaluators; ``--gif`` draws the scene with the critical group highlighted
 (for ``dda``: its simulated motion) with `ddatai.render.write_gif`. ``kgm wedge`` analyses a
 3D wedge of a rock slope from a TOML file (`kgm.wedges.cli`, docs/kgm/wedge.md).
+
+    kgm study SCENE.py --vars VARS.toml [--sampling monte-carlo|latin-hypercube|subset|importance] ...
+
+(``kgm probabilistic``, the same command): the probability of failure with uncertain inputs
+(`kgm.probabilistic`); ``--sampling subset`` or ``importance`` for small probabilities
+(docs/kgm/reliability.md), with ``--plot-levels`` and ``--plot-convergence`` pictures.
 """
 
 from __future__ import annotations
@@ -20,7 +26,15 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from .kinds import LIMIT_EQUILIBRIUM, METHOD_NAMES, METHODS, SAMPLINGS, BlockState, Method, RunEnd, Sampling
+from .analysis import analyze, evaluate
+from .build import prepare
+from .judges.run import RunPlan, judge
+from .kinds import (LIMIT_EQUILIBRIUM, METHOD_NAMES, METHODS, RARE_SAMPLINGS, SAMPLINGS, BlockState, Method, RunEnd,
+                    Sampling)
+from .report import format_paper_table
+from .settings import DdaSettings, Settings
+from .studies.probabilistic import probabilistic
+from .studies.sampling import read_variables
 
 
 def load_scene(path: str, joints: Optional[str] = None):
@@ -84,20 +98,15 @@ def write_result_gif(path: str, scene, report, params=None, settings=None) -> No
         from ddatai.render import write_gif
     except ImportError:
         raise RuntimeError("--gif needs ddatai.render (write_gif), which this ddatai does not have") from None
-    from .settings import Settings
-
     settings = settings or Settings()
     crit = report.critical
     if report.method == Method.DDA and crit is not None:
-        from .blocks import build_block_system
-        from .dda import judge
-
-        prm = settings.dda.params or params
-        dt = (prm.dt if prm is not None and prm.dt is not None else 0.005)
-        system = build_block_system(scene)
-        j = crit.dda.judgement
-        every = max(1, int(j.duration / dt / 80))
-        _, res, ids = judge(scene, system, crit.blocks, settings=settings.dda, params=params,
+        # the run of the verdict again, recorded: the analysis's problem (its contact gap) and plan
+        problem = prepare(scene, settings=settings, params=params)
+        plan = RunPlan.of(problem.system, crit.blocks, settings.dda, params)
+        dt = plan.params.dt if plan.params.dt is not None else 0.005
+        every = max(1, int(crit.dda.judgement.duration / dt / 80))
+        _, res, ids = judge(problem.scene, problem.system, crit.blocks, settings=settings.dda, params=params,
                             record_every=every)
         labels = np.array([0 if b in crit.blocks else -1 for b in ids])
         title = f"KGM + DDA: group {sorted(crit.blocks)}, {crit.verdict} (FS {crit.fs:.2f})"
@@ -189,15 +198,26 @@ def main(argv: Optional[Sequence[str]] = None, out=None) -> int:
                     help="also judge the critical group with all three evaluators (paper table)")
     an.add_argument("--compare-whole", action="store_true",
                     help="dda: time the sub-model against the whole slope")
+    an.add_argument("--contact-gap", metavar="M", type=float, default=None,
+                    help="blocks whose facing edges are at most this far apart are in contact [m] "
+                         "(default: 1e-4 of the model's size)")
     an.add_argument("--gif", metavar="PATH", help="write a GIF of the result")
     an.add_argument("--force", action="store_true",
                     help="build the scene even when it looks larger than this machine can simulate")
-    pr = sub.add_parser("probabilistic", help="probability of failure with uncertain inputs (Monte Carlo)")
+    pr = sub.add_parser("probabilistic", aliases=["study"],
+                        help="probability of failure with uncertain inputs (Monte Carlo, subset simulation, "
+                             "importance sampling)")
     pr.add_argument("scene", help="scene script whose build(**sample) takes the variables as keyword arguments")
     pr.add_argument("--vars", required=True, metavar="TOML", help="variables file (distributions, correlation)")
-    pr.add_argument("--n", type=int, default=1000, help="samples (default 1000)")
+    pr.add_argument("--n", type=int, default=1000,
+                    help="samples (default 1000); subset: samples a level; importance: importance samples")
     pr.add_argument("--method", choices=METHOD_NAMES, default=Method.SARMA.value)
-    pr.add_argument("--sampling", choices=SAMPLINGS, default=Sampling.MONTE_CARLO.value)
+    pr.add_argument("--sampling", choices=SAMPLINGS, default=Sampling.MONTE_CARLO.value,
+                    help="subset (subset simulation) and importance (FORM, then importance sampling) for small P_f")
+    pr.add_argument("--p0", type=float, default=0.1, help="subset: conditional probability of a level (default 0.1)")
+    pr.add_argument("--plot-levels", metavar="PATH",
+                    help="subset/importance: draw the samples over the two variables that drive failure")
+    pr.add_argument("--plot-convergence", metavar="PATH", help="subset/importance: draw P_f against evaluations")
     pr.add_argument("--seed", type=int, default=0)
     pr.add_argument("--group", metavar="IDS", help="judge this group (comma-separated block ids) in every sample")
     pr.add_argument("--workers", type=int, default=None,
@@ -217,16 +237,13 @@ def main(argv: Optional[Sequence[str]] = None, out=None) -> int:
         from ddatai.cli import _allow_any_size
 
         _allow_any_size(args)
-    if args.command == "probabilistic":
+    if args.command in ("probabilistic", "study"):
         return _probabilistic(args, out)
-
-    from .report import format_paper_table
-    from .search import analyze, evaluate
-    from .settings import DdaSettings, Settings
 
     try:
         scene, params = load_scene(args.scene, getattr(args, "joints", None))
-        settings = Settings(dda=DdaSettings(compare_whole=args.compare_whole, progress=_dda_progress(sys.stderr)))
+        settings = Settings(dda=DdaSettings(compare_whole=args.compare_whole, progress=_dda_progress(sys.stderr)),
+                            contact_gap=args.contact_gap)
         rep = analyze(scene, method=args.method, progressive=args.progressive, settings=settings, params=params,
                       seismic=args.seismic)
         _print_report(rep, out)
@@ -247,11 +264,35 @@ def main(argv: Optional[Sequence[str]] = None, out=None) -> int:
     return 0
 
 
+def _counter(err):
+    """A line on stderr, rewritten, counting the evaluations of a subset or importance study
+    (their number is not known in advance)."""
+
+    def show(done, _total) -> None:
+        if err.isatty():
+            print(f"\r{done} evaluations", end="", file=err, flush=True)
+
+    return show
+
+
+def _print_rare(study, out) -> None:
+    """The levels of a subset study, or the design point of an importance study."""
+    if study.levels:
+        print("level  FS threshold  P(next | level)  c.o.v.  gamma  acceptance  evaluations", file=out)
+        for j, lv in enumerate(study.levels):
+            print(f"{j:5d}  {lv.fs_threshold:12.4f}  {lv.probability:15.4f}  {lv.cov:6.3f}  {lv.gamma:5.2f}  "
+                  f"{lv.acceptance:10.2f}  {lv.evaluations:11d}", file=out)
+    dp = study.design_point
+    if dp is not None:
+        values = ", ".join(f"{k} = {v:.6g}" for k, v in dp.values.items())
+        alpha = ", ".join(f"{k} {a:+.3f}" for k, a in sorted(dp.alpha.items(), key=lambda kv: -abs(kv[1])))
+        print(f"design point (FORM, {dp.iterations} iterations, {dp.evaluations} evaluations"
+              f"{'' if dp.converged else ', NOT converged'}): {values}; FS {dp.fs:.4f}", file=out)
+        print(f"beta = {dp.beta:.4f} (FORM P_f = {dp.pf:.3g}); sensitivities alpha: {alpha}", file=out)
+
+
 def _probabilistic(args, out) -> int:
     from ddatai.parallel import ScriptFunction
-
-    from .studies.probabilistic import probabilistic
-    from .studies.sampling import read_variables
 
     def bar(done, total):
         if sys.stderr.isatty() or done == total:
@@ -263,11 +304,26 @@ def _probabilistic(args, out) -> int:
     try:
         variables, correlation = read_variables(args.vars)
         group = None if not args.group else [int(b) for b in args.group.split(",")]
+        sampling = args.sampling
+        if sampling == Sampling.SUBSET and args.p0 != 0.1:
+            from .studies.rare import SubsetSampling
+
+            sampling = SubsetSampling(p0=args.p0)
+        rare = args.sampling in RARE_SAMPLINGS
         study = probabilistic(ScriptFunction(args.scene), variables, args.n, method=args.method,
-                              sampling=args.sampling, seed=args.seed, correlation=correlation or None,
+                              sampling=sampling, seed=args.seed, correlation=correlation or None,
                               group=group, client=args.scheduler, workers=args.workers, out=args.out,
-                              progress=bar)
+                              progress=_counter(sys.stderr) if rare else bar)
         print(study.summary(), file=out)
+        if rare:
+            _print_rare(study, out)
+            for path, draw in ((args.plot_levels, study.plot_levels), (args.plot_convergence, study.plot_convergence)):
+                if path:
+                    draw(path)
+                    print(f"wrote {path}", file=out)
+            if args.out:
+                print(f"evaluations in {args.out}", file=out)
+            return 0
         print("FS quantiles 5/50/95 %: " + ", ".join(f"{v:.3f}" for v in study.fs_quantiles().values()), file=out)
         freq = study.block_frequency()
         top = sorted(freq.items(), key=lambda kv: -kv[1])[:10]

@@ -87,11 +87,19 @@ class RunEnd(_Word):
 
 
 class Sampling(_Word):
-    """How a probabilistic study draws its samples (docs/kgm/probabilistic.md)."""
+    """How a probabilistic study draws its samples (docs/kgm/probabilistic.md,
+    docs/kgm/reliability.md)."""
 
     MONTE_CARLO = "monte-carlo"           # independent uniform numbers
     LATIN_HYPERCUBE = "latin-hypercube"   # one sample in each of n equal-probability strata
+    SUBSET = "subset"                     # subset simulation (Au & Beck 2001): small P_f
+    IMPORTANCE = "importance"             # FORM's design point, then importance sampling there
 
 
 #: the sampling names as the command line and error messages list them
 SAMPLINGS = tuple(s.value for s in Sampling)
+#: the samplings drawn before any work, all at once (`kgm.sample_variables`)
+DRAWN_SAMPLINGS = (Sampling.MONTE_CARLO, Sampling.LATIN_HYPERCUBE)
+#: the samplings whose estimator chooses each batch from the results of the ones before
+#: (`kgm.studies.rare`)
+RARE_SAMPLINGS = (Sampling.SUBSET, Sampling.IMPORTANCE)

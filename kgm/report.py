@@ -1,15 +1,21 @@
 """Results of a KGM analysis: `GroupResult` (one evaluated group), `Report` (a whole analysis),
-the failure-surface polylines and the text tables (docs/kgm/method.md §3.5)."""
+the failure-surface polylines and the text tables (docs/kgm/method.md §3.5).
+
+A group's row is made in one place from what its judges returned: `group_result` from a
+limit-equilibrium `kgm.judges.evaluation.Evaluation` (its surface and loads with it), and
+`judged_by_dda` the same row with the DDA judge's FS, critical friction and verdict (every
+other field kept: a field added to `GroupResult` reaches both)."""
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Optional, Sequence
 
 import numpy as np
 
-from .blocks import DISTANCE_TOL, BlockSystem, Mode
+from .system import DISTANCE_TOL, BlockSystem
+from .judges.evaluation import Evaluation, Mode, critical_friction_of
 from .kinds import BlockState, Method, ModeKind
 
 
@@ -37,7 +43,7 @@ class GroupResult:
     iteration: int = 0
     """Removal round of a progressive analysis (0: the first)."""
     dda: Optional[object] = None
-    """`kgm.dda.DdaEvaluation` of a DDA-judged group (runs, times, verdict), else None."""
+    """`kgm.DdaEvaluation` of a DDA-judged group (runs, times, verdict), else None."""
     water_force: Optional[float] = None
     """Water force ∫p ds on the group's failure surface (the uplift U of its sliding and
     sheared contacts) [N/m]; None: the scene has no water table."""
@@ -51,7 +57,7 @@ class GroupResult:
     governs; for dda: the screening evaluator's)."""
     rejected: tuple = ()
     """Why the other modes the limit-equilibrium evaluator looked for are not admissible, one
-    line each (``kgm.evaluators.Evaluation.rejected``)."""
+    line each (``kgm.judges.evaluation.Evaluation.rejected``)."""
 
     @property
     def verdict(self) -> str:
@@ -102,6 +108,41 @@ class Report:
     def table(self) -> str:
         """Candidate groups as a text table (least safe first)."""
         return format_groups(self.groups)
+
+
+# ---------------------------------------------------------------------- a group's row
+def group_result(system: BlockSystem, blocks: frozenset, evaluation: Evaluation, method: Method, fs_target: float,
+                 *, seed: Optional[int] = None, iteration: int = 0) -> GroupResult:
+    """The row of a group judged by limit equilibrium (``method``): FS, critical friction,
+    verdict against ``fs_target``, governing mode and failure surface, the water, bolt and
+    seismic loads of the system where it has them."""
+    return GroupResult(blocks=blocks, fs=evaluation.fs, critical_friction=critical_friction_of(evaluation),
+                       stable=evaluation.fs >= fs_target, mode=evaluation.mode,
+                       surface=contact_polylines(system, evaluation.mode.sliding_contacts), evaluator=method,
+                       seed=seed, iteration=iteration, modes=evaluation.modes, rejected=evaluation.rejected,
+                       **_loads_of(system, blocks, evaluation))
+
+
+def judged_by_dda(row: GroupResult, dda) -> GroupResult:
+    """The row of a group (judged by limit equilibrium) with the DDA judge's answer
+    (`kgm.DdaEvaluation`): its FS, critical friction and verdict at the scene's strength; the
+    mode, surface and loads stay the screening method's."""
+    return replace(row, fs=dda.fs, critical_friction=dda.critical_friction, stable=dda.judgement.stable,
+                   evaluator=Method.DDA, dda=dda)
+
+
+def _loads_of(system: BlockSystem, blocks: frozenset, ev: Evaluation) -> dict:
+    """The water, bolt and seismic loads of a group for its report row (only those present)."""
+    members = sorted(blocks)
+    out = {}
+    if system.contact_water is not None:
+        surface = np.concatenate([ev.mode.sliding_contacts, ev.mode.sheared_contacts]).astype(np.int64)
+        out["water_force"] = float(system.contact_water[np.unique(surface)].sum())
+    if system.block_bolt is not None:
+        out["bolt_force"] = float(np.hypot(*(system.block_bolt[members] + system.block_passive[members]).sum(axis=0)))
+    if system.block_seismic is not None:
+        out["seismic"] = system.seismic
+    return out
 
 
 # ---------------------------------------------------------------------- surfaces

@@ -64,7 +64,7 @@ class DdaSettings:
     rest_ratio: float = 1e-6
     """Stop a run as stable once every free block has moved slower than this many δ/T for
     ``rest_steps`` steps: at rest, with loads that do not change in time, a step reproduces the
-    state it started from, so the rest of the run would add nothing (`kgm.judgement.RestCounter`);
+    state it started from, so the rest of the run would add nothing (`kgm.judges.run.RestCounter`);
     0: every stable run goes to T [-]."""
     rest_steps: int = 20
     """Steps a run must stay at rest before it is stopped as stable [-]."""
@@ -85,18 +85,20 @@ class DdaSettings:
     whole_steps: int = 100
     """Steps of the timing runs of the sub-model and the whole slope [-]."""
     batch: int = 8
-    """Probes judged side by side in one run (`kgm.batched.judge_many`): the verdict and the probes
+    """Probes judged side by side in one run (`kgm.judges.batch.judge_many`): the verdict and the probes
     of a round of the F and φ searches, each bracket cut into as many pieces as it has probes;
     1: one run a probe and bisections (docs/guide/performance.md, "Batched studies") [-]."""
     sample_batch: int = 128
     """Samples of a DDA-judged probabilistic study (verdicts only) judged side by side in one
-    run (`kgm.batched.judge_members`, exact: the table is the one of one run a sample), at most so
+    run (`kgm.judges.batch.judge_members`, exact: the table is the one of one run a sample), at most so
     many that every worker gets a batch; 1: one run a sample [-]. Large batches pay: a
     member-step costs 1.6 ms alone, 0.17 ms among 16 and 0.036 ms among 128 (Example II's group,
     docs/guide/performance.md "Batched studies")."""
     progress: Optional[Callable[..., None]] = None
     """Called with each `kgm.DdaJudgement` as its run ends (``kgm analyze`` prints a line
-    per run); None: silent."""
+    per run); None: silent. The entry points (`kgm.analyze`, `kgm.evaluate`, ...,
+    `kgm.probabilistic`, `kgm.judge`) pass it to the judges they call: a judge reports to its
+    caller's callback and never to anything above it."""
 
     def __post_init__(self) -> None:
         _require(self.params is None or isinstance(self.params, Params),
@@ -140,7 +142,7 @@ class Settings:
     """How the DDA evaluator runs."""
     contact_gap: Optional[float] = None
     """Blocks whose facing edges are at most this far apart are in contact [m]; None:
-    `kgm.blocks.CONTACT_GAP` × the model size (1 mm in a 10 m model)."""
+    `kgm.system.CONTACT_GAP` × the model size (1 mm in a 10 m model)."""
 
     def __post_init__(self) -> None:
         _positive(self, "fs_target")

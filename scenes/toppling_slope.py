@@ -81,8 +81,9 @@ def build(friction: float = 35.0, cohesion: float = 0.0, young: float = 10e9):
 def toppling_table(friction: float = PUBLISHED_CRITICAL_FRICTION) -> tuple[list, float]:
     """The Goodman–Bray recursion of the whole row at the friction angle ``friction`` and the
     row's critical friction angle: (steps top block first, φc [degrees])."""
-    from kgm.blocks import build_block_system
-    from kgm.toppling import recursion, row_critical_friction, toppling_row
+    from kgm.build import build_block_system
+    from kgm.candidates import toppling_row
+    from kgm.judges.toppling import recursion, row_critical_friction
 
     scene, _ = build(friction=friction)
     row = toppling_row(build_block_system(scene), frozenset(range(N_BLOCKS)))

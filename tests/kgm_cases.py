@@ -50,6 +50,19 @@ def block_on_incline(theta=30.0, width=10.0, height=1.0, friction=25.0, cohesion
     return scene, base, block
 
 
+def block_above_incline(offset, theta=30.0):
+    """`block_on_incline`'s 10 × 1 m block moved ``offset`` [m] along the plane's
+    normal (> 0: a gap, < 0: an overlap); the model is ~25 m across."""
+    t = np.array([np.cos(np.radians(theta)), -np.sin(np.radians(theta))])
+    n = np.array([np.sin(np.radians(theta)), np.cos(np.radians(theta))])
+    scene = dd.Scene(gravity=9.81)
+    scene.add_block([-5 * t - 3 * n, 25 * t - 3 * n, 25 * t, -5 * t], material=ROCK, fixed=True)
+    p0 = offset * n
+    scene.add_block([p0, p0 + 10 * t, p0 + 10 * t + n, p0 + n], material=ROCK)
+    scene.set_joint(dd.Joint(friction=35.0, cohesion=20e3))
+    return scene
+
+
 def tapered_block():
     """A trapezoid narrowing toward its free top, wedged between two fixed blocks (type IV)."""
     scene = dd.Scene(gravity=G)
@@ -140,4 +153,44 @@ def jointed_scene(friction=30.0, seed=0):
         if c[1] < 0.0 or c[0] > 26.0:
             scene.set_fixed(b)
     scene.set_joint(dd.Joint(friction=friction))
+    return scene
+
+
+#: `incline_scene_killing` kills its process for a friction angle above this [degrees]
+KILL_ABOVE = 44.17
+#: environment variable naming a file: `incline_scene_dies_once` kills its process while the file
+#: does not exist (and creates it)
+DIE_ONCE = "KGM_CASES_DIE_ONCE"
+
+
+def incline_scene_killing(friction=30.0, cohesion=0.0):
+    """`incline_scene`, except that a sample with friction above `KILL_ABOVE` kills the worker
+    process that builds it, every time (a sample that always crashes its worker)."""
+    if friction > KILL_ABOVE:
+        from worker_cases import kill_this_worker
+
+        kill_this_worker()
+    return incline_scene(friction=friction, cohesion=cohesion)
+
+
+def incline_scene_dies_once(friction=30.0, cohesion=0.0):
+    """`incline_scene`, except that the first sample with friction above 40° built while the
+    file named by `DIE_ONCE` does not exist creates it and kills its worker (a worker lost once,
+    to a cause outside the sample)."""
+    import os
+
+    mark = os.environ.get(DIE_ONCE)
+    if mark and friction > 40.0 and not os.path.exists(mark):
+        open(mark, "w").close()
+        from worker_cases import kill_this_worker
+
+        kill_this_worker()
+    return incline_scene(friction=friction, cohesion=cohesion)
+
+
+def planar_scene(friction=30.0, cohesion=25e3):
+    """`planar_slope` (H = 20 m, face 60°, plane 30°, crack 5 m) as a ``build(**sample) ->
+    Scene`` for probabilistic studies: the sliding block is block 0, FS = `hoek_bray_fs`."""
+    scene, block = planar_slope(friction=friction, cohesion=cohesion)
+    assert block == 0
     return scene

@@ -25,8 +25,8 @@ from scipy.optimize import brentq
 import ddatai as dd
 import kgm
 from cases import G, ROCK, block_on_incline, downslope_displacement, incline_base, law_slack
-from kgm.blocks import build_block_system
-from kgm.dda import judge
+from kgm.build import build_block_system
+from kgm.judges.run import judge
 
 RHO = 2500.0
 JRC, JCS, PHI_R = 8.0, 10e6, 20.0
@@ -137,20 +137,21 @@ def test_kgm_critical_inclination_is_the_law(method):
 def test_kgm_sarma_faces_hold_the_law_at_their_own_stress():
     """A two-block group sliding on one plane, blocks of different weight: the Sarma forces
     at FS give each base face the friction of its own normal stress."""
-    from kgm.evaluators import _loaded, _mechanisms, _merge_faces, _statics_at
+    from kgm.judges.mechanisms import mechanisms, merge_faces
+    from kgm.judges.sarma import _loaded, _statics_at
 
     theta = 40.0
     scene, ids = incline(theta, [LIGHT, LIGHT], at=(2.0, 2.0 + WIDTH))
     system = build_block_system(scene)
     members = sorted(ids)
-    faces = _merge_faces(system, members, frozenset())
+    faces = merge_faces(system, members, frozenset())
     assert faces.tan_at is not None
     rep = kgm.evaluate(scene, set(ids), method="sarma")
     weight = system.block_mass[members] * system.gravity
     expected = math.tan(math.radians(law(RHO * G * LIGHT * math.cos(math.radians(theta))))) / math.tan(
         math.radians(theta))
     assert rep.fs == pytest.approx(expected, rel=1e-9)
-    for mech in _mechanisms(faces, system.block_force[members], len(members)):
+    for mech in mechanisms(faces, system.block_force[members], len(members)):
         st = _statics_at(mech, faces, _loaded(system.block_force[members], None, mech, rep.fs), weight, rep.fs,
                          check=False)
         if st is None:
@@ -212,7 +213,7 @@ def test_dda_and_kgm_agree_either_side_of_the_limit(offset):
 
 # ----------------------------------------------------------------------------- kgm toppling
 def _toppling_row(joint):
-    from kgm.toppling import toppling_row
+    from kgm.candidates import toppling_row
     from scenes import toppling_slope
 
     scene, _ = toppling_slope.build(friction=35.0)
@@ -224,7 +225,7 @@ def _toppling_row(joint):
 def test_toppling_with_a_smooth_barton_bandis_joint_is_mohr_coulomb():
     """JRC = 0: the law is φr at every stress, so Goodman & Bray's recursion (the textbook
     16-block row) gives the factor of safety of a Mohr–Coulomb joint at φr, to round-off."""
-    from kgm.toppling import row_factor_of_safety
+    from kgm.judges.toppling import row_factor_of_safety
 
     bb = row_factor_of_safety(_toppling_row(dd.BartonBandis(jrc=0.0, jcs=JCS, residual_friction=38.15)))
     mc = row_factor_of_safety(_toppling_row(dd.Joint(friction=38.15)))
@@ -235,7 +236,7 @@ def test_toppling_with_a_rough_joint_lies_between_its_bounds():
     """A rough joint mobilises between φr and the cap at the row's stresses: its FS lies
     between the Mohr–Coulomb FS at φr and at the cap, and the interface forces of its
     recursion at that FS satisfy the law at their own stress."""
-    from kgm.toppling import recursion, row_factor_of_safety
+    from kgm.judges.toppling import recursion, row_factor_of_safety
 
     jt = dd.BartonBandis(jrc=6.0, jcs=JCS, residual_friction=30.0)
     row = _toppling_row(jt)

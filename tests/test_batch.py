@@ -1,5 +1,5 @@
 """Independent models run side by side in one (`ddatai.batch`) and the kgm judgements that use
-it (`kgm.batched.judge_members`): each member moves as it does alone, each verdict is the one its
+it (`kgm.judges.batch.judge_members`): each member moves as it does alone, each verdict is the one its
 own run gives, and a batched bisection finds the closed-form limit."""
 
 import math
@@ -16,9 +16,9 @@ from ddatai.batch import batch_model, combined_state, member_constants, side_by_
 from ddatai.model import build_model
 from ddatai.start import settle
 from ddatai.step import Stepper
-from kgm.blocks import build_block_system
-from kgm.batched import Member, judge_many, judge_members
-from kgm.dda import judge
+from kgm.build import build_block_system
+from kgm.judges.batch import Member, judge_many, judge_members
+from kgm.judges.run import judge
 
 G = 9.81
 THETA = 30.0
@@ -118,7 +118,7 @@ def test_batched_and_sequential_bisections_agree_with_the_closed_form():
     phi = 40.0
     scene, _, b = kgm_cases.block_on_incline(theta=THETA, width=2.0, height=1.0, friction=phi, cohesion=0.0)
     system = build_block_system(scene)
-    from kgm.dda import evaluate_dda
+    from kgm.judges.dda import evaluate_dda
 
     tan_t = math.tan(math.radians(THETA))
     for batch in (16, 1):
@@ -179,7 +179,7 @@ def test_member_states_cut_out_what_combined_state_put_in():
 def test_k_section_closes_on_a_monotone_limit(limit):
     """The batched search alone, on a verdict stable for φ ≥ limit: it ends within the tolerance
     of the limit (0 and 90 where the limit lies outside [0°, 89°]), 16 probes a round."""
-    from kgm.dda import _Bracket
+    from kgm.judges.dda import _Bracket
 
     b = _Bracket(guess=20.0, lower=0.0, upper=89.0, tolerance=0.25, step=2.0)
     rounds = 0
@@ -202,7 +202,7 @@ def test_k_section_closes_on_a_monotone_limit(limit):
 def test_k_section_stops_on_verdicts_that_turn_over():
     """Verdicts that are not monotone near the limit (stable at 10.4°, unstable at 10.6°): the
     bracket turns over, the search stops, the limit is the middle of the band."""
-    from kgm.dda import _Bracket
+    from kgm.judges.dda import _Bracket
 
     b = _Bracket(guess=10.0, lower=0.0, upper=89.0, tolerance=0.25, step=2.0)
     for x, stable in [(9.0, False), (10.4, True), (10.6, False), (12.0, True)]:
@@ -215,11 +215,12 @@ def test_a_batch_whose_step_cuts_dt_judges_its_members_again():
     """With a fixed Δt of 40 ms the block at φ = 5° accelerates until a step moves it too far and
     Δt is cut: its batch no longer takes the steps the others take alone, so the members not yet
     decided are judged again (in halves): every verdict, step count and displacement is still its
-    own run's."""
+    own run's. (Today's side-by-side batch, ``Params(kernels="numpy")``: the fused engine runs
+    every member alone, tests/test_fused.py.)"""
     scene, _, b = kgm_cases.block_on_incline(theta=THETA, width=2.0, height=1.0, friction=35.0, cohesion=0.0)
     system = build_block_system(scene)
     settings = kgm.DdaSettings(duration=1.5, stop_ratio=400.0)
-    params = dd.Params(dt=0.04)
+    params = dd.Params(dt=0.04, kernels="numpy")
     probes = [(5.0, 1.0), (29.5, 1.0), (40.0, 1.0), (25.0, 1.0)]
     many = judge_members([Member(scene=scene, system=system, friction=f, reduction=r) for f, r in probes],
                          frozenset([b]), settings=settings, params=params, exact=True)

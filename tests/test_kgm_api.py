@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import inspect
 
+import pytest
+
 import kgm
 
 P, K = "positional", "keyword"  # POSITIONAL_OR_KEYWORD, KEYWORD_ONLY
@@ -89,6 +91,10 @@ SIGNATURES = {
                  ("dda", K, "<factory>"), ("contact_gap", K, "None")],
     "Study": [(f, K, _NO) for f in ("n", "pf", "beta", "table", "variables", "method", "sampling", "seed")]
     + [("resumed", K, "0"), ("wall_time", K, "0.0")],
+    "SubsetSampling": [("p0", K, "0.1"), ("proposal", K, "'conditional'"), ("spread", K, "None"),
+                       ("max_levels", K, "20")],
+    "ImportanceSampling": [("step", K, "None"), ("tol", K, "0.001"), ("max_iterations", K, "30"),
+                           ("batch", K, "None")],
     # 3D wedges (docs/kgm/wedge.md)
     "Plane": [("dip", P, _NO), ("dip_direction", P, _NO), ("joint", P, "None")],
     "wedge": [("face", P, _NO), ("upper", P, _NO), ("height", P, _NO), ("joints", P, _NO), ("density", K, "2600.0"),
@@ -164,3 +170,68 @@ def test_the_enums_keep_their_members():
         enum = getattr(kgm, name)
         assert {m.name: m.value for m in enum} == members
         assert all(isinstance(m, str) and m == v for m, v in zip(enum, members.values()))
+
+
+#: the former module paths of kgm and the names they re-export for one release (their new homes
+#: are in docs/kgm/architecture.md)
+FORMER = {
+    "blocks": ("BlockSystem", "build_block_system", "classify_blocks", "removable_arc", "is_removable", "rigid_modes",
+               "Mode", "ModeKind", "group_faces", "check_group", "is_connected", "has_free_face", "GroupFaces",
+               "block_type", "BLOCK_TYPES", "ANGLE_TOL", "DISTANCE_TOL", "MIN_CONTACT", "CONTACT_GAP",
+               "BARTON_ITERATIONS", "BARTON_TOL"),
+    "toppling": ("toppling_mode", "toppling_row", "toppling_check", "row_geometry", "upslope_neighbours",
+                 "recursion", "toe_force", "row_factor_of_safety", "row_critical_friction", "BlockState", "BlockStep",
+                 "RowBlock", "TopplingRow", "F_MIN", "F_MAX", "PHI_MAX", "BISECTION_STEPS", "BASE_MIN_COS",
+                 "INTERFACE_MIN_COS", "ROW_BASE_ANGLE", "ROW_PIVOT_TOL", "Mode", "ModeKind", "group_faces",
+                 "BARTON_ITERATIONS", "BARTON_TOL", "BlockSystem"),
+    "evaluators": ("Evaluation", "evaluate_rigid", "evaluate_sarma", "sarma_modes", "sarma_checks",
+                   "critical_friction_of", "F_MIN", "F_MAX", "PHI_MAX", "VELOCITY_TOL", "SCAN_SAMPLES", "POLE_SAMPLES",
+                   "ROOT_K_TOL", "Mode", "ModeKind", "group_faces", "rigid_modes", "toppling_check", "BlockSystem"),
+    "judgement": ("DdaJudgement", "judge", "sub_scene", "run_params", "group_size", "block_displacements",
+                  "block_speeds", "RestCounter", "BlockSystem", "DdaSettings"),
+    "batched": ("Member", "judge_many", "judge_members", "RestCounter", "block_displacements", "block_speeds",
+                "group_size", "judge", "run_params", "sub_scene", "BlockSystem", "DdaSettings"),
+    "dda": ("DdaEvaluation", "DdaTiming", "DdaJudgement", "evaluate_dda", "judge", "sub_scene", "run_params",
+            "group_size", "time_sub_and_whole", "judge_many", "BlockSystem", "DdaSettings"),
+    "search": ("analyze", "evaluate", "factor_of_safety", "critical_friction", "exhaustive", "key_blocks", "grow",
+               "is_key_group", "connected_groups", "GroupResult", "Report", "contact_polylines", "build_block_system",
+               "check_group", "classify_blocks", "critical_friction_of", "evaluate_rigid", "evaluate_sarma",
+               "upslope_neighbours", "has_free_face", "Evaluation", "BlockSystem", "Settings", "METHODS"),
+    "probability": ("probabilistic", "Study", "read_study", "sample_variables", "sample_seeds", "read_variables",
+                    "variables_from_mapping", "write_frequency_png", "HEADER_MARK", "METHODS", "SAMPLINGS"),
+}
+
+
+def test_the_former_module_paths_still_give_their_names():
+    import importlib
+
+    for module, names in FORMER.items():
+        old = importlib.import_module(f"kgm.{module}")
+        missing = [n for n in names if not hasattr(old, n)]
+        assert not missing, f"kgm.{module} lost {missing}"
+    # the same objects as their new homes
+    import kgm.blocks
+    import kgm.dda
+    import kgm.toppling
+
+    assert kgm.blocks.build_block_system is kgm.build_block_system and kgm.dda.judge is kgm.judge
+    assert kgm.toppling.BlockState is kgm.BlockState and kgm.blocks.Mode is kgm.Mode
+    # the search's former entry points resolve from their new homes, on first use
+    import kgm.search
+
+    assert kgm.search.analyze is kgm.analyze and kgm.search.exhaustive is kgm.exhaustive
+    assert kgm.search.Report is kgm.Report and kgm.search.METHODS == ("rigid", "sarma", "dda")
+    with pytest.raises(AttributeError, match="no attribute 'nothing'"):
+        kgm.search.nothing
+
+
+def test_the_words_are_str_enums_that_compare_as_before():
+    """`kgm.kinds`: the old strings compare equal, print as themselves, and name a method."""
+    from kgm.kinds import Method, RunEnd
+
+    assert Method("sarma") == "sarma" and f"{Method.DDA:<5}|" == "dda  |" and str(Method.RIGID) == "rigid"
+    assert RunEnd.DIVERGED.note("step 12: nan") == "diverged after failing: step 12: nan"
+    assert RunEnd.DURATION.note() == "" and RunEnd.AT_REST.note() == "at rest"
+    assert kgm.Settings(screening="rigid").screening is Method.RIGID
+    with pytest.raises(ValueError, match="unknown method 'sarm'"):
+        kgm.analyze(None, method="sarm")

@@ -8,9 +8,12 @@ import pytest
 
 import ddatai as dd
 import kgm
-from kgm.blocks import (ModeKind, build_block_system, classify_blocks, is_removable, removable_arc,
-                        rigid_modes)
-from kgm_cases import (ROCK, block_on_incline, hanging_block, planar_slope, slot_block, tapered_block)
+from kgm.build import build_block_system
+from kgm.faces import is_removable, removable_arc
+from kgm.judges.rigid import classify_blocks, rigid_modes
+from kgm.kinds import ModeKind
+from kgm_cases import (ROCK, block_above_incline, block_on_incline, hanging_block, planar_slope, slot_block,
+                       tapered_block)
 from scenes import example_1, example_2
 
 
@@ -133,39 +136,26 @@ def test_planar_slope_geometry():
     assert sorted(s.contact_length[k]) == pytest.approx(sorted([5.0, 15 / math.sin(math.radians(30))]))
 
 
-def _block_above_incline(offset, theta=30.0):
-    """`kgm_cases.block_on_incline`'s 10 × 1 m block moved ``offset`` [m] along the plane's
-    normal (> 0: a gap, < 0: an overlap); the model is ~25 m across."""
-    t = np.array([np.cos(np.radians(theta)), -np.sin(np.radians(theta))])
-    n = np.array([np.sin(np.radians(theta)), np.cos(np.radians(theta))])
-    scene = dd.Scene(gravity=9.81)
-    scene.add_block([-5 * t - 3 * n, 25 * t - 3 * n, 25 * t, -5 * t], material=ROCK, fixed=True)
-    p0 = offset * n
-    scene.add_block([p0, p0 + 10 * t, p0 + 10 * t + n, p0 + n], material=ROCK)
-    scene.set_joint(dd.Joint(friction=35.0, cohesion=20e3))
-    return scene
-
-
 def test_a_gap_within_the_contact_tolerance_is_a_contact():
     """A block drawn 1 mm above its plane (CONTACT_GAP × 26 m = 2.6 mm) rests on it: the same FS
     as touching (c·A + W cosθ tanφ)/(W sinθ); 5 cm above, it is free (lifting)."""
-    from kgm.blocks import CONTACT_GAP, build_block_system
+    from kgm.system import CONTACT_GAP
 
-    touching = kgm.analyze(_block_above_incline(0.0), method="rigid").critical
+    touching = kgm.analyze(block_above_incline(0.0), method="rigid").critical
     w = ROCK.density * 9.81 * 10.0
     t = np.radians(30.0)
     exact = (20e3 * 10.0 + w * np.cos(t) * np.tan(np.radians(35.0))) / (w * np.sin(t))
     assert touching.fs == pytest.approx(exact, rel=1e-9)
-    gap = kgm.analyze(_block_above_incline(1e-3), method="rigid").critical
+    gap = kgm.analyze(block_above_incline(1e-3), method="rigid").critical
     assert gap.fs == pytest.approx(exact, rel=1e-9) and gap.mode.kind == touching.mode.kind
-    system = build_block_system(_block_above_incline(1e-3))
+    system = build_block_system(block_above_incline(1e-3))
     assert system.n_contacts == 1 and system.scale * CONTACT_GAP > 1e-3
-    far = kgm.analyze(_block_above_incline(0.05), method="rigid").critical
+    far = kgm.analyze(block_above_incline(0.05), method="rigid").critical
     assert far.mode.kind == ModeKind.LIFTING and far.fs == 0.0
     # the tolerance is a setting [m]
-    tight = kgm.analyze(_block_above_incline(1e-3), method="rigid", settings=kgm.Settings(contact_gap=1e-4))
+    tight = kgm.analyze(block_above_incline(1e-3), method="rigid", settings=kgm.Settings(contact_gap=1e-4))
     assert tight.critical.mode.kind == ModeKind.LIFTING
-    loose = kgm.analyze(_block_above_incline(0.05), method="rigid", settings=kgm.Settings(contact_gap=0.06))
+    loose = kgm.analyze(block_above_incline(0.05), method="rigid", settings=kgm.Settings(contact_gap=0.06))
     assert loose.critical.fs == pytest.approx(exact, rel=1e-9)
     with pytest.raises(ValueError, match="contact_gap"):
         kgm.Settings(contact_gap=-1.0)
@@ -173,7 +163,7 @@ def test_a_gap_within_the_contact_tolerance_is_a_contact():
 
 @pytest.mark.parametrize("depth", [1e-3, 0.1])
 def test_overlapping_blocks_are_refused_as_ddatai_refuses_them(depth):
-    scene = _block_above_incline(-depth)
+    scene = block_above_incline(-depth)
     with pytest.raises(ValueError, match=r"blocks 0 and 1 overlap .* m deep\): kgm analyses blocks that touch"):
         kgm.analyze(scene, method="rigid")
     with pytest.raises(ValueError, match="blocks 0 and 1 overlap"):

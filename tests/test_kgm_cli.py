@@ -57,3 +57,54 @@ def test_analyze_by_dda_says_when_the_verdict_run_stopped_at_rest(tmp_path):
     assert main(["analyze", str(script), "--method", "dda"], out=out) == 0
     text = out.getvalue()
     assert "at the scene's strength the group was at rest after" in text and "of T = " in text
+
+
+def test_the_gif_of_a_dda_analysis_runs_the_analysed_problem(monkeypatch):
+    """``--gif`` of a DDA analysis runs the verdict's judgement again, recorded: on the block
+    system the analysis judged, its contact gap included. A block drawn 5 cm above its plane
+    rests on it under ``Settings(contact_gap=0.06)``: the recorded run holds the plane in its
+    sub-model (a rebuild with the default gap, 2.6 mm here, would simulate the block alone)."""
+    from types import SimpleNamespace
+
+    import ddatai.render
+    import kgm
+    from kgm.cli import write_result_gif
+    from kgm_cases import block_above_incline
+
+    scene = block_above_incline(0.05)
+    settings = kgm.Settings(contact_gap=0.06, dda=kgm.DdaSettings(duration=0.02))
+    crit = SimpleNamespace(blocks=frozenset({1}), verdict="stable", fs=1.4,
+                           dda=SimpleNamespace(judgement=SimpleNamespace(duration=0.02)))
+    seen = {}
+    monkeypatch.setattr(ddatai.render, "write_gif", lambda res, path, **kw: seen.update(kw, blocks=res.n_blocks))
+    write_result_gif("unused.gif", scene, SimpleNamespace(method="dda", critical=crit), None, settings)
+    assert seen["blocks"] == 2 and list(seen["labels"]) == [-1, 0]
+
+
+def test_analyze_takes_the_contact_gap(tmp_path, capsys):
+    """``--contact-gap M`` is `kgm.Settings.contact_gap`: a 10 × 1 m block drawn 5 cm above its
+    30° plane (φ 35°, c 20 kPa) is free of it with the default gap (a lifting group, FS 0) and
+    rests on it at 6 cm, where its FS is the plane's closed form (tan φ + c·L/(W cos θ)) /
+    tan θ; a negative gap is refused in one line."""
+    import math
+
+    script = tmp_path / "block_above.py"
+    script.write_text(
+        "import sys\n"
+        f"sys.path.insert(0, {str(ROOT / 'tests')!r})\n"
+        "from kgm_cases import block_above_incline\n"
+        "def build():\n"
+        "    return block_above_incline(0.05)\n")
+    from kgm_cases import ROCK
+
+    weight = ROCK.density * 9.81 * 10.0
+    theta = math.radians(30.0)
+    exact = (math.tan(math.radians(35.0)) + 20e3 * 10.0 / (weight * math.cos(theta))) / math.tan(theta)
+    out = io.StringIO()
+    assert main(["analyze", str(script), "--method", "rigid"], out=out) == 0
+    assert "critical friction 90.00°, mode lifting, unstable" in out.getvalue()
+    out = io.StringIO()
+    assert main(["analyze", str(script), "--method", "rigid", "--contact-gap", "0.06"], out=out) == 0
+    assert f"critical key group [1]: FS {exact:.3f}" in out.getvalue()
+    assert main(["analyze", str(script), "--contact-gap", "-1"], out=io.StringIO()) == 2
+    assert "contact_gap must be None or a distance >= 0 m" in capsys.readouterr().err

@@ -11,8 +11,9 @@ import pytest
 
 import ddatai as dd
 import kgm
-from kgm.blocks import build_block_system
-from kgm.dda import judge, sub_scene
+from kgm.build import build_block_system
+from kgm.judges.run import judge, sub_scene
+from kgm.kinds import RunEnd
 from cases import block_on_incline as ddatai_block_on_incline
 from cases import downslope_displacement, incline_base
 from kgm_cases import ROCK, block_on_incline
@@ -33,8 +34,10 @@ def test_verdict_on_a_block_on_an_incline(friction, stable):
     if stable:  # held by the equilibrium start: at rest from the first step, stopped there
         assert j.displacement < 0.01 * j.threshold
         assert j.note == "at rest" and j.steps == settings.rest_steps and j.simulated < 0.4
+        assert j.end is RunEnd.AT_REST
     else:  # stopped once the displacement passed 4δ
         assert j.note == "stopped early" and j.displacement > 4 * j.threshold
+        assert j.end is RunEnd.STOPPED_EARLY
     if not stable:  # released at once with a = g(sin30° − cos30° tan15°)
         a = G * (math.sin(math.radians(30)) - math.cos(math.radians(30)) * math.tan(math.radians(15)))
         assert j.displacement == pytest.approx(0.5 * a * j.simulated ** 2, rel=0.02)
@@ -141,7 +144,7 @@ def test_whole_slope_timing_is_reported():
     for b in ids[:3]:
         scene.set_fixed(b)
     s = build_block_system(scene)
-    from kgm.dda import time_sub_and_whole
+    from kgm.judges.dda import time_sub_and_whole
 
     t = time_sub_and_whole(scene, s, frozenset([ids[-1]]), settings=kgm.DdaSettings(whole_steps=5))
     assert t.sub_blocks < t.whole_blocks == len(ids)

@@ -9,8 +9,10 @@ import numpy as np
 import pytest
 
 import kgm
-from kgm.blocks import build_block_system
-from kgm.evaluators import critical_friction_of, evaluate_rigid, evaluate_sarma, sarma_modes
+from kgm.build import build_block_system
+from kgm.judges.evaluation import critical_friction_of
+from kgm.judges.rigid import evaluate_rigid
+from kgm.judges.sarma import evaluate_sarma, sarma_modes
 from kgm_cases import bent_chain, block_on_incline, hoek_bray_fs, planar_slope
 from scenes import example_1, example_2
 
@@ -129,13 +131,13 @@ def test_extreme_rays_against_brute_force():
     constraints, enumerated over all (d − 1)-subsets of rows)."""
     import itertools
 
-    from kgm.evaluators import _extreme_rays
+    from kgm.judges.mechanisms import extreme_rays
 
     rng = np.random.default_rng(7)
     for d, m in ((2, 5), (3, 7), (4, 8), (5, 9)):
         a = rng.normal(size=(m, d))
         a[:, 0] = np.abs(a[:, 0]) + 0.5          # x = e_0 is interior: the cone is not empty
-        got = _extreme_rays(a)
+        got = extreme_rays(a)
         want = []
         for rows in itertools.combinations(range(m), d - 1):
             _, sv, vh = np.linalg.svd(a[list(rows)])

@@ -24,9 +24,12 @@ import numpy as np
 import pytest
 
 import kgm
-from kgm.blocks import ModeKind, build_block_system
-from kgm.evaluators import F_MAX, F_MIN, evaluate_rigid, evaluate_sarma, sarma_checks
-from kgm.toppling import toppling_check
+from kgm.build import build_block_system
+from kgm.judges.limits import F_MAX, F_MIN
+from kgm.judges.rigid import evaluate_rigid
+from kgm.judges.sarma import evaluate_sarma, sarma_checks
+from kgm.judges.toppling import toppling_check
+from kgm.kinds import ModeKind
 from scenes import footwall as fw
 
 G = 9.81
@@ -127,16 +130,16 @@ def test_bilinear_slab_root_beside_a_pole_of_k():
     rigid_expected = fw.rigid_fs("bilinear")
     assert rigid_expected == pytest.approx(1.27665, abs=1e-5)
     scene, system = _system("bilinear")
-    from kgm import evaluators as ev_mod
+    from kgm.judges import mechanisms, sarma
 
     members = sorted(PAIR)
-    faces = ev_mod._merge_faces(system, members, frozenset())
+    faces = mechanisms.merge_faces(system, members, frozenset())
     force = system.block_force[members]
     weight = system.block_mass[members] * system.gravity
-    (mech,) = ev_mod._mechanisms(faces, force, 2)
+    (mech,) = mechanisms.mechanisms(faces, force, 2)
 
     def k_of(f):
-        return ev_mod._statics(mech, faces, force, weight, f, faces.tan_phi, check=False).k
+        return sarma._statics(mech, faces, force, weight, f, faces.tan_phi, check=False).k
 
     grid = np.exp(np.linspace(math.log(F_MIN), math.log(F_MAX), 49))
     i = int(np.searchsorted(grid, expected))
@@ -178,11 +181,11 @@ def test_the_scan_fallback_finds_the_root_beside_the_pole(monkeypatch):
     mechanism) K is scanned, and refined around the near-singular points of the system: with
     the eigenvalue form switched off, the bilinear root beside its pole is still found (FS and
     critical friction angle of the closed form)."""
-    from kgm import evaluators as ev_mod
+    from kgm.judges import mechanisms, sarma
 
     _, system = _system("bilinear")
     exact = evaluate_sarma(system, PAIR)
-    monkeypatch.setattr(ev_mod, "_pencil_roots", lambda *a, **k: None)
+    monkeypatch.setattr(sarma, "pencil_roots", lambda *a, **k: None)  # where the Sarma judge finds it
     scanned = evaluate_sarma(system, PAIR)
     assert scanned.mode.kind == ModeKind.SARMA
     assert scanned.fs == pytest.approx(fw.closed_form_fs("bilinear"), rel=1e-9)
@@ -204,7 +207,7 @@ def test_a_mechanism_with_no_admissible_root_is_reported():
 
 # ---------------------------------------------------------------------- DDA
 def _judge(case, reduction):
-    from kgm.dda import judge
+    from kgm.judges.run import judge
 
     scene, params = fw.build(case)
     return judge(scene, build_block_system(scene), PAIR, settings=kgm.DdaSettings(), params=params,

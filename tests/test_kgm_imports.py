@@ -17,7 +17,8 @@ def _loaded_after(code: str) -> set:
 
 
 def test_import_kgm_is_light():
-    assert _loaded_after("import ddatai\nimport kgm\nimport kgm.dda, kgm.cli") == set()
+    assert _loaded_after("import ddatai\nimport kgm\nimport kgm.judges.dda, kgm.judges.batch, kgm.cli\n"
+                         "import kgm.studies.probabilistic, kgm.dda") == set()
 
 
 def test_rigid_and_sarma_analyses_are_light():

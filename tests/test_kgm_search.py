@@ -8,8 +8,9 @@ import pytest
 
 import ddatai as dd
 import kgm
-from kgm.blocks import build_block_system, is_connected
-from kgm.search import connected_groups
+from kgm.build import build_block_system
+from kgm.faces import is_connected
+from kgm.candidates import connected_groups
 from kgm_cases import ROCK, bent_chain, planar_slope
 from scenes import example_1, example_2
 

@@ -1,4 +1,4 @@
-"""Block toppling in kgm (kgm.toppling): Goodman & Bray's (1976) recursion on the real polygons
+"""Block toppling in kgm (kgm.judges.toppling): Goodman & Bray's (1976) recursion on the real polygons
 of a row of blocks, as a mode of the rigid and Sarma evaluators and in the group search.
 
 The textbook case is Goodman & Bray's 16-block example (Hoek & Bray 1981, Rock Slope
@@ -17,10 +17,13 @@ import pytest
 
 import ddatai as dd
 import kgm
-from kgm.blocks import ModeKind, build_block_system
-from kgm.evaluators import evaluate_rigid, evaluate_sarma
-from kgm.toppling import (BlockState, recursion, row_critical_friction, row_factor_of_safety, toe_force,
-                          toppling_mode, toppling_row)
+from kgm.build import build_block_system
+from kgm.kinds import ModeKind
+from kgm.judges.rigid import evaluate_rigid
+from kgm.judges.sarma import evaluate_sarma
+from kgm.candidates import toppling_row
+from kgm.judges.toppling import recursion, row_critical_friction, row_factor_of_safety, toe_force, toppling_mode
+from kgm.kinds import BlockState
 from benchmarks.toppling import (AA_FRICTION, AA_PUBLISHED_LE, AA_RECOMPUTED_LE, AA_UDEC,
                                  alejano_alonso_section)
 from scenes import toppling_slope
@@ -250,7 +253,7 @@ def test_toppling_that_would_cut_into_rock_is_not_admissible():
     resting against the column's downslope face above the toe block: the geometry is still a
     row, but the column cannot rotate forward about its pivot without cutting into that rock,
     so there is no toppling mode, and the evaluators say why."""
-    from kgm.toppling import toppling_check
+    from kgm.judges.toppling import toppling_check
 
     scene, (_, toe, column) = _row_on_plane(30.0, [(1.0, 1.0), (1.0, 4.0)], 40.0)
     t = np.array([math.cos(math.radians(30.0)), -math.sin(math.radians(30.0))])

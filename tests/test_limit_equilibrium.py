@@ -113,9 +113,12 @@ def test_the_stage_releases_what_limit_equilibrium_lets_move_on_the_jointed_slop
     """scenes/jointed_slope.py: its bedding daylights, 25 of its 75 free blocks have no admissible
     contact forces (they slide), and the return mapping stalls on the rest (where Newton, the
     open-close iteration of a static step, finishes it or not by round-off: one thread or two).
-    The stage releases exactly those 25 (it used to end welded: every block held, each joint then
-    at most at its strength) and holds the other 50; the run's first step moves no held block by
-    more than its settlement."""
+    The stage releases those 25 (it used to end welded: every block held, each joint then at most
+    at its strength), and where the open-close test of the blocks still out of balance does not
+    converge, those 40 too (in doubt, release: docs/guide/equilibrium_start.md). Which of the two
+    happens is round-off (threads, BLAS): it holds 50 and releases the 25, or holds 10 and
+    releases 65; either way the run's first step moves no held block by more than its
+    settlement."""
     from scenes import jointed_slope
 
     scene, params = jointed_slope.build()[:2]
@@ -124,7 +127,7 @@ def test_the_stage_releases_what_limit_equilibrium_lets_move_on_the_jointed_slop
     res = dd.simulate(scene, params, steps=1)
     start = res.start[0]
     assert not start["welded"]
-    assert (start["held"], start["released"]) == (50, 25)
+    assert (start["held"], start["released"]) in {(50, 25), (10, 65)}
     moved = np.hypot(*(res.centroid[-1] - res.centroid[0]).T)
     held = np.setdiff1d(np.flatnonzero(moved >= 0), expected)
     assert moved[held].max() <= max(start["settlement"], 1e-6)

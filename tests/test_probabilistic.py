@@ -26,7 +26,7 @@ def _exact_pf_friction(mean, sd):
 
 
 def test_pf_of_normal_friction_within_the_monte_carlo_interval():
-    n = 20_000
+    n = 4_000
     study = kgm.probabilistic(kgm_cases.incline_scene, {"friction": st.norm(33.0, 3.0)}, n,
                               method="rigid", group={1}, seed=11, workers=2)
     exact = _exact_pf_friction(33.0, 3.0)
@@ -45,7 +45,7 @@ def test_pf_of_normal_friction_within_the_monte_carlo_interval():
 def test_pf_of_normal_cohesion_within_the_monte_carlo_interval():
     """FS < 1 ⇔ c < c_crit = W(sinθ − cosθ tanφ)/A; cohesion normal, truncated at 0:
     P_f = (Φ((c_crit − μ)/σ) − Φ(−μ/σ)) / (1 − Φ(−μ/σ))."""
-    n = 20_000
+    n = 4_000
     friction, mean, sd = 20.0, 6000.0, 2000.0
     w = kgm_cases.RHO * kgm_cases.G * 10.0 * 1.0
     t = math.radians(THETA)

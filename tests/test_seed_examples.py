@@ -115,8 +115,8 @@ def test_kgm_dda_verdict_agrees_with_dd_simulate(friction, stable):
     import dataclasses
 
     import kgm
-    from kgm.blocks import build_block_system
-    from kgm.dda import judge
+    from kgm.build import build_block_system
+    from kgm.judges.run import judge
 
     scene, params = example_1.build(friction=friction)
     verdict = judge(scene, build_block_system(scene), frozenset([B1, B2]), settings=kgm.DdaSettings(),

@@ -83,11 +83,12 @@ def test_stiff_fixed_plate_does_not_set_the_automatic_penalty():
     runs = [dd.simulate(s, duration=0.5, record_every=1000) for s in (stiff, same)]
     assert np.array_equal(runs[0].steps["dt"], runs[1].steps["dt"])
     assert np.array_equal(runs[0].centroid[-1], runs[1].centroid[-1])
-    # no step is cut: Δt stays at dt_max = 10 ms but where the automatic rule shortens it as the
-    # blocks land (8.3 ms) and the two steps that land on 0.5 s (5.9 ms); with the plate's
-    # 200 GPa penalty the cuts went down to 2.9e-4 s
-    assert runs[0].time[-1] == pytest.approx(0.5) and runs[0].steps["dt_cuts"].sum() == 0
-    assert runs[0].steps["dt"].min() >= 0.005
+    # Δt stays at dt_max = 10 ms but where the rows land: the impact steps of √(m/p)·20 = 8.2 ms
+    # (`ddatai.impacts`) and two cuts as the 2 cm gaps close (55 steps, 2.4 ms the shortest; 51
+    # steps and no cut before impacts were resolved); with the plate's 200 GPa penalty the cuts
+    # went down to 2.9e-4 s
+    assert runs[0].time[-1] == pytest.approx(0.5) and runs[0].steps["dt_cuts"].sum() <= 2
+    assert runs[0].steps["dt"].min() >= 0.002
     assert_stable(runs[0], 1.0)
 
 

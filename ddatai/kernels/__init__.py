@@ -4,7 +4,7 @@ assembly, and the contact law.
 Importing this package imports Taichi (it is loaded only when a simulation runs); kernels
 compile on first call after `ddatai.backend.ensure`. Every kernel works on NumPy arrays
 passed as ``ti.types.ndarray`` (no copies on the CPU backend) and has a plain NumPy twin in
-:mod:`ddatai.reference`, :mod:`ddatai.narrow`, :mod:`ddatai.assembly` or
+:mod:`ddatai.reference`, ``ddatai.narrow``, :mod:`ddatai.assembly` or
 :mod:`ddatai.contact_law`; tests compare the two.
 
 One module a concern: `ddatai.kernels.common` (argument types, the contact layout as plain

@@ -1,6 +1,6 @@
 """The broad phase: block bounding boxes binned into a hashed uniform grid (a counting sort
 with a prefix sum), pairs found in the 3×3 neighbouring cells, and the boxes larger than a
-cell tested against every box (`ddatai.contacts.broad_phase` drives them)."""
+cell tested against every box (``ddatai.contacts.broad_phase`` drives them)."""
 
 import taichi as ti
 

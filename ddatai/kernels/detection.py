@@ -1,11 +1,11 @@
 """The narrow phase: Shi's vertex-edge and vertex-vertex rules for each candidate block pair
 (docs/method/dda.md §3.3–3.6), and the ``@ti.func`` tests it is made of (the NumPy twin is
-`ddatai.narrow`, operation for operation)."""
+``ddatai.narrow``, operation for operation)."""
 
 import taichi as ti
 
 from .common import (EDGE_FLOOR, EDGE_FLOOR2, I32_1, I32_2, F64_1, F64_2, KIND_VE, KIND_VV, SLACK, TIE, TWO_PI,
-                     _cross, _pt, _wrap)
+                     _cross, _dot2, _norm2, _pt, _wrap)
 
 
 @ti.func
@@ -14,7 +14,7 @@ def _edge_param(xy: ti.template(), vnext: ti.template(), e, p):
     q0 = _pt(xy, e)
     d = _pt(xy, vnext[e]) - q0
     # a collapsed edge (zero length) projects everything to its start instead of dividing by 0
-    return (_pt(xy, p) - q0).dot(d) / ti.max(d.dot(d), EDGE_FLOOR2)
+    return _dot2(_pt(xy, p) - q0, d) / ti.max(_dot2(d, d), EDGE_FLOOR2)
 
 
 @ti.func
@@ -22,9 +22,9 @@ def _half_overlap(xy: ti.template(), vnext: ti.template(), e, a, b):
     """Half the length of the overlap of segment (a, b) projected on edge e (§3.6)."""
     q0 = _pt(xy, e)
     d = _pt(xy, vnext[e]) - q0
-    l2 = ti.max(d.dot(d), EDGE_FLOOR2)
-    ta = (_pt(xy, a) - q0).dot(d) / l2
-    tb = (_pt(xy, b) - q0).dot(d) / l2
+    l2 = ti.max(_dot2(d, d), EDGE_FLOOR2)
+    ta = _dot2(_pt(xy, a) - q0, d) / l2
+    tb = _dot2(_pt(xy, b) - q0, d) / l2
     lo = ti.max(0.0, ti.min(ta, tb))
     hi = ti.min(1.0, ti.max(ta, tb))
     return 0.5 * ti.max(0.0, hi - lo) * ti.sqrt(l2)
@@ -44,9 +44,9 @@ def _nearer_exit(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), 
     q0 = _pt(xy, a)
     q1 = _pt(xy, vnext[a])
     d = q1 - q0
-    l = ti.max(d.norm(), EDGE_FLOOR)
-    t = (P - q0).dot(d) / (l * l)
-    dn = (P - q0).dot(ti.Vector([d[1], -d[0]]) / l)
+    l = ti.max(_norm2(d), EDGE_FLOOR)
+    t = _dot2(P - q0, d) / (l * l)
+    dn = _dot2(P - q0, ti.Vector([d[1], -d[0]]) / l)
     r0 = P - q0
     r1 = P - q1
     # or nearer than ``depth`` to an end of a (past it: a cut's shared corner, moved a hair)
@@ -65,8 +65,8 @@ def _outside_convex(xy: ti.template(), vnext: ti.template(), vprev: ti.template(
     while j != e:
         q0 = _pt(xy, j)
         d = _pt(xy, vnext[j]) - q0
-        l = ti.max(d.norm(), EDGE_FLOOR)
-        if (P - q0).dot(ti.Vector([d[1], -d[0]]) / l) > -slack:
+        l = ti.max(_norm2(d), EDGE_FLOOR)
+        if _dot2(P - q0, ti.Vector([d[1], -d[0]]) / l) > -slack:
             front = 1
         if not _convex(xy, vnext, vprev, j):
             convex = 0
@@ -84,9 +84,9 @@ def _edge_edge_exit(xy: ti.template(), vnext: ti.template(), vprev: ti.template(
     e, so p cannot have entered that edge."""
     q0 = _pt(xy, e)
     d = _pt(xy, vnext[e]) - q0
-    l = ti.max(d.norm(), EDGE_FLOOR)
+    l = ti.max(_norm2(d), EDGE_FLOOR)
     P = _pt(xy, p)
-    dn = (P - q0).dot(ti.Vector([d[1], -d[0]]) / l)
+    dn = _dot2(P - q0, ti.Vector([d[1], -d[0]]) / l)
     a = vprev[e]
     c = e
     if w == e:
@@ -108,11 +108,11 @@ def _ve_test(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), p, e
     """
     q0 = _pt(xy, e)
     d = _pt(xy, vnext[e]) - q0
-    l = ti.max(d.norm(), EDGE_FLOOR)
+    l = ti.max(_norm2(d), EDGE_FLOOR)
     P = _pt(xy, p)
-    t = (P - q0).dot(d) / (l * l)
+    t = _dot2(P - q0, d) / (l * l)
     n = ti.Vector([d[1], -d[0]]) / l  # outward normal of a CCW edge
-    dn = (P - q0).dot(n)
+    dn = _dot2(P - q0, n)
     ok = 1
     if l <= EDGE_FLOOR:  # a collapsed edge has no normal: no contact (reference.narrow_phase)
         ok = 0
@@ -131,34 +131,38 @@ def _ve_test(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), p, e
             ok = 0
     r1 = _pt(xy, vnext[p]) - P
     r2 = _pt(xy, vprev[p]) - P
-    n1 = r1.norm()
-    n2 = r2.norm()
+    n1 = _norm2(r1)
+    n2 = _norm2(r2)
     # a concave vertex never contacts as a vertex; the vertex's material wedge must lie on the
     # outer side of the edge within the angle tolerance h1
     if _cross(r1, r2) <= 0.0:
         ok = 0
-    if r1.dot(n) < -sin_h1 * n1 or r2.dot(n) < -sin_h1 * n2:
+    if _dot2(r1, n) < -sin_h1 * n1 or _dot2(r2, n) < -sin_h1 * n2:
         ok = 0
     length = 0.0
     if ok == 1:
-        if ti.abs(r1.dot(n)) <= sin_h1 * n1:
+        if ti.abs(_dot2(r1, n)) <= sin_h1 * n1:
             length = _half_overlap(xy, vnext, e, p, vnext[p])
-        elif ti.abs(r2.dot(n)) <= sin_h1 * n2:
+        elif ti.abs(_dot2(r2, n)) <= sin_h1 * n2:
             length = _half_overlap(xy, vnext, e, p, vprev[p])
     return ok, length
 
 
 @ti.func
-def _emit(out_int: ti.template(), out_len: ti.template(), count: ti.template(),
+def _emit(out_int: ti.template(), out_len: ti.template(), count: ti.template(), slot, base, cap,
           kind, v0, e0, v1, e1, length):
-    k = ti.atomic_add(count[0], 1)
-    if k < out_int.shape[0]:
-        out_int[k, 0] = kind
-        out_int[k, 1] = v0
-        out_int[k, 2] = e0
-        out_int[k, 3] = v1
-        out_int[k, 4] = e1
-        out_len[k] = length
+    """Append a contact to the region ``base:base + cap`` of the outputs, counted in
+    ``count[slot]`` (the count may pass ``cap``: the caller grows the region and detects again).
+    The narrow-phase kernel has one region (slot 0, base 0, the whole array); the fused engine
+    one per member (`ddatai.fused`)."""
+    k = ti.atomic_add(count[slot], 1)
+    if k < cap:
+        out_int[base + k, 0] = kind
+        out_int[base + k, 1] = v0
+        out_int[base + k, 2] = e0
+        out_int[base + k, 3] = v1
+        out_int[base + k, 4] = e1
+        out_len[base + k] = length
 
 
 @ti.func
@@ -167,7 +171,7 @@ def _nearest(xy: ti.template(), P, lo, hi, limit):
     best = -1
     best_d = limit
     for k in range(lo, hi):
-        dist = (_pt(xy, k) - P).norm()
+        dist = _norm2(_pt(xy, k) - P)
         if dist < best_d or (dist == best_d and best == -1):
             best = k
             best_d = dist
@@ -177,23 +181,22 @@ def _nearest(xy: ti.template(), P, lo, hi, limit):
 @ti.func
 def _vertex_vertex(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), ia, ib,
                    d0, d9, sin_h1, h1, out_int: ti.template(), out_len: ti.template(),
-                   count: ti.template()):
-    """Vertices ia (block A) and ib (block B) are mutual nearest within d0 (§3.3 case 1, §3.4)."""
+                   count: ti.template(), slot, base, cap):
+    """Vertices ia (block A) and ib (block B) are mutual nearest within d0 (§3.3 case 1, §3.4).
+
+    Where the rules fall back on the vertex-edge tests of a vertex against both edges meeting at
+    its partner, those tests run in one loop at the end over the (vertex, partner) pairs that
+    asked for them, in the order the rules name them: one copy of `_ve_test` in the compiled
+    kernel instead of one a case (compile time; the same contacts in the same order)."""
     cP = _convex(xy, vnext, vprev, ia)
     cQ = _convex(xy, vnext, vprev, ib)
+    # (vertex, partner) pairs whose vertex is tested against both edges meeting at the partner
+    v1, w1, v2, w2 = -1, -1, -1, -1
     if cP and not cQ:
         # concave Q: P against both edges meeting at Q
-        for s in ti.static(range(2)):
-            e = vprev[ib] if s == 0 else ib
-            ok, length = _ve_test(xy, vnext, vprev, ia, e, d0, d9, sin_h1, 0)
-            if ok == 1:
-                _emit(out_int, out_len, count, KIND_VE, ia, e, -1, -1, length)
+        v1, w1 = ia, ib
     elif cQ and not cP:
-        for s in ti.static(range(2)):
-            e = vprev[ia] if s == 0 else ia
-            ok, length = _ve_test(xy, vnext, vprev, ib, e, d0, d9, sin_h1, 0)
-            if ok == 1:
-                _emit(out_int, out_len, count, KIND_VE, ib, e, -1, -1, length)
+        v1, w1 = ib, ia
     elif cP and cQ:
         P = _pt(xy, ia)
         Q = _pt(xy, ib)
@@ -230,15 +233,12 @@ def _vertex_vertex(xy: ti.template(), vnext: ti.template(), vprev: ti.template()
                     else:
                         v, e, end, w = ib, ia, vprev[ib], ia
                 if _edge_edge_exit(xy, vnext, vprev, v, e, w, d9) == 0:
-                    _emit(out_int, out_len, count, KIND_VE, v, e, -1, -1, _half_overlap(xy, vnext, e, v, end))
+                    _emit(out_int, out_len, count, slot, base, cap, KIND_VE, v, e, -1, -1,
+                          _half_overlap(xy, vnext, e, v, end))
                 else:
                     # parallel, but v entered the edge at the far corner or lies deeper than d9
                     # (§3.3): v against both edges meeting at w, by the vertex-edge rules
-                    for s in ti.static(range(2)):
-                        e2 = vprev[w] if s == 0 else w
-                        ok, length = _ve_test(xy, vnext, vprev, v, e2, d0, d9, sin_h1, 0)
-                        if ok == 1:
-                            _emit(out_int, out_len, count, KIND_VE, v, e2, -1, -1, length)
+                    v1, w1 = v, w
             else:
                 # genuine vertex-vertex: the entrance lines are the edges across the smaller gap
                 # (e5 unless e6 is clearly smaller, so equal gaps do not flip between steps)
@@ -247,20 +247,69 @@ def _vertex_vertex(xy: ti.template(), vnext: ti.template(), vprev: ti.template()
                 if e5 > e6 + h1:
                     eA = vprev[ib]
                     eB = ia
-                if _edge_edge_exit(xy, vnext, vprev, ia, eA, ib, d9) == 0 and \
-                        _edge_edge_exit(xy, vnext, vprev, ib, eB, ia, d9) == 0:
-                    _emit(out_int, out_len, count, KIND_VV, ia, eA, ib, eB, 0.0)
+                exits = 0
+                for k in range(2):  # ia against its entrance line eA, then ib against eB
+                    p, e, w = ia, eA, ib
+                    if k == 1:
+                        p, e, w = ib, eB, ia
+                    exits += _edge_edge_exit(xy, vnext, vprev, p, e, w, d9)
+                if exits == 0:
+                    _emit(out_int, out_len, count, slot, base, cap, KIND_VV, ia, eA, ib, eB, 0.0)
                 else:
                     # a vertex behind its entrance line entered the edge at the line's far
                     # corner, or lies beyond d9 (§3.3 rule 3): each vertex against both edges
                     # meeting at the other, by the vertex-edge rules
-                    for s in ti.static(range(4)):
-                        v = ia if s < 2 else ib
-                        w = ib if s < 2 else ia
-                        e2 = vprev[w] if s % 2 == 0 else w
-                        ok, length = _ve_test(xy, vnext, vprev, v, e2, d0, d9, sin_h1, 0)
-                        if ok == 1:
-                            _emit(out_int, out_len, count, KIND_VE, v, e2, -1, -1, length)
+                    v1, w1, v2, w2 = ia, ib, ib, ia
+    for k in range(4):
+        v = v1
+        w = w1
+        if k >= 2:
+            v = v2
+            w = w2
+        if v >= 0:
+            e2 = w
+            if k % 2 == 0:
+                e2 = vprev[w]
+            ok, length = _ve_test(xy, vnext, vprev, v, e2, d0, d9, sin_h1, 0)
+            if ok == 1:
+                _emit(out_int, out_len, count, slot, base, cap, KIND_VE, v, e2, -1, -1, length)
+
+
+@ti.func
+def pair_contacts(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), a0, a1, b0, b1,
+                  d0, d9, sin_h1, h1, out_int: ti.template(), out_len: ti.template(),
+                  count: ti.template(), slot, base, cap):
+    """The contacts of the block pair whose vertices are ``a0:a1`` (A) and ``b0:b1`` (B), by
+    Shi's rules (docs/method/dda.md §3.3–3.6), appended to an output region (``_emit``)."""
+    # 1. vertex pairs closer than d0 (mutual nearest): vertex-vertex rules
+    for ia in range(a0, a1):
+        P = _pt(xy, ia)
+        ib = _nearest(xy, P, b0, b1, d0)
+        if ib >= 0:
+            if _nearest(xy, _pt(xy, ib), a0, a1, d0) == ia:
+                _vertex_vertex(xy, vnext, vprev, ia, ib, d0, d9, sin_h1, h1, out_int, out_len, count,
+                               slot, base, cap)
+    # 2. vertices of A against edges of B, and 3. vertices of B against edges of A,
+    # skipping a vertex whose mutual-nearest partner is an end of the edge (that pair was
+    # handled above). A vertex near an edge's end that is not that end's mutual nearest
+    # (the end pairs with another vertex) is tested here: skipping it by distance alone
+    # lost the contact of a wedge's tip sliding along a joint next to the other block's
+    # corner while the tip sank into it
+    for s in range(2):
+        v_lo, v_hi, e_lo, e_hi = a0, a1, b0, b1
+        if s == 1:
+            v_lo, v_hi, e_lo, e_hi = b0, b1, a0, a1
+        for iv in range(v_lo, v_hi):
+            P = _pt(xy, iv)
+            partner = _nearest(xy, P, e_lo, e_hi, d0)
+            if partner >= 0:
+                if _nearest(xy, _pt(xy, partner), v_lo, v_hi, d0) != iv:
+                    partner = -1
+            for ie in range(e_lo, e_hi):
+                if partner != ie and partner != vnext[ie]:
+                    ok, length = _ve_test(xy, vnext, vprev, iv, ie, d0, d9, sin_h1, 1)
+                    if ok == 1:
+                        _emit(out_int, out_len, count, slot, base, cap, KIND_VE, iv, ie, -1, -1, length)
 
 
 @ti.kernel
@@ -274,32 +323,5 @@ def narrow_phase(pairs: I32_2, xy: F64_2, voff: I32_1, vnext: I32_1, vprev: I32_
     for p in range(pairs.shape[0]):
         A = pairs[p, 0]
         B = pairs[p, 1]
-        a0, a1 = voff[A], voff[A + 1]
-        b0, b1 = voff[B], voff[B + 1]
-        # 1. vertex pairs closer than d0 (mutual nearest): vertex-vertex rules
-        for ia in range(a0, a1):
-            P = _pt(xy, ia)
-            ib = _nearest(xy, P, b0, b1, d0)
-            if ib >= 0:
-                if _nearest(xy, _pt(xy, ib), a0, a1, d0) == ia:
-                    _vertex_vertex(xy, vnext, vprev, ia, ib, d0, d9, sin_h1, h1, out_int, out_len, count)
-        # 2. vertices of A against edges of B, and 3. vertices of B against edges of A,
-        # skipping a vertex whose mutual-nearest partner is an end of the edge (that pair was
-        # handled above). A vertex near an edge's end that is not that end's mutual nearest
-        # (the end pairs with another vertex) is tested here: skipping it by distance alone
-        # lost the contact of a wedge's tip sliding along a joint next to the other block's
-        # corner while the tip sank into it
-        for s in ti.static(range(2)):
-            v_lo, v_hi = (a0, a1) if s == 0 else (b0, b1)
-            e_lo, e_hi = (b0, b1) if s == 0 else (a0, a1)
-            for iv in range(v_lo, v_hi):
-                P = _pt(xy, iv)
-                partner = _nearest(xy, P, e_lo, e_hi, d0)
-                if partner >= 0:
-                    if _nearest(xy, _pt(xy, partner), v_lo, v_hi, d0) != iv:
-                        partner = -1
-                for ie in range(e_lo, e_hi):
-                    if partner != ie and partner != vnext[ie]:
-                        ok, length = _ve_test(xy, vnext, vprev, iv, ie, d0, d9, sin_h1, 1)
-                        if ok == 1:
-                            _emit(out_int, out_len, count, KIND_VE, iv, ie, -1, -1, length)
+        pair_contacts(xy, vnext, vprev, voff[A], voff[A + 1], voff[B], voff[B + 1], d0, d9, sin_h1, h1,
+                      out_int, out_len, count, 0, 0, out_int.shape[0])

@@ -32,21 +32,29 @@ import functools
 import inspect
 import math
 import time
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Mapping, Optional
 
 import numpy as np
+from ddatai.workers import WorkerLost
 
-from .. import search
-from ..batched import Member, judge_members
-from ..blocks import build_block_system
-from ..dda import evaluate_dda
+from ..analysis import analyze_problem, evaluate_group
+from ..build import Problem, prepare
+from ..judges.batch import Member, judge_members
+from ..judges.dda import dda_evaluation
 from ..kinds import METHOD_NAMES, Method, Sampling
 from ..report import GroupResult
 from ..settings import DdaSettings, Settings
-from .sampling import sample_seeds, sample_variables
-from .study import SampleRow, Study, StudyFile, read_samples, reliability_index, study_table
+from .rare import Transform, rare_sampling, rare_study
+from .sampling import _check_sampling, sample_seeds, sample_variables
+from .study import SampleRow, Study, StudyFile, monte_carlo_cov, pf_of, read_samples, reliability_index, study_table
+
+#: most DDA samples judged side by side in one batch of a study: a batch's verdicts are saved
+#: when it ends, about every 5 s of a worker's time on Example II (40 samples a batch cost ~15 %
+#: more a sample than 80, measured on 2 workers) [-]
+SAVED_BATCH = 40
 
 # ---------------------------------------------------------------------- one sample
 @dataclass(frozen=True)
@@ -63,16 +71,13 @@ class _Job:
 
 @dataclass(frozen=True, kw_only=True, eq=False)
 class Screened:
-    """A sample screened by limit equilibrium: its scene, parameters and settings, its critical
-    group by the screening method (None: the sample has no key group, nothing can fail) and its
-    row as that method gives it."""
+    """A sample screened by limit equilibrium: its problem (its scene and block system, the
+    study's settings, the Params its ``build`` returned), its critical group by the screening
+    method (None: the sample has no key group, nothing can fail) and its row as that method
+    gives it."""
 
-    scene: Any
-    """The sample's `ddatai.Scene`."""
-    params: Any
-    """The Params its ``build`` returned (None: none)."""
-    settings: Settings
-    """The study's settings."""
+    problem: Problem
+    """The sample's problem, prepared once: DDA judges its group on the same block system."""
     result: Optional[GroupResult]
     """The critical group by the screening method, or None."""
     row: SampleRow
@@ -86,10 +91,9 @@ def _evaluate(job: _Job, item: tuple) -> SampleRow:
         screened = _screen(job, item)
         if screened.result is None or job.method is not Method.DDA:
             return screened.row
-        result, settings = screened.result, screened.settings
-        dres = evaluate_dda(screened.scene, build_block_system(screened.scene, contact_gap=settings.contact_gap),
-                            frozenset(result.blocks), settings=settings.dda, params=screened.params,
-                            fs_guess=result.fs, with_fs=job.dda_fs, with_friction=False)
+        result, problem = screened.result, screened.problem
+        dres = dda_evaluation(problem, frozenset(result.blocks), fs_guess=result.fs, with_fs=job.dda_fs,
+                              with_friction=False, report=problem.settings.dda.progress)
         return SampleRow(fs=float(dres.fs), failed=not bool(dres.judgement.stable), critical=screened.row.critical)
     except Exception as exc:
         raise _failed(index, values, seed, exc) from exc
@@ -110,25 +114,25 @@ def _screen(job: _Job, item: tuple) -> Screened:
 
     scene, params = build_scene(job.build, **kwargs)
     settings = job.settings or Settings()
+    problem = prepare(scene, settings=settings, params=params)
     # DDA judges the critical group of the screening evaluator (a DDA-ranked search runs
     # DDA on every candidate): the verdict from one run at the sample's strength, FS by
     # strength reduction only when asked (several runs)
     method = job.method.screened_by(settings.screening)
     if job.group is not None:
-        result = search.evaluate(scene, job.group, method, settings=settings, params=params)
+        result = evaluate_group(problem, job.group, method)
     else:
-        result = search.analyze(scene, method, settings=settings, params=params).critical
+        result = analyze_problem(problem, method).critical
     if result is None:
-        return Screened(scene=scene, params=params, settings=settings, result=None,
-                        row=SampleRow(fs=math.inf, failed=False))
-    return Screened(scene=scene, params=params, settings=settings, result=result,
+        return Screened(problem=problem, result=None, row=SampleRow(fs=math.inf, failed=False))
+    return Screened(problem=problem, result=result,
                     row=SampleRow.of_group(result.fs, not bool(result.stable), result.blocks))
 
 
 def _evaluate_batch(job: _Job, items: tuple) -> list:
     """[(index, `SampleRow`)] of DDA verdicts of several samples (``dda_fs`` off): each sample
     screened on its own, then the samples whose critical groups are the same blocks of the same
-    geometry judged side by side in one run (`kgm.batched.judge_members`; the verdict of each is
+    geometry judged side by side in one run (`kgm.judges.batch.judge_members`; the verdict of each is
     the one a run of its own gives). Errors name the sample."""
     rows, groups = {}, {}
     for item in items:
@@ -140,15 +144,14 @@ def _evaluate_batch(job: _Job, items: tuple) -> list:
         if screened.result is None:
             rows[index] = screened.row
             continue
-        member = Member(scene=screened.scene,
-                        system=build_block_system(screened.scene, contact_gap=screened.settings.contact_gap))
-        key = (frozenset(screened.result.blocks), screened.params)
+        member = Member(scene=screened.problem.scene, system=screened.problem.system)
+        key = (frozenset(screened.result.blocks), screened.problem.params)
         groups.setdefault(key, []).append((item, member, screened))
     for (blocks, params), entries in groups.items():
-        settings = entries[0][2].settings
+        settings = entries[0][2].problem.settings
         try:
             verdicts = judge_members([member for _, member, _ in entries], blocks, settings=settings.dda,
-                                     params=params, exact=True)
+                                     params=params, exact=True, report=settings.dda.progress)
         except Exception:
             # which sample: each on its own, so that the error names it
             for item, _, _ in entries:
@@ -177,9 +180,14 @@ def probabilistic(build, variables: Mapping, n: int, *, method: str = Method.SAR
         top level of an importable module, or the path of a scene script (its ``build``).
     variables : name -> frozen `scipy.stats` distribution (normal, lognormal, truncated normal,
         uniform, triangular...) or a constant; each name is a keyword argument of ``build``.
-    n : samples.
+    n : samples (subset simulation: samples a level; importance sampling: importance samples,
+        after FORM's evaluations).
     method : evaluator of each sample's critical group: 'rigid', 'sarma' or 'dda'.
-    sampling : 'monte-carlo' or 'latin-hypercube'.
+    sampling : 'monte-carlo' or 'latin-hypercube'; for small probabilities of failure
+        'subset' (subset simulation) or 'importance' (FORM, then importance sampling at its
+        design point), or their settings `kgm.SubsetSampling` / `kgm.ImportanceSampling`
+        (`kgm.studies.rare`, docs/kgm/reliability.md): the limit state FS − 1, under DDA the
+        strength-reduction factor of every sample.
     seed : seed of the study (the samples and the per-sample seeds follow from it).
     correlation : {(name1, name2): ρ} between sampled variables (Gaussian copula).
     group : evaluate this group of blocks in every sample instead of searching for the
@@ -194,7 +202,8 @@ def probabilistic(build, variables: Mapping, n: int, *, method: str = Method.SAR
         same study is resumed (its samples are not run again).
     geometry_seed : pass each sample's seed to ``build(seed=...)`` (a new joint-set
         realisation per sample); None: when ``build`` has a ``seed`` parameter.
-    progress : called as ``progress(done, n)`` after each completed sample.
+    progress : called as ``progress(done, n)`` after each completed sample (subset and
+        importance sampling: ``progress(evaluations, None)``, their number not known ahead).
     dda_fs : with ``method="dda"``, also find each sample's FS by strength reduction (several
         DDA runs a sample); by default only the verdict at the sample's strength (one run),
         which is all P_f needs, and ``fs`` is nan.
@@ -215,6 +224,11 @@ def probabilistic(build, variables: Mapping, n: int, *, method: str = Method.SAR
     if settings is not None:
         if not isinstance(settings, Settings):
             raise ValueError(f"settings must be a kgm.Settings, got {type(settings).__name__}")
+    options = rare_sampling(sampling)
+    if options is not None:  # subset simulation, importance sampling
+        return _rare(build, variables, n, options, method=method, seed=seed, correlation=correlation, group=group,
+                     settings=settings, client=client, workers=workers, out=out, geometry_seed=geometry_seed,
+                     progress=progress, t0=t0)
     pass_seed = _check_build(build, variables, geometry_seed)
     samples = sample_variables(variables, n, sampling=sampling, seed=seed, correlation=correlation)
     seeds = sample_seeds(seed, n)
@@ -233,23 +247,28 @@ def probabilistic(build, variables: Mapping, n: int, *, method: str = Method.SAR
     # script whose workers could not import what the study needs is told what to add
     workers = plan(functools.partial(_evaluate, job), client=client, workers=workers,
                    cost="heavy" if method is Method.DDA else "light", caller="kgm.probabilistic")
-    # DDA verdicts: samples judged side by side, a batch of them per item (kgm.batched.judge_members)
+    # DDA verdicts: samples judged side by side, a batch of them per item (kgm.judges.batch.judge_members)
     size = (settings.dda if settings is not None else DdaSettings()).sample_batch \
         if method is Method.DDA and not dda_fs else 1
     if size > 1:
         # one batch a worker or more (a larger batch shares a step among more samples: per
-        # sample a batch of 128 costs a fifth of one of 16); none larger than asked
+        # sample a batch of 128 costs a fifth of one of 16); none larger than asked, nor than
+        # SAVED_BATCH: a batch's samples reach the file when the batch ends
         sharing = 1 if client is None and workers == 1 else _n_workers(client, workers)
-        size = max(1, min(size, -(-len(items) // sharing)))
+        size = max(1, min(size, SAVED_BATCH, -(-len(items) // sharing)))
         batches = [tuple(items[i:i + size]) for i in range(0, len(items), size)]
-        results = run(functools.partial(_evaluate_batch, job), [(b[0][0], b) for b in batches],
-                      client=client, workers=workers, chunk=1)
-        flat = (row for _, rows in results for row in rows)
+        flat = _rows_of_batches(run(functools.partial(_evaluate_batch, job), [(b[0][0], b) for b in batches],
+                                    client=client, workers=workers, chunk=1, split=_split_batch))
     else:
         flat = run(functools.partial(_evaluate, job), [(it[0], it) for it in items], client=client, workers=workers)
     writer = StudyFile(Path(out), identity, names) if out is not None else None
+    by_index = {it[0]: it for it in items}
     try:
         for index, row in flat:
+            if isinstance(row, WorkerLost):
+                warnings.warn(f"kgm.probabilistic: sample {index} ({_describe(by_index[index][1])}, seed "
+                              f"{int(seeds[index])}) recorded as lost: {row}", RuntimeWarning, stacklevel=2)
+                row = SampleRow.given_up()
             done[index] = row
             if writer is not None:
                 writer.append(index, int(seeds[index]), [samples[k][index] for k in names], row)
@@ -259,9 +278,48 @@ def probabilistic(build, variables: Mapping, n: int, *, method: str = Method.SAR
         if writer is not None:
             writer.close()
     table = study_table(n, names, samples, seeds, done)
-    return Study(n=n, pf=float(np.mean(table["failed"])), beta=reliability_index(table["fs"]), table=table, variables=names,
+    return Study(n=n, pf=pf_of(table), beta=reliability_index(table["fs"]), table=table, variables=names,
                  method=method, sampling=sampling, seed=seed, resumed=resumed,
-                 wall_time=time.perf_counter() - t0)
+                 wall_time=time.perf_counter() - t0, pf_cov=monte_carlo_cov(table), evaluations=n)
+
+
+def _rare(build, variables: Mapping, n: int, options, *, method: Method, seed: int, correlation, group, settings,
+          client, workers, out, geometry_seed, progress, t0: float) -> Study:
+    """Subset simulation or importance sampling (`kgm.studies.rare`) on this module's samples:
+    each evaluation a sample as `_evaluate` runs it, under DDA with its FS by strength
+    reduction (the limit state; a verdict alone gives the estimators nothing to climb)."""
+    from ddatai.parallel import plan
+
+    _check_sampling(variables, n, Sampling.MONTE_CARLO, correlation)
+    if geometry_seed:
+        raise ValueError(f"geometry_seed=True with sampling={options.name.value!r}: a new joint realisation per "
+                         "sample is not a variable of the limit state these estimators follow; use Monte Carlo")
+    _check_build(build, variables, False)
+    transform = Transform(variables, correlation)
+    if transform.dim == 0:
+        raise ValueError(f"sampling={options.name.value!r} needs at least one variable with a distribution")
+    group = None if group is None else frozenset(int(b) for b in group)
+    job = _Job(build=build, method=method, settings=settings, group=group, pass_seed=False,
+               dda_fs=method is Method.DDA)
+    fn = functools.partial(_evaluate, job)
+    workers = plan(fn, client=client, workers=workers, cost="heavy" if method is Method.DDA else "light",
+                   caller="kgm.probabilistic")
+    return rare_study(fn, transform, options, n, method=method, seed=seed, group=group, client=client,
+                      workers=workers, out=out, progress=progress, describe=_describe, t0=t0)
+
+
+def _split_batch(batch: tuple) -> list:
+    """A batch of samples as its single samples (run alone after a worker died running it)."""
+    return [(item[0], (item,)) for item in batch]
+
+
+def _rows_of_batches(results):
+    """(index, row) of each sample of each batch's results; a lost one as it comes."""
+    for index, rows in results:
+        if isinstance(rows, WorkerLost):
+            yield index, rows
+        else:
+            yield from rows
 
 
 def _n_workers(client, workers: Optional[int]) -> int:

@@ -14,15 +14,14 @@ workers or on the order in which samples complete.
 from __future__ import annotations
 
 import math
-from pathlib import Path
 from typing import Mapping, Optional
 
 import numpy as np
 
-from ..kinds import SAMPLINGS, Sampling
+from ..kinds import DRAWN_SAMPLINGS, SAMPLINGS, Sampling
 
 #: names a variable cannot take: the other columns of a study's table
-RESERVED = ("seed", "index", "fs", "failed", "critical")
+RESERVED = ("seed", "index", "fs", "failed", "critical", "lost")
 
 
 def sample_variables(variables: Mapping, n: int, *, sampling: str = Sampling.MONTE_CARLO, seed: int = 0,
@@ -89,6 +88,10 @@ def _check_sampling(variables, n, sampling, correlation) -> None:
         raise ValueError(f"n (number of samples) must be an integer >= 1, got {n!r}")
     if sampling not in SAMPLINGS:
         raise ValueError(f"sampling must be one of {SAMPLINGS}, got {sampling!r}")
+    if sampling not in DRAWN_SAMPLINGS:
+        raise ValueError(f"sample_variables draws {', '.join(map(repr, map(str, DRAWN_SAMPLINGS)))} samples; "
+                         f"{sampling!r} samples are drawn by their estimator as it goes (kgm.probabilistic, "
+                         "docs/kgm/reliability.md)")
     if correlation is not None and not isinstance(correlation, Mapping):
         raise ValueError("correlation must be a mapping {(name1, name2): rho}")
 
@@ -167,19 +170,6 @@ def variables_from_mapping(spec: Mapping) -> tuple[dict, dict]:
 
 def read_variables(path) -> tuple[dict, dict]:
     """`variables_from_mapping` of a TOML file."""
-    try:
-        import tomllib
-    except ImportError:  # Python 3.10
-        try:
-            import tomli as tomllib
-        except ImportError as exc:
-            raise ValueError("reading a variables file needs Python 3.11 (tomllib) or pip install tomli") from exc
-    path = Path(path)
-    if not path.is_file():
-        raise ValueError(f"variables file not found: {path}")
-    with open(path, "rb") as fh:
-        try:
-            spec = tomllib.load(fh)
-        except tomllib.TOMLDecodeError as exc:
-            raise ValueError(f"{path}: not valid TOML: {exc}") from None
-    return variables_from_mapping(spec)
+    from ddatai.io.tomlfile import read_toml
+
+    return variables_from_mapping(read_toml(path, "variables file"))

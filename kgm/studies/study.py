@@ -5,8 +5,11 @@ again, read back by `read_study`) and the picture of the block frequencies.
 
 The file's first line identifies the study (``# kgm probabilistic study {...}``, the arguments
 that determine its samples); a file of another study is refused. Then a header and one line a
-sample: index, seed, the sampled values, fs, failed (0/1) and the critical group's block ids
-separated by spaces; floats written by ``repr``, so a file read back gives the same table.
+sample: index, seed, the sampled values, fs, failed (0/1), the critical group's block ids
+separated by spaces and lost (0/1: the sample's worker process died twice while running it,
+`ddatai.workers`); floats written by ``repr``, so a file read back gives the same table. A
+subset or importance study (docs/kgm/reliability.md) writes one line an evaluation, in the
+order its estimator asked for them.
 """
 
 from __future__ import annotations
@@ -16,9 +19,11 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Mapping, Optional
+from typing import Any, Callable, Mapping, Optional
 
 import numpy as np
+
+from ..kinds import RARE_SAMPLINGS, Sampling
 
 #: first line of a study file: what identifies the study (a file of another study is refused)
 HEADER_MARK = "# kgm probabilistic study "
@@ -35,6 +40,10 @@ class SampleRow:
     """Whether the critical group fails (FS below the target, or unstable under DDA)."""
     critical: tuple = ()
     """Block ids of the critical group, ascending (empty: the sample has no key group)."""
+    lost: bool = False
+    """The sample was given up: its worker process died twice while running it (killed by the
+    out-of-memory killer, a crash in a native library; `ddatai.workers`). Its FS is nan, it is
+    not failed, and P_f leaves it out."""
 
     @property
     def critical_text(self) -> str:
@@ -46,8 +55,13 @@ class SampleRow:
         return cls(fs=float(fs), failed=bool(failed), critical=tuple(sorted(int(b) for b in blocks)))
 
     @classmethod
-    def from_text(cls, fs: float, failed: bool, critical: str) -> "SampleRow":
-        return cls(fs=fs, failed=failed, critical=tuple(int(b) for b in critical.split()))
+    def from_text(cls, fs: float, failed: bool, critical: str, lost: bool = False) -> "SampleRow":
+        return cls(fs=fs, failed=failed, critical=tuple(int(b) for b in critical.split()), lost=lost)
+
+    @classmethod
+    def given_up(cls) -> "SampleRow":
+        """The row of a lost sample."""
+        return cls(fs=math.nan, failed=False, lost=True)
 
 
 
@@ -59,27 +73,47 @@ class Study:
     """Samples [-]."""
     pf: float
     """Probability of failure: the fraction of samples whose critical group fails (FS < 1, or
-    unstable under DDA) [-]."""
+    unstable under DDA), among the samples evaluated (not `lost`) [-]; subset simulation and
+    importance sampling: their estimate."""
     beta: float
     """Reliability index β = (mean FS − 1) / standard deviation of FS, over the samples with a
     finite FS (the definition of RocPlane and Slide, exact for a normally distributed FS) [-];
     nan when fewer than two samples have a finite FS."""
     table: np.ndarray
     """One row per sample, in sample order (a NumPy structured array): ``index``, ``seed``,
-    the sampled variables (their names), ``fs``, ``failed`` and ``critical`` (the critical
-    group's block ids, space-separated)."""
+    the sampled variables (their names), ``fs``, ``failed``, ``critical`` (the critical
+    group's block ids, space-separated) and ``lost`` (`Study.lost`)."""
     variables: tuple
     """Names of the sampled variables, in table order."""
     method: str
     """Evaluator: 'rigid', 'sarma' or 'dda'."""
     sampling: str
-    """'monte-carlo' or 'latin-hypercube'."""
+    """'monte-carlo', 'latin-hypercube', 'subset' or 'importance'."""
     seed: int
     """Seed of the study."""
     resumed: int = 0
     """Samples read from an earlier run's file instead of evaluated [-]."""
     wall_time: float = 0.0
     """Wall time of this call [s]."""
+    # subset simulation and importance sampling (kgm.studies.rare, docs/kgm/reliability.md)
+    pf_cov: float = math.nan
+    """Coefficient of variation of ``pf``: Monte Carlo √((1 − P_f)/(n·P_f)); subset simulation
+    Au & Beck's estimate with the chains' correlation; importance sampling its sampling c.o.v.
+    [-]."""
+    levels: tuple = ()
+    """Subset simulation: its levels (`kgm.studies.estimates.StudyLevel`: FS thresholds,
+    conditional probabilities, samples)."""
+    evaluations: int = 0
+    """Limit-state evaluations the estimate rests on (Monte Carlo: the samples) [-]."""
+    design_point: Any = None
+    """Importance sampling: FORM's design point (`kgm.studies.estimates.DesignPoint`), in the
+    variables' units, with β and each variable's sensitivity α."""
+    estimate: Any = None
+    """Subset simulation and importance sampling: the estimator's own result
+    (`kgm.studies.reliability`), in standard normal space."""
+    limit_state: Optional[Callable] = None
+    """Subset simulation and importance sampling by limit equilibrium: FS of samples given by
+    their values (name -> array), in this process (`plot_levels` draws FS = 1 with it)."""
 
     @property
     def fs(self) -> np.ndarray:
@@ -92,6 +126,13 @@ class Study:
         return self.table["failed"]
 
     @property
+    def lost(self) -> np.ndarray:
+        """Samples given up because their worker process died twice while running them (killed
+        by the out-of-memory killer, a crash in a native library): recorded with their values,
+        ``fs`` nan, not failed, and left out of P_f (`ddatai.workers`)."""
+        return self.table["lost"]
+
+    @property
     def beta_pf(self) -> float:
         """The reliability index that P_f corresponds to, −Φ⁻¹(P_f) [-] (±inf when no sample or
         every sample failed)."""
@@ -101,11 +142,15 @@ class Study:
 
     def pf_interval(self, confidence: float = 0.95) -> tuple[float, float]:
         """Confidence interval of P_f (Wilson's score interval for a binomial proportion; for
-        Monte Carlo sampling — Latin hypercube estimates are tighter)."""
+        Monte Carlo sampling — Latin hypercube estimates are tighter; subset simulation and
+        importance sampling: P_f ×/÷ exp(z·√ln(1 + c.o.v.²)), the estimate taken as lognormal)."""
         from scipy.stats import norm
 
         z = float(norm.ppf(0.5 + 0.5 * confidence))
-        n, p = self.n, self.pf
+        if self.sampling in RARE_SAMPLINGS:
+            k = math.exp(z * math.sqrt(math.log1p(self.pf_cov ** 2))) if math.isfinite(self.pf_cov) else math.inf
+            return self.pf / k, min(1.0, self.pf * k)
+        n, p = self.n - int(np.count_nonzero(self.lost)), self.pf
         centre = (p + z * z / (2 * n)) / (1 + z * z / n)
         half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
         return max(0.0, centre - half), min(1.0, centre + half)
@@ -125,14 +170,36 @@ class Study:
 
     def summary(self) -> str:
         lo, hi = self.pf_interval()
+        lost = int(np.count_nonzero(self.lost))
+        gave_up = f"; {lost} sample(s) lost (their worker process died twice), not counted" if lost else ""
+        if self.sampling in RARE_SAMPLINGS:
+            how = (f"subset simulation, {len(self.levels)} levels" if self.sampling == Sampling.SUBSET else
+                   f"importance sampling at the design point, beta_FORM = {self.design_point.beta:.3f}")
+            return (f"{self.evaluations} evaluations ({how}, {self.method}, seed {self.seed}): P_f = {self.pf:.3g} "
+                    f"(c.o.v. {self.pf_cov:.2f}, 95 % {lo:.3g}-{hi:.3g}), beta = {self.beta:.3f}{gave_up}")
         finite = self.fs[np.isfinite(self.fs)]
         mean = float(np.mean(finite)) if len(finite) else math.inf
         return (f"{self.n} samples ({self.sampling}, {self.method}, seed {self.seed}): "
                 f"P_f = {self.pf:.4f} (95 % {lo:.4f}-{hi:.4f}), beta = {self.beta:.3f}, "
-                f"mean FS = {mean:.3f}")
+                f"mean FS = {mean:.3f}{gave_up}")
+
+    def plot_levels(self, path=None, **kwargs):
+        """Subset simulation's levels (importance sampling's samples) over the two variables
+        that drive failure, with FS = 1 (`kgm.studies.plots.plot_levels`; the [plot] extra)."""
+        from .plots import plot_levels
+
+        return plot_levels(self, path, **kwargs)
+
+    def plot_convergence(self, path=None):
+        """The P_f estimate against evaluations (`kgm.studies.plots.plot_convergence`)."""
+        from .plots import plot_convergence
+
+        return plot_convergence(self, path)
 
     def to_csv(self, path) -> Path:
-        """Write the table (with the study's header line) to ``path``; returns the path."""
+        """Write the table (with the study's header line) to ``path``; returns the path. (A
+        subset or importance study's own ``out`` file also names its estimator's settings, so
+        that `read_study` runs the estimator again on it; this file keeps the table only.)"""
         path = Path(path)
         with open(path, "w", newline="") as fh:
             fh.write(HEADER_MARK + json.dumps(self._identity()) + "\n")
@@ -172,11 +239,29 @@ def reliability_index(fs: np.ndarray) -> float:
     return float((np.mean(finite) - 1.0) / np.std(finite, ddof=1))
 
 
+def pf_of(table: np.ndarray) -> float:
+    """Failed samples over the samples evaluated (the lost ones left out) [-]."""
+    kept = ~table["lost"]
+    return float(np.mean(table["failed"][kept])) if np.any(kept) else math.nan
+
+
+def monte_carlo_cov(table: np.ndarray) -> float:
+    """√((1 − P_f)/(n·P_f)) of a Monte Carlo study's P_f [-] (inf when no sample failed)."""
+    kept = int(np.count_nonzero(~table["lost"]))
+    pf = pf_of(table)
+    return math.sqrt((1.0 - pf) / (kept * pf)) if kept and pf > 0.0 else math.inf
+
+
 def table_dtype(names: tuple, width: int) -> list:
     """Columns of a study table (`Study.table`); ``width``: characters of the longest
     ``critical`` entry."""
     return [("index", np.int64), ("seed", np.int64)] + [(k, np.float64) for k in names] + \
-        [("fs", np.float64), ("failed", bool), ("critical", f"U{width}")]
+        [("fs", np.float64), ("failed", bool), ("critical", f"U{width}"), ("lost", bool)]
+
+
+def file_columns(names: tuple) -> list:
+    """The header of a study file."""
+    return ["index", "seed", *names, "fs", "failed", "critical", "lost"]
 
 
 def study_table(n: int, names: tuple, samples: dict, seeds: np.ndarray, done: Mapping) -> np.ndarray:
@@ -189,6 +274,7 @@ def study_table(n: int, names: tuple, samples: dict, seeds: np.ndarray, done: Ma
         table[k] = samples[k]
     for i, row in done.items():
         table["fs"][i], table["failed"][i], table["critical"][i] = row.fs, row.failed, row.critical_text
+        table["lost"][i] = row.lost
     return table
 
 
@@ -204,12 +290,12 @@ class StudyFile:
         self.writer = csv.writer(self.fh)
         if fresh:
             self.fh.write(HEADER_MARK + json.dumps(identity) + "\n")
-            self.writer.writerow(["index", "seed", *names, "fs", "failed", "critical"])
+            self.writer.writerow(file_columns(names))
             self.fh.flush()
 
     def append(self, index: int, seed: int, values, row: SampleRow) -> None:
         self.writer.writerow([index, seed, *[repr(float(v)) for v in values], repr(float(row.fs)), int(row.failed),
-                              row.critical_text])
+                              row.critical_text, int(row.lost)])
         self.fh.flush()
 
     def close(self) -> None:
@@ -217,8 +303,9 @@ class StudyFile:
 
 
 def read_samples(path: Path, identity: dict, names: tuple) -> dict:
-    """Samples already in a study file: index -> `SampleRow`. A file of another
-    study is refused; a last line cut short by a kill is ignored (and rewritten)."""
+    """Samples already in a study file: index -> `SampleRow`. A file of another study is
+    refused; a last line cut short by a kill is ignored (and rewritten), and a file written
+    before studies recorded lost samples is rewritten with that column (none lost)."""
     if not path.exists() or path.stat().st_size == 0:
         return {}
     with open(path, newline="") as fh:
@@ -233,16 +320,24 @@ def read_samples(path: Path, identity: dict, names: tuple) -> dict:
     done = {}
     good = []
     header = lines[0] if lines else ""
+    old = bool(header) and next(csv.reader([header])) == file_columns(names)[:-1]  # no 'lost' column
     for line in lines[1:]:
         row = next(csv.reader([line]))
-        if not line.endswith("\n") or len(row) != len(names) + 5:
+        if not line.endswith("\n") or len(row) != len(names) + (5 if old else 6):
             break  # cut short
         try:
-            done[int(row[0])] = SampleRow.from_text(float(row[-3]), bool(int(row[-2])), row[-1])
+            if old:
+                done[int(row[0])] = SampleRow.from_text(float(row[-3]), bool(int(row[-2])), row[-1])
+                line = line.rstrip("\r\n") + ",0\r\n"
+            else:
+                done[int(row[0])] = SampleRow.from_text(float(row[-4]), bool(int(row[-3])), row[-2],
+                                                        bool(int(row[-1])))
         except ValueError:
             break
         good.append(line)
-    if len(good) != len(lines) - 1:  # drop a partial last line before appending
+    if old or len(good) != len(lines) - 1:  # drop a partial last line before appending
+        if old:
+            header = header.rstrip("\r\n") + ",lost\r\n"
         with open(path, "w", newline="") as fh:
             fh.write(first + header + "".join(good))
     return done
@@ -263,10 +358,15 @@ def read_study(path) -> Study:
     table = np.zeros(len(rows), dtype=table_dtype(names, max([len(r["critical"]) for r in rows] + [1])))
     for j, r in enumerate(rows):
         table[j] = (int(r["index"]), int(r["seed"]), *[float(r[k]) for k in names], float(r["fs"]),
-                    bool(int(r["failed"])), r["critical"])
-    return Study(n=len(rows), pf=float(np.mean(table["failed"])) if len(rows) else math.nan, beta=reliability_index(table["fs"]),
+                    bool(int(r["failed"])), r["critical"], bool(int(r.get("lost") or 0)))
+    if identity["sampling"] in RARE_SAMPLINGS:
+        from .estimates import replay
+
+        return Study(table=table, variables=names, method=identity["method"], sampling=identity["sampling"],
+                     seed=identity["seed"], n=len(rows), evaluations=len(rows), **replay(identity, table))
+    return Study(n=len(rows), pf=pf_of(table) if len(rows) else math.nan, beta=reliability_index(table["fs"]),
                  table=table, variables=names, method=identity["method"], sampling=identity["sampling"],
-                 seed=identity["seed"])
+                 seed=identity["seed"], pf_cov=monte_carlo_cov(table), evaluations=len(rows))
 
 
 # ---------------------------------------------------------------------- the picture

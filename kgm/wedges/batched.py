@@ -38,7 +38,7 @@ class BatchResult:
     fs: np.ndarray
     """Factor of safety (nan where no wedge forms, inf where held, 0 falling)."""
     mode: np.ndarray
-    """Index into `MODES`."""
+    """Index into ``MODES``."""
     volume: np.ndarray
     weight: np.ndarray
     normal: np.ndarray

@@ -35,7 +35,7 @@ def jp_is_empty(inward_normals: np.ndarray, tol: float = 1e-9) -> bool:
     """True if the joint pyramid {d: vₖ·d ≥ 0 for all k} is the origin alone (``inward_normals``
     point into the block): no translation leaves the block's joint faces without entering one.
     A JP reduced to a line or a flat cone (a block between parallel joints) is not empty: the
-    block slides along it. LP: max Σvₖ·d s.t. vₖ·d ≥ 0, |d|∞ ≤ 1 is 0 and V has rank 3."""
+    block slides along it. LP: max Σvₖ·d s.t. vₖ·d ≥ 0, ‖d‖∞ ≤ 1 is 0 and V has rank 3."""
     from scipy.optimize import linprog
 
     v = np.atleast_2d(np.asarray(inward_normals, dtype=float))
@@ -49,7 +49,7 @@ def jp_is_empty(inward_normals: np.ndarray, tol: float = 1e-9) -> bool:
 
 def is_finite(inward_joint_normals: np.ndarray, outward_free_normals: np.ndarray, tol: float = 1e-9) -> bool:
     """True if BP = JP ∩ EP = {0} (Goodman & Shi's finiteness theorem), by the LP
-    max Σ(−A d) s.t. A d ≤ 0, |d|∞ ≤ 1 with the rows of A the outward normals (−vₖ of the
+    max Σ(−A d) s.t. A d ≤ 0, ‖d‖∞ ≤ 1 with the rows of A the outward normals (−vₖ of the
     joints, the free faces' own): a non-zero d in the cone gives a positive optimum unless it
     lies in A's null space, which a rank test catches."""
     from scipy.optimize import linprog

@@ -73,21 +73,10 @@ def add_parser(sub) -> None:
 def read_input(path) -> dict:
     """The TOML file as `kgm.wedge` arguments (``wedge``), the study (``study`` or None), the
     design FS (``support`` or None) and the output paths (``output``)."""
-    try:
-        import tomllib
-    except ImportError:  # Python 3.10
-        try:
-            import tomli as tomllib
-        except ImportError as exc:
-            raise ValueError("reading a wedge file needs Python 3.11 (tomllib) or pip install tomli") from exc
+    from ddatai.io.tomlfile import read_toml
+
     path = Path(path)
-    if not path.is_file():
-        raise ValueError(f"wedge file not found: {path}")
-    with open(path, "rb") as fh:
-        try:
-            spec = tomllib.load(fh)
-        except tomllib.TOMLDecodeError as exc:
-            raise ValueError(f"{path}: not valid TOML: {exc}") from None
+    spec = read_toml(path, "wedge file")
     return from_mapping(spec, base=path.parent)
 
 

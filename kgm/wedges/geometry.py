@@ -8,7 +8,7 @@ downwards.
 A block is the intersection of half-spaces a·x ≤ b. `polyhedron` checks that they enclose a
 bounded region (its recession cone {d: a·d ≤ 0} is the origin only), finds a strictly interior
 point as the centre of the largest inscribed ball (the Chebyshev centre, a linear program), and
-lets SciPy's `HalfspaceIntersection` (Qhull) find the vertices; faces, areas, the volume and
+lets SciPy's ``HalfspaceIntersection`` (Qhull) find the vertices; faces, areas, the volume and
 the centroid follow from them. This is the reference path; `kgm.wedges.batched` computes the same
 quantities for many blocks at once from closed-form vertex enumeration.
 """

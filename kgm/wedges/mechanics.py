@@ -311,7 +311,7 @@ def worst_force(contacts: Sequence[Contact], active: np.ndarray, passive: Option
     (Hoek & Bray's minimum factor of safety for a load E in its worst direction, Wyllie & Mah
     eq. III.81–III.98, for any mode). With Q₀, S₀ the strength and drive without it and g the
     strength a unit force adds through the normal forces (g ⟂ ŝ), F = Q/S is least along
-    d = −(g − F ŝ)/|g − F ŝ| where (Q₀ − F S₀)² = E²(|g|² + F²): the smaller root. A mode that
+    d = −(g − F ŝ)/‖g − F ŝ‖ where (Q₀ − F S₀)² = E²(‖g‖² + F²): the smaller root. A mode that
     changes under the load (contact lost) is caught by minimising the full equilibrium over
     directions from there."""
     r = np.asarray(active, dtype=float)

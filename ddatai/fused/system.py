@@ -1,0 +1,266 @@
+"""The linear system of one member in the fused engine (Taichi functions): the contact springs
+and friction of the assumed states (``ddatai.kernels.assembly.assemble_contacts``, §2.8), and a
+factorisation that follows the system's block structure.
+
+K is stored dense (6n × 6n, row-major, in the member's slab) but only its *envelope* is touched:
+row i of block-row r holds entries from column 6·env[r] on, env[r] being the first block-row
+coupled to r by a contact of the step (the rows are the free blocks in a bandwidth-reducing
+order chosen when the member is packed). The factorisation is Doolittle's LU without pivoting
+on that profile (a skyline solver, as Shi's block LDLᵀ): where K is symmetric (no sliding
+contact takes its friction from the same solve) the upper factor is D·Lᵀ and the second inner
+product is skipped (the cost of a Cholesky). Its work is n·w² for an envelope w wide instead
+of n³/3 (a 16-block grid: w ≈ 30 unknowns of 96). K is symmetric positive definite in the
+symmetric case and a small non-symmetric perturbation of one otherwise (the friction slope
+μ·p beside the inertia and the penalty springs), so no pivoting is needed; a zero or
+non-finite pivot makes the solution non-finite, and the step is cut as for a singular K on
+today's path.
+"""
+
+
+import taichi as ti
+
+from ..kernels.common import E0, ES, G0, GS
+from .layout import (BI_ROW, BW_SOL, CF_COH, CF_LEN, CF_NF, CF_SCA, CF_SHIFT, CF_TAN, CI_BOND, CI_COUPLED,
+                     CI_DIR, CI_KIND, CI_LINE, CI_STATE, MF_PENALTY, MF_SHEAR, MI_B0, MI_B1, MI_C0, MI_K0,
+                     MI_NC, MI_NF, MI_R0, MI_X0, XS_F0, XS_RHS, XS_Y)
+
+VE = 0
+OPEN = 0
+SLIDE = 1
+LOCK = 2
+
+
+@ti.func
+def first(E: ti.template(), m, i):
+    """First column of row i in the envelope."""
+    return 6 * E.env[E.mi[m, MI_R0] + i // 6]
+
+
+@ti.func
+def at(E: ti.template(), m, i, j):
+    return E.mi[m, MI_K0] + i * 6 * E.mi[m, MI_NF] + j
+
+
+@ti.func
+def clear_block_terms(E: ti.template(), m):
+    """Zero K0 (in the envelope) and F0 before the block terms of a try are added."""
+    n = 6 * E.mi[m, MI_NF]
+    k0 = n * n
+    for i in range(n):
+        for j in range(first(E, m, i), i + 1):
+            E.kmat[at(E, m, i, j) + k0] = 0.0
+            E.kmat[at(E, m, j, i) + k0] = 0.0
+        E.xvec[E.mi[m, MI_X0] + XS_F0 * n + i] = 0.0
+
+
+@ti.func
+def load_block_terms(E: ti.template(), m):
+    """K = K0 and F = F0 (in the envelope): each solve of the iteration starts from them."""
+    n = 6 * E.mi[m, MI_NF]
+    k0 = n * n
+    for i in range(n):
+        for j in range(first(E, m, i), i + 1):
+            E.kmat[at(E, m, i, j)] = E.kmat[at(E, m, i, j) + k0]
+            E.kmat[at(E, m, j, i)] = E.kmat[at(E, m, j, i) + k0]
+        E.xvec[E.mi[m, MI_X0] + XS_RHS * n + i] = E.xvec[E.mi[m, MI_X0] + XS_F0 * n + i]
+
+
+@ti.func
+def _outer_rows(E: ti.template(), m, c, s, t_own, t_other, k, r, r_other):
+    """k·vec[c, s]·vec[c, t_own]ᵀ into block (r, r) and k·vec[c, s]·vec[c, t_other]ᵀ into
+    block (r, r_other) if both blocks are free (`kernels.assembly._outer_rows`)."""
+    if r >= 0:
+        for a in range(6):
+            va = k * E.cvec[c, 6 * s + a]
+            for b in range(6):
+                E.kmat[at(E, m, 6 * r + a, 6 * r + b)] += va * E.cvec[c, 6 * t_own + b]
+            if r_other >= 0:
+                for b in range(6):
+                    E.kmat[at(E, m, 6 * r + a, 6 * r_other + b)] += va * E.cvec[c, 6 * t_other + b]
+
+
+@ti.func
+def _outer(E: ti.template(), m, c, su, sw, tu, tw, k, ri, rj):
+    _outer_rows(E, m, c, su, tu, tw, k, ri, rj)
+    _outer_rows(E, m, c, sw, tw, tu, k, rj, ri)
+
+
+@ti.func
+def _force(E: ti.template(), m, c, su, sw, f, ri, rj):
+    """f·vec[c, su] on the rows of block ri, f·vec[c, sw] on those of rj (free blocks only)."""
+    rhs = E.mi[m, MI_X0] + XS_RHS * 6 * E.mi[m, MI_NF]
+    for a in range(6):
+        if ri >= 0:
+            E.xvec[rhs + 6 * ri + a] += f * E.cvec[c, 6 * su + a]
+        if rj >= 0:
+            E.xvec[rhs + 6 * rj + a] += f * E.cvec[c, 6 * sw + a]
+
+
+@ti.func
+def contact_terms(E: ti.template(), m):
+    """The normal spring of every closed contact on its active line, the shear spring of a
+    locked vertex-edge contact, the friction of a sliding one (with its non-symmetric term
+    when coupled to this solve's normal force), §2.8, in the order of
+    `kernels.assembly.assemble_contacts`; the three terms of a contact in one loop (one place in
+    the compiled kernel). Returns whether K stays symmetric."""
+    p = E.mf[m, MF_PENALTY]
+    ks = E.mf[m, MF_SHEAR]
+    symmetric = 1
+    base = E.mi[m, MI_C0]
+    for c in range(base, base + E.mi[m, MI_NC]):
+        st = E.cint[c, CI_STATE]
+        if st != OPEN:
+            q = E.cint[c, CI_LINE]
+            ri = E.bint[E.vblock[E.cint[c, 1 + 2 * q]], BI_ROW]
+            rj = E.bint[E.vblock[E.cint[c, 2 + 2 * q]], BI_ROW]
+            ve = E.cint[c, CI_KIND] == VE
+            tan = E.cf[c, CF_TAN]
+            cohesion = E.cf[c, CF_COH] * E.cf[c, CF_LEN] * ti.cast(E.cint[c, CI_BOND], ti.f64)
+            const = E.cf[c, CF_NF] * tan + cohesion
+            slope = 0.0
+            if E.cint[c, CI_COUPLED] != 0:
+                const = cohesion
+                slope = p * tan
+            sgn = ti.cast(E.cint[c, CI_DIR], ti.f64)
+            for term in range(3):
+                # 0: the normal spring of the active line; 1: the shear spring of a locked
+                # vertex-edge contact, or the friction of a sliding one (internal force
+                # sgn·S(D)·∇ds with S = a − b·(dn0 + ∇dnᵀD)); 2: that friction's coupling term
+                # −sgn·b·∇ds ∇dnᵀ
+                active = 1
+                su = E0 + 2 * q
+                sw = G0 + 2 * q
+                tu = su
+                tw = sw
+                k = p
+                f = -p * (E.cf[c, CF_SCA + q] + E.cf[c, CF_SHIFT + q])
+                if term == 1:
+                    su = ES
+                    sw = GS
+                    tu = ES
+                    tw = GS
+                    if not ve:
+                        active = 0
+                    elif st == LOCK:
+                        k = ks
+                        f = -ks * (E.cf[c, CF_SCA + 2] + E.cf[c, CF_SHIFT + 2])
+                    else:
+                        k = 0.0
+                        f = -sgn * (const - slope * (E.cf[c, CF_SCA] + E.cf[c, CF_SHIFT]))
+                elif term == 2:
+                    su = ES
+                    sw = GS
+                    tu = E0
+                    tw = G0
+                    k = -sgn * slope
+                    f = 0.0
+                    if not (ve and st == SLIDE and slope != 0.0):
+                        active = 0
+                    else:
+                        symmetric = 0
+                if active:
+                    if k != 0.0:
+                        _outer(E, m, c, su, sw, tu, tw, k, ri, rj)
+                    if term < 2:
+                        _force(E, m, c, su, sw, f, ri, rj)
+    return symmetric
+
+
+@ti.func
+def factor(E: ti.template(), m, symmetric):
+    """Doolittle LU of K in place on its envelope (module docstring). Returns 1, or 0 where a
+    pivot is zero or not finite."""
+    n = 6 * E.mi[m, MI_NF]
+    ok = 1
+    for k in range(n):
+        fk = first(E, m, k)
+        for j in range(fk, k):
+            lo = ti.max(fk, first(E, m, j))
+            sl = E.kmat[at(E, m, k, j)]
+            for q in range(lo, j):
+                sl -= E.kmat[at(E, m, k, q)] * E.kmat[at(E, m, q, j)]
+            if symmetric:
+                E.kmat[at(E, m, j, k)] = sl
+            else:
+                su = E.kmat[at(E, m, j, k)]
+                for q in range(lo, j):
+                    su -= E.kmat[at(E, m, j, q)] * E.kmat[at(E, m, q, k)]
+                E.kmat[at(E, m, j, k)] = su
+            E.kmat[at(E, m, k, j)] = sl / E.kmat[at(E, m, j, j)]
+        d = E.kmat[at(E, m, k, k)]
+        for q in range(fk, k):
+            d -= E.kmat[at(E, m, k, q)] * E.kmat[at(E, m, q, k)]
+        E.kmat[at(E, m, k, k)] = d
+        if not (d != 0.0 and ti.abs(d) < 1e300):
+            ok = 0
+    return ok
+
+
+@ti.func
+def solve(E: ti.template(), m):
+    """x = U⁻¹L⁻¹F with the factor in K, into the blocks' ``BW_SOL`` (zero for fixed blocks).
+    Returns whether x is finite."""
+    nf = E.mi[m, MI_NF]
+    n = 6 * nf
+    rhs = E.mi[m, MI_X0] + XS_RHS * n
+    y = E.mi[m, MI_X0] + XS_Y * n
+    for i in range(n):
+        s = E.xvec[rhs + i]
+        for q in range(first(E, m, i), i):
+            s -= E.kmat[at(E, m, i, q)] * E.xvec[y + q]
+        E.xvec[y + i] = s
+    for jj in range(n):
+        j = n - 1 - jj
+        xj = E.xvec[y + j] / E.kmat[at(E, m, j, j)]
+        E.xvec[y + j] = xj
+        for q in range(first(E, m, j), j):
+            E.xvec[y + q] -= E.kmat[at(E, m, q, j)] * xj
+    finite = 1
+    for b in range(E.mi[m, MI_B0], E.mi[m, MI_B1]):
+        r = E.bint[b, BI_ROW]
+        for a in range(6):
+            v = 0.0
+            if r >= 0:
+                v = E.xvec[y + 6 * r + a]
+                if not (ti.abs(v) < 1e300):
+                    finite = 0
+            E.bwork[b, BW_SOL + a] = v
+    return finite
+
+
+@ti.func
+def block_energy(E: ti.template(), m, col, brhs):
+    """½·xᵀK0x − F_blocksᵀx of the iterate in ``bwork[:, col:col+6]`` (the line search's
+    energy without the contact springs; K0 symmetric, its envelope that of K)."""
+    nf = E.mi[m, MI_NF]
+    n = 6 * nf
+    k0 = n * n
+    quad = 0.0
+    lin = 0.0
+    r0 = E.mi[m, MI_R0]
+    for i in range(n):
+        xi = E.bwork[E.rblock[r0 + i // 6], col + i % 6]
+        row = 0.0
+        for j in range(first(E, m, i), i):
+            row += E.kmat[at(E, m, i, j) + k0] * E.bwork[E.rblock[r0 + j // 6], col + j % 6]
+        quad += xi * (2.0 * row + E.kmat[at(E, m, i, i) + k0] * xi)
+        lin += E.xvec[brhs + i] * xi
+    return 0.5 * quad - lin
+
+
+@ti.func
+def block_gradient(E: ti.template(), m, col, brhs, out):
+    """K0·x − F_blocks of the iterate in ``bwork[:, col:col+6]`` into ``xvec[out:out+n]``."""
+    nf = E.mi[m, MI_NF]
+    n = 6 * nf
+    k0 = n * n
+    r0 = E.mi[m, MI_R0]
+    for i in range(n):
+        E.xvec[out + i] = -E.xvec[brhs + i]
+    for i in range(n):
+        xi = E.bwork[E.rblock[r0 + i // 6], col + i % 6]
+        for j in range(first(E, m, i), i + 1):
+            kij = E.kmat[at(E, m, i, j) + k0]
+            E.xvec[out + i] += kij * E.bwork[E.rblock[r0 + j // 6], col + j % 6]
+            if j < i:
+                E.xvec[out + j] += kij * xi

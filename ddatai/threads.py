@@ -1,0 +1,41 @@
+"""One BLAS thread around the dense solves of small systems.
+
+OpenBLAS (NumPy's and SciPy's) starts a thread per core for a LAPACK factorisation. Beside
+Taichi's own threads, which keep spinning for a while after a kernel, the two pools compete for
+the cores: on the 2-core CI machine a 64-block model on the kernel path had dense solves of
+0.1–1 s in 3 of 12 runs (docs/guide/performance.md, "Thread pools"), and a factorisation of a
+few hundred unknowns gains nothing from a second thread. ``one_blas_thread`` limits the BLAS
+libraries loaded in the process to one thread for the duration of a solve (threadpoolctl; a
+no-op without it) and gives them back their count afterwards.
+"""
+
+from __future__ import annotations
+
+from contextlib import contextmanager
+
+_BLAS = None  # the BLAS libraries' controllers (threadpoolctl), found once
+
+
+def _controllers() -> list:
+    global _BLAS
+    if _BLAS is None:
+        try:
+            from threadpoolctl import ThreadpoolController
+        except ImportError:  # not installed: nothing to limit
+            _BLAS = []
+        else:
+            _BLAS = [c for c in ThreadpoolController().lib_controllers if c.user_api == "blas"]
+    return _BLAS
+
+
+@contextmanager
+def one_blas_thread():
+    """BLAS limited to one thread inside the block."""
+    held = [(c, c.num_threads) for c in _controllers() if c.num_threads != 1]
+    for c, _ in held:
+        c.set_num_threads(1)
+    try:
+        yield
+    finally:
+        for c, n in held:
+            c.set_num_threads(n)

@@ -1,0 +1,121 @@
+"""DDA judgements on the fused engine (`ddatai.fused`): each member's sub-model is settled by its
+own equilibrium stage (`ddatai.start`), then every member runs in one launch, one thread each,
+with its own Δt and iterations — as it would run alone — and with the stops of a judgement in
+the kernel: past ``stop_ratio``·δ (stopped early), at rest for ``rest_steps`` steps, or at T.
+The verdict is taken from each run's history as `kgm.judges.run.run_judgement` takes it. A
+member whose step leaves what the engine does goes on on today's path from that step's start.
+
+Which engine judges a batch is ``ddatai.fused.policy.choose_batch``'s: "fused" always, "auto"
+where the batch pays the kernel (in the process already, loaded from Taichi's offline cache, or
+compiled the first time on the machine; docs/guide/performance.md).
+
+Like `kgm.judges.run`, this module imports Taichi only inside the function that runs the members.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Optional
+
+import numpy as np
+
+from ddatai.params import Params
+
+from ..kinds import RunEnd
+from ..settings import DdaSettings
+from .run import Report, RestCounter, RunPlan, block_displacements, block_speeds, sub_scene, verdict
+
+
+def judge_fused(members, blocks: frozenset, *, settings: DdaSettings, params: Optional[Params] = None,
+                removed: frozenset = frozenset(), report: Report = None) -> Optional[list]:
+    """The judgements of ``members`` (`kgm.judges.batch.Member`: a scene, its block system, a
+    friction and a strength reduction) on the fused engine, in their order; None where the
+    engine does not judge them (``Params.kernels`` "numpy" or "taichi", "auto" where the batch
+    does not pay the kernel, or a sub-model with what the engine leaves to today's path:
+    ``ddatai.fused.pack.covers``). ``report`` is called with each judgement."""
+    from ddatai.fused.pack import Member as Run
+    from ddatai.fused.pack import covers
+    from ddatai.fused.policy import choose_batch
+    from ddatai.model import build_model
+
+    if not members:
+        return []
+    plans = [RunPlan.of(m.system, blocks, settings, params) for m in members]
+    prm = plans[0].params
+    steps = sum(p.duration / (prm.dt if prm.dt is not None else prm.dt_max) for p in plans)
+    if choose_batch(prm, member_steps=steps)[0] != "fused":
+        return None
+    start = time.perf_counter()
+    built = []
+    for m, plan in zip(members, plans):
+        sub, ids = sub_scene(m.scene, m.system, blocks, removed=removed, free_neighbours=plan.free_neighbours,
+                             friction=m.friction, reduction=m.reduction)
+        model = build_model(sub, prm)
+        if covers(model) is not None:
+            return None
+        built.append((sub, ids, model))
+    from ddatai.start import settle
+    from ddatai.step import Stepper
+
+    runs = []
+    for (sub, ids, model), plan in zip(built, plans):
+        # each member settled by its own equilibrium stage: it decides what the model holds
+        state = settle(Stepper(model), model.initial_state())[0] if prm.initial_equilibrium else model.initial_state()
+        runs.append(Run(model=model, state=state, t_end=plan.duration, stop_at=plan.stop_at,
+                        rest_limit=-1.0 if plan.rest_speed is None else plan.rest_speed,
+                        rest_steps=plan.rest_steps, group=tuple(ids.index(b) for b in sorted(blocks))))
+    from ddatai.fused import engine
+    from ddatai.fused import layout
+
+    outcomes = engine.run(runs, arch=prm.arch)
+    ends = {engine.STATUS[layout.STOP_MOVED]: RunEnd.STOPPED_EARLY, engine.STATUS[layout.STOP_REST]: RunEnd.AT_REST}
+    wall = time.perf_counter() - start
+    out = []
+    for m, (sub, ids, model), plan, run, o in zip(members, built, plans, runs, outcomes):
+        times = np.concatenate([[0.0], o.history[:, 0]])
+        disp = np.concatenate([[0.0], o.history[:, 1]])
+        end, cause = ends.get(o.status, RunEnd.DURATION), ""
+        if o.status == engine.STATUS[layout.DIVERT]:
+            times, disp, end, cause = _go_on(o, run, times, disp, plan)
+        j = verdict(times, disp, delta=plan.delta, duration=plan.duration, end=end, cause=cause, wall_time=wall,
+                    friction=m.friction, reduction=m.reduction, model_blocks=len(ids),
+                    moving_blocks=sum(not s.fixed for s in sub.blocks), scene_blocks=m.scene.n_blocks,
+                    batch=len(members))
+        if report is not None:
+            report(j)
+        out.append(j)
+    return out
+
+
+def _go_on(outcome, run, times, disp, plan: RunPlan):
+    """A member handed over by the fused engine, run on today's path from where it stopped, with
+    the stops of `kgm.judges.run.run_judgement`. Returns its whole history and how it ended."""
+    from ddatai.results import SimulationError
+    from ddatai.step import Stepper
+
+    model = run.model
+    stepper = Stepper(model)
+    if outcome.model.penalty != model.penalty:
+        stepper.model, stepper.penalty_warned = outcome.model, True
+    moved = block_displacements(model, list(run.group))
+    speeds = block_speeds(model)
+    rest = RestCounter(1, run.rest_limit, run.rest_steps) if run.rest_limit >= 0 else None
+    if rest is not None:
+        rest.quiet[:] = outcome.quiet
+    times, disp = list(times), list(disp)
+    state = outcome.state
+    duration = plan.duration
+    while state.time < duration * (1 - 1e-12):
+        try:
+            state, _ = stepper.step(state, t_end=duration)
+        except SimulationError as err:
+            if max(disp) < plan.delta:
+                raise
+            return np.array(times), np.array(disp), RunEnd.DIVERGED, str(err)
+        times.append(state.time)
+        disp.append(float(np.max(moved(state.vertex_xy))))
+        if disp[-1] > run.stop_at:
+            return np.array(times), np.array(disp), RunEnd.STOPPED_EARLY, ""
+        if rest is not None and rest.update(np.array([speeds(state.block_velocity).max(initial=0.0)]))[0]:
+            return np.array(times), np.array(disp), RunEnd.AT_REST, ""
+    return np.array(times), np.array(disp), RunEnd.DURATION, ""

@@ -1,0 +1,230 @@
+"""Toppling families on a tilted base and their slow-load references (tests/test_toppling_start.py,
+benchmarks/toppling_start.py).
+
+A case is a row of columns standing side by side on a fixed plate: column k is ``widths[k]``
+wide and a stack of blocks of the given heights. The plate is tilted by θ towards the first
+column (the free face, at x = 0 before the tilt), so that the columns topple towards it.
+
+The tilt at which a case topples is found three ways:
+
+- **from the default start** (`start_topples`): the scene built on a plate tilted by θ, run
+  with ``dd.simulate`` and the default `Params` (the equilibrium stage first); it toppled when
+  a vertex moved more than ``TOPPLED`` × the tallest column in ``DURATION`` (the criterion of
+  the single column b/h = 0.4 in the project's stop check: 0.05 m of 1 m in 1.5 s);
+- **under a slow gravity ramp** (`ramp_topples`): the same model from rest without the stage
+  (``initial_equilibrium=False``), gravity ramped from 0 to g at the fixed tilt over
+  ``RAMP_TIMES`` rocking time constants (smoothstep), then held: the model's own weight applied to
+  the model as given, slowly — the loading path of the stage, done dynamically;
+- **under a slow tilt** (`slow_tilt_angle`): the plate horizontal in the model, gravity ramped
+  in at θ0 and then turned by a ground acceleration at a constant rate (the ground's frame,
+  docs/method/dda.md §2.4: a body force −ρ·a_g turns g·(0, −1) into g·(−sin θ, −cos θ)), as a
+  laboratory tilting table loads a stack; it toppled when a free block's rotation has grown by
+  ``ONSET_ROTATION`` since the tilt began to rise.
+
+The ramp is set in rocking time constants √(I_corner/(m·g·R)) of the slenderest column, R
+its corner-to-centroid distance (`rocking_time`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+import ddatai as dd
+
+G = 9.81
+#: laboratory rock (the stack of the slow-tilt study): soft enough that its contacts settle visibly
+LAB_ROCK = dd.Material(density=2600.0, young=350e6, poisson=0.25)
+#: the stop check's column rock
+ROCK = dd.Material(density=2600.0, young=10e9, poisson=0.25)
+#: toppled: a vertex moved more than this fraction of the tallest column [-] ...
+TOPPLED = 0.05
+#: ... within this much simulated time [s]
+DURATION = 1.5
+#: the gravity ramp takes this many rocking time constants of the slenderest column
+#: (`rocking_time`), then holds for ``HOLD_TIMES`` (a column past its threshold by δ rotates
+#: as δ·(cosh(t/τ) − 1): 0.1° past it, by 0.05 in 6 τ)
+RAMP_TIMES = 20.0
+HOLD_TIMES = 8.0
+#: slow tilt: onset of toppling, a free block's rotation grown by this much [rad]
+ONSET_ROTATION = 1e-4
+
+
+@dataclass(frozen=True)
+class ToppleCase:
+    """A row of columns on a plate; column k: ``widths[k]`` wide, blocks of ``heights[k]``."""
+
+    name: str
+    widths: tuple
+    heights: tuple               # per column, the heights of its blocks from the bottom [m]
+    friction: float              # every joint [degrees]
+    material: dd.Material = field(default=ROCK)
+
+    @property
+    def tallest(self) -> float:
+        return max(sum(h) for h in self.heights)
+
+    def polygons(self) -> list:
+        out, x = [], 0.0
+        for w, col in zip(self.widths, self.heights):
+            y = 0.0
+            for h in col:
+                out.append([(x, y), (x + w, y), (x + w, y + h), (x, y + h)])
+                y += h
+            x += w
+        return out
+
+    def closed_form(self):
+        """The rigid single column's toppling tilt, atan(b/h) [degrees]; None for a group."""
+        if len(self.widths) == 1:
+            return math.degrees(math.atan(self.widths[0] / self.tallest))
+        return None
+
+
+def column(b: float, h: float, friction: float = 45.0, material=ROCK) -> ToppleCase:
+    return ToppleCase(f"column b/h={b / h:g}", (b,), ((h,),), friction, material)
+
+
+def rocking_time(case: ToppleCase) -> float:
+    """1/p = √(4R/(3g)) of the slenderest column, R its corner-to-centroid distance: the time
+    constant of rigid rocking about a corner (Housner 1963), the time in which a column past
+    its threshold falls [s]."""
+    return max(math.sqrt(4.0 * 0.5 * math.hypot(w, sum(col)) / (3.0 * G))
+               for w, col in zip(case.widths, case.heights))
+
+
+def scene(case: ToppleCase, theta: float) -> dd.Scene:
+    """The case on a plate tilted by ``theta`` [degrees] towards its first column."""
+    c, s = math.cos(math.radians(theta)), math.sin(math.radians(theta))
+
+    def turn(points):
+        return [(c * x - s * y, s * x + c * y) for x, y in points]
+
+    polys = case.polygons()
+    length = sum(case.widths)
+    margin = 0.5 * length + case.tallest
+    sc = dd.Scene(gravity=G)
+    sc.add_block(turn([(-margin, -0.3 * margin), (length + margin, -0.3 * margin), (length + margin, 0.0),
+                       (-margin, 0.0)]), material=case.material, fixed=True)
+    for p in polys:
+        sc.add_block(turn(p), material=case.material)
+    sc.set_joint(dd.Joint(friction=case.friction))
+    return sc
+
+
+class _Toppled(Exception):
+    pass
+
+
+def _run_until_toppled(sc: dd.Scene, params, duration: float, limit: float) -> bool:
+    """Run ``sc`` for ``duration``; True as soon as a vertex has moved more than ``limit`` [m]
+    (the run stops there)."""
+    model = dd.build_model(sc, params)
+
+    def watch(state, _record):
+        if float(np.abs(state.vertex_xy - model.vertex_xy0).max()) > limit:
+            raise _Toppled
+
+    try:
+        dd.simulate(sc, params, duration=duration, progress=watch, model=model)
+    except _Toppled:
+        return True
+    return False
+
+
+def start_topples(case: ToppleCase, theta: float, params=None) -> bool:
+    """Whether the case topples at tilt ``theta`` from the default start (``params`` None)."""
+    return _run_until_toppled(scene(case, theta), params, DURATION, TOPPLED * case.tallest)
+
+
+def _turning_gravity(theta_of_t, scale_of_t):
+    """The ground acceleration that turns gravity g·(0, −1) into scale·g·(−sin θ, −cos θ)."""
+    def accel(t):
+        th, s = theta_of_t(t), scale_of_t(t)
+        return (G * s * math.sin(th), -G + G * s * math.cos(th))
+    return accel
+
+
+def _smoothstep(t: float, ramp: float) -> float:
+    if t >= ramp:
+        return 1.0
+    x = t / ramp
+    return x * x * (3.0 - 2.0 * x)
+
+
+def ramp_topples(case: ToppleCase, theta: float) -> bool:
+    """Whether the case topples at ``theta`` with gravity ramped in slowly from rest, no stage."""
+    tau = rocking_time(case)
+    ramp, hold = RAMP_TIMES * tau, HOLD_TIMES * tau
+    sc = scene(case, 0.0)
+    th = math.radians(theta)
+    sc.set_ground_acceleration(_turning_gravity(lambda t: th, lambda t: _smoothstep(t, ramp)))
+    return _run_until_toppled(sc, dd.Params(initial_equilibrium=False), ramp + hold, TOPPLED * case.tallest)
+
+
+def slow_tilt_angle(case: ToppleCase, theta0: float, rate: float, theta_max: float) -> float:
+    """The tilt [degrees] at which the case starts to topple when tilted from ``theta0`` at
+    ``rate`` [degrees/s] (gravity ramped in at θ0 over RAMP_TIMES rocking time constants and
+    held for HOLD_TIMES first); nan if it stands up to ``theta_max``."""
+    from ddatai.model import build_model
+    from ddatai.step import Stepper
+
+    tau = rocking_time(case)
+    ramp, hold = RAMP_TIMES * tau, HOLD_TIMES * tau
+    th0, r = math.radians(theta0), math.radians(rate)
+
+    def tilt(t):
+        return th0 + r * max(0.0, t - ramp - hold)
+
+    sc = scene(case, 0.0)
+    sc.set_ground_acceleration(_turning_gravity(tilt, lambda t: _smoothstep(t, ramp)))
+    model = build_model(sc, dd.Params(initial_equilibrium=False))
+    stepper = Stepper(model)
+    state = model.initial_state()
+    free = ~model.block_fixed
+    reference = None
+    while True:
+        state = stepper.advance(state).state
+        if reference is None and state.time >= ramp + hold:
+            reference = state.block_rotation.copy()
+        if reference is not None and np.abs(state.block_rotation - reference)[free].max() > ONSET_ROTATION:
+            return math.degrees(tilt(state.time))
+        if math.degrees(tilt(state.time)) > theta_max:
+            return float("nan")
+
+
+def threshold(topples, lo: float, hi: float, tol: float = 0.1) -> float:
+    """Bisection for the lowest tilt in (lo, hi] at which ``topples(theta)``; ``lo`` must
+    stand and ``hi`` topple (checked). Returns the upper end of the final bracket [degrees]."""
+    if topples(lo):
+        raise ValueError(f"the case topples already at the lower bracket {lo}°")
+    if not topples(hi):
+        raise ValueError(f"the case stands at the upper bracket {hi}°")
+    while hi - lo > tol:
+        mid = 0.5 * (lo + hi)
+        if topples(mid):
+            hi = mid
+        else:
+            lo = mid
+    return hi
+
+
+def _squares(counts, a: float = 0.1, friction: float = 38.0) -> ToppleCase:
+    """Columns of a × a square blocks, ``counts`` blocks high, of the laboratory rock."""
+    return ToppleCase(f"squares {'-'.join(map(str, counts))}", tuple([a] * len(counts)),
+                      tuple(tuple([a] * n) for n in counts), friction, LAB_ROCK)
+
+
+#: the family: case and a bracket (lo stands, hi topples from the start) [degrees]
+CASES = {
+    "column 0.2": (column(0.2, 1.0), 10.0, 12.5),
+    "column 0.4": (column(0.4, 1.0), 20.5, 23.5),
+    "column 0.5": (column(0.5, 1.0), 25.0, 28.0),
+    "row 3 x 0.25": (ToppleCase("row 3 x 0.25", (0.25,) * 3, ((1.0,),) * 3, 38.0), 15.0, 27.0),
+    "stair 0.25": (ToppleCase("stair 0.25", (0.25,) * 4, ((0.6,), (0.8,), (1.0,), (1.2,)), 38.0), 15.0, 27.0),
+    "squares 3-4-5": (_squares((3, 4, 5)), 12.0, 26.0),
+    "squares 4-5-6-7": (_squares((4, 5, 6, 7)), 10.0, 20.0),
+    "squares 4-4-4": (_squares((4, 4, 4)), 10.0, 25.0),
+}
