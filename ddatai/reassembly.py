@@ -28,10 +28,21 @@ import numpy as np
 from .assembly import BlockPattern, assemble_contacts, contact_terms_numpy
 from .contact_law import friction_terms
 from .contacts import Contacts
+from .layout import OPEN, SLIDE
 
 #: K is assembled whole when the contacts to visit again are more than this share of all
 #: contacts (the visit costs about what a full assembly of them costs)
 WHOLE_SHARE = 0.5
+
+
+def stiffness_key(contacts: Contacts, slope: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """What of each contact K depends on (`ddatai.assembly.assemble_contacts`): its state, the
+    line of a closed one, and the signed friction slope −dir·b of a sliding one (non-zero only
+    where its friction is coupled to the solve)."""
+    state = contacts.state.copy()
+    line = np.where(state != OPEN, contacts.line, -1).astype(np.int8)
+    coupled = np.where(state == SLIDE, contacts.shear_dir * slope, 0.0)
+    return state, line, coupled
 
 
 class ContactAssembly:
@@ -55,11 +66,10 @@ class ContactAssembly:
         a whole assembly)."""
         model, pattern = self.model, self.pattern
         const, slope = friction_terms(model, contacts)
-        key = (contacts.state.copy(), contacts.line.copy(), contacts.shear_dir.copy(), slope)
+        key = stiffness_key(contacts, slope)
         if self.data is None or contacts.n == 0:
             return self._whole(contacts, sca, rhs, key), None
-        changed = np.flatnonzero((key[0] != self.key[0]) | (key[1] != self.key[1]) |
-                                 (key[2] != self.key[2]) | (key[3] != self.key[3]))
+        changed = np.flatnonzero((key[0] != self.key[0]) | (key[1] != self.key[1]) | (key[2] != self.key[2]))
         self._loads(contacts, sca, const, slope, rhs)
         if not len(changed):
             self.key = key
