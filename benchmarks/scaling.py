@@ -155,6 +155,7 @@ def run_one(family: str, size: int, steps: int, warmup: int, arch: str, solver: 
     rest = s["t_judge"] + s["t_update"] + s["t_time_step"] + s["t_accept"] + s["t_energy"]
     phases = {name: float(np.median(s[f"t_{name}"])) * 1e3 for name in ("contacts", "assembly", "solve")}
     phases["update"] = float(np.median(rest)) * 1e3
+    phases["judge"] = float(np.median(s["t_judge"])) * 1e3  # the judgement alone (within "update")
     total = step_wall_time(s)
     out = dict(family=family, blocks=int(model.n_free), all_blocks=int(model.n_blocks), arch=arch,
                solver=stepper.solver.backend + (" numpy" if model.numpy_path else ""), build_s=build_s,
@@ -361,6 +362,9 @@ def main() -> None:
                          "there and here in turn, --repeat times, in fresh processes, and a paired table "
                          "(medians, ratio of each pair) is written to OUT/scaling_paired.md")
     ap.add_argument("--repeat", type=int, default=3, help="pairs per (family, size) with --baseline")
+    ap.add_argument("--cases", default=None,
+                    help="with --baseline: FAMILY:SIZE,... to pair instead of every --family × --sizes "
+                         "(e.g. slope:391,slope:1537,grid:1600)")
     ap.add_argument("--one", nargs=2, metavar=("FAMILY", "SIZE"), help=argparse.SUPPRESS)
     ap.add_argument("--out", type=Path, default=RESULTS)
     ap.add_argument("--append", action="store_true",
@@ -453,7 +457,8 @@ def one_run(tree: Path, family: str, size: int, a) -> "dict | None":
 
 #: what the paired table compares: (key, heading, format)
 PAIRED = [("ms_per_step", "ms/step", "{:.1f}"), ("cpu_ms_per_step", "CPU ms/step", "{:.1f}"),
-          ("solves_per_step", "solves/step", "{:.2f}"),
+          ("ms_assembly", "assembly ms/step", "{:.1f}"), ("ms_judge", "judge ms/step", "{:.1f}"),
+          ("ms_solve", "solve ms/step", "{:.1f}"), ("solves_per_step", "solves/step", "{:.2f}"),
           ("factorisations_per_step", "factorisations/step", "{:.2f}"), ("start_s", "stage s", "{:.2f}"),
           ("start_cpu_s", "stage CPU s", "{:.2f}"),
           ("start_solves", "stage solves", "{:.0f}"), ("start_factorisations", "stage factorisations", "{:.0f}"),
@@ -468,32 +473,33 @@ def paired(a) -> None:
              f"Machine: {machine()}; B = {a.baseline}, A = {here}; each row: {a.repeat} pairs in fresh "
              f"processes, B then A, medians (A/B: median of the pairs' ratios).", "",
              "| family | blocks | what | B | A | A/B |", "|---|---|---|---|---|---|"]
-    for family in a.family.split(","):
-        for size in (int(s) for s in a.sizes.split(",") if s):
-            runs = {"A": [], "B": []}
-            for _ in range(a.repeat):
-                for label, tree in (("B", a.baseline), ("A", here)):
-                    row = one_run(tree, family, size, a)
-                    if row is not None:
-                        runs[label].append(row)
-                        print(f"{label} {family} {size}: {row['ms_per_step']:.1f} ms/step, stage "
-                              f"{row.get('start_s', float('nan')):.2f} s", flush=True)
-            if not runs["A"] or not runs["B"]:
+    cases = ([(c.split(":")[0], int(c.split(":")[1])) for c in a.cases.split(",") if c] if a.cases else
+             [(f, int(s)) for f in a.family.split(",") for s in a.sizes.split(",") if s])
+    for family, size in cases:
+        runs = {"A": [], "B": []}
+        for _ in range(a.repeat):
+            for label, tree in (("B", a.baseline), ("A", here)):
+                row = one_run(tree, family, size, a)
+                if row is not None:
+                    runs[label].append(row)
+                    print(f"{label} {family} {size}: {row['ms_per_step']:.1f} ms/step, stage "
+                          f"{row.get('start_s', float('nan')):.2f} s", flush=True)
+        if not runs["A"] or not runs["B"]:
+            continue
+        blocks = runs["A"][0]["blocks"]
+        held = {k: {(r.get("start_held"), r.get("start_released"), r.get("start_welded")) for r in runs[k]}
+                for k in runs}
+        for key, head, fmt in PAIRED:
+            if key not in runs["A"][0] or key not in runs["B"][0]:
                 continue
-            blocks = runs["A"][0]["blocks"]
-            held = {k: {(r.get("start_held"), r.get("start_released"), r.get("start_welded")) for r in runs[k]}
-                    for k in runs}
-            for key, head, fmt in PAIRED:
-                if key not in runs["A"][0] or key not in runs["B"][0]:
-                    continue
-                va = [r[key] for r in runs["A"]]
-                vb = [r[key] for r in runs["B"]]
-                ratio = [x / y for x, y in zip(va, vb) if y]
-                lines.append(f"| {family} | {blocks:,} | {head} | {fmt.format(np.median(vb))} | "
-                             f"{fmt.format(np.median(va))} | {np.median(ratio):.2f} |" if ratio else
-                             f"| {family} | {blocks:,} | {head} | {fmt.format(np.median(vb))} | {fmt.format(np.median(va))} | – |")
-            lines.append(f"| {family} | {blocks:,} | stage held/released/welded | "
-                         f"{'; '.join(map(str, sorted(held['B'], key=str)))} | {'; '.join(map(str, sorted(held['A'], key=str)))} | |")
+            va = [r[key] for r in runs["A"]]
+            vb = [r[key] for r in runs["B"]]
+            ratio = [x / y for x, y in zip(va, vb) if y]
+            lines.append(f"| {family} | {blocks:,} | {head} | {fmt.format(np.median(vb))} | "
+                         f"{fmt.format(np.median(va))} | {np.median(ratio):.2f} |" if ratio else
+                         f"| {family} | {blocks:,} | {head} | {fmt.format(np.median(vb))} | {fmt.format(np.median(va))} | – |")
+        lines.append(f"| {family} | {blocks:,} | stage held/released/welded | "
+                     f"{'; '.join(map(str, sorted(held['B'], key=str)))} | {'; '.join(map(str, sorted(held['A'], key=str)))} | |")
     text = "\n".join(lines)
     print(text)
     a.out.mkdir(parents=True, exist_ok=True)
