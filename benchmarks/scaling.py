@@ -104,8 +104,23 @@ def stiffgrid_scene(n_blocks: int):
 SCENES = {"grid": grid_scene, "stiffgrid": stiffgrid_scene, "slope": slope_scene}
 
 
+def parse_params(text: str) -> dict:
+    """``--params`` "NAME=VALUE,..." as Params fields (True/False, numbers, else text)."""
+    out = {}
+    for item in filter(None, (text or "").split(",")):
+        name, value = item.split("=", 1)
+        if value in ("True", "False"):
+            out[name] = value == "True"
+        else:
+            try:
+                out[name] = float(value) if any(ch in value for ch in ".e") else int(value)
+            except ValueError:
+                out[name] = value
+    return out
+
+
 def run_one(family: str, size: int, steps: int, warmup: int, arch: str, solver: str,
-            reference_max: int, protocol: str = "ntdda", kernels: str = "auto") -> dict:
+            reference_max: int, protocol: str = "ntdda", kernels: str = "auto", extra: str = "") -> dict:
     """Measure one (family, size) in this process; returns a JSON-able record.
 
     ``protocol``: ``ntdda`` starts at rest under sudden gravity (ntdda's scaling runs);
@@ -123,7 +138,7 @@ def run_one(family: str, size: int, steps: int, warmup: int, arch: str, solver: 
 
     t0 = time.perf_counter()
     scene, params = SCENES[family](size)
-    params = dataclasses.replace(params, arch=arch, solver=solver, kernels=kernels)
+    params = dataclasses.replace(params, arch=arch, solver=solver, kernels=kernels, **parse_params(extra))
     build_s = time.perf_counter() - t0
     model = dd.build_model(scene, params)
     if family == "grid" and abs(model.max_step - GRID_STEP) > 1e-12:
@@ -362,6 +377,9 @@ def main() -> None:
                          "there and here in turn, --repeat times, in fresh processes, and a paired table "
                          "(medians, ratio of each pair) is written to OUT/scaling_paired.md")
     ap.add_argument("--repeat", type=int, default=3, help="pairs per (family, size) with --baseline")
+    ap.add_argument("--params", default="",
+                    help="Params fields NAME=VALUE,... for the runs (with --baseline: for A, this checkout)")
+    ap.add_argument("--baseline-params", default="", help="with --baseline: Params fields for B")
     ap.add_argument("--cases", default=None,
                     help="with --baseline: FAMILY:SIZE,... to pair instead of every --family × --sizes "
                          "(e.g. slope:391,slope:1537,grid:1600)")
@@ -373,7 +391,7 @@ def main() -> None:
     a = ap.parse_args()
     if a.one:
         print(json.dumps(run_one(a.one[0], int(a.one[1]), a.steps, a.warmup, a.arch, a.solver, a.reference_max,
-                                 a.protocol, a.kernels)))
+                                 a.protocol, a.kernels, a.params)))
         return
     if a.baseline is not None:
         paired(a)
@@ -440,13 +458,13 @@ def main() -> None:
         chart(rows, a.out / f"scaling{suffix}.png")
 
 
-def one_run(tree: Path, family: str, size: int, a) -> "dict | None":
+def one_run(tree: Path, family: str, size: int, a, params: str = "") -> "dict | None":
     """One (family, size) measured by ``tree``'s own benchmarks/scaling.py in a fresh process."""
     steps = a.steps if a.steps is not None else protocol_steps(size)
     # this script measures both (the same harness), importing ddatai from ``tree``
     cmd = [sys.executable, __file__, "--one", family, str(size), "--steps", str(steps),
            "--warmup", str(a.warmup), "--arch", a.arch, "--solver", a.solver, "--reference-max", "0",
-           "--protocol", a.protocol, "--kernels", a.kernels]
+           "--protocol", a.protocol, "--kernels", a.kernels] + (["--params", params] if params else [])
     proc = subprocess.run(cmd, capture_output=True, text=True, cwd=tree, env={**__import__("os").environ,
                                                                             "PYTHONPATH": str(tree)})
     if proc.returncode != 0:
@@ -470,7 +488,8 @@ def paired(a) -> None:
     processes), ``--repeat`` pairs each: medians of each and the median of the pairs' ratios."""
     here = ROOT
     lines = [f"# Paired scaling, {a.protocol} protocol ({time.strftime('%Y-%m-%d')})", "",
-             f"Machine: {machine()}; B = {a.baseline}, A = {here}; each row: {a.repeat} pairs in fresh "
+             f"Machine: {machine()}; B = {a.baseline} {a.baseline_params}, A = {here} {a.params}; each row: "
+             f"{a.repeat} pairs in fresh "
              f"processes, B then A, medians (A/B: median of the pairs' ratios).", "",
              "| family | blocks | what | B | A | A/B |", "|---|---|---|---|---|---|"]
     cases = ([(c.split(":")[0], int(c.split(":")[1])) for c in a.cases.split(",") if c] if a.cases else
@@ -478,8 +497,8 @@ def paired(a) -> None:
     for family, size in cases:
         runs = {"A": [], "B": []}
         for _ in range(a.repeat):
-            for label, tree in (("B", a.baseline), ("A", here)):
-                row = one_run(tree, family, size, a)
+            for label, tree, params in (("B", a.baseline, a.baseline_params), ("A", here, a.params)):
+                row = one_run(tree, family, size, a, params)
                 if row is not None:
                     runs[label].append(row)
                     print(f"{label} {family} {size}: {row['ms_per_step']:.1f} ms/step, stage "

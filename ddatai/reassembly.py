@@ -12,8 +12,8 @@ K comes out bit for bit as a full assembly gives it where that kernel runs seria
 at most four threads, `ddatai.backend.serial_scatter`; a parallel loop sums in any order, and
 then both are the same sums to round-off). F changes at every contact (the second-order shift
 moves every spring's rest point, and a sliding contact's friction follows the last solve's
-normal force), and is assembled whole by its loads alone. Where most contacts would be visited
-again, K is assembled whole.
+normal force), and is assembled whole by its loads alone. Where more than ``WHOLE_SHARE`` of the
+contacts would be visited again, K and F are assembled whole in one kernel.
 
 `ContactAssembly.assemble` also returns the block-rows whose K changed, which tell the solver
 where K differs from the matrix it last factorised (`ddatai.solver`, Krylov solves).
@@ -30,9 +30,11 @@ from .contact_law import friction_terms
 from .contacts import Contacts
 from .layout import OPEN, SLIDE
 
-#: K is assembled whole when the contacts to visit again are more than this share of all
-#: contacts (the visit costs about what a full assembly of them costs)
-WHOLE_SHARE = 0.5
+#: K and F are assembled whole (one kernel, `ddatai.assembly.assemble_contacts`) when the
+#: contacts to visit again are more than this share of all contacts: re-summing costs a second
+#: kernel launch (F's loads) and the bookkeeping, measured paired per solve on the failing
+#: slopes of benchmarks/scaling.py (docs/guide/performance.md)
+WHOLE_SHARE = 0.1
 
 
 def stiffness_key(contacts: Contacts, slope: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -70,10 +72,12 @@ class ContactAssembly:
         if self.data is None or contacts.n == 0:
             return self._whole(contacts, sca, rhs, key), None
         changed = np.flatnonzero((key[0] != self.key[0]) | (key[1] != self.key[1]) | (key[2] != self.key[2]))
-        self._loads(contacts, sca, const, slope, rhs)
         if not len(changed):
+            self._loads(contacts, sca, const, slope, rhs)
             self.key = key
             return self.data, np.zeros(0, np.int64)
+        if len(changed) > WHOLE_SHARE * contacts.n:
+            return self._whole(contacts, sca, rhs, key), None
         if self.rows_a is None:
             self.rows_a = self._dof[contacts.block_a].astype(np.int64)
             self.rows_b = self._dof[contacts.block_b].astype(np.int64)
@@ -86,9 +90,8 @@ class ContactAssembly:
         visit = np.flatnonzero(((ra >= 0) & (row_on[np.maximum(ra, 0)] != 0)) |
                                ((rb >= 0) & (row_on[np.maximum(rb, 0)] != 0)))
         if len(visit) > WHOLE_SHARE * contacts.n:
-            data = self._whole_stiffness(contacts, slope)
-            self.data, self.key = data, key
-            return data, rows
+            return self._whole(contacts, sca, rhs, key), None
+        self._loads(contacts, sca, const, slope, rhs)
         # the off-diagonal blocks of the changed contacts' pairs (both blocks free)
         n = pattern.n_rows
         pair = np.minimum(ra, rb) * n + np.maximum(ra, rb)
@@ -108,13 +111,6 @@ class ContactAssembly:
         data = self.data0.copy()
         assemble_contacts(self.model, contacts, self.pattern, self.vec, sca, data, rhs, self.serial)
         self.data, self.key = data, key
-        return data
-
-    def _whole_stiffness(self, contacts, slope) -> np.ndarray:
-        data = self.data0.copy()
-        visit = np.arange(contacts.n, dtype=np.int32)
-        self._stiffness(contacts, slope, visit, np.ones(self.pattern.n_rows, np.int8),
-                        np.ones(contacts.n, np.int8), data)
         return data
 
     def _positions(self, rows: np.ndarray, pairs: np.ndarray) -> np.ndarray:
