@@ -334,28 +334,20 @@ class _Scatter:
         self.pattern = pattern
         self.data_at, self.data_add, self.rhs_at, self.rhs_add = [], [], [], []
 
-    def outer(self, rows_i, rows_j, slot_ij, slot_ji, k, u, w, u2, w2, own_i=None, own_j=None, off=None) -> None:
+    def outer(self, rows_i, rows_j, slot_ij, slot_ji, k, u, w, u2, w2) -> None:
         """k·[u; w][u2; w2]ᵀ of each contact (u, u2 on block-row/column i, w, w2 on j): the
-        diagonal blocks of free i and j, and the off-diagonal ones where both are free; with
-        masks, only the diagonal blocks ``own_i``/``own_j`` and the off-diagonal ones ``off``
-        of each contact (`kernels.assemble_contact_stiffness`)."""
+        diagonal blocks of free i and j, and the off-diagonal ones where both are free."""
         diag_slot, stride = self.pattern.diag_slot, self.pattern.stride
         on_i, on_j = rows_i >= 0, rows_j >= 0
         both = on_i & on_j
-        if off is not None:
-            both = both & off
-            on_i, on_j = on_i & own_i, on_j & own_j
         for r, on, slot, a, own, other in ((rows_i, on_i, slot_ij, u, u2, w2), (rows_j, on_j, slot_ji, w, w2, u2)):
             ka = (k[:, None] * a)[:, :, None]
             rows = r[on]
-            self.data_at.append((diag_slot[rows].astype(np.int64)[:, None, None] +
-                                 stride[rows].astype(np.int64)[:, None, None] * _SIX[None, :, None] +
-                                 _SIX[None, None, :]).ravel())
+            within_block = stride[rows].astype(np.int64)[:, None, None] * _SIX[None, :, None] + _SIX[None, None, :]
+            self.data_at.append((diag_slot[rows].astype(np.int64)[:, None, None] + within_block).ravel())
             self.data_add.append((ka[on] * own[on][:, None, :]).ravel())
-            pair_rows = r[both]
-            self.data_at.append((slot[both].astype(np.int64)[:, None, None] +
-                                 stride[pair_rows].astype(np.int64)[:, None, None] * _SIX[None, :, None] +
-                                 _SIX[None, None, :]).ravel())
+            pair = both[on]
+            self.data_at.append((slot[both].astype(np.int64)[:, None, None] + within_block[pair]).ravel())
             self.data_add.append((ka[both] * other[both][:, None, :]).ravel())
 
     def force(self, rows_i, rows_j, f_i, f_j) -> None:
@@ -365,7 +357,7 @@ class _Scatter:
             self.rhs_at.append(((6 * r[on])[:, None] + _SIX).ravel())
             self.rhs_add.append(f[on].ravel())
 
-    def add_to(self, data: Optional[np.ndarray], rhs: Optional[np.ndarray]) -> None:
+    def add_to(self, data: np.ndarray, rhs: np.ndarray) -> None:
         if self.data_at:
             np.add.at(data, np.concatenate(self.data_at), np.concatenate(self.data_add))
         if self.rhs_at:
@@ -373,14 +365,10 @@ class _Scatter:
 
 
 def contact_terms_numpy(cint, state, line, vblock, dof, vec, sca, friction_const, friction_slope, shear_dir,
-                        pattern: BlockPattern, penalty: float, shear_penalty: float, data, rhs,
-                        row_on=None, pair_on=None) -> None:
+                        pattern: BlockPattern, penalty: float, shear_penalty: float, data, rhs) -> None:
     """`kernels.assemble_contacts` in NumPy: the normal spring of every closed contact (on its
     active line), the shear spring of a locked vertex-edge one, the friction of a sliding one
-    (with its non-symmetric term when the friction is coupled to this solve's normal force).
-    ``data`` None: F alone (`kernels.assemble_contact_loads`); ``rhs`` None: K alone, and with
-    ``row_on`` (block-rows) and ``pair_on`` (contacts) only in the diagonal blocks of those rows
-    and the off-diagonal blocks of those contacts' pairs (`kernels.assemble_contact_stiffness`)."""
+    (with its non-symmetric term when the friction is coupled to this solve's normal force)."""
     closed = np.flatnonzero(state != OPEN)
     if not len(closed):
         return
@@ -392,46 +380,32 @@ def contact_terms_numpy(cint, state, line, vblock, dof, vec, sca, friction_const
     sij = np.where(q == 1, pattern.slot_ba[closed], pattern.slot_ab[closed])
     sji = np.where(q == 1, pattern.slot_ab[closed], pattern.slot_ba[closed])
     u, w = vec[closed, S_E0 + 2 * q], vec[closed, S_G0 + 2 * q]   # the active line's gradients
-    d0 = sca[closed, q] if rhs is not None else None
-    stiff, loads = data is not None, rhs is not None
-    masks = {}
-    if row_on is not None:
-        masks = dict(own_i=(ri >= 0) & (row_on[np.maximum(ri, 0)] != 0),
-                     own_j=(rj >= 0) & (row_on[np.maximum(rj, 0)] != 0), off=pair_on[closed] != 0)
-
-    def masked(sel):
-        return {k: v[sel] for k, v in masks.items()}
-
+    d0 = sca[closed, q]
     k = np.full(len(closed), penalty)
     scatter = _Scatter(pattern)
-    if stiff:
-        scatter.outer(ri, rj, sij, sji, k, u, w, u, w, **masks)
-    if loads:
-        scatter.force(ri, rj, (-penalty * d0)[:, None] * u, (-penalty * d0)[:, None] * w)
+    scatter.outer(ri, rj, sij, sji, k, u, w, u, w)
+    scatter.force(ri, rj, (-penalty * d0)[:, None] * u, (-penalty * d0)[:, None] * w)
     ve = kinds == VE
     locked = ve & (state[closed] == LOCK)
     sliding = ve & (state[closed] == SLIDE)
     if locked.any():
         c = closed[locked]
         es, gs = vec[c, S_ES], vec[c, S_GS]
-        if stiff:
-            scatter.outer(ri[locked], rj[locked], sij[locked], sji[locked], np.full(len(c), shear_penalty),
-                          es, gs, es, gs, **masked(locked))
-        if loads:
-            f = (-shear_penalty * sca[c, 2])[:, None]
-            scatter.force(ri[locked], rj[locked], f * es, f * gs)
+        scatter.outer(ri[locked], rj[locked], sij[locked], sji[locked], np.full(len(c), shear_penalty),
+                      es, gs, es, gs)
+        f = (-shear_penalty * sca[c, 2])[:, None]
+        scatter.force(ri[locked], rj[locked], f * es, f * gs)
     if sliding.any():
         c = closed[sliding]
         sgn = shear_dir[c].astype(np.float64)
-        if loads:
-            # internal force sgn·S(D)·∇ds with S = a − b·(dn0 + ∇dnᵀD)
-            f = (sgn * (friction_const[c] - friction_slope[c] * sca[c, 0]))[:, None]
-            es, gs = vec[c, S_ES], vec[c, S_GS]
-            scatter.force(ri[sliding], rj[sliding], -f * es, -f * gs)
+        # internal force sgn·S(D)·∇ds with S = a − b·(dn0 + ∇dnᵀD)
+        f = (sgn * (friction_const[c] - friction_slope[c] * sca[c, 0]))[:, None]
+        es, gs = vec[c, S_ES], vec[c, S_GS]
+        scatter.force(ri[sliding], rj[sliding], -f * es, -f * gs)
         coupled = friction_slope[c] != 0.0
-        if stiff and coupled.any():
+        if coupled.any():
             cc = c[coupled]
             sel = np.flatnonzero(sliding)[coupled]
             scatter.outer(ri[sel], rj[sel], sij[sel], sji[sel], -sgn[coupled] * friction_slope[cc],
-                          vec[cc, S_ES], vec[cc, S_GS], vec[cc, S_E0], vec[cc, S_G0], **masked(sel))
+                          vec[cc, S_ES], vec[cc, S_GS], vec[cc, S_E0], vec[cc, S_G0])
     scatter.add_to(data, rhs)

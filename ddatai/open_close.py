@@ -34,12 +34,11 @@ from typing import Optional
 import numpy as np
 from scipy.sparse import csr_matrix
 
-from .assembly import BlockPattern, second_order
+from .assembly import BlockPattern, assemble_contacts, second_order
 from .contact_law import ContactLaw, contact_law, internal_force, judge, violations
 from .contacts import Contacts
 from .layout import KIND, LOCK, OPEN, SLIDE, VV
 from .model import State
-from .reassembly import ContactAssembly
 from .records import StepTimer
 from .updates import Springs, block_rows
 
@@ -118,15 +117,12 @@ def open_close(stepper, state: State, geom: dict, contacts: Contacts, pattern: B
     seen = {contacts.state.tobytes(): 0}  # each set of states tried, and when (`hold_cycling`)
     history = [contacts.state.copy()]
     held = np.zeros(contacts.n, bool)
-    # K of each solve: a later solve's differs from the last one only in the blocks of the
-    # contacts whose state the judgement changed (`ddatai.reassembly`)
-    assembly = ContactAssembly(model, pattern, vec, data0, stepper.serial_scatter)
     for it in range(1, max_iterations + 1):
         t0 = _time.perf_counter()
-        rhs = rhs0.copy()
+        data, rhs = data0.copy(), rhs0.copy()
         shift = second_order(model, contacts, state, geom, rotation, rhs)
         block_rhs = rhs.copy()
-        data, _ = assembly.assemble(contacts, sca + shift, rhs)
+        assemble_contacts(model, contacts, pattern, vec, sca + shift, data, rhs, stepper.serial_scatter)
         t0 = timer.add("assembly", t0)
         symmetric = not bool(np.any(contacts.coupled & (contacts.state == SLIDE) & (contacts.tan_phi > 0)))
         # the first solve has the states the last one ended with: K has moved only with
