@@ -107,6 +107,7 @@ from .assembly import BlockPattern, assemble_blocks, assemble_contacts, contact_
 from .contact_law import contact_law, friction_force, internal_force
 from .contacts import Contacts
 from .kinematics import block_displacement, settle_points
+from .limit_equilibrium import applicable, unsupported_blocks
 from .layout import E0, KIND, LOCK, OPEN, SLIDE, VE
 from .model import ContactMemory, State
 from .open_close import solve
@@ -172,10 +173,13 @@ def needs_settling(model) -> bool:
     return loaded or bool(np.any(model.initial_stress[~model.block_fixed] != 0.0))
 
 
-def settle(stepper, state: State, welded: bool = False) -> tuple[State, StartRecord]:
+def settle(stepper, state: State, welded: bool = False, screen: bool = True) -> tuple[State, StartRecord]:
     """The model's equilibrium at t = 0 (module docstring). Returns the settled state, whose
     contact memory carries the held contacts into the first step, and the stage's record.
-    ``welded``: go straight to the welded equilibrium (6.), without the frictional stage."""
+    ``welded``: go straight to the welded equilibrium (6.), without the frictional stage.
+    ``screen``: first release the blocks that limit equilibrium cannot hold by any contact
+    nearby (`unsupported_at_start`); False: only as the return mapping finds them (the
+    reference that tests compare the screen with)."""
     t0 = _time.perf_counter()
     model = stepper.model
     if not needs_settling(model):
@@ -184,7 +188,7 @@ def settle(stepper, state: State, welded: bool = False) -> tuple[State, StartRec
     geom = model.block_geometry(state.vertex_xy)
     size = np.sqrt(geom["area"])
     dt_static = _pseudo_time_step(stepper, geom, size)
-    settled, record, converged = _stage(stepper, state, size, dt_static, t0, welded=welded)
+    settled, record, converged = _stage(stepper, state, size, dt_static, t0, welded=welded, screen=screen)
     if not converged:
         # no frictional equilibrium found: start from the welded one, each contact then at most
         # at its strength (module docstring, 6.), rather than under sudden gravity
@@ -195,7 +199,7 @@ def settle(stepper, state: State, welded: bool = False) -> tuple[State, StartRec
 
 
 def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
-           welded: bool = False) -> tuple[State, StartRecord, bool]:
+           welded: bool = False, screen: bool = False) -> tuple[State, StartRecord, bool]:
     """Pseudo-steps with Δt = ``dt`` (the static pseudo time step) until the increment is
     round-off, each the return-mapping iteration of `return_mapping` (``welded``: one solve
     with the touching contacts held, `_welded_step`, the contacts then taking the joint law,
@@ -203,7 +207,7 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
     model = stepper.model
     free = ~model.block_fixed
     initial = state
-    released = np.zeros(model.n_blocks, bool)
+    released = unsupported_at_start(stepper, state) if screen and not welded else np.zeros(model.n_blocks, bool)
     solves = 0
     while True:
         state, last, memory, n, stalled, unsettled, failed = _pseudo_steps(stepper, initial, state, released, size,
@@ -223,7 +227,9 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
         released |= sunk
         state = initial
     if solves == 0:
-        return initial, NOTHING, True
+        gone = int(np.count_nonzero(free & released))
+        return initial, NOTHING if not gone else replace(NOTHING, released=gone,
+                                                         wall_time=_time.perf_counter() - t0), True
     at_strength: set = set()
     if last is not None and welded:
         _unweld(stepper, last)
@@ -308,6 +314,29 @@ def _pseudo_steps(stepper, initial: State, state: State, released: np.ndarray, s
             # pseudo-step would stall the same way; the first steps settle what is left
             break
     return state, last, memory, solves, stalled, unsettled, False
+
+
+def unsupported_at_start(stepper, state: State) -> np.ndarray:
+    """(B,) the free blocks that rigid-block limit equilibrium (`ddatai.limit_equilibrium`)
+    cannot hold under their loads at t = 0 by any admissible forces of the contacts detected
+    there, the open ones among them as if they touched: no return mapping can hold them either
+    (its equilibrium is such a set of forces, to its tolerance), so the stage releases them
+    before its first solve instead of after a return mapping that stalls (module docstring,
+    4.; the same blocks, tens of solves fewer). Counting the open contacts too, a block that
+    would be held by a neighbour it touches only after it settles stays for the return
+    mapping to decide. None released where the program does not apply (bolts, water) or does
+    not converge."""
+    model = stepper.model
+    none = np.zeros(model.n_blocks, bool)
+    if not applicable(model):
+        return none
+    geom = state.geometry if state.geometry is not None else model.block_geometry(state.vertex_xy)
+    cint, length = stepper.detect(state.vertex_xy)
+    contacts = Contacts.start(model, state.vertex_xy, cint, length, ContactMemory.empty(), True)
+    if contacts.n == 0:
+        return none
+    found = unsupported_blocks(model, state.vertex_xy, geom, contacts, np.ones(contacts.n, bool), none)
+    return none if found is None else found & ~model.block_fixed
 
 
 def balanced(stepper, frame: Frame, contacts: Contacts, geom: dict, size: np.ndarray) -> bool:
