@@ -123,6 +123,12 @@ BALANCE_ROUNDOFF = 1e-12
 #: penetration limit is released too (``mechanisms.sunk_into_released``): ~1e-5·w0, far beyond a
 #: held block's elastic settlement towards a neighbour and far below an overlap that kicks
 SUNK_FRACTION = 0.01
+#: the screen of a model that fails as a whole (`unsupported_at_start`) is tried on models of at
+#: most this many free blocks (kgm's judged groups): its program then costs a few ms against the
+#: tens of solves that it saves; on larger masses it releases in layers, program after program,
+#: and costs more than the return mapping that throws them away (random cut domains of 18–46
+#: blocks, benchmarks/small_models.py)
+SCREEN_BLOCKS = 12
 #: a pseudo-step whose increment is at least this fraction of the last one's does not contract:
 #: the stage ends at the last one's equilibrium (``_stage``)
 GEOMETRY_CONTRACTION = 1.0
@@ -177,9 +183,9 @@ def settle(stepper, state: State, welded: bool = False, screen: bool = True) -> 
     """The model's equilibrium at t = 0 (module docstring). Returns the settled state, whose
     contact memory carries the held contacts into the first step, and the stage's record.
     ``welded``: go straight to the welded equilibrium (6.), without the frictional stage.
-    ``screen``: first release the blocks that limit equilibrium cannot hold by any contact
-    nearby (`unsupported_at_start`); False: only as the return mapping finds them (the
-    reference that tests compare the screen with)."""
+    ``screen``: release at once a model whose every free block limit equilibrium lets move
+    (`unsupported_at_start`); False: only as the return mapping finds them (the reference
+    that tests compare the screen with)."""
     t0 = _time.perf_counter()
     model = stepper.model
     if not needs_settling(model):
@@ -317,26 +323,30 @@ def _pseudo_steps(stepper, initial: State, state: State, released: np.ndarray, s
 
 
 def unsupported_at_start(stepper, state: State) -> np.ndarray:
-    """(B,) the free blocks that rigid-block limit equilibrium (`ddatai.limit_equilibrium`)
-    cannot hold under their loads at t = 0 by any admissible forces of the contacts detected
-    there, the open ones among them as if they touched: no return mapping can hold them either
-    (its equilibrium is such a set of forces, to its tolerance), so the stage releases them
-    before its first solve instead of after a return mapping that stalls (module docstring,
-    4.; the same blocks, tens of solves fewer). Counting the open contacts too, a block that
-    would be held by a neighbour it touches only after it settles stays for the return
-    mapping to decide. None released where the program does not apply (bolts, water) or does
-    not converge."""
+    """(B,) every free block of a model of at most SCREEN_BLOCKS of them where rigid-block limit equilibrium (`ddatai.limit_equilibrium`)
+    lets every one of them move at t = 0 — no admissible forces of the contacts detected then,
+    the open ones among them counted as if they touched, balance their loads —, else none.
+    The stage then releases them before its first solve (module docstring, 4.): a group of a
+    few blocks that fails as a whole (a kgm judgement below its critical strength) is released
+    at once instead of after a return mapping that stalls, tens of solves later. The return
+    mapping could hold none of them: its equilibrium is a set of such forces, to its
+    tolerance; counting the open contacts too, a block held by a neighbour it touches only
+    after it settles is not released here. Where limit equilibrium lets only some blocks move,
+    the stage finds them as without the screen (a mechanism thrown away in the return mapping
+    first, the program on the rest), so that it releases the same blocks. None released where
+    the program does not apply (bolts, water) or does not converge."""
     model = stepper.model
     none = np.zeros(model.n_blocks, bool)
-    if not applicable(model):
+    free = ~model.block_fixed
+    if not applicable(model) or not free.any() or np.count_nonzero(free) > SCREEN_BLOCKS:
         return none
     geom = state.geometry if state.geometry is not None else model.block_geometry(state.vertex_xy)
     cint, length = stepper.detect(state.vertex_xy)
     contacts = Contacts.start(model, state.vertex_xy, cint, length, ContactMemory.empty(), True)
-    if contacts.n == 0:
-        return none
+    if not np.any(contacts.state != OPEN):
+        return none  # nothing touches: the stage has nothing to hold or release
     found = unsupported_blocks(model, state.vertex_xy, geom, contacts, np.ones(contacts.n, bool), none)
-    return none if found is None else found & ~model.block_fixed
+    return free if found is not None and np.all(found[free]) else none
 
 
 def balanced(stepper, frame: Frame, contacts: Contacts, geom: dict, size: np.ndarray) -> bool:
