@@ -166,7 +166,7 @@ def _equilibrium_matrix(sel, block_a, block_b, point, normal, tangent, centroid,
 
 
 #: programs solved lately, by their data: the stage asks the same program twice where its
-#: screen at t = 0 (`ddatai.start.unsupported_at_start`) and a stalled return mapping's first test
+#: screen at t = 0 (`ddatai.mechanisms.unsupported_at_start`) and a stalled return mapping's first test
 #: see the same touching contacts (every contact detected at t = 0 touching)
 _SOLVED: dict = {}
 _SOLVED_KEPT = 8

@@ -54,7 +54,8 @@ solve of the model under its weight, the point loads at t = 0 and its initial st
    block that slides as a mechanism keeps the return mapping out of balance: where it stalls,
    rigid-block limit equilibrium (`ddatai.limit_equilibrium`, a linear program over the
    contacts touching at t = 0) releases the blocks for which no admissible contact forces
-   exist. Admissible forces do not prove a block held (Coulomb friction is not associated:
+   exist (a small model whose every block they let move is released before the first solve,
+   `ddatai.mechanisms.unsupported_at_start`). Admissible forces do not prove a block held (Coulomb friction is not associated:
    toppling columns have them), so the blocks still out of balance are then tested by the
    open-close iteration of a static step with their contacts at the strength sliding
    (``test_unbalanced``); where it converges, those that move away in it on which their loads
@@ -107,11 +108,10 @@ from .assembly import BlockPattern, assemble_blocks, assemble_contacts, contact_
 from .contact_law import contact_law, friction_force, internal_force
 from .contacts import Contacts
 from .kinematics import block_displacement, settle_points
-from .limit_equilibrium import applicable, unsupported_blocks
 from .layout import E0, KIND, LOCK, OPEN, SLIDE, VE
 from .model import ContactMemory, State
 from .open_close import solve
-from .mechanisms import FALL_IN_SIZES, mechanisms, sunk_into_released
+from .mechanisms import FALL_IN_SIZES, mechanisms, sunk_into_released, unsupported_at_start
 from .return_mapping import STAGE_BETA, Frame, coupled, return_mapping, subset_contacts
 #: at most this many pseudo-steps (each re-solves the increment at the settled geometry; the
 #: second is ~strain × the first, the third round-off)
@@ -123,12 +123,6 @@ BALANCE_ROUNDOFF = 1e-12
 #: penetration limit is released too (``mechanisms.sunk_into_released``): ~1e-5·w0, far beyond a
 #: held block's elastic settlement towards a neighbour and far below an overlap that kicks
 SUNK_FRACTION = 0.01
-#: the screen of a model that fails as a whole (`unsupported_at_start`) is tried on models of at
-#: most this many free blocks (kgm's judged groups): its program then costs a few ms against the
-#: tens of solves that it saves; on larger masses it releases in layers, program after program,
-#: and costs more than the return mapping that throws them away (random cut domains of 18–46
-#: blocks, benchmarks/small_models.py)
-SCREEN_BLOCKS = 12
 #: a pseudo-step whose increment is at least this fraction of the last one's does not contract:
 #: the stage ends at the last one's equilibrium (``_stage``)
 GEOMETRY_CONTRACTION = 1.0
@@ -320,33 +314,6 @@ def _pseudo_steps(stepper, initial: State, state: State, released: np.ndarray, s
             # pseudo-step would stall the same way; the first steps settle what is left
             break
     return state, last, memory, solves, stalled, unsettled, False
-
-
-def unsupported_at_start(stepper, state: State) -> np.ndarray:
-    """(B,) every free block of a model of at most SCREEN_BLOCKS of them where rigid-block limit equilibrium (`ddatai.limit_equilibrium`)
-    lets every one of them move at t = 0 — no admissible forces of the contacts detected then,
-    the open ones among them counted as if they touched, balance their loads —, else none.
-    The stage then releases them before its first solve (module docstring, 4.): a group of a
-    few blocks that fails as a whole (a kgm judgement below its critical strength) is released
-    at once instead of after a return mapping that stalls, tens of solves later. The return
-    mapping could hold none of them: its equilibrium is a set of such forces, to its
-    tolerance; counting the open contacts too, a block held by a neighbour it touches only
-    after it settles is not released here. Where limit equilibrium lets only some blocks move,
-    the stage finds them as without the screen (a mechanism thrown away in the return mapping
-    first, the program on the rest), so that it releases the same blocks. None released where
-    the program does not apply (bolts, water) or does not converge."""
-    model = stepper.model
-    none = np.zeros(model.n_blocks, bool)
-    free = ~model.block_fixed
-    if not applicable(model) or not free.any() or np.count_nonzero(free) > SCREEN_BLOCKS:
-        return none
-    geom = state.geometry if state.geometry is not None else model.block_geometry(state.vertex_xy)
-    cint, length = stepper.detect(state.vertex_xy)
-    contacts = Contacts.start(model, state.vertex_xy, cint, length, ContactMemory.empty(), True)
-    if not np.any(contacts.state != OPEN):
-        return none  # nothing touches: the stage has nothing to hold or release
-    found = unsupported_blocks(model, state.vertex_xy, geom, contacts, np.ones(contacts.n, bool), none)
-    return free if found is not None and np.all(found[free]) else none
 
 
 def balanced(stepper, frame: Frame, contacts: Contacts, geom: dict, size: np.ndarray) -> bool:

@@ -1,4 +1,4 @@
-"""The equilibrium stage's screen (`ddatai.start.unsupported_at_start`): a small model whose every
+"""The equilibrium stage's screen (`ddatai.mechanisms.unsupported_at_start`): a small model whose every
 free block rigid-block limit equilibrium lets move at t = 0 is released before the stage's first
 solve, instead of after a return mapping that stalls. Against the stage without it
 (``settle(screen=False)``, the reference): the same blocks held and released, the same welded or
@@ -6,7 +6,7 @@ not; where the screen releases nothing, the reference's start to the bit (its pr
 answered once where asked twice, the same floats); where it releases every block, the initial
 state, as the reference hands it over. On Example I's and Example II's groups across their
 critical strengths, the first samples of Example II's probabilistic study, and random stacks,
-cut blocks and cut slope sections (tests/extreme_cases.py). The slow profile (``-m slow``, ~1 min
+cut blocks and cut slope sections (tests/extreme_cases.py). The slow profile (``-m slow``, ~30 s
 on 2 cores) takes 100 samples of the study and 60 random scenes.
 
 LAPACK called directly (`ddatai.dense`) gives SciPy's floats and errors."""
@@ -24,7 +24,8 @@ import ddatai as dd
 from ddatai import limit_equilibrium
 from ddatai.dense import LU, Cholesky
 from ddatai.model import build_model
-from ddatai.start import SCREEN_BLOCKS, settle, unsupported_at_start
+from ddatai.mechanisms import SCREEN_BLOCKS, unsupported_at_start
+from ddatai.start import settle
 from ddatai.step import Stepper
 from extreme_cases import build, random_domain, random_spec
 
@@ -175,7 +176,7 @@ def test_a_large_mass_is_not_screened():
 
 @pytest.mark.slow
 def test_a_hundred_study_samples_start_as_without_the_screen():
-    """Example II's study, its first 100 samples (~40 s on 2 cores); the first of them are
+    """Example II's study, its first 100 samples (~20 s on 2 cores); the first of them are
     FIRST_SAMPLES."""
     samples = study_samples(100)
     assert samples[:len(FIRST_SAMPLES)] == FIRST_SAMPLES
@@ -186,7 +187,7 @@ def test_a_hundred_study_samples_start_as_without_the_screen():
 @pytest.mark.slow
 @pytest.mark.parametrize("kind", ["rock", "domain"])
 def test_random_campaign_starts_as_without_the_screen(kind):
-    """30 random scenes of each kind (~20 s on 2 cores)."""
+    """30 random scenes of each kind (~3 s each on 2 cores)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         for seed in range(30):
