@@ -21,8 +21,9 @@ Every figure is paired: the two paths alternate in fresh processes, ``--repeats`
    ``--samples`` samples, 2 workers): samples a second, today's path against the fused engine
    (``kernels="fused"``: each worker loads the kernel once), and whether the tables are the
    same. Run ``python -m ddatai.fused`` once first: the fused kernel compiled and cached. With
-   ``--baseline DIR`` (another checkout, e.g. a worktree of main), the fused engine of that
-   checkout against this one's instead, alternating, and whether their tables are the same.
+   ``--stage-ab``, both on the fused engine instead: the equilibrium stage as before its
+   limit-equilibrium screen (benchmarks/stage_as_before.py: the stage's code paths of the
+   commit before it, in this checkout, whose fused kernel is cached) against today's.
 5. The equilibrium stage of the study's members (the group's sub-model at each sample's
    strength): per member, with the limit-equilibrium screen (``settle(screen=True)``, the
    default) against the return mapping alone (``screen=False``), alternating in one process,
@@ -124,7 +125,7 @@ from kgm.studies.probabilistic import probabilistic
 from kgm.studies.sampling import read_variables
 from kgm.settings import DdaSettings, Settings
 variables, correlation = read_variables(Path({root!r}) / "docs" / "kgm" / "example_2_vars.toml")
-build = ScriptFunction({root!r} + "/scenes/example_2.py")
+build = ScriptFunction({script!r})
 settings = Settings(dda=DdaSettings(params=dd.Params(dt=0.0013, penalty_ratio=1.0, kernels={kernels!r})))
 t = time.perf_counter()
 study = probabilistic(build, variables, {n}, method="dda", seed=1, group={{0, 1}}, correlation=correlation,
@@ -198,8 +199,8 @@ def main() -> None:
     ap.add_argument("--cases", default="1,4,16,64,example_1")
     ap.add_argument("--samples", type=int, default=200)
     ap.add_argument("--skip", default="", help="comma-separated parts to skip: steps, kgm, study, stage, first")
-    ap.add_argument("--baseline", default=None,
-                    help="another checkout (e.g. a worktree of main): the study on its fused engine against this one's")
+    ap.add_argument("--stage-ab", action="store_true",
+                    help="the study on the fused engine, the stage as before its screen against today's")
     ap.add_argument("--stage-samples", type=int, default=60)
     a = ap.parse_args()
     skip = set(filter(None, a.skip.split(",")))
@@ -239,16 +240,19 @@ def main() -> None:
                   f"{second:.2f} s the second time ({r[4]} DDA runs; FS {float(r[2]):.4f}, critical friction "
                   f"{float(r[3]):.3f}°)", flush=True)
     if "study" not in skip:
-        # (label, checkout, kernels): today's path against the fused engine, or a baseline
-        # checkout's fused engine against this one's
-        paths = ([("baseline (fused)", a.baseline, "fused"), ("this checkout (fused)", root, "fused")] if a.baseline
-                 else [("today's path (kernels='numpy')", root, "numpy"), ("fused engine (kernels='fused')", root, "fused")])
+        # (label, scene script, kernels): today's path against the fused engine, or the fused
+        # engine with the stage as before its screen against today's
+        example_2 = f"{root}/scenes/example_2.py"
+        paths = ([("fused, the stage as before its screen", f"{root}/benchmarks/stage_as_before.py", "fused"),
+                  ("fused, today's stage", example_2, "fused")] if a.stage_ab
+                 else [("today's path (kernels='numpy')", example_2, "numpy"),
+                       ("fused engine (kernels='fused')", example_2, "fused")])
         walls = {label: [] for label, _, _ in paths}
         tables = {}
         for rep in range(max(1, a.repeats - 1)):
-            for label, where, k in paths:
+            for label, script, k in paths:
                 out = f"/tmp/ddatai_study_{len(tables)}.npy"
-                wall, pf = run(STUDY.format(root=where, kernels=k, n=a.samples, out=out)).split()
+                wall, pf = run(STUDY.format(root=root, script=script, kernels=k, n=a.samples, out=out)).split()
                 walls[label].append(float(wall))
                 import numpy as np
 
