@@ -174,8 +174,8 @@ _SOLVED_KEPT = 8
 
 def _interior_point(a, b, tan_phi, cohesion, tensile):
     """`_solve_program`, or its answer to the same program asked lately (the same bytes)."""
-    key = b"".join(np.ascontiguousarray(v).tobytes() + b"|" for v in
-                   (a.data, a.indices, a.indptr, np.asarray(a.shape), b, tan_phi, cohesion, tensile))
+    key = tuple((v.dtype.str, v.shape, v.tobytes()) for v in
+                (np.asarray(x) for x in (a.data, a.indices, a.indptr, a.shape, b, tan_phi, cohesion, tensile)))
     if key in _SOLVED:
         out = _SOLVED[key]
         return None if out is None else (out[0], out[1].copy())
