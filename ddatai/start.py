@@ -54,7 +54,8 @@ solve of the model under its weight, the point loads at t = 0 and its initial st
    block that slides as a mechanism keeps the return mapping out of balance: where it stalls,
    rigid-block limit equilibrium (`ddatai.limit_equilibrium`, a linear program over the
    contacts touching at t = 0) releases the blocks for which no admissible contact forces
-   exist. Admissible forces do not prove a block held (Coulomb friction is not associated:
+   exist (a small model whose every block they let move is released before the first solve,
+   `ddatai.mechanisms.unsupported_at_start`). Admissible forces do not prove a block held (Coulomb friction is not associated:
    toppling columns have them), so the blocks still out of balance are then tested by the
    open-close iteration of a static step with their contacts at the strength sliding
    (``test_unbalanced``); where it converges, those that move away in it on which their loads
@@ -114,7 +115,7 @@ from .kinematics import block_displacement, settle_points
 from .layout import E0, KIND, LOCK, OPEN, SLIDE, VE
 from .model import ContactMemory, State
 from .open_close import solve
-from .mechanisms import FALL_IN_SIZES, mechanisms, restore, sunk_into_released
+from .mechanisms import FALL_IN_SIZES, mechanisms, restore, sunk_into_released, unsupported_at_start
 from .return_mapping import STAGE_BETA, Frame, coupled, return_mapping, subset_contacts
 from .turn_on import feasible, turn_on
 #: at most this many pseudo-steps (each re-solves the increment at the settled geometry; the
@@ -180,10 +181,13 @@ def needs_settling(model) -> bool:
     return loaded or bool(np.any(model.initial_stress[~model.block_fixed] != 0.0))
 
 
-def settle(stepper, state: State, welded: bool = False) -> tuple[State, StartRecord]:
+def settle(stepper, state: State, welded: bool = False, screen: bool = True) -> tuple[State, StartRecord]:
     """The model's equilibrium at t = 0 (module docstring). Returns the settled state, whose
     contact memory carries the held contacts into the first step, and the stage's record.
-    ``welded``: go straight to the welded equilibrium (6.), without the frictional stage."""
+    ``welded``: go straight to the welded equilibrium (6.), without the frictional stage.
+    ``screen``: release at once a model whose every free block limit equilibrium lets move
+    (`unsupported_at_start`); False: only as the return mapping finds them (the reference
+    that tests compare the screen with)."""
     t0 = _time.perf_counter()
     model = stepper.model
     if not needs_settling(model):
@@ -192,7 +196,7 @@ def settle(stepper, state: State, welded: bool = False) -> tuple[State, StartRec
     geom = model.block_geometry(state.vertex_xy)
     size = np.sqrt(geom["area"])
     dt_static = _pseudo_time_step(stepper, geom, size)
-    settled, record, converged = _stage(stepper, state, size, dt_static, t0, welded=welded,
+    settled, record, converged = _stage(stepper, state, size, dt_static, t0, welded=welded, screen=screen,
                                         slow=not welded and model.params.start_turn_on and feasible(model))
     if not converged:
         # no frictional equilibrium found: start from the welded one, each contact then at most
@@ -204,7 +208,7 @@ def settle(stepper, state: State, welded: bool = False) -> tuple[State, StartRec
 
 
 def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
-           welded: bool = False, slow: bool = False) -> tuple[State, StartRecord, bool]:
+           welded: bool = False, screen: bool = False, slow: bool = False) -> tuple[State, StartRecord, bool]:
     """Pseudo-steps with Δt = ``dt`` (the static pseudo time step) until the increment is
     round-off, each the return-mapping iteration of `return_mapping` (``welded``: one solve
     with the touching contacts held, `_welded_step`, the contacts then taking the joint law,
@@ -214,7 +218,7 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
     model = stepper.model
     free = ~model.block_fixed
     initial = state
-    released = np.zeros(model.n_blocks, bool)
+    released = unsupported_at_start(stepper, state) if screen and not welded else np.zeros(model.n_blocks, bool)
     solves = 0
     while True:
         doubt = np.zeros(model.n_blocks, bool) if slow else None
@@ -224,15 +228,13 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
         if doubt is not None and doubt.any() and not failed:
             slow_end = turn_on(stepper, initial, released, SUNK_FRACTION)
             if slow_end is not None:
-                state, released, steps = slow_end
-                held = free & ~released
-                moved = np.hypot(*(state.vertex_xy - initial.vertex_xy).T)[held[model.vertex_block]]
-                return state, StartRecord(
-                    solves=solves, held=int(np.count_nonzero(held)), released=int(np.count_nonzero(free & released)),
-                    settlement=float(np.max(moved, initial=0.0)), stalled=True, turn_on_steps=steps,
-                    at_strength=int(np.count_nonzero(state.memory.state == SLIDE)),  # all held blocks'
-                    wall_time=_time.perf_counter() - t0), True
-            again, record, converged = _stage(stepper, initial, size, dt, t0, welded)
+                state, out, steps = slow_end
+                moved = np.hypot(*(state.vertex_xy - initial.vertex_xy).T)[(free & ~out)[model.vertex_block]]
+                return state, StartRecord(solves=solves, held=int(np.count_nonzero(free & ~out)),
+                                          released=int(np.count_nonzero(free & out)), stalled=True, turn_on_steps=steps,
+                                          settlement=float(np.max(moved, initial=0.0)), wall_time=_time.perf_counter() - t0,
+                                          at_strength=int(np.count_nonzero(state.memory.state == SLIDE))), True
+            again, record, converged = _stage(stepper, initial, size, dt, t0, welded, screen)
             return again, replace(record, solves=solves + record.solves), converged
         if failed:
             return initial, StartRecord(solves=solves, held=0, released=int(np.count_nonzero(free)),
@@ -248,7 +250,9 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
         released |= sunk
         state = initial
     if solves == 0:
-        return initial, NOTHING, True
+        gone = int(np.count_nonzero(free & released))
+        return initial, NOTHING if not gone else replace(NOTHING, released=gone,
+                                                         wall_time=_time.perf_counter() - t0), True
     at_strength: set = set()
     if last is not None and welded:
         _unweld(stepper, last)
