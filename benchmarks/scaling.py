@@ -104,8 +104,23 @@ def stiffgrid_scene(n_blocks: int):
 SCENES = {"grid": grid_scene, "stiffgrid": stiffgrid_scene, "slope": slope_scene}
 
 
+def parse_params(text: str) -> dict:
+    """``--params`` "NAME=VALUE,..." as Params fields (True/False, numbers, else text)."""
+    out = {}
+    for item in filter(None, (text or "").split(",")):
+        name, value = item.split("=", 1)
+        if value in ("True", "False"):
+            out[name] = value == "True"
+        else:
+            try:
+                out[name] = float(value) if any(ch in value for ch in ".e") else int(value)
+            except ValueError:
+                out[name] = value
+    return out
+
+
 def run_one(family: str, size: int, steps: int, warmup: int, arch: str, solver: str,
-            reference_max: int, protocol: str = "ntdda", kernels: str = "auto") -> dict:
+            reference_max: int, protocol: str = "ntdda", kernels: str = "auto", extra: str = "") -> dict:
     """Measure one (family, size) in this process; returns a JSON-able record.
 
     ``protocol``: ``ntdda`` starts at rest under sudden gravity (ntdda's scaling runs);
@@ -123,7 +138,7 @@ def run_one(family: str, size: int, steps: int, warmup: int, arch: str, solver: 
 
     t0 = time.perf_counter()
     scene, params = SCENES[family](size)
-    params = dataclasses.replace(params, arch=arch, solver=solver, kernels=kernels)
+    params = dataclasses.replace(params, arch=arch, solver=solver, kernels=kernels, **parse_params(extra))
     build_s = time.perf_counter() - t0
     model = dd.build_model(scene, params)
     if family == "grid" and abs(model.max_step - GRID_STEP) > 1e-12:
@@ -155,6 +170,7 @@ def run_one(family: str, size: int, steps: int, warmup: int, arch: str, solver: 
     rest = s["t_judge"] + s["t_update"] + s["t_time_step"] + s["t_accept"] + s["t_energy"]
     phases = {name: float(np.median(s[f"t_{name}"])) * 1e3 for name in ("contacts", "assembly", "solve")}
     phases["update"] = float(np.median(rest)) * 1e3
+    phases["judge"] = float(np.median(s["t_judge"])) * 1e3  # the judgement alone (within "update")
     total = step_wall_time(s)
     out = dict(family=family, blocks=int(model.n_free), all_blocks=int(model.n_blocks), arch=arch,
                solver=stepper.solver.backend + (" numpy" if model.numpy_path else ""), build_s=build_s,
@@ -361,6 +377,12 @@ def main() -> None:
                          "there and here in turn, --repeat times, in fresh processes, and a paired table "
                          "(medians, ratio of each pair) is written to OUT/scaling_paired.md")
     ap.add_argument("--repeat", type=int, default=3, help="pairs per (family, size) with --baseline")
+    ap.add_argument("--params", default="",
+                    help="Params fields NAME=VALUE,... for the runs (with --baseline: for A, this checkout)")
+    ap.add_argument("--baseline-params", default="", help="with --baseline: Params fields for B")
+    ap.add_argument("--cases", default=None,
+                    help="with --baseline: FAMILY:SIZE,... to pair instead of every --family × --sizes "
+                         "(e.g. slope:391,slope:1537,grid:1600)")
     ap.add_argument("--one", nargs=2, metavar=("FAMILY", "SIZE"), help=argparse.SUPPRESS)
     ap.add_argument("--out", type=Path, default=RESULTS)
     ap.add_argument("--append", action="store_true",
@@ -369,7 +391,7 @@ def main() -> None:
     a = ap.parse_args()
     if a.one:
         print(json.dumps(run_one(a.one[0], int(a.one[1]), a.steps, a.warmup, a.arch, a.solver, a.reference_max,
-                                 a.protocol, a.kernels)))
+                                 a.protocol, a.kernels, a.params)))
         return
     if a.baseline is not None:
         paired(a)
@@ -436,13 +458,13 @@ def main() -> None:
         chart(rows, a.out / f"scaling{suffix}.png")
 
 
-def one_run(tree: Path, family: str, size: int, a) -> "dict | None":
+def one_run(tree: Path, family: str, size: int, a, params: str = "") -> "dict | None":
     """One (family, size) measured by ``tree``'s own benchmarks/scaling.py in a fresh process."""
     steps = a.steps if a.steps is not None else protocol_steps(size)
     # this script measures both (the same harness), importing ddatai from ``tree``
     cmd = [sys.executable, __file__, "--one", family, str(size), "--steps", str(steps),
            "--warmup", str(a.warmup), "--arch", a.arch, "--solver", a.solver, "--reference-max", "0",
-           "--protocol", a.protocol, "--kernels", a.kernels]
+           "--protocol", a.protocol, "--kernels", a.kernels] + (["--params", params] if params else [])
     proc = subprocess.run(cmd, capture_output=True, text=True, cwd=tree, env={**__import__("os").environ,
                                                                             "PYTHONPATH": str(tree)})
     if proc.returncode != 0:
@@ -453,7 +475,8 @@ def one_run(tree: Path, family: str, size: int, a) -> "dict | None":
 
 #: what the paired table compares: (key, heading, format)
 PAIRED = [("ms_per_step", "ms/step", "{:.1f}"), ("cpu_ms_per_step", "CPU ms/step", "{:.1f}"),
-          ("solves_per_step", "solves/step", "{:.2f}"),
+          ("ms_assembly", "assembly ms/step", "{:.1f}"), ("ms_judge", "judge ms/step", "{:.1f}"),
+          ("ms_solve", "solve ms/step", "{:.1f}"), ("solves_per_step", "solves/step", "{:.2f}"),
           ("factorisations_per_step", "factorisations/step", "{:.2f}"), ("start_s", "stage s", "{:.2f}"),
           ("start_cpu_s", "stage CPU s", "{:.2f}"),
           ("start_solves", "stage solves", "{:.0f}"), ("start_factorisations", "stage factorisations", "{:.0f}"),
@@ -465,35 +488,37 @@ def paired(a) -> None:
     processes), ``--repeat`` pairs each: medians of each and the median of the pairs' ratios."""
     here = ROOT
     lines = [f"# Paired scaling, {a.protocol} protocol ({time.strftime('%Y-%m-%d')})", "",
-             f"Machine: {machine()}; B = {a.baseline}, A = {here}; each row: {a.repeat} pairs in fresh "
+             f"Machine: {machine()}; B = {a.baseline} {a.baseline_params}, A = {here} {a.params}; each row: "
+             f"{a.repeat} pairs in fresh "
              f"processes, B then A, medians (A/B: median of the pairs' ratios).", "",
              "| family | blocks | what | B | A | A/B |", "|---|---|---|---|---|---|"]
-    for family in a.family.split(","):
-        for size in (int(s) for s in a.sizes.split(",") if s):
-            runs = {"A": [], "B": []}
-            for _ in range(a.repeat):
-                for label, tree in (("B", a.baseline), ("A", here)):
-                    row = one_run(tree, family, size, a)
-                    if row is not None:
-                        runs[label].append(row)
-                        print(f"{label} {family} {size}: {row['ms_per_step']:.1f} ms/step, stage "
-                              f"{row.get('start_s', float('nan')):.2f} s", flush=True)
-            if not runs["A"] or not runs["B"]:
+    cases = ([(c.split(":")[0], int(c.split(":")[1])) for c in a.cases.split(",") if c] if a.cases else
+             [(f, int(s)) for f in a.family.split(",") for s in a.sizes.split(",") if s])
+    for family, size in cases:
+        runs = {"A": [], "B": []}
+        for _ in range(a.repeat):
+            for label, tree, params in (("B", a.baseline, a.baseline_params), ("A", here, a.params)):
+                row = one_run(tree, family, size, a, params)
+                if row is not None:
+                    runs[label].append(row)
+                    print(f"{label} {family} {size}: {row['ms_per_step']:.1f} ms/step, stage "
+                          f"{row.get('start_s', float('nan')):.2f} s", flush=True)
+        if not runs["A"] or not runs["B"]:
+            continue
+        blocks = runs["A"][0]["blocks"]
+        held = {k: {(r.get("start_held"), r.get("start_released"), r.get("start_welded")) for r in runs[k]}
+                for k in runs}
+        for key, head, fmt in PAIRED:
+            if key not in runs["A"][0] or key not in runs["B"][0]:
                 continue
-            blocks = runs["A"][0]["blocks"]
-            held = {k: {(r.get("start_held"), r.get("start_released"), r.get("start_welded")) for r in runs[k]}
-                    for k in runs}
-            for key, head, fmt in PAIRED:
-                if key not in runs["A"][0] or key not in runs["B"][0]:
-                    continue
-                va = [r[key] for r in runs["A"]]
-                vb = [r[key] for r in runs["B"]]
-                ratio = [x / y for x, y in zip(va, vb) if y]
-                lines.append(f"| {family} | {blocks:,} | {head} | {fmt.format(np.median(vb))} | "
-                             f"{fmt.format(np.median(va))} | {np.median(ratio):.2f} |" if ratio else
-                             f"| {family} | {blocks:,} | {head} | {fmt.format(np.median(vb))} | {fmt.format(np.median(va))} | – |")
-            lines.append(f"| {family} | {blocks:,} | stage held/released/welded | "
-                         f"{'; '.join(map(str, sorted(held['B'], key=str)))} | {'; '.join(map(str, sorted(held['A'], key=str)))} | |")
+            va = [r[key] for r in runs["A"]]
+            vb = [r[key] for r in runs["B"]]
+            ratio = [x / y for x, y in zip(va, vb) if y]
+            lines.append(f"| {family} | {blocks:,} | {head} | {fmt.format(np.median(vb))} | "
+                         f"{fmt.format(np.median(va))} | {np.median(ratio):.2f} |" if ratio else
+                         f"| {family} | {blocks:,} | {head} | {fmt.format(np.median(vb))} | {fmt.format(np.median(va))} | – |")
+        lines.append(f"| {family} | {blocks:,} | stage held/released/welded | "
+                     f"{'; '.join(map(str, sorted(held['B'], key=str)))} | {'; '.join(map(str, sorted(held['A'], key=str)))} | |")
     text = "\n".join(lines)
     print(text)
     a.out.mkdir(parents=True, exist_ok=True)

@@ -20,8 +20,18 @@ Every figure is paired: the two paths alternate in fresh processes, ``--repeats`
 4. Example II's DDA-judged probabilistic study (friction N(22°, 2°), cohesion N(20 kPa, 5 kPa),
    ``--samples`` samples, 2 workers): samples a second, today's path against the fused engine
    (``kernels="fused"``: each worker loads the kernel once), and whether the tables are the
-   same. Run ``python -m ddatai.fused`` once first: the fused kernel compiled and cached.
-5. From a fresh interpreter to the second step of Example I (``Params(kernels="auto")``).
+   same. Run ``python -m ddatai.fused`` once first: the fused kernel compiled and cached. With
+   ``--stage-ab``, both on the fused engine instead: the equilibrium stage as before its
+   limit-equilibrium screen (benchmarks/stage_as_before.py: the stage's code paths of the
+   commit before it, in this checkout, whose fused kernel is cached) against today's.
+5. The equilibrium stage of the study's members (the group's sub-model at each sample's
+   strength): per member, with the limit-equilibrium screen (``settle(screen=True)``, the
+   default) against the return mapping alone (``screen=False``), alternating in one process,
+   and whether the held and released blocks are the same.
+6. From a fresh interpreter to the second step of Example I (``Params(kernels="auto")``).
+
+Threads are pinned in every child process (BLAS and Taichi one thread each: the machine is
+shared); the study's 2 workers are the only parallelism.
 """
 
 from __future__ import annotations
@@ -115,7 +125,7 @@ from kgm.studies.probabilistic import probabilistic
 from kgm.studies.sampling import read_variables
 from kgm.settings import DdaSettings, Settings
 variables, correlation = read_variables(Path({root!r}) / "docs" / "kgm" / "example_2_vars.toml")
-build = ScriptFunction({root!r} + "/scenes/example_2.py")
+build = ScriptFunction({script!r})
 settings = Settings(dda=DdaSettings(params=dd.Params(dt=0.0013, penalty_ratio=1.0, kernels={kernels!r})))
 t = time.perf_counter()
 study = probabilistic(build, variables, {n}, method="dda", seed=1, group={{0, 1}}, correlation=correlation,
@@ -138,8 +148,45 @@ print(time.perf_counter() - t0, res.meta["engine"]["name"])
 """
 
 
+STAGE = """
+import json, sys, time
+sys.path.insert(0, {root!r})
+import numpy as np
+import ddatai as dd
+from scenes import example_2
+from kgm.build import prepare
+from kgm.judges.run import RunPlan, sub_scene
+from kgm.settings import DdaSettings, Settings
+from kgm.studies.sampling import read_variables, sample_variables
+from pathlib import Path
+from ddatai.model import build_model
+from ddatai.start import settle
+from ddatai.step import Stepper
+variables, correlation = read_variables(Path({root!r}) / "docs" / "kgm" / "example_2_vars.toml")
+samples = sample_variables(variables, {n}, seed=1, correlation=correlation)
+settings = Settings(dda=DdaSettings(params=dd.Params(dt=0.0013, penalty_ratio=1.0)))
+rows = []
+for i in range({n}):
+    scene, params = example_2.build(friction=float(samples["friction"][i]), cohesion=float(samples["cohesion"][i]))
+    problem = prepare(scene, settings=settings, params=params)
+    plan = RunPlan.of(problem.system, frozenset({{0, 1}}), settings.dda, problem.params)
+    sub, _ = sub_scene(problem.scene, problem.system, frozenset({{0, 1}}), free_neighbours=plan.free_neighbours)
+    model = build_model(sub, plan.params)
+    got = {{}}
+    for screen in ((True, False) if i % 2 else (False, True)):
+        t = time.perf_counter()
+        _, record = settle(Stepper(model), model.initial_state(), screen=screen)
+        got[screen] = (time.perf_counter() - t, record.held, record.released, record.solves)
+    rows.append(got)
+print(json.dumps([[r[True], r[False]] for r in rows]))
+"""
+
+PINNED = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "TI_CPU_MAX_NUM_THREADS": "1"}
+
+
 def run(code: str, timeout: int = 3600) -> str:
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=timeout)
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=timeout,
+                          env={**os.environ, **PINNED})
     if proc.returncode != 0:
         raise RuntimeError(proc.stderr[-3000:])
     return proc.stdout.strip().splitlines()[-1]
@@ -151,7 +198,10 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=2000)
     ap.add_argument("--cases", default="1,4,16,64,example_1")
     ap.add_argument("--samples", type=int, default=200)
-    ap.add_argument("--skip", default="", help="comma-separated parts to skip: steps, kgm, study, first")
+    ap.add_argument("--skip", default="", help="comma-separated parts to skip: steps, kgm, study, stage, first")
+    ap.add_argument("--stage-ab", action="store_true",
+                    help="the study on the fused engine, the stage as before its screen against today's")
+    ap.add_argument("--stage-samples", type=int, default=60)
     a = ap.parse_args()
     skip = set(filter(None, a.skip.split(",")))
     print(f"machine: {platform.machine()} {platform.processor() or ''}, {os.cpu_count()} CPUs, Python "
@@ -190,22 +240,41 @@ def main() -> None:
                   f"{second:.2f} s the second time ({r[4]} DDA runs; FS {float(r[2]):.4f}, critical friction "
                   f"{float(r[3]):.3f}°)", flush=True)
     if "study" not in skip:
-        walls = {"numpy": [], "fused": []}
+        # (label, scene script, kernels): today's path against the fused engine, or the fused
+        # engine with the stage as before its screen against today's
+        example_2 = f"{root}/scenes/example_2.py"
+        paths = ([("fused, the stage as before its screen", f"{root}/benchmarks/stage_as_before.py", "fused"),
+                  ("fused, today's stage", example_2, "fused")] if a.stage_ab
+                 else [("today's path (kernels='numpy')", example_2, "numpy"),
+                       ("fused engine (kernels='fused')", example_2, "fused")])
+        walls = {label: [] for label, _, _ in paths}
         tables = {}
         for rep in range(max(1, a.repeats - 1)):
-            for k in walls:
-                out = f"/tmp/ddatai_study_{k}.npy"
-                wall, pf = run(STUDY.format(root=root, kernels=k, n=a.samples, out=out)).split()
-                walls[k].append(float(wall))
+            for label, script, k in paths:
+                out = f"/tmp/ddatai_study_{len(tables)}.npy"
+                wall, pf = run(STUDY.format(root=root, script=script, kernels=k, n=a.samples, out=out)).split()
+                walls[label].append(float(wall))
                 import numpy as np
 
-                tables[k] = np.load(out)
-        same = bool((tables["numpy"] == tables["fused"]).all())
-        for k, label in (("numpy", "today's path (kernels='numpy')"), ("fused", "fused engine (kernels='fused')")):
-            w = statistics.median(walls[k])
+                tables[label] = np.load(out)
+        first, second = (tables[label] for label, _, _ in paths)
+        for label, _, _ in paths:
+            w = statistics.median(walls[label])
             print(f"\nExample II DDA-judged study, {a.samples} samples, 2 workers, {label}: {w:.1f} s "
-                  f"({a.samples / w:.1f} samples/s; runs {', '.join(f'{x:.1f}' for x in walls[k])} s)", flush=True)
-        print(f"the same verdicts on both paths: {same}")
+                  f"({a.samples / w:.1f} samples/s; runs {', '.join(f'{x:.1f}' for x in walls[label])} s)", flush=True)
+        print(f"the same verdicts on both: {bool((first == second).all())}; load now {os.getloadavg()[0]:.1f}")
+    if "stage" not in skip:
+        rows = json.loads(run(STAGE.format(root=root, n=a.stage_samples)))
+        screened = [r[0] for r in rows]
+        alone = [r[1] for r in rows]
+        same = all(s[1:3] == r[1:3] for s, r in zip(screened, alone))
+        released = [i for i, r in enumerate(alone) if r[2] > 0]
+        print(f"\nequilibrium stage of the study's first {len(rows)} members (Example II's group): median "
+              f"{1e3 * statistics.median(s[0] for s in screened):.1f} ms with the limit-equilibrium screen, "
+              f"{1e3 * statistics.median(r[0] for r in alone):.1f} ms without (means "
+              f"{1e3 * statistics.fmean(s[0] for s in screened):.1f}, {1e3 * statistics.fmean(r[0] for r in alone):.1f}; "
+              f"{len(released)} members release blocks); solves a member {statistics.fmean(s[3] for s in screened):.1f}, "
+              f"{statistics.fmean(r[3] for r in alone):.1f}; the same held and released blocks: {same}", flush=True)
     if "first" not in skip:
         firsts = [run(FIRST_STEP.format(root=root)).split() for _ in range(a.repeats)]
         med = statistics.median(float(f[0]) for f in firsts)

@@ -1,4 +1,5 @@
-"""Which blocks the contacts cannot hold in the equilibrium stage (`ddatai.start`): blocks an
+"""Which blocks the contacts cannot hold in the equilibrium stage (`ddatai.start`): a small model
+whose every block limit equilibrium lets move at t = 0, blocks an
 iterate throws away from what holds them, and blocks out of balance that an open-close test
 shows moving as their loads drive them, and held blocks that settled into the space of released
 ones. They are released: they start at t = 0 under sudden gravity."""
@@ -13,6 +14,7 @@ from .contacts import Contacts
 from .geometry import displacement_matrix
 from .assembly import contact_vectors, load_forces
 from .kinematics import block_displacement
+from .limit_equilibrium import applicable, unsupported_blocks
 from .layout import KIND, LOCK, OPEN, SLIDE, VE
 from .model import ContactMemory, State
 from .open_close import open_close
@@ -29,6 +31,12 @@ FALL_IN_SIZES = 1e4
 MECHANISM_SIZE = 0.25
 #: at most this many open-close solves in the test of the out-of-balance blocks
 MAX_TEST_SOLVES = 12
+#: the screen of a model that fails as a whole (`unsupported_at_start`) is tried on models of at
+#: most this many free blocks (kgm's judged groups): its program then costs a few ms against the
+#: tens of solves that it saves; on larger masses it releases in layers, program after program,
+#: and costs more than the return mapping that throws them away (random cut slope sections of
+#: 18–46 blocks, tests/extreme_cases.py: 84–363 ms against 67–252)
+SCREEN_BLOCKS = 12
 
 
 def mechanisms(stepper, vertex_xy: np.ndarray, geom: dict, contacts: Contacts, disp: np.ndarray,
@@ -196,3 +204,49 @@ def sunk_into_released(stepper, state: State, released: np.ndarray, fraction: fl
     out[b[deep]] = True
     return out & held
 
+
+def restore(model, state: State, initial: State, blocks: np.ndarray) -> State:
+    """``state`` with the given blocks (and their points) back where ``initial`` has them: a
+    released block starts where it was at t = 0."""
+    v = blocks[model.vertex_block]
+    xy = np.where(v[:, None], initial.vertex_xy, state.vertex_xy)
+    b = blocks[:, None]
+
+    def points(now, then, owner):
+        return np.where(blocks[owner][:, None], then, now) if len(owner) else now
+
+    return state.replace(
+        vertex_xy=xy, block_stress=np.where(b, initial.block_stress, state.block_stress),
+        block_rotation=np.where(blocks, initial.block_rotation, state.block_rotation),
+        fixed_point_xy=points(state.fixed_point_xy, initial.fixed_point_xy, model.fixed_point_block),
+        load_xy=points(state.load_xy, initial.load_xy, model.load_block),
+        measured_xy=points(state.measured_xy, initial.measured_xy, model.measured_block),
+        geometry=model.block_geometry(xy))
+
+
+def unsupported_at_start(stepper, state: State) -> np.ndarray:
+    """(B,) every free block of a model of at most SCREEN_BLOCKS where rigid-block limit
+    equilibrium (`ddatai.limit_equilibrium`) lets every one of them move at t = 0 — no
+    admissible forces of the contacts detected then, the open ones among them counted as if they
+    touched, balance their loads —, else none. The stage then releases them before its first
+    solve (`ddatai.start`, 4.): a group of a few blocks that fails as a whole (a kgm judgement
+    below its critical strength) is released at once instead of after a return mapping that
+    stalls, tens of solves later. The return mapping could hold none of them: its equilibrium
+    is a set of such forces, to its tolerance; counting the open contacts too, a block held by
+    a neighbour it touches only after it settles is not released here. Where limit equilibrium
+    lets only some blocks move, the stage finds them as without the screen (a mechanism thrown
+    away in the return mapping first, the program on the rest), and releases the same blocks.
+    None where nothing touches, or where the program does not apply (bolts, water) or does
+    not converge."""
+    model = stepper.model
+    none = np.zeros(model.n_blocks, bool)
+    free = ~model.block_fixed
+    if not applicable(model) or not free.any() or np.count_nonzero(free) > SCREEN_BLOCKS:
+        return none
+    geom = state.geometry if state.geometry is not None else model.block_geometry(state.vertex_xy)
+    cint, length = stepper.detect(state.vertex_xy)
+    contacts = Contacts.start(model, state.vertex_xy, cint, length, ContactMemory.empty(), True)
+    if not np.any(contacts.state != OPEN):
+        return none  # nothing touches: the stage has nothing to hold or release
+    found = unsupported_blocks(model, state.vertex_xy, geom, contacts, np.ones(contacts.n, bool), none)
+    return free if found is not None and np.all(found[free]) else none

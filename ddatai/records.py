@@ -114,6 +114,7 @@ START_DTYPE = np.dtype([
     ("factorisations", "i4"),   # factorisations of K among the solves
     ("stalled", "?"),           # its last pseudo-step stalled where limit equilibrium holds every block
     ("unsettled", "?"),         # its pseudo-steps stopped contracting: ended at the last equilibrium
+    ("turn_on_steps", "i4"),    # steps of the slow gravity turn-on that settled its doubt (0: none)
 ])
 
 #: a rock bolt that broke (docs/method/water_bolts.md), one record per broken bolt

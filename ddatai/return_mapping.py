@@ -127,15 +127,19 @@ class Outcome:
 
 
 def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: float,
-                    released: np.ndarray, size: np.ndarray, frame: "Optional[Frame]" = None):
+                    released: np.ndarray, size: np.ndarray, frame: "Optional[Frame]" = None,
+                    doubt: Optional[np.ndarray] = None):
     """One pseudo-step (module docstring, 1.–3.): the return-mapping iteration (`_iterate`);
     blocks that move away in it, or that it leaves out of balance and that limit equilibrium
     then lets move (`limit_equilibrium.unsupported_blocks`; where that does not apply, those
     that move away in the open-close test, `test_unbalanced`), are released, and the rest
     iterated again from where they were. Where limit equilibrium holds every block left but the
     iteration has stalled, the pseudo-step ends there (*stalled*: its contacts handed over at
-    most at their strength). Returns (D, or None when no equilibrium was found; solves; the
-    newly released blocks; the contacts as handed over, `_hand_over`; whether it stalled)."""
+    most at their strength). ``doubt`` (where the stage can settle it by a slow turn-on,
+    `ddatai.turn_on`): the blocks that the open-close test would release where limit equilibrium
+    holds every block are marked in it, in place, instead, and the pseudo-step ends stalled.
+    Returns (D, or None when no equilibrium was found; solves; the newly released blocks; the
+    contacts as handed over, `_hand_over`; whether it stalled)."""
     out = released.copy()
     solves = 0
     guess = None
@@ -191,7 +195,15 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
                 mechanism, n = loaded_away(stepper, state, geom, frame, contacts, outcome, guess, out, size,
                                            converged_only=unsupported is not None)
                 solves += n
-                stalled = unsupported is not None and not mechanism.any()
+                if doubt is not None and unsupported is not None and mechanism.any():
+                    # neither a converged test nor an unconverged one proves these blocks moved
+                    # or held (the static problem of non-associated friction has many
+                    # solutions): a slow turn-on of the weight settles it (`ddatai.turn_on`)
+                    doubt |= mechanism
+                    mechanism = np.zeros_like(mechanism)
+                    stalled = True
+                else:
+                    stalled = unsupported is not None and not mechanism.any()
         if not mechanism.any():
             if not outcome.converged and not stalled:
                 return None, solves, out & ~released, contacts, False
@@ -214,6 +226,8 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
         done, n = _finish(stepper, state, geom, frame, contacts, outcome, guess, out, size)
         solves += n
         if done is not None:
+            if doubt is not None:
+                doubt[:] = False  # an equilibrium that moves nothing away: no doubt left
             return done[0], solves, out & ~released, done[1], False
     _hand_over(stepper, state.vertex_xy, contacts, outcome.law, guess)
     return outcome.disp, solves, out & ~released, contacts, stalled

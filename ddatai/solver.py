@@ -47,7 +47,6 @@ that factor preconditions the next solves.
 
 from __future__ import annotations
 
-import warnings
 from typing import Optional
 
 import numpy as np
@@ -305,28 +304,25 @@ class SparseSolver:
             return self._solve_dense_one_thread(data, indices, indptr, rhs, n, symmetric)
 
     def _solve_dense_one_thread(self, data, indices, indptr, rhs, n, symmetric) -> np.ndarray:
-        from scipy.linalg import LinAlgError, LinAlgWarning, cho_factor, cho_solve, lu_factor, lu_solve
+        from .dense import LU, Cholesky
 
         k = self._dense(data, indices, indptr, n)
         b = np.ascontiguousarray(rhs, dtype=np.float64)
         solve = None
         if symmetric:
             try:
-                c = cho_factor(k, lower=False, overwrite_a=False, check_finite=False)
-                solve = lambda r: cho_solve(c, r, check_finite=False)  # noqa: E731
-            except LinAlgError:
+                solve = Cholesky(k).solve  # LAPACK called directly: `ddatai.dense`
+            except np.linalg.LinAlgError:
                 solve = None
         if solve is None:
             if not np.all(np.isfinite(k)):
                 self._factor = None
                 return np.full(n, np.nan)
-            with warnings.catch_warnings():  # a singular K is reported below, as a NaN solution
-                warnings.simplefilter("ignore", LinAlgWarning)
-                lu = lu_factor(k, check_finite=False)
-            if np.any(np.diag(lu[0]) == 0.0):  # singular: reported as a non-finite solution
+            lu = LU(k)
+            if lu.singular or np.any(np.diag(lu.lu) == 0.0):  # singular: reported as a non-finite solution
                 self._factor = None
                 return np.full(n, np.nan)
-            solve = lambda r: lu_solve(lu, r, check_finite=False)  # noqa: E731
+            solve = lu.solve
         self._factor = (symmetric, (indptr, indices), solve)
         return solve(b)
 

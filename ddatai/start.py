@@ -54,12 +54,17 @@ solve of the model under its weight, the point loads at t = 0 and its initial st
    block that slides as a mechanism keeps the return mapping out of balance: where it stalls,
    rigid-block limit equilibrium (`ddatai.limit_equilibrium`, a linear program over the
    contacts touching at t = 0) releases the blocks for which no admissible contact forces
-   exist. Admissible forces do not prove a block held (Coulomb friction is not associated:
+   exist (a small model whose every block they let move is released before the first solve,
+   `ddatai.mechanisms.unsupported_at_start`). Admissible forces do not prove a block held (Coulomb friction is not associated:
    toppling columns have them), so the blocks still out of balance are then tested by the
    open-close iteration of a static step with their contacts at the strength sliding
    (``test_unbalanced``); where it converges, those that move away in it on which their loads
    do positive work are mechanisms (friction only resists: a block that friction pushed away
-   against its loads is held). Where nothing more is released and the return mapping still
+   against its loads is held). Where limit equilibrium holds every block, neither outcome of
+   that test proves anything (non-associated friction: many static solutions); with
+   ``Params.start_turn_on``, a slow turn-on of the weight settles the doubt (`ddatai.turn_on`):
+   its last state is handed over where nothing moved away, else the blocks in doubt are released.
+   Where nothing more is released and the return mapping still
    stalls, the stage ends there (``StartRecord.stalled``): its contacts are handed over at
    most at their strength, and the first steps settle the forces left out of balance, a
    fraction of the load. Models with bolts or a water table, whose forces the program does
@@ -110,8 +115,9 @@ from .kinematics import block_displacement, settle_points
 from .layout import E0, KIND, LOCK, OPEN, SLIDE, VE
 from .model import ContactMemory, State
 from .open_close import solve
-from .mechanisms import FALL_IN_SIZES, mechanisms, sunk_into_released
+from .mechanisms import FALL_IN_SIZES, mechanisms, restore, sunk_into_released, unsupported_at_start
 from .return_mapping import STAGE_BETA, Frame, coupled, return_mapping, subset_contacts
+from .turn_on import feasible, turn_on
 #: at most this many pseudo-steps (each re-solves the increment at the settled geometry; the
 #: second is ~strain × the first, the third round-off)
 MAX_PSEUDO_STEPS = 8
@@ -158,6 +164,9 @@ class StartRecord:
     one before: a tall, soft stack whose load grows with its deflection faster than its
     stiffness): the stage ended at the last pseudo-step's equilibrium and the run's dynamics
     takes the deflection from there (module docstring, 5.)."""
+    turn_on_steps: int = 0
+    """Steps of the slow gravity turn-on that settled the stage's doubt (`ddatai.turn_on`; 0:
+    none ran) [-]."""
 
 
 #: the record of a model with nothing to settle
@@ -172,10 +181,13 @@ def needs_settling(model) -> bool:
     return loaded or bool(np.any(model.initial_stress[~model.block_fixed] != 0.0))
 
 
-def settle(stepper, state: State, welded: bool = False) -> tuple[State, StartRecord]:
+def settle(stepper, state: State, welded: bool = False, screen: bool = True) -> tuple[State, StartRecord]:
     """The model's equilibrium at t = 0 (module docstring). Returns the settled state, whose
     contact memory carries the held contacts into the first step, and the stage's record.
-    ``welded``: go straight to the welded equilibrium (6.), without the frictional stage."""
+    ``welded``: go straight to the welded equilibrium (6.), without the frictional stage.
+    ``screen``: release at once a model whose every free block limit equilibrium lets move
+    (`unsupported_at_start`); False: only as the return mapping finds them (the reference
+    that tests compare the screen with)."""
     t0 = _time.perf_counter()
     model = stepper.model
     if not needs_settling(model):
@@ -184,7 +196,8 @@ def settle(stepper, state: State, welded: bool = False) -> tuple[State, StartRec
     geom = model.block_geometry(state.vertex_xy)
     size = np.sqrt(geom["area"])
     dt_static = _pseudo_time_step(stepper, geom, size)
-    settled, record, converged = _stage(stepper, state, size, dt_static, t0, welded=welded)
+    settled, record, converged = _stage(stepper, state, size, dt_static, t0, welded=welded, screen=screen,
+                                        slow=not welded and model.params.start_turn_on and feasible(model))
     if not converged:
         # no frictional equilibrium found: start from the welded one, each contact then at most
         # at its strength (module docstring, 6.), rather than under sudden gravity
@@ -195,20 +208,34 @@ def settle(stepper, state: State, welded: bool = False) -> tuple[State, StartRec
 
 
 def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
-           welded: bool = False) -> tuple[State, StartRecord, bool]:
+           welded: bool = False, screen: bool = False, slow: bool = False) -> tuple[State, StartRecord, bool]:
     """Pseudo-steps with Δt = ``dt`` (the static pseudo time step) until the increment is
     round-off, each the return-mapping iteration of `return_mapping` (``welded``: one solve
     with the touching contacts held, `_welded_step`, the contacts then taking the joint law,
-    `_unweld`). Returns (state, record, whether every pseudo-step found its equilibrium)."""
+    `_unweld`). ``slow``: blocks in doubt (`return_mapping`, ``doubt``) are settled by a slow
+    turn-on of the weight (`turn_on`); where it moves a block away, the stage is done again
+    releasing them. Returns (state, record, whether every pseudo-step found its equilibrium)."""
     model = stepper.model
     free = ~model.block_fixed
     initial = state
-    released = np.zeros(model.n_blocks, bool)
+    released = unsupported_at_start(stepper, state) if screen and not welded else np.zeros(model.n_blocks, bool)
     solves = 0
     while True:
+        doubt = np.zeros(model.n_blocks, bool) if slow else None
         state, last, memory, n, stalled, unsettled, failed = _pseudo_steps(stepper, initial, state, released, size,
-                                                                           dt, welded)
+                                                                           dt, welded, doubt)
         solves += n
+        if doubt is not None and doubt.any() and not failed:
+            slow_end = turn_on(stepper, initial, released, SUNK_FRACTION)
+            if slow_end is not None:
+                state, out, steps = slow_end
+                moved = np.hypot(*(state.vertex_xy - initial.vertex_xy).T)[(free & ~out)[model.vertex_block]]
+                return state, StartRecord(solves=solves, held=int(np.count_nonzero(free & ~out)),
+                                          released=int(np.count_nonzero(free & out)), stalled=True, turn_on_steps=steps,
+                                          settlement=float(np.max(moved, initial=0.0)), wall_time=_time.perf_counter() - t0,
+                                          at_strength=int(np.count_nonzero(state.memory.state == SLIDE))), True
+            again, record, converged = _stage(stepper, initial, size, dt, t0, welded, screen)
+            return again, replace(record, solves=solves + record.solves), converged
         if failed:
             return initial, StartRecord(solves=solves, held=0, released=int(np.count_nonzero(free)),
                                         settlement=0.0, at_strength=0,
@@ -223,7 +250,9 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
         released |= sunk
         state = initial
     if solves == 0:
-        return initial, NOTHING, True
+        gone = int(np.count_nonzero(free & released))
+        return initial, NOTHING if not gone else replace(NOTHING, released=gone,
+                                                         wall_time=_time.perf_counter() - t0), True
     at_strength: set = set()
     if last is not None and welded:
         _unweld(stepper, last)
@@ -245,9 +274,9 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
 
 
 def _pseudo_steps(stepper, initial: State, state: State, released: np.ndarray, size: np.ndarray, dt: float,
-                  welded: bool):
+                  welded: bool, doubt: "np.ndarray | None" = None):
     """The pseudo-steps of `_stage` from ``state`` with the ``released`` blocks out (updated in
-    place with the blocks it releases). Returns (state, the last pseudo-step's contacts, their
+    place with the blocks it releases; ``doubt``: with those in doubt, `return_mapping`). Returns (state, the last pseudo-step's contacts, their
     memory, solves, stalled, unsettled, whether a pseudo-step found no equilibrium)."""
     model = stepper.model
     free = ~model.block_fixed
@@ -273,14 +302,14 @@ def _pseudo_steps(stepper, initial: State, state: State, released: np.ndarray, s
                 # pseudo-step first, which takes the first one's linearisation error out)
                 break
             disp, n, found, contacts, stalled = return_mapping(stepper, state, geom, contacts, dt, released,
-                                                                size, frame)
+                                                                size, frame, doubt)
         solves += n
         if disp is None:  # no equilibrium found
             return state, last, memory, solves, stalled, unsettled, True
         if found.any():
             # a released block starts from where it was at t = 0
             released |= found
-            state = _restore(model, state, initial, found)
+            state = restore(model, state, initial, found)
             geom = state.geometry
         held = free & ~released
         disp[~held] = 0.0
@@ -339,24 +368,6 @@ def balanced(stepper, frame: Frame, contacts: Contacts, geom: dict, size: np.nda
     allowed = BALANCE_ROUNDOFF * level[rows]
     return bool(np.all(residual[:, :2] <= allowed[:, None]) and
                 np.all(residual[:, 2:] <= (allowed * size[rows])[:, None]))
-
-
-def _restore(model, state: State, initial: State, blocks: np.ndarray) -> State:
-    """``state`` with the given blocks (and their points) back where ``initial`` has them."""
-    v = blocks[model.vertex_block]
-    xy = np.where(v[:, None], initial.vertex_xy, state.vertex_xy)
-    b = blocks[:, None]
-
-    def points(now, then, owner):
-        return np.where(blocks[owner][:, None], then, now) if len(owner) else now
-
-    return state.replace(
-        vertex_xy=xy, block_stress=np.where(b, initial.block_stress, state.block_stress),
-        block_rotation=np.where(blocks, initial.block_rotation, state.block_rotation),
-        fixed_point_xy=points(state.fixed_point_xy, initial.fixed_point_xy, model.fixed_point_block),
-        load_xy=points(state.load_xy, initial.load_xy, model.load_block),
-        measured_xy=points(state.measured_xy, initial.measured_xy, model.measured_block),
-        geometry=model.block_geometry(xy))
 
 
 def _pseudo_time_step(stepper, geom, size) -> float:

@@ -20,6 +20,7 @@ under all three evaluators; ``--gif`` draws the scene with the critical group hi
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 from typing import Optional, Sequence
@@ -146,6 +147,10 @@ def _print_report(rep, out) -> None:
         print("", file=out)
         print(f"critical key group {sorted(crit.blocks)}: FS {crit.fs:.3f}, critical friction "
               f"{crit.critical_friction:.2f}°, mode {crit.mode.kind.value}, {crit.verdict}", file=out)
+        if crit.sarma_above_dda is not None:
+            above = "inf" if math.isinf(crit.sarma_above_dda) else f"{100 * crit.sarma_above_dda:.1f}"
+            print(f"  Sarma above DDA by {above} % (Sarma {crit.screening_fs:.3f}): DDA's factor "
+                  f"{crit.fs:.3f} governs", file=out)
         for line in crit.surface:
             pts = " -> ".join(f"({x:.2f}, {y:.2f})" for x, y in line)
             print(f"  failure surface: {pts}", file=out)

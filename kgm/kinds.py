@@ -56,7 +56,7 @@ class ModeKind(str, Enum):
     NONE = "none"            # no admissible mode: stable by geometry (type III)
     LIFTING = "lifting"      # moves away from every contact (free fall)
     SLIDING = "sliding"      # rigid translation on one face (parallel faces pooled)
-    ROTATION = "rotation"    # rigid rotation about a vertex (toppling)
+    ROTATION = "rotation"    # rigid rotation about a vertex (toppling), or turning on two sliding points
     SARMA = "sarma"          # blocks translate separately, shearing their shared joints
     TOPPLING = "toppling"    # a row of blocks toppling and sliding on their own bases
                              # (Goodman & Bray 1976, kgm.judges.toppling)

@@ -4,7 +4,9 @@ the failure-surface polylines and the text tables (docs/kgm/method.md §3.5).
 A group's row is made in one place from what its judges returned: `group_result` from a
 limit-equilibrium `kgm.judges.evaluation.Evaluation` (its surface and loads with it), and
 `judged_by_dda` the same row with the DDA judge's FS, critical friction and verdict (every
-other field kept: a field added to `GroupResult` reaches both)."""
+other field kept: a field added to `GroupResult` reaches both). Where the screening evaluator was
+Sarma and its factor exceeds `SARMA_ABOVE_DDA` times DDA's, the row says so ("Sarma above DDA by
+x %") and names DDA's factor as governing (docs/kgm/footwall.md §9)."""
 
 from __future__ import annotations
 
@@ -17,6 +19,14 @@ import numpy as np
 from .system import DISTANCE_TOL, BlockSystem
 from .judges.evaluation import Evaluation, Mode, critical_friction_of
 from .kinds import BlockState, Method, ModeKind
+
+#: A group judged by Sarma and by DDA is flagged where Sarma's factor exceeds this multiple of
+#: DDA's [-]: DDA's strength-reduction factor is bracketed to `kgm.DdaSettings.fs_tolerance`
+#: (2 %) and its verdict resolves the mobilised friction to Δtanφ ≈ a_r/(g cosα), about 2 % of
+#: it on the footwall slabs (docs/kgm/method.md §6.3, docs/kgm/footwall.md §7); a Sarma factor
+#: more than 5 % above DDA's is beyond both together, a disagreement of the methods on the
+#: unsafe side (docs/kgm/footwall.md §9).
+SARMA_ABOVE_DDA = 1.05
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -58,6 +68,11 @@ class GroupResult:
     rejected: tuple = ()
     """Why the other modes the limit-equilibrium evaluator looked for are not admissible, one
     line each (``kgm.judges.evaluation.Evaluation.rejected``)."""
+    screening_fs: Optional[float] = None
+    """A row judged by DDA: the factor of safety its screening limit-equilibrium evaluator gave
+    (``mode.fs`` when a mode governs) [-]; None for a limit-equilibrium row."""
+    screened_by: Optional[str] = None
+    """A row judged by DDA: the screening evaluator ('rigid' or 'sarma'); None otherwise."""
 
     @property
     def verdict(self) -> str:
@@ -68,6 +83,19 @@ class GroupResult:
         """Block toppling (``mode.kind`` TOPPLING): block id -> 'stable', 'toppling' or
         'sliding' at limit equilibrium (Goodman & Bray's recursion); otherwise empty."""
         return {s.block: s.state.value for s in (self.mode.block_modes or ())}
+
+    @property
+    def sarma_above_dda(self) -> Optional[float]:
+        """How far Sarma's factor lies above DDA's, (FS_Sarma − FS_DDA)/FS_DDA [-] (inf: DDA
+        fails it at any strength, or Sarma finds no mode), where the group was screened by Sarma,
+        judged by DDA, and FS_Sarma > `SARMA_ABOVE_DDA` · FS_DDA; None otherwise. Where it is
+        not None, ``fs`` (DDA's) governs and the row says so (`explain`)."""
+        if self.evaluator != Method.DDA or self.screened_by != Method.SARMA or self.screening_fs is None:
+            return None
+        sarma, dda = self.screening_fs, self.fs
+        if math.isnan(sarma) or math.isnan(dda) or math.isinf(dda) or not sarma > SARMA_ABOVE_DDA * dda:
+            return None
+        return math.inf if math.isinf(sarma) or dda <= 0.0 else sarma / dda - 1.0
 
     @property
     def critical_acceleration(self) -> Optional[float]:
@@ -128,7 +156,7 @@ def judged_by_dda(row: GroupResult, dda) -> GroupResult:
     (`kgm.DdaEvaluation`): its FS, critical friction and verdict at the scene's strength; the
     mode, surface and loads stay the screening method's."""
     return replace(row, fs=dda.fs, critical_friction=dda.critical_friction, stable=dda.judgement.stable,
-                   evaluator=Method.DDA, dda=dda)
+                   evaluator=Method.DDA, dda=dda, screening_fs=row.fs, screened_by=row.evaluator)
 
 
 def _loads_of(system: BlockSystem, blocks: frozenset, ev: Evaluation) -> dict:
@@ -231,19 +259,31 @@ def format_groups(groups: Sequence[GroupResult]) -> str:
 #: Words for a mode in the tables.
 _MODE_WORDS = {ModeKind.LIFTING: "lifting (the loads pull it off every contact)",
                ModeKind.SLIDING: "rigid sliding on one plane",
-               ModeKind.ROTATION: "rigid rotation about a vertex",
+               ModeKind.ROTATION: "rigid rotation (about a vertex, or turning while it slides on two points)",
                ModeKind.SARMA: "Sarma mechanism (the blocks slide apart, shearing the joints between them)",
                ModeKind.TOPPLING: "block toppling (Goodman–Bray row)",
                ModeKind.NONE: "no admissible mode (stable by geometry)"}
 
 
 def _explain_lines(g: GroupResult) -> list[str]:
-    """'governs: ...', 'also admissible: ...', 'not admissible: ...' lines of a group."""
+    """'governs: ...', 'also admissible: ...', 'not admissible: ...' lines of a group; a row
+    judged by DDA names DDA's factor as governing, its screening mode after it, and says where
+    Sarma is above DDA (`GroupResult.sarma_above_dda`)."""
     lines = []
-    if g.mode.kind == ModeKind.NONE:
-        lines.append(f"governs: {_MODE_WORDS[ModeKind.NONE]}")
+    mode = (_MODE_WORDS[ModeKind.NONE] if g.mode.kind == ModeKind.NONE
+            else f"{_MODE_WORDS.get(g.mode.kind.value, g.mode.kind.value)}, FS {_fmt(g.mode.fs)}")
+    if g.evaluator == Method.DDA and g.screened_by is not None:
+        lines.append(f"governs: DDA strength reduction, FS {_fmt(g.fs)} (screened by {g.screened_by}: {mode})")
+        above = g.sarma_above_dda
+        if above is not None:
+            by = "inf" if math.isinf(above) else f"{100 * above:.1f}"
+            lines.append(f"Sarma above DDA by {by} %: DDA's factor {_fmt(g.fs)} governs, not Sarma's "
+                         f"{_fmt(g.screening_fs)} (docs/kgm/footwall.md §9)")
     else:
-        lines.append(f"governs: {_MODE_WORDS.get(g.mode.kind.value, g.mode.kind.value)}, FS {_fmt(g.mode.fs)}")
+        lines.append(f"governs: {mode}")
+    if g.mode.unbalanced_moment:
+        lines.append(f"moment not balanced: {g.mode.unbalanced_moment}; Sarma's translation is on the unsafe "
+                     f"side here, judge the group with DDA (docs/kgm/footwall.md §9)")
     others = [m for m in g.modes if m is not g.mode]
     if others:
         lines.append("also admissible (safer): " + ", ".join(f"{m.kind.value} {_fmt(m.fs)}" for m in others))

@@ -25,7 +25,8 @@ joints share one strength (φ, c), no tensile strength; ρ = 2500 kg/m³.
 
 ``closed_form_fs`` gives each case's limit-equilibrium answer computed by hand from the
 geometry (the referee of tests/test_kgm_footwall.py and benchmarks/kgm_examples.py);
-``rigid_fs`` the answer of the group glued into one body.
+``rigid_fs`` the answer of the group glued into one body; ``turning_fs`` that of the bilinear
+pair turning as one body on two sliding points (docs/kgm/footwall.md §9).
 
 Run ``python scenes/footwall.py`` (plain DDA run of the bilinear case) or
 ``kgm analyze scenes/footwall.py``.
@@ -252,6 +253,57 @@ def rigid_fs(case: str = "bilinear", **options) -> float:
     w = data["weight_A"] + data["weight_P"]
     return ((data["cohesion"] * data["L_P"] + w * math.cos(beta) * math.tan(math.radians(data["friction"])))
             / (w * math.sin(beta)))
+
+
+def turning_fs(case: str = "bilinear", **options) -> float:
+    """The bilinear pair turning as one body (docs/kgm/footwall.md §9, eq. F9): the slab's upper
+    end K slides down the bedding and the kink B out along J1, every other face opens, about
+    the instantaneous centre O where the bedding's normal through K meets J1's normal through
+    B. At the strength tanφ/F (no cohesion: a point has no length) the rock pushes on K with
+    N_K·(n_A − μ·t_K) and on B with N_B·(n_P − μ·t_B), t the points' slip directions; the force
+    balance with the weight W = W_A + W_P gives N_K, N_B, and the moment about O (the normal
+    forces pass through O) W's moment + Σ (p − O) × (−μ N t) = 0 gives F: the least root with
+    N_K, N_B ≥ 0, on the grid of `two_block_fs`. Raises ValueError if there is none."""
+    if case != "bilinear":
+        raise ValueError(f"turning_fs: the case must be 'bilinear', got {case!r}")
+    geo = geometry(case, **options)
+    d = two_block_data(case, **options)
+    area_p, area_a = _area(geo["P"]), _area(geo["A"])
+    centre_of_mass = (area_p * _centroid(geo["P"]) + area_a * _centroid(geo["A"])) / (area_p + area_a)
+    weight = np.array([0.0, -(d["weight_A"] + d["weight_P"])])
+    pts, nrm = np.array([geo["K"], geo["B"]]), np.array([d["n_A"], d["n_P"]])
+    a, _ = np.linalg.solve(np.column_stack([nrm[0], -nrm[1]]), pts[1] - pts[0])
+    o = pts[0] + a * nrm[0]
+    drive = _cross(centre_of_mass - o, weight)           # the weight's moment about O
+    omega = 1.0 if drive > 0 else -1.0
+    slip = np.array([omega * np.array([-(p - o)[1], (p - o)[0]]) for p in pts])
+    slip /= np.linalg.norm(slip, axis=1, keepdims=True)
+    tan_phi = math.tan(math.radians(d["friction"]))
+
+    def residual(f: float) -> tuple[float, np.ndarray]:
+        cols = nrm - (tan_phi / f) * slip
+        n = np.linalg.solve(cols.T, -weight)
+        return omega * (drive + sum(_cross(pts[k] - o, -(tan_phi / f) * n[k] * slip[k]) for k in range(2))), n
+
+    grid = np.exp(np.linspace(math.log(0.01), math.log(100.0), 4001))
+    g = [residual(f)[0] for f in grid]
+    for i in range(len(grid) - 1):
+        if not g[i] < 0.0 <= g[i + 1]:
+            continue
+        lo, hi = grid[i], grid[i + 1]
+        for _ in range(100):
+            mid = math.sqrt(lo * hi)
+            lo, hi = (mid, hi) if residual(mid)[0] < 0.0 else (lo, mid)
+        root = math.sqrt(lo * hi)
+        if np.all(residual(root)[1] >= 0.0):
+            return root
+    raise ValueError(f"footwall {case}: the pair has no turning limit with compressive forces for F in [0.01, 100]")
+
+
+def _centroid(xy: np.ndarray) -> np.ndarray:
+    x, y = xy[:, 0], xy[:, 1]
+    c = x * np.roll(y, -1) - np.roll(x, -1) * y
+    return np.array([((x + np.roll(x, -1)) * c).sum(), ((y + np.roll(y, -1)) * c).sum()]) / (3.0 * c.sum())
 
 
 def closed_form_fs(case: str = "bilinear", **options) -> float:

@@ -124,7 +124,9 @@ def test_bilinear_slab_root_beside_a_pole_of_k():
     the mechanism jumps through infinity at F ≈ 0.83, inside the cell [0.750, 1.000] of a
     48-point log grid whose two ends both see K < 0: the old scan missed the root and the pair
     fell back to its rigid slide on J1, F8 = 1.2766, 28 % above (stable: unsafe). Now the
-    Sarma mechanism governs and the table says the rigid slide is admissible but safer."""
+    Sarma mechanism governs, and the table says why the rigid slide is no limit state: the
+    pair's resultant crosses J1's plane off J1, so it cannot balance its moment there, while the
+    Sarma mechanism balances its members' (docs/kgm/footwall.md §9)."""
     expected = fw.closed_form_fs("bilinear")
     assert expected == pytest.approx(0.99605, abs=1e-5)
     rigid_expected = fw.rigid_fs("bilinear")
@@ -155,7 +157,9 @@ def test_bilinear_slab_root_beside_a_pole_of_k():
     assert crit.blocks == PAIR and not crit.stable and crit.fs == pytest.approx(expected, rel=1e-6)
     lines = crit.explain().splitlines()
     assert lines[0].startswith("governs: Sarma mechanism") and "FS 0.996" in lines[0]
-    assert lines[1] == "also admissible (safer): sliding 1.277"
+    assert not any(line.startswith("also admissible") for line in lines)
+    assert ("not admissible: sliding, FS 1.277: moment not balanced at its limit: the resultant's line misses "
+            "the face (a translation that balances them holds the group up to FS 0.996)") in lines
 
 
 @pytest.mark.parametrize("case, options", [
@@ -193,16 +197,23 @@ def test_the_scan_fallback_finds_the_root_beside_the_pole(monkeypatch):
 
 
 def test_a_mechanism_with_no_admissible_root_is_reported():
-    """With c = 1 GPa the bilinear pair holds beyond F = 1000: K(F) has a root only where J1
-    would pull (tension), so the mechanism is dropped and the evaluation says why, naming the
-    root, the force and the face; the group has only its (huge) rigid FS."""
+    """With c = 1 GPa the bilinear pair's translation holds beyond F = 1000: K(F) has a root
+    only where J1 would pull (tension), so the mechanism is dropped and the evaluation says why,
+    naming the root, the force and the face. Its rigid slide on J1 (FS > 1000) cannot balance
+    its moment (the pair's resultant crosses J1's plane off J1), so no translation holds the
+    pair and it turns on two points (docs/kgm/footwall.md §9): faces that open carry no
+    cohesion (no tension), so the turning factor is F9's, the same as with c = 0."""
     _, system = _system("bilinear", cohesion=1e9)
     modes, notes = sarma_checks(system, PAIR)
     assert modes == [] and len(notes) == 1
     assert f"no root of K(F) for F in [{F_MIN:g}, {F_MAX:g}] has admissible forces" in notes[0]
     assert "tension" in notes[0] and "on the face of block 0 on the stable rock" in notes[0]
     ev = evaluate_sarma(system, PAIR)
-    assert ev.mode.kind == ModeKind.SLIDING and ev.fs > F_MAX and notes[0] in ev.rejected
+    assert notes[0] in ev.rejected
+    assert ev.mode.kind == ModeKind.ROTATION and ev.fs == pytest.approx(fw.turning_fs("bilinear", cohesion=0.0),
+                                                                        rel=1e-6)
+    assert any(r.startswith("sliding, FS ") and "moment not balanced" in r and "the group turns instead" in r
+               for r in ev.rejected)
 
 
 # ---------------------------------------------------------------------- DDA

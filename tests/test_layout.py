@@ -199,7 +199,7 @@ KGM_LAYERS = (
     ("build", "faces", "wedges.block", "wedges.batched"),  # Scene -> system, the Problem; group faces
     ("candidates", "wedges.slope"),                     # key blocks, groups, toppling rows
     ("judges.evaluation", "judges.limits"),             # the judges ...
-    ("judges.mechanisms", "judges.toppling", "judges.run"),
+    ("judges.mechanisms", "judges.toppling", "judges.run", "judges.turning"),
     ("judges.fused",),                                  # ... DDA runs on the fused engine ...
     ("judges.rigid", "judges.batch"),
     ("judges.sarma", "judges.dda"),

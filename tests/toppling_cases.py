@@ -217,6 +217,68 @@ def _squares(counts, a: float = 0.1, friction: float = 38.0) -> ToppleCase:
                       tuple(tuple([a] * n) for n in counts), friction, LAB_ROCK)
 
 
+#: the Goodman–Bray slope (scenes/toppling_slope.py) at this scale: its rigid-block threshold
+#: (φ 38.15°) does not depend on size, and the Young's modulus scaled with it keeps its strains;
+#: small, its slow load takes 28 rocking time constants of 0.17 s instead of 1.7 s
+GB_SCALE = 0.01
+#: ... whose tallest block (40 m at full size) must move this fraction of its height to have failed
+GB_HEIGHT = 40.0 * GB_SCALE
+
+
+def goodman_bray(friction: float) -> dd.Scene:
+    """Goodman and Bray's 16 blocks on a stepped base (scenes/toppling_slope.py) at GB_SCALE,
+    every joint of friction ``friction`` [degrees], no cohesion."""
+    from dataclasses import replace
+
+    from scenes import toppling_slope
+
+    full, _ = toppling_slope.build(friction=friction)
+    sc = dd.Scene(gravity=G)
+    for spec in full.blocks:
+        soft = replace(spec.material, young=spec.material.young * GB_SCALE)
+        sc.add_block(np.asarray(spec.vertices) * GB_SCALE, material=soft, fixed=spec.fixed)
+    sc.set_joint(dd.Joint(friction=friction, cohesion=0.0, tensile=0.0))
+    return sc
+
+
+def gb_rocking_time() -> float:
+    """The rocking time constant of the slenderest block of `goodman_bray` (10 × 40 m at full
+    size) [s]."""
+    return math.sqrt(4.0 * 0.5 * math.hypot(10.0 * GB_SCALE, GB_HEIGHT) / (3.0 * G))
+
+
+def gb_start_fails(friction: float) -> bool:
+    """Whether `goodman_bray` fails (a vertex moves more than TOPPLED × its tallest block within
+    DURATION) from the default start."""
+    return _run_until_toppled(goodman_bray(friction), None, DURATION, TOPPLED * GB_HEIGHT)
+
+
+def gb_ramp_fails(friction: float) -> bool:
+    """Whether `goodman_bray` fails with its weight ramped in slowly from rest, no stage
+    (RAMP_TIMES rocking time constants, then held HOLD_TIMES)."""
+    tau = gb_rocking_time()
+    ramp, hold = RAMP_TIMES * tau, HOLD_TIMES * tau
+    sc = goodman_bray(friction)
+    sc.set_ground_acceleration(_turning_gravity(lambda t: 0.0, lambda t: _smoothstep(t, ramp)))
+    return _run_until_toppled(sc, dd.Params(initial_equilibrium=False), ramp + hold, TOPPLED * GB_HEIGHT)
+
+
+def critical_friction(fails, lo: float, hi: float, tol: float = 0.1) -> float:
+    """Bisection for the highest friction angle in [lo, hi) at which ``fails(φ)``; ``lo`` must
+    fail and ``hi`` hold (checked). Returns the lower end of the final bracket [degrees]."""
+    if not fails(lo):
+        raise ValueError(f"the case holds already at the lower bracket {lo}°")
+    if fails(hi):
+        raise ValueError(f"the case fails at the upper bracket {hi}°")
+    while hi - lo > tol:
+        mid = 0.5 * (lo + hi)
+        if fails(mid):
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
 #: the family: case and a bracket (lo stands, hi topples from the start) [degrees]
 CASES = {
     "column 0.2": (column(0.2, 1.0), 10.0, 12.5),

@@ -37,7 +37,8 @@ class Mode:
     direction: Optional[np.ndarray] = None
     """(2,) unit sliding direction of a rigid translation [-]."""
     pivot: Optional[np.ndarray] = None
-    """(2,) rotation centre of a toppling mode [m]."""
+    """(2,) rotation centre of a rotation mode: the vertex, or the instantaneous centre of a
+    turning on two sliding points (`kgm.judges.turning`) [m]."""
     block_velocity: Optional[dict] = None
     """Relative velocity (2,) of every member in a Sarma mechanism, normalised to max 1 [-]."""
     critical_acceleration: Optional[float] = None
@@ -48,6 +49,12 @@ class Mode:
     """Block toppling only: the Goodman–Bray recursion at limit equilibrium (strength reduced
     by FS), one `kgm.BlockStep` per member (stable, toppling or sliding, with its
     forces), top block first."""
+    unbalanced_moment: str = ""
+    """Sarma mechanisms: where the translation leaves a member's moment unbalanced at limit
+    equilibrium — no points on its faces at which the face forces balance the moment of its
+    loads, so the member would turn and a face open at one end — which member and which way;
+    '' where every member balances. Such a mode is no limit state: `kgm.evaluate_sarma` takes
+    it out and says why (docs/kgm/footwall.md §9)."""
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)

@@ -43,6 +43,8 @@ class Faces:
     # Barton–Bandis faces: (f,) normal forces [N/m] -> each face's tanφ at σn = N/L (eq. BB4);
     # None when every face is Mohr–Coulomb
     members: tuple = ()    # block id of each member position (for messages)
+    ends: Optional[np.ndarray] = None
+    # (f, 2, 2) the face's two extreme points along its tangent [m] (where its resultant may act)
 
 
 def merge_faces(system: BlockSystem, members: list[int], removed: frozenset) -> Faces:
@@ -82,7 +84,17 @@ def merge_faces(system: BlockSystem, members: list[int], removed: frozenset) -> 
                   b=np.array([e[1] for e in entries], dtype=np.int64),
                   normal=normal, tangent=np.stack([normal[:, 1], -normal[:, 0]], axis=1) if f else normal,
                   cl=cl, length=length, tan_phi=tan_phi, contacts=tuple(e[2] for e in entries),
-                  tan_at=tan_at, members=tuple(members))
+                  tan_at=tan_at, members=tuple(members), ends=_ends(system, entries, normal))
+
+
+def _ends(system: BlockSystem, entries: list, normal: np.ndarray) -> np.ndarray:
+    """(f, 2, 2) the first and last point of each face's contact segments along its tangent."""
+    out = np.zeros((len(entries), 2, 2))
+    for i, e in enumerate(entries):
+        pts = np.concatenate([system.contact_start[e[2]], system.contact_end[e[2]]])
+        along = pts @ np.array([normal[i, 1], -normal[i, 0]])
+        out[i] = pts[np.argmin(along)], pts[np.argmax(along)]
+    return out
 
 
 def _pos_of(blocks: np.ndarray, pos: dict) -> np.ndarray:

@@ -11,10 +11,14 @@ force distribution). The factor of safety is the least F at which K(F) falls thr
 admissible forces, the critical friction angle the φ with K = 0 at F = 1, every root found
 (`kgm.judges.limits`). Like Sarma's slices, the mechanisms see only the faces: a block corner
 that would have to cut into the rock at a joint junction is not checked — DDA checks it on the
-real geometry (scenes/example_2.py).
+real geometry (scenes/example_2.py). The statics balance forces only; at the limit the members'
+moments are checked (`unbalanced_moment`), and a mode whose members cannot balance them says so
+(`kgm.Mode.unbalanced_moment`) and is no limit state (docs/kgm/footwall.md §9).
 
 `evaluate_sarma`: the least safe of the rigid modes (`kgm.judges.rigid`), these mechanisms and
-block toppling (`kgm.judges.toppling`), §5.3.
+block toppling (`kgm.judges.toppling`), §5.3; translations (rigid slides, Sarma mechanisms) that
+cannot balance their moments taken out, and where none can, the group's turning on two sliding
+points (`kgm.judges.turning`).
 """
 
 from __future__ import annotations
@@ -29,6 +33,7 @@ from ..kinds import ModeKind
 from ..system import BARTON_ITERATIONS, BARTON_TOL, BlockSystem
 from .evaluation import Evaluation, Mode, governing
 from .toppling import with_toppling
+from .turning import slide_balances, turning_mode
 from .limits import F_MAX, F_MIN, PHI_MAX, first_limit, pencil_roots, scan_roots, smallest_singular
 from .mechanisms import Faces, Mechanism, face_name, mechanism_label, mechanisms, merge_faces
 from .rigid import rigid_modes
@@ -41,10 +46,47 @@ def evaluate_sarma(system: BlockSystem, blocks: frozenset, removed: frozenset = 
     modes = rigid_modes(system, blocks, removed, rejected=rejected)
     if len(blocks) > 1 and not any(m.fs == 0.0 for m in modes):
         found, why = sarma_checks(system, blocks, removed)
-        modes += found
         rejected += why
+        modes, more = _turning(system, blocks, removed, modes, found)
+        rejected += more
     return governing(with_toppling(system, blocks, removed, modes, rejected), rejected)
 
+
+
+def _turning(system: BlockSystem, blocks: frozenset, removed: frozenset, rigid: list, sarma: list
+             ) -> tuple[list[Mode], list[str]]:
+    """The rigid and Sarma modes of a group with the translations (rigid slides, Sarma
+    mechanisms) that cannot balance their moments at their limit taken out (docs/kgm/footwall.md
+    §9). Where another translation balances them, its forces are admissible at every F up to its
+    limit (a stronger joint only widens the bounds), so the group stands there and the
+    unbalanced ones are no limit states; where none does, no admissible equilibrium holds the
+    group at any translation's limit: it turns, and its turning on two sliding points
+    (`kgm.judges.turning`) replaces them. Returns (modes, one line for each translation taken
+    out). Passive bolts, whose resistance depends on the motion, are left to the translations:
+    with them nothing is taken out."""
+    modes = rigid + sarma
+    if system.block_passive is not None:
+        return modes, []
+    moves = [m for m in modes if m.kind in (ModeKind.SLIDING, ModeKind.SARMA)]
+
+    def unbalanced(m: Mode) -> str:
+        if m.kind == ModeKind.SARMA:
+            return m.unbalanced_moment
+        return "" if slide_balances(system, blocks, m) else "the resultant's line misses the face"
+
+    why = {id(m): unbalanced(m) for m in moves}
+    gone = [m for m in moves if why[id(m)]]
+    if not gone:
+        return modes, []
+    held = [m for m in moves if not why[id(m)]]
+    turn = None if held else turning_mode(system, blocks, removed)
+    if not held and turn is None:
+        return modes, []
+    instead = (f"a translation that balances them holds the group up to FS {min(m.fs for m in held):.3f}" if held
+               else "the group turns instead")
+    notes = [f"{m.kind.value}, FS {m.fs:.3f}: moment not balanced at its limit: {why[id(m)]} ({instead})"
+             for m in gone]
+    return [m for m in modes if not why.get(id(m))] + ([turn] if turn is not None else []), notes
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -53,6 +95,7 @@ class _Statics:
     admissible: bool       # N >= 0 everywhere, unslipped shear within its limit
     normal: np.ndarray     # (f,) normal force of each face [N/m] (0 on open faces)
     why: str = ""          # what is not admissible (tension on a face, shear beyond its limit)
+    face_force: Optional[np.ndarray] = None  # (f, 2) force of each closed face on its member a [N/m]
 
 
 def _system(mech: Mechanism, faces: Faces, force: np.ndarray, weight: np.ndarray,
@@ -124,7 +167,13 @@ def _statics(mech: Mechanism, faces: Faces, force: np.ndarray, weight: np.ndarra
             sol, ok, why = alt, True, ""
     normal = np.zeros(len(faces.a))
     normal[closed] = sol[:len(closed)]
-    return _Statics(k=float(sol[-1]), admissible=ok, normal=normal, why=why)
+    face_force = np.zeros((len(faces.a), 2))
+    for col, k in enumerate(closed):  # the columns of `_system`
+        n_k, s = sol[col], mech.slip_sign[k]
+        face_force[k] = n_k * faces.normal[k] - s * (faces.cl[k] / reduction + n_k * tphi[k]) * faces.tangent[k]
+    for j, k in enumerate(stuck):
+        face_force[k] += sol[len(closed) + j] * faces.tangent[k]
+    return _Statics(k=float(sol[-1]), admissible=ok, normal=normal, why=why, face_force=face_force)
 
 
 def _statics_at(mech: Mechanism, faces: Faces, force: np.ndarray, weight: np.ndarray,
@@ -256,6 +305,12 @@ def sarma_checks(system: BlockSystem, blocks: frozenset, removed: frozenset = fr
                 why = f"no root of K(F) for F in [{F_MIN:g}, {F_MAX:g}] has admissible forces: " + "; ".join(rejected)
             notes.append(f"Sarma mechanism {label}: {why}")
             continue
+        turning = ""
+        if fs > 0.0 and passive is None:
+            at_limit = _statics_at(mech, faces, _loaded(force, passive, mech, fs), weight, fs)
+            if at_limit is not None and at_limit.face_force is not None:
+                turning = unbalanced_moment(mech, faces, at_limit.face_force, system.block_moment[members],
+                                            float(weight.sum() * system.scale))
         kc = _statics_at(mech, faces, _loaded(force, passive, mech, 1.0), weight, 1.0, check=False)
         phi_c = _mechanism_critical_friction(mech, faces, _loaded(force, passive, mech, 1.0), weight)
         if phi_c is None:
@@ -271,8 +326,73 @@ def sarma_checks(system: BlockSystem, blocks: frozenset, removed: frozenset = fr
         modes.append(Mode(kind=ModeKind.SARMA, fs=fs, critical_friction=phi_c,
                           sliding_contacts=np.sort(sliding), sheared_contacts=np.sort(sheared),
                           block_velocity=vel,
-                          critical_acceleration=(kc.k if kc is not None else math.nan)))
+                          critical_acceleration=(kc.k if kc is not None else math.nan),
+                          unbalanced_moment=turning))
     return modes, notes
+
+
+#: Largest group whose moment check enumerates its member subsets (2^n cuts); larger ones
+#: solve the same feasibility problem as a linear programme [-].
+CUT_MEMBERS = 12
+
+
+def unbalanced_moment(mech: Mechanism, faces: Faces, face_force: np.ndarray, moment: np.ndarray,
+                      size: float) -> str:
+    """'' where the members of a mechanism at limit equilibrium can balance their moments, else
+    which members turn and which way (`kgm.Mode.unbalanced_moment`).
+
+    Sarma's statics balance forces only. Each closed face's force may act anywhere on the face
+    (its normal stress distribution is free, compressive since N ≥ 0), so about the origin it
+    gives its member a moment M_k between those of the force at the face's two ends; the members
+    balance when such M_k exist with, for every member i, moment_i + Σ_{a_k = i} M_k −
+    Σ_{b_k = i} M_k = 0 (a shared face acts on both sides at one point). This is Sarma's (1979)
+    acceptability check that the line of thrust stays within the slices, for any group. The
+    equations are a flow network (members and the rock as nodes, faces as arcs with bounds), so
+    by Hoffman's circulation theorem they have a solution iff every set S of members can be
+    balanced by the faces that cross its boundary, each within its bounds: 2^n − 1 interval
+    checks (a linear programme beyond `CUT_MEMBERS`). ``moment``: (n,) the members' active
+    moments about the origin [N·m/m] (K = 0 at the limit); ``size``: a force times a length
+    [N·m/m] the tolerance is relative to."""
+    closed = np.flatnonzero(mech.closed)
+    if faces.ends is None or len(closed) == 0:
+        return ""
+    ends = faces.ends[closed]                                   # (c, 2, 2)
+    f = face_force[closed]
+    arm = ends[:, :, 0] * f[:, None, 1] - ends[:, :, 1] * f[:, None, 0]   # (c, 2): p × F at each end
+    lo, hi = arm.min(axis=1), arm.max(axis=1)
+    n = len(moment)
+    tol = 1e-9 * max(size, 1.0)
+    a, b = faces.a[closed], faces.b[closed]
+    if n > CUT_MEMBERS:
+        return _moments_by_programme(a, b, lo, hi, moment, tol)
+    for mask in sorted(range(1, 2 ** n), key=lambda m: bin(m).count("1")):   # single members first
+        inside = np.array([(mask >> i) & 1 for i in range(n)], dtype=bool)
+        sign = inside[a].astype(float) - np.where(b >= 0, inside[np.maximum(b, 0)], False)
+        m_s = float(moment[inside].sum())
+        low = m_s + float(np.where(sign > 0, lo, 0.0).sum() - np.where(sign < 0, hi, 0.0).sum())
+        high = m_s + float(np.where(sign > 0, hi, 0.0).sum() - np.where(sign < 0, lo, 0.0).sum())
+        if low > tol or high < -tol:
+            way = "counter-clockwise" if low > tol else "clockwise"
+            ids = [faces.members[i] if faces.members else i for i in np.flatnonzero(inside)]
+            who = f"block {ids[0]} would turn" if len(ids) == 1 else f"blocks {ids} would turn together"
+            return (f"{who} {way}: no points on the faces balance the moment (at least "
+                    f"{min(abs(low), abs(high)) / 1e3:.3g} kN·m/m left)")
+    return ""
+
+
+def _moments_by_programme(a, b, lo, hi, moment, tol) -> str:
+    """`unbalanced_moment`'s feasibility problem as a linear programme (large groups)."""
+    from scipy.optimize import linprog
+
+    n = len(moment)
+    a_eq = np.zeros((n, len(a)))
+    a_eq[a, np.arange(len(a))] += 1.0
+    inner = np.flatnonzero(b >= 0)
+    a_eq[b[inner], inner] -= 1.0
+    scale = max(float(np.abs(lo).max()), float(np.abs(hi).max()), float(np.abs(moment).max()), 1.0)
+    res = linprog(np.zeros(len(a)), A_eq=a_eq, b_eq=-moment / scale,
+                  bounds=list(zip((lo - tol) / scale, (hi + tol) / scale)), method="highs")
+    return "" if res.status == 0 else "the members would turn: no points on their faces balance their moments"
 
 
 def _loaded(force: np.ndarray, passive: Optional[np.ndarray], mech: Mechanism, reduction: float) -> np.ndarray:
