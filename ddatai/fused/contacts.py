@@ -8,9 +8,9 @@ contact vectors (``ddatai.kernels.assembly.contact_vectors``, §2.8), the second
 
 import taichi as ti
 
-from ..kernels.common import E0, ES, G0, GS, _cross, _dot2, _norm2, _pt, _trow
+from ..kernels.common import E0, E1, ES, G0, GS, _cross, _dot2, _norm2, _pt, _trow
 from ..kernels.detection import pair_contacts
-from .layout import (BG_CX, BG_CY, BI_ROW, BI_V0, BI_V1, BW_ROT, CF_COH, CF_DN, CF_DN0, CF_DS, CF_DS0,
+from .layout import (BG_CX, BG_CY, BI_ROW, BI_V0, BI_V1, BW_ROT, CF_ARM, CF_COH, CF_DN, CF_DN0, CF_DS, CF_DS0,
                      CF_LEN, CF_NF, CF_NF0, CF_OMEGA, CF_SCA, CF_SHIFT, CF_TAN, CF_TEN, CI_A, CI_B, CI_BOND,
                      CI_BOND0, CI_COUPLED, CI_COUPLED0, CI_DIR, CI_DIR0, CI_E0, CI_E1, CI_JOINT, CI_KIND,
                      CI_LINE, CI_LINE0, CI_STATE, CI_STATE0, CI_V0, CI_V1, FLAG_BOND_SLIP, JF_COH, JF_TAN,
@@ -244,6 +244,10 @@ def vectors(E: ti.template(), m):
             E.cf[c, CF_SCA + 2] = 0.0
         else:
             E.cf[c, CF_DS] = E.cf[c, CF_SCA + 2]
+        # the step start's lever arms of the vertex slots (each solve's are set from them)
+        E.cf[c, CF_ARM] = E.cvec[c, 6 * E0 + 2]
+        E.cf[c, CF_ARM + 1] = E.cvec[c, 6 * E1 + 2]
+        E.cf[c, CF_ARM + 2] = E.cvec[c, 6 * ES + 2]
         E.cint[c, CI_STATE0] = E.cint[c, CI_STATE]
         E.cint[c, CI_LINE0] = E.cint[c, CI_LINE]
         E.cint[c, CI_BOND0] = E.cint[c, CI_BOND]
@@ -312,6 +316,50 @@ def second_order_shift(E: ti.template(), m, any_rotation):
                     b2 = -P1 + 2.0 * (1.0 - w) * P2 - (1.0 - 2.0 * w) * P3
                     b3 = P1 - (1.0 - 2.0 * w) * P2 - 2.0 * w * P3
                     E.cf[c, CF_SHIFT + 2] = (_dot2(b1, q1) + _dot2(b2, q2) + _dot2(b3, q3)) / length
+
+
+@ti.func
+def _dq(E: ti.template(), v):
+    """q'(φ)X = J(R(φ) − I)X of vertex v at half its block's rotation φ = r̄/2 (the lever arm's
+    change at mid-step, ``ddatai.lever_arm``)."""
+    b = E.vblock[v]
+    X = E.vxy[v, 0] - E.bgeo[b, BG_CX]
+    Y = E.vxy[v, 1] - E.bgeo[b, BG_CY]
+    half = 0.5 * E.bwork[b, BW_ROT]
+    c1 = ti.cos(half) - 1.0
+    s = ti.sin(half)
+    return ti.Vector([-s * X - c1 * Y, c1 * X - s * Y])
+
+
+@ti.func
+def lever_arms(E: ti.template(), m, any_rotation):
+    """The contact vertex's lever arms at mid-step (``ddatai.lever_arm.midstep_lever_arms``,
+    §5.3): the rotation column of the vertex slots (E0, E1, ES) is the step start's plus
+    ∂Δ/∂P1·q'(r̄/2) (∂s/∂P1·q' for the shear), and the constant parts (after
+    `second_order_shift`) take −that·r̄ (r̄ the vertex's block's rotation in ``BW_ROT``), so the
+    distances stay exact at r̄. The step start's columns where no block rotates."""
+    base = E.mi[m, MI_C0]
+    for c in range(base, base + E.mi[m, MI_NC]):
+        E.cvec[c, 6 * E0 + 2] = E.cf[c, CF_ARM]
+        E.cvec[c, 6 * E1 + 2] = E.cf[c, CF_ARM + 1]
+        E.cvec[c, 6 * ES + 2] = E.cf[c, CF_ARM + 2]
+        if any_rotation:
+            kind = E.cint[c, CI_KIND]
+            for line in range(1 + kind):
+                p1 = E.cint[c, 1 + 2 * line]
+                k = E.cint[c, 2 + 2 * line]
+                P2 = _pt(E.vxy, E.vnext[k])
+                P3 = _pt(E.vxy, k)
+                q1 = _dq(E, p1)
+                length = _norm2(P3 - P2)
+                rot = E.bwork[E.vblock[p1], BW_ROT]
+                vertex = ((P2[1] - P3[1]) * q1[0] + (P3[0] - P2[0]) * q1[1]) / length
+                E.cvec[c, 6 * (E0 + 2 * line) + 2] += vertex
+                E.cf[c, CF_SHIFT + line] += -vertex * rot
+                if line == 0 and kind == VE:
+                    vertex_s = _dot2(P3 - P2, q1) / length
+                    E.cvec[c, 6 * ES + 2] += vertex_s
+                    E.cf[c, CF_SHIFT + 2] += -vertex_s * rot
 
 
 @ti.func

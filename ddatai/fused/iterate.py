@@ -119,6 +119,7 @@ def open_close(E: ti.template(), m, dt, beta, last):
             if E.bwork[b, BW_ROT] != 0.0:
                 any_rotation = 1
         contacts.second_order_shift(E, m, any_rotation)
+        contacts.lever_arms(E, m, any_rotation)  # the vertex's lever arms at mid-step
         system.load_block_terms(E, m)
         if any_rotation:
             _fixed_point_shift(E, m, rhs)

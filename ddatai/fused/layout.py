@@ -70,7 +70,10 @@ N_CI = CI_LAW + 10
 CF_LAW = 17               # + 10·slot + the fields below
 (LF_DN, LF_DS, LF_FN, LF_FT, LF_STRENGTH, LF_DN_NOW, LF_FN_NOW, LF_FT_NOW, LF_FRICTION_NOW,
  LF_ENERGY) = range(10)
-N_CF = CF_LAW + 20
+# the step start's rotation column of the contact vertex's slots (E0, E1, ES), which each solve
+# turns to its mid-step lever arm (``contacts.lever_arms``, ``ddatai.lever_arm``)
+CF_ARM = CF_LAW + 20
+N_CF = CF_LAW + 23
 # ``memi`` (int32) / ``memf`` (float64): the contact memory of the last step (§3.7), sorted by key
 MEMI_KIND, MEMI_V0, MEMI_K2, MEMI_STATE, MEMI_LINE, MEMI_BOND, MEMI_DIR = range(7)
 N_MEMI = 7
