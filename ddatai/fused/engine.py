@@ -109,6 +109,10 @@ class Session:
         self.members = members
         self.launch_steps = launch_steps
         self.arrays = pack(members, launch_steps)
+        from .layout import MF_IMPACT
+        for k, mem in enumerate(members):
+            overshoot = mem.model.params.impact_overshoot
+            self.arrays["mf"][k, MF_IMPACT] = -1.0 if overshoot is None else overshoot
         self._pack = Pack
         self._kernel = kernel.run
         self._mark = mark_cached

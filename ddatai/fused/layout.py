@@ -30,8 +30,9 @@ FLAG_RECORD = 32         # write a step record a step (``rec``)
  MF_D0, MF_D9, MF_OPEN_TOL, MF_PEN_LIMIT, MF_START_PEN, MF_ENERGY, MF_T_END, MF_GX, MF_GY,
  MF_STOP_AT, MF_REST_LIMIT, MF_DT_FIXED, MF_DT_MAX, MF_DT_MIN_RATIO, MF_DT_GROWTH, MF_DT_CUT,
  MF_DISP_REJECT, MF_CARRY, MF_BETA, MF_OC_FORCE_TOL, MF_OC_STATE_TOL, MF_H1, MF_SHEAR_RATIO,
- MF_FIXED_RATIO, MF_OPEN_RATIO, MF_DISPLACEMENT) = range(35)
-N_MF = 35
+ MF_FIXED_RATIO, MF_OPEN_RATIO, MF_DISPLACEMENT, MF_IMPACT) = range(36)
+N_MF = 36
+# MF_IMPACT: Params.impact_overshoot (−1: None, impacts off; set by ``engine.Session``)
 
 # ------------------------------------------------------------------ per block
 # ``bint`` (int32): first and end vertex, row in the member's system (-1: fixed), member
@@ -52,7 +53,10 @@ N_BG = 9
 # ``bwork`` (float64): the iterate D (6), the solve's solution (6), the last iterate (6), the
 # rotation of the second-order terms, the load a block carries (the judgement's level)
 BW_D, BW_SOL, BW_PREV, BW_ROT, BW_LEVEL = 0, 6, 12, 18, 19
-N_BW = 20
+# an impact (``ddatai.impacts``): the block is impacted (1.0), its velocity and acceleration
+# before the plastic impact at the step's start
+BW_IMPACT, BW_V0, BW_A0 = 20, 21, 27
+N_BW = 33
 
 # ------------------------------------------------------------------ per contact
 # ``cint`` (int32): kind, vertex0, edge0, vertex1, edge1 (the narrow phase's five columns), then
@@ -62,7 +66,8 @@ N_BW = 20
  CI_A, CI_B, CI_STATE0, CI_LINE0, CI_BOND0, CI_DIR0, CI_COUPLED0) = range(18)
 CI_LAW = 18               # + 5·slot + (line, closed, state, direction, bad)
 LI_LINE, LI_CLOSED, LI_STATE, LI_DIR, LI_BAD = range(5)
-N_CI = CI_LAW + 10
+CI_CLOSING = CI_LAW + 10   # closing within the step (``impacts.approach_bound``)
+N_CI = CI_LAW + 11
 # ``cf`` (float64): length, ω, dn, ds, normal force, tanφ, c, T, the constant parts (3), their
 # second-order shift (3), the step-start dn, ds, N, then the law's float fields of two evaluations
 (CF_LEN, CF_OMEGA, CF_DN, CF_DS, CF_NF, CF_TAN, CF_COH, CF_TEN, CF_SCA, _S1, _S2, CF_SHIFT, _H1, _H2,
