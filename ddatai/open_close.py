@@ -128,10 +128,10 @@ def open_close(stepper, state: State, geom: dict, contacts: Contacts, pattern: B
         t0 = _time.perf_counter()
         data, rhs = data0.copy(), rhs0.copy()
         shift = second_order(model, contacts, state, geom, rotation, rhs)
-        # the contacts' lever arms at mid-step (`ddatai.lever_arm`, §5.3)
-        columns, lever_shift = midstep_lever_arms(model, contacts, state.vertex_xy, geom["centroid"], rotation)
-        vec = with_lever_arms(start_vec, columns)
-        shift += lever_shift
+        if stepper.params.midstep_lever_arms:  # the contacts' lever arms at mid-step (`ddatai.lever_arm`, §5.3)
+            columns, lever_shift = midstep_lever_arms(model, contacts, state.vertex_xy, geom["centroid"], rotation)
+            vec = with_lever_arms(start_vec, columns)
+            shift += lever_shift
         block_rhs = rhs.copy()
         assemble_contacts(model, contacts, pattern, vec, sca + shift, data, rhs, stepper.serial_scatter)
         t0 = timer.add("assembly", t0)

@@ -164,6 +164,8 @@ class Params:
     """Largest automatic time step [s]."""
     impact_overshoot: Optional[float] = 0.01
     """Impacts: closing past this × the penetration limit (``ddatai.impacts``; None: off) [-]."""
+    midstep_lever_arms: bool = True
+    """Contact vertices' lever arms at mid-step (docs/method/dda.md §5.3; False: the step start's)."""
     dt_min_ratio: float = 1e-4
     """Smallest time step, as a fraction of ``dt`` (or ``dt_max``) [-]. A step that cannot be
     made to converge above it stops the run with a `SimulationError`."""
@@ -279,22 +281,20 @@ class Params:
     """Taichi backend for contact detection and assembly: "cpu", "gpu" (CUDA/Vulkan/Metal,
     whichever is present) or "cuda"."""
     kernels: str = "auto"
-    """Where a run's work runs: "fused" (`ddatai.fused`: a small model's whole run in one Taichi
-    kernel, many runs side by side), "taichi" (today's step, its per-block and per-contact work in
-    Taichi kernels on ``arch``), "numpy" (today's step in NumPy, no Taichi) or "auto": the fused
-    engine where it pays its kernel (`ddatai.fused.policy`), else NumPy up to ``SMALL_MODEL_BLOCKS``
-    free blocks on the CPU, Taichi beyond; ``Results.meta["engine"]`` says which ran and why."""
+    """Where a run's work runs: "fused" (`ddatai.fused`: a small model's whole run in one Taichi kernel, many
+    runs side by side), "taichi" (today's step, its per-block and per-contact work in Taichi kernels on
+    ``arch``), "numpy" (today's step in NumPy, no Taichi) or "auto": the fused engine where it pays its kernel
+    and takes the same step (`ddatai.fused.policy`), else NumPy up to ``SMALL_MODEL_BLOCKS`` free blocks on the
+    CPU, Taichi beyond; ``Results.meta["engine"]`` says which ran and why."""
 
     def __post_init__(self) -> None:
         def pos(name: str) -> None:
-            v = getattr(self, name)
-            if v is None and name in ("dt", "penalty", "impact_overshoot"):  # None: automatic / off
-                return
-            _require(_finite(v) and v > 0, f"Params.{name} must be a finite number > 0, got {v!r}")
-
-        for name in ("dt", "penalty", "impact_overshoot", "penalty_ratio", "shear_ratio", "fixed_point_ratio", "max_displacement_ratio",
-                     "open_tolerance", "oc_force_tolerance", "oc_state_tolerance", "penetration_ratio", "angle_tolerance",
-                     "dt_min_ratio", "dt_max"):
+            v = getattr(self, name)  # None: automatic (dt, penalty) or off (impact_overshoot)
+            _require((v is None and name in ("dt", "penalty", "impact_overshoot")) or (_finite(v) and v > 0),
+                     f"Params.{name} must be a finite number > 0, got {v!r}")
+        for name in ("dt", "penalty", "impact_overshoot", "penalty_ratio", "shear_ratio", "fixed_point_ratio",
+                     "max_displacement_ratio", "open_tolerance", "oc_force_tolerance", "oc_state_tolerance",
+                     "penetration_ratio", "angle_tolerance", "dt_min_ratio", "dt_max"):
             pos(name)
         _require(_finite(self.dt_growth) and self.dt_growth >= 1.0,
                  f"Params.dt_growth must be >= 1, got {self.dt_growth!r}")
@@ -334,7 +334,7 @@ class Params:
                  f"Params.kernels must be 'auto', 'fused', 'taichi' or 'numpy', got {self.kernels!r}")
         _require(isinstance(self.arch, str) and self.arch in ("cpu", "gpu", "cuda", "vulkan", "metal"),
                  f"Params.arch must be one of 'cpu', 'gpu', 'cuda', 'vulkan', 'metal', got {self.arch!r}")
-        for name in ("factor_updates", "initial_equilibrium", "start_turn_on", "bond_breaks_on_slip"):
+        for name in ("factor_updates", "initial_equilibrium", "start_turn_on", "bond_breaks_on_slip", "midstep_lever_arms"):
             _require(isinstance(getattr(self, name), bool),
                      f"Params.{name} must be True or False, got {getattr(self, name)!r}")
 

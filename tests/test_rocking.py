@@ -13,6 +13,8 @@ Housner's (0.62 with the impacts left to the step).
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -49,17 +51,22 @@ def test_rocking_grid_against_housner(b, fraction):
     assert np.all(np.abs(ratio - 1.0) <= TOLERANCE), ratio
 
 
-def test_free_swing_keeps_its_energy():
+@pytest.mark.parametrize("midstep", [True, False])
+def test_free_swing_keeps_its_energy(midstep):
     """Between impacts Housner's block keeps its energy: the 0.5 × 2 m block's swing from its
     release at half its overturning angle to its first impact (50 steps of up to 10 ms) ends
     with the energy it started with, to 1e-4 of the rocking energy m·g·R·(cos(α − θ0) − cos α)
-    (1.3 % of it was lost with the lever arms of the step's start, docs/method/dda.md §5.3)."""
+    (1.3 % of it was lost with the lever arms of the step's start, docs/method/dda.md §5.3: with
+    ``Params(midstep_lever_arms=False)``, the fused engine's step, the swing loses 0.5–3 % of it:
+    the first-order loss ½·F·R·cos(α − θ)·r² a step, not round-off)."""
     import math
 
     from rocking_cases import G, ROCK
 
     b, h, fraction = 0.5, 2.0, 0.5
-    _, res = tilt_peaks(b, h, fraction, 1)
+    from rocking_cases import DEFAULTS
+
+    _, res = tilt_peaks(b, h, fraction, 1, params=dataclasses.replace(DEFAULTS, midstep_lever_arms=midstep))
     s = res.steps
     alpha = math.atan(b / h)
     rocking = ROCK.density * b * h * G * 0.5 * math.hypot(b, h) * (math.cos(alpha - fraction * alpha) - math.cos(alpha))
@@ -67,4 +74,7 @@ def test_free_swing_keeps_its_energy():
     # the steps before the first impact: the impact is the step whose energy falls by r²'s share
     drop = np.flatnonzero(np.diff(energy) < -0.05 * rocking)[0]
     assert drop > 40
-    assert abs(energy[drop] - energy[0]) < 1e-4 * rocking, (energy[drop] - energy[0]) / rocking
+    if midstep:
+        assert abs(energy[drop] - energy[0]) < 1e-4 * rocking, (energy[drop] - energy[0]) / rocking
+    else:
+        assert 5e-3 * rocking < energy[0] - energy[drop] < 3e-2 * rocking, (energy[drop] - energy[0]) / rocking

@@ -202,13 +202,18 @@ def threshold(topples, lo: float, hi: float, tol: float = 0.1) -> float:
         raise ValueError(f"the case topples already at the lower bracket {lo}°")
     if not topples(hi):
         raise ValueError(f"the case stands at the upper bracket {hi}°")
+    return _bisect(topples, lo, hi, tol)[1]
+
+
+def _bisect(turned, lo: float, hi: float, tol: float) -> tuple[float, float]:
+    """The bracket (lo, hi], at most ``tol`` wide, where ``turned`` goes from False to True."""
     while hi - lo > tol:
         mid = 0.5 * (lo + hi)
-        if topples(mid):
+        if turned(mid):
             hi = mid
         else:
             lo = mid
-    return hi
+    return lo, hi
 
 
 def _squares(counts, a: float = 0.1, friction: float = 38.0) -> ToppleCase:
@@ -270,13 +275,7 @@ def critical_friction(fails, lo: float, hi: float, tol: float = 0.1) -> float:
         raise ValueError(f"the case holds already at the lower bracket {lo}°")
     if fails(hi):
         raise ValueError(f"the case fails at the upper bracket {hi}°")
-    while hi - lo > tol:
-        mid = 0.5 * (lo + hi)
-        if fails(mid):
-            lo = mid
-        else:
-            hi = mid
-    return lo
+    return _bisect(lambda phi: not fails(phi), lo, hi, tol)[0]
 
 
 #: the family: case and a bracket (lo stands, hi topples from the start) [degrees]

@@ -58,11 +58,27 @@ class Member:
     """Capacity of its contact region (0: chosen from the model)."""
 
 
+def step_differs(params) -> Optional[str]:
+    """Why the fused kernel's step is not the step ``params`` ask for (a sentence), or None: the
+    kernel takes the contacts' lever arms at the step's start and leaves impacts to the step, as
+    today's step did before `ddatai.lever_arm` and `ddatai.impacts` (docs/method/dda.md §5.2,
+    §5.3); it runs a model only where the two engines take the same step."""
+    if params.midstep_lever_arms:
+        return ("today's step takes the contact vertices' lever arms at mid-step and the fused "
+                "engine the step start's (Params.midstep_lever_arms)")
+    if params.impact_overshoot is not None:
+        return "today's step resolves impacts and the fused engine does not (Params.impact_overshoot)"
+    return None
+
+
 def covers(model) -> Optional[str]:
     """Why the fused engine does not run ``model`` (a sentence), or None if it does: gravity,
     Mohr–Coulomb joints with cohesion and tension, fixed blocks and points, constant point loads
     and measured points. Water, bolts, Barton–Bandis joints, ground shaking and loads that vary
     in time run on today's paths."""
+    why = step_differs(model.params)
+    if why is not None:
+        return why
     if model.ground_acceleration is not None:
         return "the model is shaken (ground acceleration): the fused engine has no time functions"
     if any(callable(f) for f in model.load_force):
