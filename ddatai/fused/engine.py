@@ -109,10 +109,12 @@ class Session:
         self.members = members
         self.launch_steps = launch_steps
         self.arrays = pack(members, launch_steps)
-        from .layout import MF_IMPACT
-        for k, mem in enumerate(members):
-            overshoot = mem.model.params.impact_overshoot
-            self.arrays["mf"][k, MF_IMPACT] = -1.0 if overshoot is None else overshoot
+        from .layout import FLAG_MIDSTEP, MF_IMPACT, MI_FLAGS
+        for k, mem in enumerate(members):  # the step's switches that the packing leaves out
+            p = mem.model.params
+            self.arrays["mf"][k, MF_IMPACT] = -1.0 if p.impact_overshoot is None else p.impact_overshoot
+            if p.midstep_lever_arms:
+                self.arrays["mi"][k, MI_FLAGS] |= FLAG_MIDSTEP
         self._pack = Pack
         self._kernel = kernel.run
         self._mark = mark_cached

@@ -12,7 +12,8 @@ import taichi as ti
 
 from . import blocks, contacts, law, system
 from .layout import (BG_CX, BG_CY, BI_ROW, BS_ACC, BS_VEL, BW_D, BW_PREV, BW_ROT, BW_SOL, CF_TAN, CI_COUPLED,
-                     CI_KIND, CI_LAW, CI_STATE, FLAG_LAGGED, LI_BAD, MF_CARRY, MF_FIXED_PEN, MI_B0, MI_B1, MI_C0, MI_FLAGS, MI_NC,
+                     CI_KIND, CI_LAW, CI_STATE, FLAG_LAGGED, FLAG_MIDSTEP, LI_BAD, MF_CARRY, MF_FIXED_PEN, MI_B0,
+                     MI_B1, MI_C0, MI_FLAGS, MI_NC,
                      MI_NF, MI_OC_MAX, MI_P0, MI_P1, MI_X0, PF_X, PF_Y, PI_BLOCK, PI_KIND, POINT_FIXED,
                      XS_BRHS, XS_GRAD, XS_HASH, XS_RHS)
 
@@ -119,7 +120,8 @@ def open_close(E: ti.template(), m, dt, beta, last):
             if E.bwork[b, BW_ROT] != 0.0:
                 any_rotation = 1
         contacts.second_order_shift(E, m, any_rotation)
-        contacts.lever_arms(E, m, any_rotation)  # the vertex's lever arms at mid-step
+        # the vertex's lever arms at mid-step (Params.midstep_lever_arms; else the step start's)
+        contacts.lever_arms(E, m, any_rotation and (E.mi[m, MI_FLAGS] & FLAG_MIDSTEP) != 0)
         system.load_block_terms(E, m)
         if any_rotation:
             _fixed_point_shift(E, m, rhs)

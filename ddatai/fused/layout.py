@@ -24,6 +24,7 @@ FLAG_BOND_SLIP = 4       # Params.bond_breaks_on_slip
 FLAG_BY_LOAD = 8         # Params.oc_force_reference == "load"
 FLAG_AUTO_PENALTY = 16   # Params.penalty is None (the penalty follows the load)
 FLAG_RECORD = 32         # write a step record a step (``rec``)
+FLAG_MIDSTEP = 64        # Params.midstep_lever_arms (set by ``engine.Session``)
 
 # ------------------------------------------------------------------ per member, float64 (``mf``)
 (MF_TIME, MF_DT, MF_ACCEL, MF_PENALTY, MF_SHEAR, MF_FIXED_PEN, MF_ROUNDOFF, MF_W0, MF_MAX_STEP,
