@@ -35,6 +35,7 @@ from ddatai.start import settle
 from ddatai.step import Stepper
 from scenes import example_1
 from test_small_models import dropped_grid
+import rocking_cases
 
 #: today's step as the fused kernel takes it: the step start's lever arms, impacts left to the step
 SAME_STEP = {"midstep_lever_arms": False, "impact_overshoot": None}
@@ -61,6 +62,8 @@ CASES = {
     "example_1_held": (lambda: example_1.build(friction=14.0), True),
     "example_1_sliding": (lambda: example_1.build(friction=8.0), True),
     "dropped_grid": (dropped_grid, False),
+    # released at half its critical tilt: rocking on a corner through impacts within the 60 steps
+    "rocking_block": (lambda: (rocking_cases.scene(0.3, 1.0, 0.5), dd.Params(initial_equilibrium=False)), False),
 }
 
 
