@@ -13,9 +13,9 @@ at most that share of its motion: 1e-3 of the largest displacement, plus 1e-9 of
 
 The fused kernel takes the step that ``Params.midstep_lever_arms`` and ``impact_overshoot`` ask
 for, as today's step: the twins run both engines with ``SAME_STEP`` (the step start's lever arms,
-impacts left to the step) and with the defaults. The policy (`ddatai.fused.pack.step_differs`)
-still keeps the defaults' runs on today's path: `Params(kernels="auto")` keeps every run there,
-and ``kernels="fused"`` says why it does not run fused.
+impacts left to the step) and with the defaults. The frames' times are compared with
+``SAME_STEP``: with impacts resolved, Δt follows the gaps, and the positions' round-off moves the
+times by ~1e-11 of them.
 
 The tests that run the fused kernel are in the slow profile (``-m slow``): on a machine whose
 Taichi offline cache does not hold the kernel (CI's is empty) the first of them pays its compile
@@ -136,9 +136,9 @@ def test_kgm_judgements_on_the_fused_engine_are_the_numpy_path_s():
     settings = kgm.DdaSettings(duration=0.5)
     probes = [20.0, 29.0, 31.0, 40.0]
     fused = judge_members([Probe(scene=scene, system=system, friction=f) for f in probes], frozenset([b]),
-                          settings=settings, params=dd.Params(dt=2e-3, kernels="fused", **SAME_STEP), exact=True)
+                          settings=settings, params=dd.Params(dt=2e-3, kernels="fused"), exact=True)
     for f, j in zip(probes, fused):
-        ref = judge(scene, system, frozenset([b]), settings=settings, params=dd.Params(dt=2e-3, kernels="numpy", **SAME_STEP),
+        ref = judge(scene, system, frozenset([b]), settings=settings, params=dd.Params(dt=2e-3, kernels="numpy"),
                     friction=f)
         assert (j.stable, j.note, j.steps) == (ref.stable, ref.note, ref.steps)
         assert j.displacement == pytest.approx(ref.displacement, abs=1e-3 * ref.threshold)
@@ -154,7 +154,7 @@ def test_a_member_whose_contacts_outgrow_their_region_goes_on_with_more():
     from ddatai.fused.pack import Member
 
     scene, params = dropped_grid(3)
-    model = build_model(scene, dataclasses.replace(params, kernels="numpy", **SAME_STEP))
+    model = build_model(scene, dataclasses.replace(params, kernels="numpy"))
     state = model.initial_state()
     roomy = engine.run([Member(model=model, state=state, step_end=30)])[0]
     tight = engine.run([Member(model=model, state=state, step_end=30, contacts=1)])[0]
@@ -174,7 +174,7 @@ def test_a_step_the_engine_cannot_take_is_taken_on_today_s_path():
         rock = dd.Material(density=2500.0, young=5e9, poisson=0.25)
         s.add_block([(-2, -1), (4, -1), (4, 0), (-2, 0)], material=rock, fixed=True)
         s.add_block([(0, 0.02), (1, 0.02), (1, 1.02), (0, 1.02)], material=rock, velocity=(0.0, -8.0))
-        params = dd.Params(dt=0.05, dt_min_ratio=0.5, initial_equilibrium=False, kernels=kernels, **SAME_STEP)
+        params = dd.Params(dt=0.05, dt_min_ratio=0.5, initial_equilibrium=False, kernels=kernels)
         with pytest.raises(dd.SimulationError) as err:
             dd.simulate(s, params, steps=40)
         errors[kernels] = err.value
@@ -188,17 +188,7 @@ def test_auto_takes_the_fused_engine_where_it_pays(monkeypatch):
     from ddatai.fused import policy
 
     scene, params = dropped_grid(2)
-    default = build_model(scene, params)
-    params = dataclasses.replace(params, **SAME_STEP)
     model = build_model(scene, params)
-    monkeypatch.setattr(policy, "_loaded", lambda: True)
-    # the defaults' step is not the fused kernel's (mid-step lever arms, resolved impacts)
-    name, why = policy.choose(default, steps=10 ** 7, duration=None, batch=True)
-    assert name == "numpy" and "mid-step" in why
-    name, why = policy.choose_batch(dd.Params(kernels="fused"), member_steps=1e9)
-    assert name == "today" and "mid-step" in why
-    name, why = policy.choose_batch(dd.Params(kernels="fused", midstep_lever_arms=False), member_steps=1e9)
-    assert name == "today" and "impacts" in why
     monkeypatch.setattr(policy, "_loaded", lambda: False)
     monkeypatch.setattr(policy, "kernel_cached", lambda arch="cpu": True)
     assert policy.choose(model, steps=100_000, duration=None)[0] == "fused"
@@ -211,7 +201,7 @@ def test_auto_takes_the_fused_engine_where_it_pays(monkeypatch):
     assert name == "numpy" and "contacts are recorded" in why
     # kgm's batches: "fused" always; "auto" once the kernel is in the process, or where the
     # batch pays its load (cached) or its first compile; never on a fresh machine for a few runs
-    auto, fused = dd.Params(**SAME_STEP), dd.Params(kernels="fused", **SAME_STEP)
+    auto, fused = dd.Params(), dd.Params(kernels="fused")
     assert policy.choose_batch(fused, member_steps=10)[0] == "fused"
     assert policy.choose_batch(dd.Params(kernels="numpy"), member_steps=1e9)[0] == "today"
     name, why = policy.choose_batch(auto, member_steps=8 * 1000)
@@ -318,8 +308,7 @@ def test_a_dda_judged_study_on_the_fused_engine_has_the_numpy_path_s_table(monke
     build = ScriptFunction(str(root / "scenes" / "example_2.py"))
     tables = {}
     for kernels in ("fused", "numpy"):
-        settings = Settings(dda=DdaSettings(params=dd.Params(dt=0.0013, penalty_ratio=1.0, kernels=kernels,
-                                                             **SAME_STEP)))
+        settings = Settings(dda=DdaSettings(params=dd.Params(dt=0.0013, penalty_ratio=1.0, kernels=kernels)))
         study = probabilistic(build, variables, 12, method="dda", seed=1, group={0, 1}, correlation=correlation,
                               workers=1, settings=settings)
         tables[kernels] = (np.asarray(study.table["failed"]).tolist(), study.pf)

@@ -18,7 +18,6 @@ import pytest
 from extreme_cases import build, check, random_domain, random_spec
 
 import ddatai as dd
-from test_fused import SAME_STEP
 
 pytestmark = pytest.mark.slow
 
@@ -28,7 +27,7 @@ def _run(spec, kernels: str):
         scene, steps = build(spec)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            params = dd.Params(kernels=kernels, **SAME_STEP, **({"dt": spec.dt} if spec.dt else {}))
+            params = dd.Params(kernels=kernels, **({"dt": spec.dt} if spec.dt else {}))
             model = dd.build_model(scene, params)
     except ValueError as err:
         return "refused", str(err), None, None

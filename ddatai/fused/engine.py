@@ -109,12 +109,6 @@ class Session:
         self.members = members
         self.launch_steps = launch_steps
         self.arrays = pack(members, launch_steps)
-        from .layout import FLAG_MIDSTEP, MF_IMPACT, MI_FLAGS
-        for k, mem in enumerate(members):  # the step's switches that the packing leaves out
-            p = mem.model.params
-            self.arrays["mf"][k, MF_IMPACT] = -1.0 if p.impact_overshoot is None else p.impact_overshoot
-            if p.midstep_lever_arms:
-                self.arrays["mi"][k, MI_FLAGS] |= FLAG_MIDSTEP
         self._pack = Pack
         self._kernel = kernel.run
         self._mark = mark_cached

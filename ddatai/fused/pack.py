@@ -58,27 +58,11 @@ class Member:
     """Capacity of its contact region (0: chosen from the model)."""
 
 
-def step_differs(params) -> Optional[str]:
-    """Why the fused kernel's step is not the step ``params`` ask for (a sentence), or None: the
-    kernel takes the contacts' lever arms at the step's start and leaves impacts to the step, as
-    today's step did before `ddatai.lever_arm` and `ddatai.impacts` (docs/method/dda.md §5.2,
-    §5.3); it runs a model only where the two engines take the same step."""
-    if params.midstep_lever_arms:
-        return ("today's step takes the contact vertices' lever arms at mid-step and the fused "
-                "engine the step start's (Params.midstep_lever_arms)")
-    if params.impact_overshoot is not None:
-        return "today's step resolves impacts and the fused engine does not (Params.impact_overshoot)"
-    return None
-
-
 def covers(model) -> Optional[str]:
     """Why the fused engine does not run ``model`` (a sentence), or None if it does: gravity,
     Mohr–Coulomb joints with cohesion and tension, fixed blocks and points, constant point loads
     and measured points. Water, bolts, Barton–Bandis joints, ground shaking and loads that vary
     in time run on today's paths."""
-    why = step_differs(model.params)
-    if why is not None:
-        return why
     if model.ground_acceleration is not None:
         return "the model is shaken (ground acceleration): the fused engine has no time functions"
     if any(callable(f) for f in model.load_force):
@@ -196,7 +180,8 @@ def pack(members: list, launch_steps: int) -> dict:
         mi[L.MI_STEP_END], mi[L.MI_OC_MAX], mi[L.MI_REST_STEPS] = mem.step_end, p.oc_max_iterations, mem.rest_steps
         mi[L.MI_FLAGS] = (L.FLAG_STATIC * p.static | L.FLAG_LAGGED * (p.oc_friction == "lagged") |
                           L.FLAG_BOND_SLIP * p.bond_breaks_on_slip | L.FLAG_BY_LOAD * (p.oc_force_reference == "load")
-                          | L.FLAG_AUTO_PENALTY * (p.penalty is None) | L.FLAG_RECORD * mem.record)
+                          | L.FLAG_AUTO_PENALTY * (p.penalty is None) | L.FLAG_RECORD * mem.record
+                          | L.FLAG_MIDSTEP * p.midstep_lever_arms)
         mi[L.MI_LAUNCH_STEPS], mi[L.MI_HAVE_ENERGY] = launch_steps, st.energy is not None
         mi[L.MI_F0], mi[L.MI_FCAP] = f_off[k], frames_per_launch(mem, launch_steps)
         mi[L.MI_FEVERY], mi[L.MI_FSIZE] = mem.frame_every, frame_size(mo)
@@ -211,6 +196,7 @@ def pack(members: list, launch_steps: int) -> dict:
                        (L.MF_GY, mo.gravity[1]), (L.MF_STOP_AT, mem.stop_at), (L.MF_REST_LIMIT, mem.rest_limit),
                        (L.MF_DT_FIXED, p.dt or 0.0), (L.MF_DT_MAX, p.dt_max), (L.MF_DT_MIN_RATIO, p.dt_min_ratio),
                        (L.MF_DT_GROWTH, p.dt_growth), (L.MF_DT_CUT, p.dt_cut),
+                       (L.MF_IMPACT, -1.0 if p.impact_overshoot is None else p.impact_overshoot),
                        (L.MF_DISP_REJECT, p.displacement_reject), (L.MF_CARRY, p.velocity_carry),
                        (L.MF_BETA, p.newmark_beta), (L.MF_OC_FORCE_TOL, p.oc_force_tolerance),
                        (L.MF_OC_STATE_TOL, p.oc_state_tolerance), (L.MF_H1, math.radians(p.angle_tolerance)),

@@ -126,11 +126,6 @@ def choose_batch(params, *, member_steps: float) -> tuple[str, str]:
         return "today", f"Params(kernels={params.kernels!r})"
     if params.arch not in ("cpu", "cuda", "gpu"):
         return "today", f"the fused engine runs on the CPU or CUDA, not arch={params.arch!r}"
-    from .pack import step_differs
-
-    why_not = step_differs(params)
-    if why_not is not None:
-        return "today", why_not
     if params.kernels == "fused":
         return "fused", "Params(kernels='fused')"
     if _loaded():
