@@ -209,8 +209,8 @@ def main() -> None:
           f"a path, A/B interleaved\n")
     root = str(ROOT)
     if "steps" not in skip:
-        print(f"| model | free blocks | ntdda ms/step | NumPy path ms/step | fused ms/step | fused / ntdda | "
-              f"NumPy / fused | solves/step (NumPy, fused) | stage s (solves) |")
+        print("| model | free blocks | ntdda ms/step | NumPy path ms/step | fused ms/step | fused / ntdda | "
+              "NumPy / fused | solves/step (NumPy, fused) | stage s (solves) |")
         print("|---|---|---|---|---|---|---|---|---|")
         for case in a.cases.split(","):
             got = {p: [] for p in ("numpy", "fused")}

@@ -14,7 +14,6 @@ Writes a Markdown table to DIR/toppling_start.md (default benchmarks/results).
 from __future__ import annotations
 
 import argparse
-import math
 import platform
 import sys
 import time

@@ -185,7 +185,7 @@ def test_the_scan_fallback_finds_the_root_beside_the_pole(monkeypatch):
     mechanism) K is scanned, and refined around the near-singular points of the system: with
     the eigenvalue form switched off, the bilinear root beside its pole is still found (FS and
     critical friction angle of the closed form)."""
-    from kgm.judges import mechanisms, sarma
+    from kgm.judges import sarma
 
     _, system = _system("bilinear")
     exact = evaluate_sarma(system, PAIR)

@@ -19,8 +19,6 @@ the turn-on on a small column on both sides of its threshold.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 
