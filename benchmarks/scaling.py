@@ -105,12 +105,14 @@ SCENES = {"grid": grid_scene, "stiffgrid": stiffgrid_scene, "slope": slope_scene
 
 
 def parse_params(text: str) -> dict:
-    """``--params`` "NAME=VALUE,..." as Params fields (True/False, numbers, else text)."""
+    """``--params`` "NAME=VALUE,..." as Params fields (True/False, None, numbers, else text)."""
     out = {}
     for item in filter(None, (text or "").split(",")):
         name, value = item.split("=", 1)
         if value in ("True", "False"):
             out[name] = value == "True"
+        elif value == "None":
+            out[name] = None
         else:
             try:
                 out[name] = float(value) if any(ch in value for ch in ".e") else int(value)

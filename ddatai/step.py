@@ -50,7 +50,7 @@ from .records import StepRecord, StepTimer
 from .results import SimulationError
 from .solver import SparseSolver
 from .impacts import approach_bound, impacted, negligible, plastic_start
-from .time_step import choose_time_step, end_on
+from .time_step import choose_time_step, end_on, open_close_ceiling
 
 
 class PenaltyWarning(UserWarning):
@@ -161,9 +161,10 @@ class Stepper:
         contacts, vec, sca = self.find_contacts(state, geom)
         t0 = timer.add("contacts", t0)
         bound, closing = approach_bound(model, state, contacts, vec, sca, dt)
-        dt = end_on(max(bound, min(dt, self.shortest_time_step())), state.time, t_end)
+        dt = end_on(max(min(bound, state.dt_ceiling), min(dt, self.shortest_time_step())), state.time, t_end)
 
         cuts = oc_total = 0
+        failed_dt = math.inf  # the shortest Δt at which a try's open-close iteration failed
         while True:
             # the last try before the run would stop: an open-close cycle holds its contacts
             # closed (`open_close.hold_cycling`) instead of giving up
@@ -173,6 +174,8 @@ class Stepper:
             if attempt.ok:
                 break
             cuts += 1
+            if attempt.cause == "open-close":
+                failed_dt = min(failed_dt, dt)
             dt = self.shorter_time_step(attempt, state, dt)
 
         start = state
@@ -190,6 +193,8 @@ class Stepper:
         if self.softening:
             accumulate_slip(model, attempt.contacts, attempt.vec, attempt.displacement)
         new_state = update(model, start, geom, attempt.displacement, attempt.contacts, dt, attempt.vertex_xy)
+        new_state = new_state.replace(dt_ceiling=open_close_ceiling(self.params, state.dt_ceiling, failed_dt,
+                                                                    attempt.iterations))
         t0 = timer.add("update", t0)
         new_state, energy, work = self.energy_balance(state, new_state, geom, contacts, attempt, dt)
         timer.add("energy", t0)
@@ -292,7 +297,9 @@ class Stepper:
         # the inertia 2M/Δt² is a large part of K (`ddatai.solver`, reuse)
         reuse, self.factored_at = (dt, beta) == self.factored_at, (dt, beta)
         oc = open_close(self, state, geom, contacts, self.pattern, vec, sca, data0, rhs0,
-                        rotation, timer, p.oc_max_iterations, reuse_first=reuse, hold_cycles=hold_cycles)
+                        rotation, timer, p.oc_max_iterations, reuse_first=reuse, hold_cycles=hold_cycles,
+                        give_up_cycles=not hold_cycles,
+                        predicted=self.predicted(state, dt) if p.oc_predict else None)
         if oc.displacement is None:
             return Attempt(ok=False, cause="nan", iterations=oc.iterations)
         if not oc.converged:
@@ -304,6 +311,14 @@ class Stepper:
         accepted = self.accept(state, geom, contacts, vec if oc.vec is None else oc.vec, oc, start_dn=contacts0.dn)
         timer.add("accept", t0)
         return accepted
+
+    def predicted(self, state: State, dt: float) -> np.ndarray:
+        """(B, 6) the step's displacement predicted from the carried velocity and the last
+        step's acceleration, k·v·Δt + ½·a·Δt² (zero for fixed blocks)."""
+        p = self.params
+        d = dt * p.velocity_carry * state.block_velocity + 0.5 * dt * dt * state.block_accel
+        d[self.model.block_fixed] = 0.0
+        return d
 
     def accept(self, state: State, geom: dict, contacts: Contacts, vec: np.ndarray, oc,
                start_dn: Optional[np.ndarray] = None) -> Attempt:
