@@ -34,7 +34,7 @@ BOLT = (200, 20, 20)  # intact rock bolts
 BROKEN_BOLT = (90, 90, 90)  # broken rock bolts (dashed)
 
 
-def _block_radius(results: Results) -> np.ndarray:
+def block_radius(results: Results) -> np.ndarray:
     """(B,) largest distance of a block's vertices from its centroid at frame 0 [m]."""
     off = results.vertex_offset
     centroid = results.centroid[0]
@@ -43,13 +43,13 @@ def _block_radius(results: Results) -> np.ndarray:
     return np.maximum.reduceat(r, off[:-1])
 
 
-def _speed(results: Results, frame: int, radius: np.ndarray) -> np.ndarray:
+def block_speed(results: Results, frame: int, radius: np.ndarray) -> np.ndarray:
     """(B,) block speed at a frame: centroid speed plus |ω| × block radius [m/s]."""
     v = results.velocity[frame]
     return np.hypot(v[:, 0], v[:, 1]) + np.abs(results.angular_velocity[frame]) * radius
 
 
-def _moved(results: Results, frame: int, radius: np.ndarray) -> np.ndarray:
+def block_displacement(results: Results, frame: int, radius: np.ndarray) -> np.ndarray:
     """(B,) how far each block has moved since frame 0: centroid displacement plus
     |rotation| × block radius [m]."""
     u = results.centroid[frame] - results.centroid[0]

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from typing import Optional
 
 
-def _font(size: int):
+def default_font(size: int):
     """Pillow's default font at ``size`` pixels (its FreeType font; the fixed 11-pixel bitmap
     font on Pillow builds without FreeType)."""
     from PIL import ImageFont

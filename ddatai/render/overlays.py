@@ -12,7 +12,7 @@ from .colours import BOLT, BROKEN_BOLT, FIXED_POINT, LOAD, WATER
 from .view import View
 
 
-def _draw_points_and_loads(d, view: View, results: Results, frame: int) -> None:
+def draw_points_and_loads(d, view: View, results: Results, frame: int) -> None:
     """Fixed points as triangles; point loads as arrows of a fixed length along their force at
     the frame's time (a dot for a zero force)."""
     if results.fixed_points.size:
@@ -34,7 +34,7 @@ def _draw_points_and_loads(d, view: View, results: Results, frame: int) -> None:
 
 
 
-def _draw_water_and_bolts(d, view: View, results: Results, frame: int, width: int) -> None:
+def draw_water_and_bolts(d, view: View, results: Results, frame: int, width: int) -> None:
     """The water table (held level beyond its ends, across the picture) and the rock bolts:
     intact ones solid red with their ends, broken ones dashed grey with a cross at the middle.
     Nothing for results without them."""
@@ -64,7 +64,7 @@ def _draw_water_and_bolts(d, view: View, results: Results, frame: int, width: in
                 d.ellipse([x - 2, y - 2, x + 2, y + 2], fill=BOLT)
 
 
-def _water_and_bolt_legend(results: Results) -> list:
+def water_and_bolt_legend(results: Results) -> list:
     """Legend entries for the water table and the bolts of results that have them."""
     out = []
     if len(results.water_table):

@@ -10,11 +10,12 @@ import numpy as np
 
 from ..results import Results
 from .colours import (BACKGROUND, CONTACT_COLOURS, CONTACT_NAMES, DEFAULT_FREE, FIXED, FIXED_POINT, LABEL_COLOURS,
-                      LOAD, MEASURED, MIN_SPEED_SCALE, OUTLINE, SPEED_COLOURS, TEXT, _block_radius, _moved, _speed)
-from .header import _font, layout, text_size
-from .overlays import _draw_points_and_loads, _draw_water_and_bolts, _water_and_bolt_legend
-from .schedule import _check_size, _frames
-from .view import _nice_length, _view
+                      LOAD, MEASURED, MIN_SPEED_SCALE, OUTLINE, SPEED_COLOURS, TEXT, block_displacement, block_radius,
+                      block_speed)
+from .header import default_font, layout, text_size
+from .overlays import draw_points_and_loads, draw_water_and_bolts, water_and_bolt_legend
+from .schedule import check_size, chosen_frames
+from .view import fit_view, scale_bar_length
 
 
 class _Painter:
@@ -24,7 +25,7 @@ class _Painter:
                  show_contacts, title, max_speed):
         self.results = results
         self.size = size
-        self.font = _font(text_size(size))
+        self.font = default_font(text_size(size))
         self.show_contacts = show_contacts
         self.title = title
         nb = results.n_blocks
@@ -41,7 +42,7 @@ class _Painter:
             self.legend = [(LABEL_COLOURS[k % len(LABEL_COLOURS)], names[k]) for k in used]
         else:
             # the colour scale's top over the drawn frames, one frame at a time (no (F, B) array)
-            self.radius = _block_radius(results)
+            self.radius = block_radius(results)
             free = ~results.block_fixed
 
             def top(measure) -> float:
@@ -49,17 +50,17 @@ class _Painter:
                     return 0.0
                 return max((float(measure(results, f, self.radius)[free].max()) for f in frames), default=0.0)
 
-            fastest = top(_speed)
+            fastest = top(block_speed)
             # 1 mm/s floor: a model at rest shows round-off speeds, which are not motion
             self.max_speed = float(max_speed) if max_speed is not None else max(fastest, MIN_SPEED_SCALE)
-            self.measure = _speed
+            self.measure = block_speed
             self.quantity, self.unit = "speed", "m/s"
             if max_speed is None and fastest < MIN_SPEED_SCALE:
                 # no block moves faster than the floor (a static or settled run): the colours
                 # show how far the blocks have moved instead, or a uniform scale shows nothing
-                far = top(_moved)
+                far = top(block_displacement)
                 if far > 0.0:
-                    self.measure, self.max_speed = _moved, far
+                    self.measure, self.max_speed = block_displacement, far
                     self.quantity, self.unit = "displacement", "m"
         off = results.vertex_offset
         self.offsets = off
@@ -72,7 +73,7 @@ class _Painter:
                              bar_label=self.quantity if coloured else None,
                              bar_value=self._bar_value() if coloured else None)
         text_h = self.font.getbbox("Ag")[3]
-        self.view = _view(results, frames, size, top=self.layout.header,
+        self.view = fit_view(results, frames, size, top=self.layout.header,
                           bottom=text_h + 2 * self.layout.pad + 4)
 
     @staticmethod
@@ -117,8 +118,8 @@ class _Painter:
         for b in range(r.n_blocks):
             pts = [tuple(p) for p in pix[off[b]:off[b + 1]].tolist()]
             d.polygon(pts, fill=colours[b], outline=OUTLINE)
-        _draw_water_and_bolts(d, v, r, frame, width)
-        _draw_points_and_loads(d, v, r, frame)
+        draw_water_and_bolts(d, v, r, frame, width)
+        draw_points_and_loads(d, v, r, frame)
         if r.measured.shape[1]:
             for x, y in v.pixels(r.measured[frame]).tolist():
                 d.line([(x - 4, y - 4), (x + 4, y + 4)], fill=MEASURED, width=2)
@@ -166,7 +167,7 @@ class _Painter:
     def _scale_bar(self, d) -> None:
         width, height = self.size
         pad = self.layout.pad
-        length = _nice_length(0.2 * width / self.view.scale)
+        length = scale_bar_length(0.2 * width / self.view.scale)
         px = length * self.view.scale
         text_h = self.font.getbbox("Ag")[3]
         x0, y0 = pad + 4, height - pad - 0.5 * text_h
@@ -188,7 +189,7 @@ class _Painter:
             entries = list(self.legend)
         if self.show_contacts:
             entries += [(CONTACT_COLOURS[s], CONTACT_NAMES[s] + " contact") for s in (1, 2)]
-        entries += _water_and_bolt_legend(self.results)
+        entries += water_and_bolt_legend(self.results)
         if self.results.measured.shape[1]:
             entries.append((MEASURED, "measured point"))
         if self.results.fixed_points.size:
@@ -220,8 +221,8 @@ def iter_frames(results: Results, *, size=(640, 480), stride: int = 1, frames=No
                 max_speed: Optional[float] = None) -> Iterator[np.ndarray]:
     """Yield rendered frames one at a time as (H, W, 3) uint8 arrays (see `write_gif` for the
     options); the arguments are checked before the first frame is drawn."""
-    size = _check_size(size)
-    idx = _frames(results, stride, frames)
+    size = check_size(size)
+    idx = chosen_frames(results, stride, frames)
     painter = _Painter(results, idx, size=size, labels=labels, label_names=label_names,
                        show_contacts=show_contacts, title=title, max_speed=max_speed)
     return (painter.image(f) for f in idx)

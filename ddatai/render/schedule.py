@@ -11,7 +11,7 @@ import numpy as np
 from ..results import Results
 
 
-def _schedule(results, fps, speed, stride, frames):
+def animation_schedule(results, fps, speed, stride, frames):
     """The frames to draw and how long each shows: sampled in simulated time at ``speed`` (the
     default), or every ``stride``-th / the given ``frames`` with durations left to the writer
     (None)."""
@@ -19,10 +19,10 @@ def _schedule(results, fps, speed, stride, frames):
         raise ValueError("results have no frames to render")
     if frames is None and stride is None:
         return gif_schedule(results.time, fps=fps, speed=speed)
-    return _frames(results, 1 if stride is None else stride, frames), None
+    return chosen_frames(results, 1 if stride is None else stride, frames), None
 
 
-def _frames(results: Results, stride: int, frames: Optional[Sequence[int]]) -> list[int]:
+def chosen_frames(results: Results, stride: int, frames: Optional[Sequence[int]]) -> list[int]:
     if results.n_frames == 0:
         raise ValueError("results have no frames to render")
     if frames is not None:
@@ -40,7 +40,7 @@ def _check_stride(stride) -> None:
         raise ValueError(f"stride must be a positive integer, got {stride!r}")
 
 
-def _check_size(size) -> tuple[int, int]:
+def check_size(size) -> tuple[int, int]:
     try:
         w, h = (int(size[0]), int(size[1]))
     except (TypeError, ValueError, IndexError):
@@ -64,7 +64,7 @@ def check_gif_options(*, size=(640, 480), fps: float = 20.0, speed: Optional[flo
     """Validate the GIF options of `write_gif` (or, with ``max_fps=MAX_VIDEO_FPS``, the video
     options of `write_video`) without drawing anything (the command line calls it before a
     run); returns the size as (width, height). Raises `ValueError`."""
-    size = _check_size(size)
+    size = check_size(size)
     if not (isinstance(fps, (int, float)) and not isinstance(fps, bool) and math.isfinite(fps)
             and 0 < fps <= max_fps):
         raise ValueError(f"fps must be a number in (0, {max_fps:g}] frames per second, got {fps!r}")
@@ -114,10 +114,10 @@ def gif_schedule(time: np.ndarray, *, fps: float = 20.0, speed: float = 1.0
         else:
             frames.append(f)
             ends.append(k + 1)
-    return frames, _display_times(ends, fps)
+    return frames, display_times(ends, fps)
 
 
-def _display_times(ends: Sequence[int], fps: float) -> list[float]:
+def display_times(ends: Sequence[int], fps: float) -> list[float]:
     """Display time of each frame [s] whose display ends after ``ends[i]`` frame periods,
     in whole hundredths of a second that add up to the schedule (no drift)."""
     stops = np.round(np.asarray(ends, dtype=float) * (100.0 / fps))

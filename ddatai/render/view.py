@@ -35,7 +35,7 @@ class View:
         return np.stack([px, py], axis=-1)
 
 
-def _view(results: Results, frames: Sequence[int], size: tuple[int, int], *, top: int = 26,
+def fit_view(results: Results, frames: Sequence[int], size: tuple[int, int], *, top: int = 26,
           bottom: int = 30, side: int = 12) -> View:
     """The fixed view of an animation: every block of every drawn frame inside the drawing
     area (below the header of ``top`` pixels, above the scale bar's ``bottom``), equal scales."""
@@ -58,7 +58,7 @@ def _view(results: Results, frames: Sequence[int], size: tuple[int, int], *, top
 
 
 
-def _nice_length(target: float) -> float:
+def scale_bar_length(target: float) -> float:
     """The largest 1, 2 or 5 × 10^k not above target."""
     k = math.floor(math.log10(target))
     for m in (5, 2, 1):

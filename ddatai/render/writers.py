@@ -8,7 +8,7 @@ from typing import Optional
 
 from ..results import Results
 from .painter import iter_frames, render_frames
-from .schedule import MAX_VIDEO_FPS, _display_times, _schedule, check_gif_options
+from .schedule import MAX_VIDEO_FPS, animation_schedule, check_gif_options, display_times
 from .streams import GifStream, VideoStream, check_video_available
 
 
@@ -45,9 +45,9 @@ def write_gif(results: Results, path, *, size=(640, 480), fps: float = 20.0, spe
     Returns the path written.
     """
     size = check_gif_options(size=size, fps=fps, speed=speed, stride=stride)
-    idx, durations = _schedule(results, fps, speed, stride, frames)
+    idx, durations = animation_schedule(results, fps, speed, stride, frames)
     if durations is None:  # every chosen frame shown for 1/fps, in whole hundredths
-        durations = _display_times(range(1, len(idx) + 1), fps)
+        durations = display_times(range(1, len(idx) + 1), fps)
     images = iter_frames(results, size=size, frames=idx, labels=labels, label_names=label_names,
                          show_contacts=show_contacts, title=title, max_speed=max_speed)
     path = Path(path)
@@ -70,7 +70,7 @@ def write_video(results: Results, path, *, size=(640, 480), fps: float = 25.0, s
     ``quality`` is imageio's 0–10 (higher: larger, sharper files). Returns the path written."""
     size = check_gif_options(size=size, fps=fps, speed=speed, stride=stride, max_fps=MAX_VIDEO_FPS)
     check_video_available()
-    idx, durations = _schedule(results, fps, speed, stride, frames)
+    idx, durations = animation_schedule(results, fps, speed, stride, frames)
     if durations is None:  # every chosen frame shown for 1/fps
         durations = [1.0 / fps] * len(idx)
     images = iter_frames(results, size=size, frames=idx, labels=labels, label_names=label_names,
