@@ -36,7 +36,7 @@ import numpy as np
 # re-exported only: this module was their home, and callers still import them from here
 from .placement import (BlockLocator, block_containing, block_materials, blocks_inside_other_blocks,
                         clip_fixed_line, ntdda_fixed_points)
-from .segments import _T_TOL, domain_scale, segment_intersection
+from .segments import PARAMETER_TOL, domain_scale, segment_intersection
 
 __all__ = ["CutBlocks", "cut_segments", "domain_scale", "segment_intersection", "BlockLocator",
            "block_containing", "block_materials", "blocks_inside_other_blocks", "clip_fixed_line",
@@ -274,7 +274,7 @@ def _delete_edges_near_nodes(node_xy, neighbours, edge_line, is_boundary, distan
     t = np.einsum("ij,ij->i", node_xy[n_idx] - a[e_idx], d) / np.einsum("ij,ij->i", d, d)
     foot = a[e_idx] + t[:, None] * d
     dist = np.hypot(*(node_xy[n_idx] - foot).T)
-    near = (t >= -_T_TOL) & (t <= 1 + _T_TOL) & (dist <= distance)
+    near = (t >= -PARAMETER_TOL) & (t <= 1 + PARAMETER_TOL) & (dist <= distance)
     for e in sorted(set(e_idx[near].tolist())):
         _remove_edge(neighbours, edge_line, *keys[e])
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 #: Parameter tolerance of ntdda's segment intersection test (lns): t in [-1e-7, 1 + 1e-7].
-_T_TOL = 1e-7
+PARAMETER_TOL = 1e-7
 #: Parallel-line test of lns, relative to w0² (|d0| < 1e-9·w0²).
 _PARALLEL_TOL = 1e-9
 
@@ -46,7 +46,7 @@ def segment_intersection(w0: float, p1, p2, p3, p4, *, collinear: bool = True
     d1 = x31 * y34 - x34 * y31
     d2 = x21 * y31 - x31 * y21
     eps = _PARALLEL_TOL * w0 * w0
-    lo, hi = -_T_TOL, 1.0 + _T_TOL
+    lo, hi = -PARAMETER_TOL, 1.0 + PARAMETER_TOL
     normal = np.abs(d0) >= eps
     with np.errstate(divide="ignore", invalid="ignore"):
         t1n = np.where(normal, d1 / np.where(normal, d0, 1.0), 0.0)
