@@ -101,8 +101,7 @@ def solve(stepper, pattern: BlockPattern, data: np.ndarray, rhs: np.ndarray,
 def open_close(stepper, state: State, geom: dict, contacts: Contacts, pattern: BlockPattern,
                vec: np.ndarray, sca: np.ndarray, data0: np.ndarray, rhs0: np.ndarray,
                rotation: np.ndarray, timer: "StepTimer", max_iterations: int, break_bonds: bool = True,
-               reuse_first: bool = True, hold_cycles: bool = False, give_up_cycles: bool = False,
-               predicted: Optional[np.ndarray] = None) -> OpenClose:
+               reuse_first: bool = True, hold_cycles: bool = False, give_up_cycles: bool = False) -> OpenClose:
     """The open-close iteration (§4) in place on ``contacts``, from the block terms ``data0``,
     ``rhs0`` (`assembly.assemble_blocks`) and the rotation predicted for the step (for the
     second-order terms). ``reuse_first``: the first solve may try the last factor (the states
@@ -110,9 +109,7 @@ def open_close(stepper, state: State, geom: dict, contacts: Contacts, pattern: B
     (off in the equilibrium stage, whose joints are Mohr–Coulomb). ``hold_cycles``: a cycle of
     states holds its contacts closed (`hold_cycling`; the step's last try, at the shortest Δt).
     ``give_up_cycles``: a cycle of states ends the try at once, not converged (`cycling`; a
-    step's tries before the last, which a shorter Δt follows). ``predicted``: (B, 6) the step's
-    displacement predicted from the carried motion; the first solve then takes the states the
-    contact law gives there (`predict_states`)."""
+    step's tries before the last, which a shorter Δt follows)."""
     model = stepper.model
     n = 6 * pattern.n_rows
     block_k = None   # K of the block terms, for the line search (built when first needed)
@@ -130,8 +127,6 @@ def open_close(stepper, state: State, geom: dict, contacts: Contacts, pattern: B
     history = [contacts.state.copy()]
     held = np.zeros(contacts.n, bool)
     start_vec = vec  # the contact vectors at the step's start; each solve's have its lever arms
-    if predicted is not None and predict_states(stepper, state, geom, contacts, vec, sca, rotation, predicted):
-        reuse_first = False  # the states are no longer those the last factor was made with
     for it in range(1, max_iterations + 1):
         t0 = _time.perf_counter()
         data, rhs = data0.copy(), rhs0.copy()
@@ -200,27 +195,6 @@ def open_close(stepper, state: State, geom: dict, contacts: Contacts, pattern: B
                 couple_sliding(contacts)
     return OpenClose(displacement=disp, iterations=max_iterations, converged=False,
                      changing=verdict.bad if verdict is not None else np.zeros(contacts.n, bool))
-
-
-def predict_states(stepper, state: State, geom: dict, contacts: Contacts, vec: np.ndarray, sca: np.ndarray,
-                   rotation: np.ndarray, predicted: np.ndarray) -> bool:
-    """The first solve's states from the contact law at the predicted displacement (each block
-    moving with its carried velocity and last acceleration), in place on ``contacts``: a contact
-    that the predicted motion closes or opens starts the iteration closed or open, a closed one
-    the law's lock or slide. Bonds are not broken by a prediction. Returns whether any changed."""
-    model = stepper.model
-    shift = second_order(model, contacts, state, geom, rotation, np.zeros(6 * stepper.pattern.n_rows))
-    law = contact_law(model, contacts, vec, sca, predicted, shift)
-    change = law.state != contacts.state
-    if not change.any():
-        return False
-    slide = change & (law.state == SLIDE) & (contacts.cint[:, KIND] != VV)
-    if stepper.params.oc_friction != "lagged":
-        contacts.coupled |= slide & (contacts.tan_phi > 0)
-    contacts.shear_dir[slide] = law.direction[slide]
-    contacts.state[change] = law.state[change]
-    contacts.line[change] = law.line[change]
-    return True
 
 
 #: a set of contact states that the iteration reaches this many times in one try is a cycle

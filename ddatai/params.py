@@ -242,10 +242,6 @@ class Params:
     tensile strength T·L of a bonded joint). It only absorbs round-off: a tolerance like
     ntdda's f0 = 2e-7 would let contacts carry tensions of p·f0·w0 (thousands of kN at rock
     penalties) and blocks could never topple."""
-    oc_predict: bool = False
-    """Start each try's open-close iteration from the contact states at the displacement
-    predicted from the carried motion (`open_close.predict_states`) instead of those the last
-    step ended with."""
     oc_force_tolerance: float = 1e-3
     """Open-close convergence, the contact law [-]: in an accepted step every locked contact's
     shear force is at most its Coulomb strength S = N·tanφ + c·L, every sliding contact's
@@ -344,8 +340,7 @@ class Params:
                  f"Params.kernels must be 'auto', 'fused', 'taichi' or 'numpy', got {self.kernels!r}")
         _require(isinstance(self.arch, str) and self.arch in ("cpu", "gpu", "cuda", "vulkan", "metal"),
                  f"Params.arch must be one of 'cpu', 'gpu', 'cuda', 'vulkan', 'metal', got {self.arch!r}")
-        for name in ("factor_updates", "initial_equilibrium", "start_turn_on", "bond_breaks_on_slip", "midstep_lever_arms",
-                     "oc_predict"):
+        for name in ("factor_updates", "initial_equilibrium", "start_turn_on", "bond_breaks_on_slip", "midstep_lever_arms"):
             _require(isinstance(getattr(self, name), bool),
                      f"Params.{name} must be True or False, got {getattr(self, name)!r}")
 

@@ -186,7 +186,10 @@ class Stepper:
             projected = self.impact_projection(state, geom, attempt, dt)
             if not negligible(model, state, geom, projected, impact):
                 start = plastic_start(state, projected, impact)
-                again = self.attempt(start, geom, contacts, vec, sca, dt, timer)
+                # the states it converged to are the retake's first guess: its K is the one last
+                # factorised (only the impacted blocks' velocity, in F, differs), so its first
+                # solve takes that factor, and the solution moves little from there
+                again = self.attempt(start, geom, converged_states(contacts, attempt.contacts), vec, sca, dt, timer)
                 oc_total += again.iterations
                 start, attempt = (start, again) if again.ok else (state, attempt)
         t0 = _time.perf_counter()
@@ -298,8 +301,7 @@ class Stepper:
         reuse, self.factored_at = (dt, beta) == self.factored_at, (dt, beta)
         oc = open_close(self, state, geom, contacts, self.pattern, vec, sca, data0, rhs0,
                         rotation, timer, p.oc_max_iterations, reuse_first=reuse, hold_cycles=hold_cycles,
-                        give_up_cycles=not hold_cycles,
-                        predicted=self.predicted(state, dt) if p.oc_predict else None)
+                        give_up_cycles=not hold_cycles
         if oc.displacement is None:
             return Attempt(ok=False, cause="nan", iterations=oc.iterations)
         if not oc.converged:
@@ -311,14 +313,6 @@ class Stepper:
         accepted = self.accept(state, geom, contacts, vec if oc.vec is None else oc.vec, oc, start_dn=contacts0.dn)
         timer.add("accept", t0)
         return accepted
-
-    def predicted(self, state: State, dt: float) -> np.ndarray:
-        """(B, 6) the step's displacement predicted from the carried velocity and the last
-        step's acceleration, k·v·Δt + ½·a·Δt² (zero for fixed blocks)."""
-        p = self.params
-        d = dt * p.velocity_carry * state.block_velocity + 0.5 * dt * dt * state.block_accel
-        d[self.model.block_fixed] = 0.0
-        return d
 
     def accept(self, state: State, geom: dict, contacts: Contacts, vec: np.ndarray, oc,
                start_dn: Optional[np.ndarray] = None) -> Attempt:
@@ -391,3 +385,13 @@ class Stepper:
         new_state = new_state.replace(energy=sum(energy))
         dissipated = external - (new_state.energy - state.energy) - friction
         return new_state, energy, (external, friction, dissipated)
+
+
+def converged_states(start: Contacts, converged: Contacts) -> Contacts:
+    """The step's contacts as they started (geometry, lock points, bonds) with the states the
+    accepted try converged to (state, VV line, sliding direction, implicit friction, normal
+    force): the first guess of a try taken again at the same Δt (a plastic impact's retake)."""
+    out = start.copy()
+    for name in ("state", "line", "shear_dir", "coupled", "normal_force"):
+        getattr(out, name)[:] = getattr(converged, name)
+    return out
