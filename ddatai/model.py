@@ -267,9 +267,6 @@ class State:
     """Time step of the last accepted step [s] (0 before the first)."""
     accel: float
     """Largest block acceleration seen in the last step [m/s²] (for the automatic time step)."""
-    dt_ceiling: float = float("inf")
-    """Longest Δt the next step may take after an open-close failure [s] (inf: none;
-    `time_step.open_close_ceiling`)."""
     memory: ContactMemory = field(default_factory=ContactMemory.empty)
     """Contact data carried to the next step."""
     energy: Optional[float] = None

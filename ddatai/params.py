@@ -173,11 +173,6 @@ class Params:
     """Largest growth of the automatic time step from one step to the next [-]."""
     dt_cut: float = 0.3
     """Factor applied to the time step when the open-close iteration fails [-] (Shi: 0.3)."""
-    dt_after_oc_failure: Optional[float] = None
-    """After a try whose open-close iteration did not converge, the next steps' Δt is at most
-    this fraction of the Δt that failed, the bound growing back by ``dt_growth`` with each step
-    that converges in at most half of ``oc_max_iterations`` solves
-    (`time_step.open_close_ceiling`); None: no such bound."""
     max_displacement_ratio: float = 0.005
     """g2: largest vertex displacement allowed in one step, as a fraction of the model scale
     w0 = half the larger side of the model's bounding box, at most 10 × the median size of the
@@ -295,12 +290,11 @@ class Params:
     def __post_init__(self) -> None:
         def pos(name: str) -> None:
             v = getattr(self, name)  # None: automatic (dt, penalty) or off (impact_overshoot)
-            _require((v is None and name in ("dt", "penalty", "impact_overshoot", "dt_after_oc_failure")) or
-                     (_finite(v) and v > 0),
+            _require((v is None and name in ("dt", "penalty", "impact_overshoot")) or (_finite(v) and v > 0),
                      f"Params.{name} must be a finite number > 0, got {v!r}")
         for name in ("dt", "penalty", "impact_overshoot", "penalty_ratio", "shear_ratio", "fixed_point_ratio",
                      "max_displacement_ratio", "open_tolerance", "oc_force_tolerance", "oc_state_tolerance",
-                     "penetration_ratio", "angle_tolerance", "dt_min_ratio", "dt_max", "dt_after_oc_failure"):
+                     "penetration_ratio", "angle_tolerance", "dt_min_ratio", "dt_max"):
             pos(name)
         _require(_finite(self.dt_growth) and self.dt_growth >= 1.0,
                  f"Params.dt_growth must be >= 1, got {self.dt_growth!r}")

@@ -50,7 +50,7 @@ from .records import StepRecord, StepTimer
 from .results import SimulationError
 from .solver import SparseSolver
 from .impacts import approach_bound, impacted, negligible, plastic_start
-from .time_step import choose_time_step, end_on, open_close_ceiling
+from .time_step import choose_time_step, end_on
 
 
 class PenaltyWarning(UserWarning):
@@ -161,10 +161,9 @@ class Stepper:
         contacts, vec, sca = self.find_contacts(state, geom)
         t0 = timer.add("contacts", t0)
         bound, closing = approach_bound(model, state, contacts, vec, sca, dt)
-        dt = end_on(max(min(bound, state.dt_ceiling), min(dt, self.shortest_time_step())), state.time, t_end)
+        dt = end_on(max(bound, min(dt, self.shortest_time_step())), state.time, t_end)
 
         cuts = oc_total = 0
-        failed_dt = math.inf  # the shortest Δt at which a try's open-close iteration failed
         while True:
             # the last try before the run would stop: an open-close cycle holds its contacts
             # closed (`open_close.hold_cycling`) instead of giving up
@@ -174,8 +173,6 @@ class Stepper:
             if attempt.ok:
                 break
             cuts += 1
-            if attempt.cause == "open-close":
-                failed_dt = min(failed_dt, dt)
             dt = self.shorter_time_step(attempt, state, dt)
 
         start = state
@@ -186,18 +183,13 @@ class Stepper:
             projected = self.impact_projection(state, geom, attempt, dt)
             if not negligible(model, state, geom, projected, impact):
                 start = plastic_start(state, projected, impact)
-                # the states it converged to are the retake's first guess: its K is the one last
-                # factorised (only the impacted blocks' velocity, in F, differs), so its first
-                # solve takes that factor, and the solution moves little from there
-                again = self.attempt(start, geom, converged_states(contacts, attempt.contacts), vec, sca, dt, timer)
+                again = self.attempt(start, geom, contacts, vec, sca, dt, timer)
                 oc_total += again.iterations
                 start, attempt = (start, again) if again.ok else (state, attempt)
         t0 = _time.perf_counter()
         if self.softening:
             accumulate_slip(model, attempt.contacts, attempt.vec, attempt.displacement)
         new_state = update(model, start, geom, attempt.displacement, attempt.contacts, dt, attempt.vertex_xy)
-        new_state = new_state.replace(dt_ceiling=open_close_ceiling(self.params, state.dt_ceiling, failed_dt,
-                                                                    attempt.iterations))
         t0 = timer.add("update", t0)
         new_state, energy, work = self.energy_balance(state, new_state, geom, contacts, attempt, dt)
         timer.add("energy", t0)
@@ -385,13 +377,3 @@ class Stepper:
         new_state = new_state.replace(energy=sum(energy))
         dissipated = external - (new_state.energy - state.energy) - friction
         return new_state, energy, (external, friction, dissipated)
-
-
-def converged_states(start: Contacts, converged: Contacts) -> Contacts:
-    """The step's contacts as they started (geometry, lock points, bonds) with the states the
-    accepted try converged to (state, VV line, sliding direction, implicit friction, normal
-    force): the first guess of a try taken again at the same Δt (a plastic impact's retake)."""
-    out = start.copy()
-    for name in ("state", "line", "shear_dir", "coupled", "normal_force"):
-        getattr(out, name)[:] = getattr(converged, name)
-    return out

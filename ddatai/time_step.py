@@ -63,23 +63,3 @@ def end_on(dt: float, time: float, t_end) -> float:
     if remaining < 2.0 * dt:
         return 0.5 * remaining
     return dt
-
-
-def open_close_ceiling(params, ceiling: float, failed_dt: float, solves: int) -> float:
-    """The longest Δt of the next step after this one (``Params.dt_after_oc_failure``; inf:
-    none): ``dt_after_oc_failure`` × the shortest Δt at which a try of this step failed to
-    converge in its open-close iteration (``failed_dt``, inf if none did), else the last
-    ceiling × ``dt_growth`` where the accepted try converged in at most half of
-    ``oc_max_iterations`` solves (``solves``), else the last ceiling. Why: the open-close
-    iteration of a collapsing model takes more solves the longer the step, and a try that fails
-    spends ``oc_max_iterations`` solves before its Δt is cut; growing back by ``dt_growth`` a step
-    towards a Δt that failed (or to an impact step longer than it, `ddatai.impacts`) fails again
-    (the 1,474-block slope of benchmarks/scaling.py: a failed first try in 5 of 6 steps)."""
-    fraction = params.dt_after_oc_failure
-    if fraction is None:
-        return float("inf")
-    if failed_dt < float("inf"):
-        return min(ceiling, fraction * failed_dt)
-    if 2 * solves <= params.oc_max_iterations:
-        return ceiling * params.dt_growth
-    return ceiling

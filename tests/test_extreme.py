@@ -197,23 +197,6 @@ def test_time_step_has_no_cancellation():
     assert dt == pytest.approx(min(model.max_step / 20.0, model.params.dt_max), rel=1e-9)
 
 
-def test_time_step_after_an_open_close_failure():
-    """``Params.dt_after_oc_failure``: the next steps' Δt is at most that fraction of the Δt whose
-    try failed to converge (the shortest, if several did), and the bound grows back by
-    ``dt_growth`` only with a step that converged in at most half of ``oc_max_iterations``
-    solves; None leaves Δt unbounded."""
-    from ddatai.time_step import open_close_ceiling
-
-    p = dd.Params(dt_after_oc_failure=0.5, oc_max_iterations=20, dt_growth=1.3)
-    inf = float("inf")
-    assert open_close_ceiling(p, inf, 1e-3, 8) == pytest.approx(5e-4)
-    assert open_close_ceiling(p, 4e-4, 1e-3, 8) == pytest.approx(4e-4)  # never above the bound it has
-    assert open_close_ceiling(p, 5e-4, inf, 10) == pytest.approx(6.5e-4)  # an easy step: it grows
-    assert open_close_ceiling(p, 5e-4, inf, 11) == pytest.approx(5e-4)  # a hard one: it holds
-    assert open_close_ceiling(p, inf, inf, 3) == inf
-    assert open_close_ceiling(dd.Params(), 4e-4, 1e-3, 20) == inf
-
-
 def test_soft_heavy_column_runs():
     """Weak rock mass (E = 20 MPa, ρ = 2,700 kg/m³, 3 blocks of 5 m: self-weight strain ~2 %):
     with 50·E the contacts sank past the penetration limit ("runaway penetration"); the
