@@ -51,15 +51,11 @@ MAX_ITERATIONS = 120
 STALL_ITERATIONS = 20
 #: ... and in finishing an iteration that stalled within the looser tolerance only
 MAX_FINISH_SOLVES = 8
-#: a pseudo-step's first iteration stops for Newton once no contact has changed state in this
-#: many iterations: the rest is the slips' linear convergence (`_iterate`, ``tail``). Newton's
-#: first try comes once no contact has closed or changed line and none has opened pulled by
-#: more than ``Params.oc_state_tolerance`` × the load its blocks carry (the open-close judgement
-#: of a step changes no state for less, docs/method/dda.md §4.3; ``minor_steady``): in a fitted
-#: grid the slips' slow convergence opens corner contacts one or two an iteration at ~1e-5 of
-#: the load, each a factorisation (the 1,600-block grid's first pseudo-step: 63 solves, its
-#: last 35 with only such openings). Where Newton does not finish from there, the return
-#: mapping goes on and tries it once more where no state changes at all
+#: a pseudo-step's iteration stops for Newton once, for this many iterations, no contact closed or
+#: changed line and none opened pulled by more than ``Params.oc_state_tolerance`` × its blocks'
+#: load (a step's judgement changes no state for less, docs/method/dda.md §4.3; the 40 × 40
+#: grid's first pseudo-step spent 35 of 63 solves on such openings, each a factorisation); where
+#: Newton does not finish, once more where no state changes at all (`_iterate`, ``tail``)
 NEWTON_AFTER = 3
 #: a pseudo-step that has not found its equilibrium in this many solves gives up (welded start)
 MAX_STAGE_SOLVES = 1000
@@ -152,7 +148,7 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
     guess = None
     freeze = False
     stalled = False
-    newton = 2  # Newton's tries left: first once the states that move forces settle, then once all do
+    newton = 2  # Newton's tries left (NEWTON_AFTER)
     touching, line0 = contacts.state != OPEN, contacts.line.copy()  # as limit equilibrium counts them
     while solves < MAX_STAGE_SOLVES:
         keep = ~(out[contacts.block_a] | out[contacts.block_b])
@@ -161,9 +157,8 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
             touching, line0 = touching[keep], line0[keep]
             guess = guess.subset(keep) if guess is not None else None
             frame = Frame.build(stepper, state, geom, contacts, dt)
-        # Newton (``_finish``) from where the states settle, at most twice a pseudo-step
-        # (NEWTON_AFTER) and before anything is released (a model with a mechanism keeps the
-        # path limit equilibrium checks)
+        # Newton (``_finish``) where the states settle (NEWTON_AFTER), before anything is
+        # released (a model with a mechanism keeps the path limit equilibrium checks)
         newton_now = newton > 0 and not freeze and not np.any(out & ~released)
         outcome, raw = _iterate(stepper, frame, contacts, geom, out, size, guess, freeze,
                                 tail=NEWTON_AFTER if newton_now else None, minor_steady=newton == 2)
@@ -390,13 +385,9 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
                 return outcome, guess
         unbalance = float(np.max(np.maximum(excess, 0.0) / loose, initial=0.0))
         states_moved = changed or alpha < 1.0  # states changed, or the line search stopped short
-        if minor_steady:
-            # only the changes that move a force by more than the state tolerance stop Newton
-            # from taking over (NEWTON_AFTER): closes and switches are judged so already
-            major = closes | switch | (opens & (pen * law.dn - tensile > state_loose))
-            steady = 0 if major.any() else steady + 1
-        else:
-            steady = 0 if states_moved else steady + 1
+        major = bool(np.any(closes | switch | (opens & (pen * law.dn - tensile > state_loose)))) \
+            if minor_steady else states_moved  # a change that moves a force by more than the state tolerance
+        steady = 0 if major else steady + 1
         if tail is not None and steady >= tail and it > 1:
             outcome.steady = True
             guess.slip = guess.slip + dslip
