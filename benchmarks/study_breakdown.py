@@ -24,6 +24,7 @@ for _k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "TI_CPU
     os.environ.setdefault(_k, "1")
 
 import statistics  # noqa: E402
+from contextlib import nullcontext  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -66,8 +67,11 @@ def main() -> None:
     build = ScriptFunction(str(ROOT / "scenes" / "example_2.py"))
     settings = Settings(dda=DdaSettings(params=dd.Params(dt=0.0013, penalty_ratio=1.0, kernels="fused")))
     blocks = frozenset({0, 1})
-    rows = []
-    runs = []
+    rows, runs, subs = [], [], []
+    try:
+        from ddatai.limit_batch import screened_ahead
+    except ImportError:  # before the programs were solved side by side
+        screened_ahead = None
     for i in range(a.n):
         r = {"i": i, "friction": float(samples["friction"][i]), "cohesion": float(samples["cohesion"][i])}
         t0 = time.perf_counter()
@@ -81,15 +85,29 @@ def main() -> None:
         sub, ids = sub_scene(problem.scene, problem.system, blocks, free_neighbours=plan.free_neighbours)
         model = build_model(sub, plan.params)
         t4 = time.perf_counter()
-        state, record = settle(Stepper(model), model.initial_state())
-        t5 = time.perf_counter()
-        r.update(build=t1 - t0, prepare=t2 - t1, screen_le=t3 - t2, submodel=t4 - t3, stage=t5 - t4,
-                 stage_solves=int(record.solves), held=int(record.held),
-                 released=int(record.released), sarma_fs=float(res.fs))
+        r.update(build=t1 - t0, prepare=t2 - t1, screen_le=t3 - t2, submodel=t4 - t3, sarma_fs=float(res.fs))
         rows.append(r)
-        runs.append((Run(model=model, state=state, t_end=plan.duration, stop_at=plan.stop_at,
-                         rest_limit=-1.0 if plan.rest_speed is None else plan.rest_speed,
-                         rest_steps=plan.rest_steps, group=tuple(ids.index(b) for b in sorted(blocks))), plan))
+        subs.append((model, plan, ids))
+    # the stages, a batch at a time (as `kgm.judges.fused.judge_fused` settles them)
+    ahead = 0.0
+    for b0 in range(0, a.n, a.batch):
+        part = subs[b0:b0 + a.batch]
+        steppers = [Stepper(m) for m, _, _ in part]
+        states = [m.initial_state() for m, _, _ in part]
+        t0 = time.perf_counter()
+        context = screened_ahead(steppers, states) if screened_ahead is not None else nullcontext()
+        with context:
+            ahead += time.perf_counter() - t0
+            for k, ((model, plan, ids), st, s0) in enumerate(zip(part, steppers, states)):
+                t4 = time.perf_counter()
+                state, record = settle(st, s0)
+                t5 = time.perf_counter()
+                rows[b0 + k].update(stage=t5 - t4, stage_solves=int(record.solves), held=int(record.held),
+                                    released=int(record.released))
+                runs.append((Run(model=model, state=state, t_end=plan.duration, stop_at=plan.stop_at,
+                                 rest_limit=-1.0 if plan.rest_speed is None else plan.rest_speed,
+                                 rest_steps=plan.rest_steps, group=tuple(ids.index(b) for b in sorted(blocks))),
+                             plan))
     ends = {engine.STATUS[layout.STOP_MOVED]: RunEnd.STOPPED_EARLY, engine.STATUS[layout.STOP_REST]: RunEnd.AT_REST}
     pack_s, run_s = 0.0, 0.0
     for b0 in range(0, a.n, a.batch):
@@ -111,6 +129,7 @@ def main() -> None:
                                 rest_speed=plan.rest_speed, quiet=o.quiet)
     n = a.n
     tot = {k: sum(r[k] for r in rows) for k in ("build", "prepare", "screen_le", "submodel", "stage")}
+    tot["screens side by side"] = ahead
     print(f"\n{n} samples, batches of {a.batch}; load {os.getloadavg()[0]:.2f}")
     print("| phase | total [s] | per sample [ms] |")
     print("|---|---|---|")
