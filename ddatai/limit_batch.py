@@ -84,13 +84,17 @@ def solve_programs(programs) -> dict:
 def _mehrotra_many(a, b, tan_phi, cohesion, tensile) -> list:
     """`limit_equilibrium._mehrotra` (dense) of K programs that share ``a`` and ``b`` and differ
     in their strengths ((K, m) arrays): each member's iteration as its own (its steps, its
-    stop), its answer ``(Σ(r⁺ + r⁻), y)`` or None."""
+    stop), its answer ``(Σ(r⁺ + r⁻), y)`` or None. The iterates of the members still iterating
+    are kept side by side (rows), a member's row dropped when it stops."""
     k_n, m = tan_phi.shape
     n = a.shape[0]
     a = a.toarray()
+    at = np.ascontiguousarray(a.T)
     a_n, a_s = a[:, :m], a[:, m:]
-    mu = tan_phi
-    d = np.concatenate([tensile, cohesion, cohesion, np.zeros((k_n, 2 * n))], axis=1)
+    a_st = np.ascontiguousarray(a_s.T)
+    a_nt = np.ascontiguousarray(a_n.T)
+    diagonal = (slice(None), np.arange(n), np.arange(n))
+    width = 3 * m + 2 * n
 
     def c_times(nn, ss, rp, rm, mu):
         return np.concatenate([nn, mu * nn - ss, mu * nn + ss, rp, rm], axis=1)
@@ -100,9 +104,13 @@ def _mehrotra_many(a, b, tan_phi, cohesion, tensile) -> list:
         return v[:, :m] + mu * (v2 + v3), v3 - v2, v[:, 3 * m:3 * m + n], v[:, 3 * m + n:]
 
     def step(v, dv):  # `limit_equilibrium._step`, row by row
-        ratio = np.where(dv < 0, -v / np.where(dv < 0, dv, -1.0), np.inf)
-        return np.minimum(1.0, ratio.min(axis=1))
+        neg = dv < 0
+        return np.minimum(1.0, np.where(neg, -v / np.where(neg, dv, -1.0), np.inf).min(axis=1))
 
+    # the rows: the members still iterating (``ids``) and their iterates
+    ids = np.arange(k_n)
+    mu = tan_phi.copy()
+    d = np.concatenate([tensile, cohesion, cohesion, np.zeros((k_n, 2 * n))], axis=1)
     nn, ss = np.zeros((k_n, m)), np.zeros((k_n, m))
     rp = np.tile(np.maximum(-b, 0.0) + 1.0, (k_n, 1))
     rm = np.tile(np.maximum(b, 0.0) + 1.0, (k_n, 1))
@@ -116,89 +124,80 @@ def _mehrotra_many(a, b, tan_phi, cohesion, tensile) -> list:
     def best(g):  # where round-off ended member g's iteration: its best iterate, if close enough
         return (float(best_sum[g]), best_y[g].copy()) if best_gap[g] < 1e3 * le.IPM_TOLERANCE else None
 
-    active = np.arange(k_n)
     for _ in range(le.MAX_IPM_ITERATIONS):
-        if not len(active):
-            break
-        i = active
-        mu_i, d_i = mu[i], d[i]
-        aty = y[i] @ a
-        ctz = ct_times(z[i], mu_i)
-        rd = (-aty[:, :m] - ctz[0], -aty[:, m:] - ctz[1], 1.0 - y[i] - ctz[2], 1.0 + y[i] - ctz[3])
-        re = np.concatenate([nn[i], ss[i]], axis=1) @ a.T + rp[i] - rm[i] + b
-        ri = c_times(nn[i], ss[i], rp[i], rm[i], mu_i) + d_i - s[i]
-        gap = np.einsum("ij,ij->i", s[i], z[i]) / s.shape[1]
+        aty = y @ a
+        ctz = ct_times(z, mu)
+        rd = (-aty[:, :m] - ctz[0], -aty[:, m:] - ctz[1], 1.0 - y - ctz[2], 1.0 + y - ctz[3])
+        re = np.concatenate([nn, ss], axis=1) @ at + rp - rm + b
+        ri = c_times(nn, ss, rp, rm, mu) + d - s
+        gap = np.einsum("ij,ij->i", s, z) / width
         primal = np.maximum(np.abs(re).max(axis=1), np.abs(ri).max(axis=1)) / size
-        dual = np.max([np.abs(r).max(axis=1) for r in rd], axis=0)
+        dual = np.maximum(np.maximum(np.abs(rd[0]).max(axis=1), np.abs(rd[1]).max(axis=1)),
+                          np.maximum(np.abs(rd[2]).max(axis=1), np.abs(rd[3]).max(axis=1)))
         finite = np.isfinite(gap + primal + dual)
-        done = ~finite
         near = finite & (primal < 100.0 * le.IPM_TOLERANCE) & (dual < 10.0 * le.DUAL_TOLERANCE)
-        better = near & (gap < best_gap[i])
-        g = i[better]
-        best_gap[g], best_sum[g], best_y[g] = gap[better], rp[g].sum(axis=1) + rm[g].sum(axis=1), y[g]
+        better = near & (gap < best_gap[ids])
+        if better.any():
+            g = ids[better]
+            best_gap[g], best_sum[g], best_y[g] = gap[better], rp[better].sum(axis=1) + rm[better].sum(axis=1), \
+                y[better]
         converged = finite & (primal < le.IPM_TOLERANCE) & (dual < le.DUAL_TOLERANCE) & (gap < le.IPM_TOLERANCE)
         for j in np.flatnonzero(converged):
-            out[i[j]] = (float(rp[i[j]].sum() + rm[i[j]].sum()), y[i[j]].copy())
-        done |= converged
-        q = z[i] / s[i]
+            out[ids[j]] = (float(rp[j].sum() + rm[j].sum()), y[j].copy())
+        q = z / s
         q1, q2, q3, q4, q5 = q[:, :m], q[:, m:2 * m], q[:, 2 * m:3 * m], q[:, 3 * m:3 * m + n], q[:, 3 * m + n:]
-        h11, h12, h22 = q1 + mu_i * mu_i * (q2 + q3), mu_i * (q3 - q2), q2 + q3
-        det = np.maximum(q1 * h22 + 4.0 * mu_i * mu_i * q2 * q3, 1e-300)
+        h11, h12, h22 = q1 + mu * mu * (q2 + q3), mu * (q3 - q2), q2 + q3
+        det = np.maximum(q1 * h22 + 4.0 * mu * mu * q2 * q3, 1e-300)
         i11, i12, i22 = h22 / det, -h12 / det, h11 / det
-        cross = (a_n[None] * i12[:, None, :]) @ a_s.T
-        newton_matrix = (a_n[None] * i11[:, None, :]) @ a_n.T + cross + cross.transpose(0, 2, 1) + \
-            (a_s[None] * i22[:, None, :]) @ a_s.T
-        diag = 1.0 / q4 + 1.0 / q5
-        newton_matrix[:, np.arange(n), np.arange(n)] += diag
+        cross = (a_n * i12[:, None, :]) @ a_st
+        newton_matrix = (a_n * i11[:, None, :]) @ a_nt + cross + cross.transpose(0, 2, 1) + \
+            (a_s * i22[:, None, :]) @ a_st
+        newton_matrix[diagonal] += 1.0 / q4 + 1.0 / q5
         # each member's Cholesky factor; one that is not positive definite ends that member's
         # iteration (round-off), as `_DenseFactor` ends one alone
-        factor = np.zeros_like(newton_matrix)
+        done = ~finite | converged
         try:
-            factor[~done] = np.linalg.cholesky(newton_matrix[~done])
+            lower = np.linalg.cholesky(newton_matrix)
         except np.linalg.LinAlgError:
+            lower = np.zeros_like(newton_matrix)
             for j in np.flatnonzero(~done):
                 try:
-                    factor[j] = np.linalg.cholesky(newton_matrix[j])
+                    lower[j] = np.linalg.cholesky(newton_matrix[j])
                 except np.linalg.LinAlgError:
                     done[j] = True
-        go = np.flatnonzero(~done)
-        for j in np.flatnonzero(done & ~converged):
-            out[i[j]] = best(i[j])
-        if not len(go):
-            active = active[:0]
-            break
-        g = i[go]
-        mu_g, z_g, s_g, ri_g = mu_i[go], z[g], s[g], ri[go]
-        rd_g = tuple(r[go] for r in rd)
-        re_g, q4_g, q5_g = re[go], q4[go], q5[go]
-        i11_g, i12_g, i22_g = i11[go], i12[go], i22[go]
-        lower_g = factor[go]
-        upper_g = lower_g.transpose(0, 2, 1)
+        if done.any():
+            for j in np.flatnonzero(done & ~converged):
+                out[ids[j]] = best(ids[j])
+            go = ~done
+            if not go.any():
+                ids = ids[:0]
+                break
+            ids, mu, d, nn, ss, rp, rm, s, z, y = (v[go] for v in (ids, mu, d, nn, ss, rp, rm, s, z, y))
+            rd, re, ri, gap, lower = tuple(r[go] for r in rd), re[go], ri[go], gap[go], lower[go]
+            q4, q5, i11, i12, i22 = q4[go], q5[go], i11[go], i12[go], i22[go]
+        upper = lower.transpose(0, 2, 1)
 
         def newton(rc):
-            t = ct_times((rc - z_g * ri_g) / s_g, mu_g)
-            qn, qs, qp, qm = (-r + u for r, u in zip(rd_g, t))
-            hn, hs = i11_g * qn + i12_g * qs, i12_g * qn + i22_g * qs
-            rhs = -re_g - (np.concatenate([hn, hs], axis=1) @ a.T + qp / q4_g - qm / q5_g)
-            dy = np.linalg.solve(upper_g, np.linalg.solve(lower_g, rhs[:, :, None]))[:, :, 0]
+            t = ct_times((rc - z * ri) / s, mu)
+            qn, qs, qp, qm = (-r + u for r, u in zip(rd, t))
+            hn, hs = i11 * qn + i12 * qs, i12 * qn + i22 * qs
+            rhs = -re - (np.concatenate([hn, hs], axis=1) @ at + qp / q4 - qm / q5)
+            dy = np.linalg.solve(upper, np.linalg.solve(lower, rhs[:, :, None]))[:, :, 0]
             atdy = dy @ a
             pn, ps = qn + atdy[:, :m], qs + atdy[:, m:]
-            dn, dsh = i11_g * pn + i12_g * ps, i12_g * pn + i22_g * ps
-            dp, dm = (qp + dy) / q4_g, (qm - dy) / q5_g
-            dslack = c_times(dn, dsh, dp, dm, mu_g) + ri_g
-            return dn, dsh, dp, dm, dy, dslack, (rc - z_g * dslack) / s_g
+            dn, dsh = i11 * pn + i12 * ps, i12 * pn + i22 * ps
+            dp, dm = (qp + dy) / q4, (qm - dy) / q5
+            dslack = c_times(dn, dsh, dp, dm, mu) + ri
+            return dn, dsh, dp, dm, dy, dslack, (rc - z * dslack) / s
 
-        gap_g = gap[go]
-        aff = newton(-s_g * z_g)
-        a_p, a_d = step(s_g, aff[5]), step(z_g, aff[6])
-        gap_aff = np.einsum("ij,ij->i", s_g + a_p[:, None] * aff[5], z_g + a_d[:, None] * aff[6]) / s.shape[1]
-        sigma = (gap_aff / np.maximum(gap_g, 1e-300)) ** 3
-        dn, dsh, dp, dm, dy, dslack, dz = newton((sigma * gap_g)[:, None] - s_g * z_g - aff[5] * aff[6])
-        a_p, a_d = (0.99 * step(s_g, dslack))[:, None], (0.99 * step(z_g, dz))[:, None]
-        nn[g], ss[g], rp[g], rm[g] = nn[g] + a_p * dn, ss[g] + a_p * dsh, rp[g] + a_p * dp, rm[g] + a_p * dm
-        s[g] = s_g + a_p * dslack
-        y[g], z[g] = y[g] + a_d * dy, z_g + a_d * dz
-        active = g
-    for g in active:  # the iterations ran out
+        aff = newton(-s * z)
+        a_p, a_d = step(s, aff[5]), step(z, aff[6])
+        gap_aff = np.einsum("ij,ij->i", s + a_p[:, None] * aff[5], z + a_d[:, None] * aff[6]) / width
+        sigma = (gap_aff / np.maximum(gap, 1e-300)) ** 3
+        dn, dsh, dp, dm, dy, dslack, dz = newton((sigma * gap)[:, None] - s * z - aff[5] * aff[6])
+        a_p, a_d = (0.99 * step(s, dslack))[:, None], (0.99 * step(z, dz))[:, None]
+        nn, ss, rp, rm, s = nn + a_p * dn, ss + a_p * dsh, rp + a_p * dp, rm + a_p * dm, s + a_p * dslack
+        y, z = y + a_d * dy, z + a_d * dz
+    for g in ids:  # the iterations ran out
         out[g] = best(g)
     return out

@@ -1,0 +1,65 @@
+"""Example II's DDA-judged study on two checkouts of the project, paired: samples a second.
+
+    python benchmarks/study_ab.py --a /path/to/checkout-A --b /path/to/checkout-B [--samples 400] [--repeats 2]
+
+Each run is a fresh process (``benchmarks/small_models.py``'s study: friction N(22°, 2°),
+cohesion N(20 kPa, 5 kPa) correlated −0.3, seed 1, group {0, 1} of ``scenes/example_2.py``,
+Δt 1.3 ms, p = 1·E, 2 worker processes, the fused engine), A and B alternating ``--repeats``
+times, threads pinned in every process (BLAS and Taichi one thread each): the wall time of
+``kgm.probabilistic`` from its call to its table, the workers' start and their load of the
+fused kernel (Taichi's offline cache) included. Prints each run, the medians, and whether the
+two checkouts' tables give every sample the same verdict. Run ``python -m ddatai.fused`` in
+each checkout first (the kernel compiled and cached).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+from small_models import PINNED, STUDY  # noqa: E402
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--a", required=True, help="checkout A (e.g. this branch)")
+    ap.add_argument("--b", required=True, help="checkout B (e.g. main)")
+    ap.add_argument("--samples", type=int, default=400)
+    ap.add_argument("--repeats", type=int, default=2)
+    a = ap.parse_args()
+    walls = {"A": [], "B": []}
+    tables = {}
+    print(f"# Example II DDA-judged study, {a.samples} samples, 2 workers; load {os.getloadavg()[0]:.1f}", flush=True)
+    for rep in range(a.repeats):
+        for name, root in (("A", a.a), ("B", a.b)):
+            out = f"/tmp/ddatai_study_ab_{name}.npy"
+            code = STUDY.format(root=str(Path(root).resolve()), script=f"{Path(root).resolve()}/scenes/example_2.py",
+                                kernels="fused", n=a.samples, out=out)
+            proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=root,
+                                  env={**os.environ, **PINNED}, timeout=3600)
+            if proc.returncode != 0:
+                raise SystemExit(proc.stderr[-3000:])
+            wall, pf = proc.stdout.strip().splitlines()[-1].split()
+            walls[name].append(float(wall))
+            tables[name] = np.load(out)
+            print(f"run {rep + 1} {name}: {float(wall):.1f} s ({a.samples / float(wall):.1f} samples/s), P_f {pf}, "
+                  f"load {os.getloadavg()[0]:.1f}", flush=True)
+    for name, root in (("A", a.a), ("B", a.b)):
+        w = statistics.median(walls[name])
+        print(f"{name} ({root}): median {w:.1f} s, {a.samples / w:.1f} samples/s")
+    ratios = [b / x for x, b in zip(walls["A"], walls["B"])]
+    print(f"B/A pair by pair: {', '.join(f'{r:.2f}' for r in ratios)}; "
+          f"the same verdicts sample by sample: {bool(np.array_equal(tables['A'], tables['B']))}")
+
+
+if __name__ == "__main__":
+    main()
