@@ -1,6 +1,6 @@
 """Where a sample of Example II's DDA-judged study spends its time, phase by phase, in one process.
 
-    python benchmarks/study_breakdown.py [--n 200] [--batch 40] [--json out.json]
+    python benchmarks/study_breakdown.py [--n 200] [--batch 40] [--json out.json] [--root CHECKOUT]
 
 The study of ``benchmarks/probabilistic.py`` (friction N(22°, 2°), cohesion N(20 kPa, 5 kPa),
 correlated −0.3, seed 1, group {0, 1} of ``scenes/example_2.py``, Δt 1.3 ms, p = 1·E) taken
@@ -11,7 +11,13 @@ equilibrium stage (``ddatai.start.settle``: held or released, its solves), the p
 launch and the fused kernel's runs (``ddatai.fused.engine.run``, batches of ``--batch``
 members: each member's steps and how its run ended). Threads are pinned (BLAS and Taichi one
 thread each); the fused kernel is loaded (from Taichi's offline cache) before anything is
-timed. Prints a table and, with ``--json``, every member's figures.
+timed. Prints a table and, with ``--json``, every member's figures. ``--root``: the checkout whose
+``ddatai`` and ``kgm`` are timed (default this one; its scenes and variables are this one's).
+
+The screen by limit equilibrium (``screen_le``: Sarma on the given group) is timed in every
+checkout; a study that judges a given group by its DDA verdict alone no longer runs it
+(`kgm.studies.probabilistic._screen`), and ``screens side by side`` exists only where the
+stages' programs are solved side by side (`ddatai.limit_batch`).
 """
 
 from __future__ import annotations
@@ -39,7 +45,9 @@ def main() -> None:
     ap.add_argument("--n", type=int, default=200)
     ap.add_argument("--batch", type=int, default=40)
     ap.add_argument("--json", default="")
+    ap.add_argument("--root", default=str(ROOT))
     a = ap.parse_args()
+    sys.path.insert(0, str(Path(a.root).resolve()))
 
     import ddatai as dd
     from ddatai.io.scenefile import build_scene
@@ -157,5 +165,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    sys.path.insert(0, str(ROOT))
     main()
