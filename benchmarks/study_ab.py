@@ -1,6 +1,7 @@
 """Example II's DDA-judged study on two checkouts of the project, paired: samples a second.
 
     python benchmarks/study_ab.py --a /path/to/checkout-A --b /path/to/checkout-B [--samples 400] [--repeats 2]
+    python benchmarks/study_ab.py --a ... --b ... --evaluate [--repeats 3]
 
 Each run is a fresh process (``benchmarks/small_models.py``'s study: friction N(22°, 2°),
 cohesion N(20 kPa, 5 kPa) correlated −0.3, seed 1, group {0, 1} of ``scenes/example_2.py``,
@@ -10,6 +11,10 @@ times, threads pinned in every process (BLAS and Taichi one thread each): the wa
 fused kernel (Taichi's offline cache) included. Prints each run, the medians, and whether the
 two checkouts' tables give every sample the same verdict. Run ``python -m ddatai.fused`` in
 each checkout first (the kernel compiled and cached).
+
+``--evaluate``: instead, ``kgm.evaluate(Example I, [0, 1], "dda")`` (the fused engine) twice in
+each fresh process, A and B alternating: the first call (the kernel's load included) and the
+second (warm), with FS and φc of each.
 """
 
 from __future__ import annotations
@@ -26,7 +31,25 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from small_models import PINNED, STUDY  # noqa: E402
+from small_models import KGM, PINNED, STUDY  # noqa: E402
+
+
+def evaluate(a) -> None:
+    walls = {"A": [], "B": []}
+    print(f"# kgm.evaluate(Example I, [0, 1], 'dda'), fused; load {os.getloadavg()[0]:.1f}", flush=True)
+    for rep in range(a.repeats):
+        for name, root in (("A", a.a), ("B", a.b)):
+            proc = subprocess.run([sys.executable, "-c", KGM.format(root=str(Path(root).resolve()), kernels="fused")],
+                                  capture_output=True, text=True, cwd=root, env={**os.environ, **PINNED}, timeout=3600)
+            if proc.returncode != 0:
+                raise SystemExit(proc.stderr[-3000:])
+            first, second, fs, phi, runs = proc.stdout.strip().splitlines()[-1].split()
+            walls[name].append(float(second))
+            print(f"run {rep + 1} {name}: first {float(first):.2f} s, warm {float(second):.3f} s; FS {float(fs):.4f}, "
+                  f"φc {float(phi):.3f}°, {runs} runs; load {os.getloadavg()[0]:.1f}", flush=True)
+    for name, root in (("A", a.a), ("B", a.b)):
+        print(f"{name} ({root}): warm median {statistics.median(walls[name]):.3f} s")
+    print(f"B/A pair by pair: {', '.join(f'{b / x:.2f}' for x, b in zip(walls['A'], walls['B']))}")
 
 
 def main() -> None:
@@ -35,7 +58,11 @@ def main() -> None:
     ap.add_argument("--b", required=True, help="checkout B (e.g. main)")
     ap.add_argument("--samples", type=int, default=400)
     ap.add_argument("--repeats", type=int, default=2)
+    ap.add_argument("--evaluate", action="store_true", help="kgm.evaluate of Example I instead of the study")
     a = ap.parse_args()
+    if a.evaluate:
+        evaluate(a)
+        return
     walls = {"A": [], "B": []}
     tables = {}
     print(f"# Example II DDA-judged study, {a.samples} samples, 2 workers; load {os.getloadavg()[0]:.1f}", flush=True)
