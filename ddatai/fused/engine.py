@@ -79,71 +79,20 @@ def _short_source_positions():
     """While Taichi turns the kernel's Python into its IR, every node's source position is its
     file and line, without the code snippet Taichi formats (textwrap) for each of the ~35,000
     nodes of the fused kernel, for its error messages: some 40 % of that work, which every
-    process does again before it takes the compiled kernel from the offline cache. And each
-    function's source file and lines are looked up once, not at each of its ~1,100
-    instantiations (``inspect`` scans every loaded module at each look-up: ~1.5 s a process);
-    the same text, so the same IR and the same cache key."""
-    from taichi.lang import kernel_impl
+    process does again before it takes the compiled kernel from the offline cache."""
     from taichi.lang.ast import ast_transformer_utils as utils
-    from taichi.lang.ast import checkers
 
     context = utils.ASTTransformerContext
     original = context.get_pos_info
-    looked_up = {m: (m.getsourcefile, m.getsourcelines) for m in (kernel_impl, checkers)}
-    files, lines = {}, {}
 
     def position(self, node):
         return f'File "{self.file}", line {node.lineno + self.lineno_offset}, in {self.func.func.__name__}:\n'
 
-    def source_file(func, find=kernel_impl.getsourcefile):
-        if func not in files:
-            files[func] = find(func)
-        return files[func]
-
-    def source_lines(func, find=kernel_impl.getsourcelines):
-        if func not in lines:
-            lines[func] = find(func)
-        src, start = lines[func]
-        return list(src), start
-
     context.get_pos_info = position
-    for module in looked_up:
-        module.getsourcefile, module.getsourcelines = source_file, source_lines
     try:
         yield
     finally:
         context.get_pos_info = original
-        for module, (find_file, find_lines) in looked_up.items():
-            module.getsourcefile, module.getsourcelines = find_file, find_lines
-
-
-@contextmanager
-def _quick_decorators():
-    """While the kernel's modules are imported, Taichi's decorators ask whether each function is
-    defined in a class from the decorating frame's source line read by ``linecache``, as
-    ``inspect.getframeinfo`` reads it (its first line) but without ``inspect``'s search of every
-    loaded module for the frame's file, ~15 ms a decorator at ~230 decorators: the same answer
-    (module-level functions, no class)."""
-    import linecache
-    import sys
-
-    from taichi.lang import kernel_impl
-
-    original = kernel_impl._inside_class
-
-    def inside_class(level_of_class_stackframe):
-        try:
-            frame = sys._getframe(level_of_class_stackframe)
-            first = linecache.getline(frame.f_code.co_filename, frame.f_lineno).strip()
-        except ValueError:
-            return False
-        return any(pattern.match(first) for pattern in kernel_impl._KERNEL_CLASS_STACKFRAME_STMT_RES)
-
-    kernel_impl._inside_class = inside_class
-    try:
-        yield
-    finally:
-        kernel_impl._inside_class = original
 
 
 class Session:
@@ -151,8 +100,7 @@ class Session:
 
     def __init__(self, members: list, *, arch: str = "cpu", launch_steps: int = LAUNCH_STEPS):
         from .. import backend
-        with _quick_decorators():
-            from . import kernel
+        from . import kernel
         from .arrays import Pack
         from .policy import mark_cached
 
