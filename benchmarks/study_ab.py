@@ -64,7 +64,8 @@ def evaluate(a) -> None:
                 raise SystemExit(proc.stderr[-3000:])
             first, second, cpu, fs, phi, runs = proc.stdout.strip().splitlines()[-1].split()
             walls[name].append(float(cpu))
-            print(f"run {rep + 1} {name}: first {float(first):.2f} s, warm {float(second):.3f} s wall, {float(cpu):.3f} s "
+            print(f"run {rep + 1} {name}: first {float(first):.2f} s, warm {float(second):.3f} s wall, "
+                  f"{float(cpu):.3f} s "
                   f"CPU; FS {float(fs):.4f}, "
                   f"φc {float(phi):.3f}°, {runs} runs; load {os.getloadavg()[0]:.1f}", flush=True)
     for name, root in (("A", a.a), ("B", a.b)):

@@ -11,7 +11,8 @@ equilibrium stage (``ddatai.start.settle``: held or released, its solves), the p
 launch and the fused kernel's runs (``ddatai.fused.engine.run``, batches of ``--batch``
 members: each member's steps and how its run ended). Threads are pinned (BLAS and Taichi one
 thread each); the fused kernel is loaded (from Taichi's offline cache) before anything is
-timed, by default in this process's CPU seconds (``--clock wall``: wall time). Prints a table and, with ``--json``, every member's figures. ``--root``: the checkout whose
+timed, by default in this process's CPU seconds (``--clock wall``: wall time). Prints a table
+and, with ``--json``, every member's figures. ``--root``: the checkout whose
 ``ddatai`` and ``kgm`` are timed (default this one; its scenes and variables are this one's).
 
 The screen by limit equilibrium (``screen_le``: Sarma on the given group) is timed in every
@@ -154,12 +155,14 @@ def main() -> None:
     for r in rows:
         key = ("released" if r["released"] else "held", r["status"], "stable" if r["stable"] else "failed")
         by.setdefault(key, []).append(r)
-    print("\n| stage | run end | verdict | members | stage ms (median) | stage solves (median) | steps (median, min, max) |")
+    print("\n| stage | run end | verdict | members | stage ms (median) | stage solves (median) | "
+          "steps (median, min, max) |")
     print("|---|---|---|---|---|---|---|")
     for key, rs in sorted(by.items()):
         st = [r["steps"] for r in rs]
         print(f"| {key[0]} | {key[1]} | {key[2]} | {len(rs)} | {1e3 * statistics.median(r['stage'] for r in rs):.1f} | "
-              f"{statistics.median(r['stage_solves'] for r in rs):.0f} | {statistics.median(st):.0f}, {min(st)}, {max(st)} |")
+              f"{statistics.median(r['stage_solves'] for r in rs):.0f} | "
+              f"{statistics.median(st):.0f}, {min(st)}, {max(st)} |")
     r0 = rows[0]
     print(f"\nT {r0['T']:.3f} s, δ {r0['delta']:.4f} m, rest speed {r0['rest_speed']:.3g} m/s, "
           f"steps to T {r0['T'] / 0.0013:.0f}")
