@@ -6,6 +6,7 @@ Data flows one way::
       -> Model (static arrays) + State                  ddatai.model
       -> equilibrium at t = 0                           ddatai.start
            (return mapping; at a stall, limit equilibrium)  ddatai.return_mapping, ddatai.limit_equilibrium
+           (many members: the programs side by side)   ddatai.limit_batch
       -> step, phase by phase                           ddatai.step
            Δt                                           ddatai.time_step
            contacts (detection, memory)                 ddatai.contacts, ddatai.layout

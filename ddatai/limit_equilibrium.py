@@ -64,10 +64,13 @@ def applicable(model) -> bool:
 
 
 def unsupported_blocks(model, vertex_xy: np.ndarray, geom: dict, contacts: Contacts,
-                       touching: np.ndarray, out: np.ndarray) -> Optional[np.ndarray]:
+                       touching: np.ndarray, out: np.ndarray, solve=None) -> Optional[np.ndarray]:
     """(B,) the free blocks (not ``out``) that the ``touching`` contacts cannot hold under the
     model's weight and point loads at t = 0 by rigid-block limit equilibrium (module docstring);
-    None where the program does not apply (`applicable`) or does not converge."""
+    None where the program does not apply (`applicable`) or does not converge. ``solve``: the
+    programs' solver, ``solve(a, b, tan_phi, cohesion, tensile) -> (unbalance, y) or None``
+    (default `_interior_point`; `ddatai.limit_batch` passes one that collects the programs)."""
+    solve = solve or _interior_point
     if not applicable(model):
         return None
     centroid = geom["centroid"]
@@ -126,8 +129,8 @@ def unsupported_blocks(model, vertex_xy: np.ndarray, geom: dict, contacts: Conta
         unit = float(np.median(weight[tested]))
         equilibrium = _equilibrium_matrix(sel, block_a, block_b, point, normal, tangent, centroid, row_of,
                                           3 * n_blocks, unit / scale)
-        outcome = _interior_point(equilibrium, load[tested].ravel() / scale, contacts.tan_phi[sel],
-                                  cohesion[sel] / unit, tensile[sel] / unit)
+        outcome = solve(equilibrium, load[tested].ravel() / scale, contacts.tan_phi[sel],
+                        cohesion[sel] / unit, tensile[sel] / unit)
         if outcome is None:
             return None
         unbalance, y = outcome
@@ -170,12 +173,24 @@ def _equilibrium_matrix(sel, block_a, block_b, point, normal, tangent, centroid,
 #: see the same touching contacts (every contact detected at t = 0 touching)
 _SOLVED: dict = {}
 _SOLVED_KEPT = 8
+#: answers to programs solved side by side ahead of the stages that ask them
+#: (`ddatai.limit_batch.screened_ahead`), by their data, kept while those stages run
+PRIMED: dict = {}
+
+
+def program_key(a, b, tan_phi, cohesion, tensile) -> tuple:
+    """A program's data as a key (its bytes)."""
+    return tuple((v.dtype.str, v.shape, v.tobytes()) for v in
+                 (np.asarray(x) for x in (a.data, a.indices, a.indptr, a.shape, b, tan_phi, cohesion, tensile)))
 
 
 def _interior_point(a, b, tan_phi, cohesion, tensile):
-    """`_solve_program`, or its answer to the same program asked lately (the same bytes)."""
-    key = tuple((v.dtype.str, v.shape, v.tobytes()) for v in
-                (np.asarray(x) for x in (a.data, a.indices, a.indptr, a.shape, b, tan_phi, cohesion, tensile)))
+    """`_solve_program`, or its answer to the same program asked lately or solved ahead (the
+    same bytes)."""
+    key = program_key(a, b, tan_phi, cohesion, tensile)
+    if key in PRIMED:
+        out = PRIMED[key]
+        return None if out is None else (out[0], out[1].copy())
     if key in _SOLVED:
         out = _SOLVED[key]
         return None if out is None else (out[0], out[1].copy())

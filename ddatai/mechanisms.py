@@ -238,6 +238,20 @@ def unsupported_at_start(stepper, state: State) -> np.ndarray:
     away in the return mapping first, the program on the rest), and releases the same blocks.
     None where nothing touches, or where the program does not apply (bolts, water) or does
     not converge."""
+    return _screen(stepper, state)
+
+
+def screen_program(stepper, state: State):
+    """The data ``(a, b, tan_phi, cohesion, tensile)`` of the first limit-equilibrium program
+    that `unsupported_at_start` solves for this model, or None where it solves none
+    (`ddatai.limit_batch`: the programs of many members solved side by side)."""
+    asked = []
+    _screen(stepper, state, solve=lambda *program: asked.append(program))
+    return asked[0] if asked else None
+
+
+def _screen(stepper, state: State, solve=None) -> np.ndarray:
+    """`unsupported_at_start`, its programs solved by ``solve`` (`unsupported_blocks`)."""
     model = stepper.model
     none = np.zeros(model.n_blocks, bool)
     free = ~model.block_fixed
@@ -248,5 +262,5 @@ def unsupported_at_start(stepper, state: State) -> np.ndarray:
     contacts = Contacts.start(model, state.vertex_xy, cint, length, ContactMemory.empty(), True)
     if not np.any(contacts.state != OPEN):
         return none  # nothing touches: the stage has nothing to hold or release
-    found = unsupported_blocks(model, state.vertex_xy, geom, contacts, np.ones(contacts.n, bool), none)
+    found = unsupported_blocks(model, state.vertex_xy, geom, contacts, np.ones(contacts.n, bool), none, solve)
     return free if found is not None and np.all(found[free]) else none

@@ -305,3 +305,23 @@ def test_the_study_file_gives_back_the_rows_it_was_given(tmp_path):
         assert np.float64(back[i].fs).tobytes() == np.float64(row.fs).tobytes()
         assert (back[i].failed, back[i].critical, back[i].critical_text) == (row.failed, row.critical,
                                                                               " ".join(map(str, row.critical)))
+
+
+def test_a_given_group_judged_by_its_dda_verdict_alone_is_not_screened(monkeypatch):
+    """A DDA study of a given group without strength reduction takes each sample's DDA verdict
+    alone (its FS is nan): the screening evaluator's FS, which it would drop, is not computed;
+    the group is still checked (a group that is not connected is refused, naming it)."""
+    from kgm.kinds import Method
+    from kgm.studies import probabilistic as module
+
+    def screened(*args, **kwargs):
+        raise AssertionError("the screening evaluator ran")
+
+    monkeypatch.setattr(module, "evaluate_group", screened)
+    job = module._Job(build=kgm_cases.incline_scene, method=Method.DDA, settings=None, group=frozenset({1}),
+                      pass_seed=False)
+    out = module._screen(job, (0, {"friction": 20.0}, 1))
+    assert out.group == frozenset({1}) and out.result is None and out.row.critical == (1,)
+    with pytest.raises(ValueError, match="group"):
+        module._screen(module._Job(build=kgm_cases.incline_scene, method=Method.DDA, settings=None,
+                                   group=frozenset({0, 1}), pass_seed=False), (0, {"friction": 20.0}, 1))

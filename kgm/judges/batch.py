@@ -91,8 +91,7 @@ def judge_members(members, blocks: frozenset, *, settings: DdaSettings, params: 
     from ddatai.model import build_model
     from ddatai.results import SimulationError
     from ddatai.run import simulate
-    from ddatai.start import settle
-    from ddatai.step import Stepper
+    from ddatai.limit_batch import settle_many
 
     def alone(which):
         out = {}
@@ -138,8 +137,7 @@ def judge_members(members, blocks: frozenset, *, settings: DdaSettings, params: 
     # each member settled by its own equilibrium stage: the stage decides per model what it
     # holds, releases or welds (`ddatai.batch.combined_state`)
     start = time.perf_counter()
-    states = [settle(Stepper(m), m.initial_state())[0] if prm.initial_equilibrium else m.initial_state()
-              for m in models]
+    states = settle_many(models) if prm.initial_equilibrium else [m.initial_state() for m in models]
     pos = [list(ids).index(b) for b in sorted(blocks)]
     stop_at = plan.stop_at
     n_members = len(members)

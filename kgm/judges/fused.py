@@ -54,13 +54,14 @@ def judge_fused(members, blocks: frozenset, *, settings: DdaSettings, params: Op
         if covers(model) is not None:
             return None
         built.append((sub, ids, model))
-    from ddatai.start import settle
-    from ddatai.step import Stepper
+    from ddatai.limit_batch import settle_many
 
+    # each member settled by its own equilibrium stage: it decides what the model holds (the
+    # stages' limit-equilibrium screens solved side by side first, `ddatai.limit_batch`)
+    models = [model for _, _, model in built]
+    states = settle_many(models) if prm.initial_equilibrium else [m.initial_state() for m in models]
     runs = []
-    for (sub, ids, model), plan in zip(built, plans):
-        # each member settled by its own equilibrium stage: it decides what the model holds
-        state = settle(Stepper(model), model.initial_state())[0] if prm.initial_equilibrium else model.initial_state()
+    for (sub, ids, model), plan, state in zip(built, plans, states):
         runs.append(Run(model=model, state=state, t_end=plan.duration, stop_at=plan.stop_at,
                         rest_limit=-1.0 if plan.rest_speed is None else plan.rest_speed,
                         rest_steps=plan.rest_steps, group=tuple(ids.index(b) for b in sorted(blocks))))

@@ -42,6 +42,7 @@ from ddatai.workers import WorkerLost
 
 from ..analysis import analyze_problem, evaluate_group
 from ..build import Problem, prepare
+from ..faces import check_group, is_connected
 from ..judges.batch import Member, judge_members
 from ..judges.dda import dda_evaluation
 from ..kinds import METHOD_NAMES, Method, Sampling
@@ -79,9 +80,13 @@ class Screened:
     problem: Problem
     """The sample's problem, prepared once: DDA judges its group on the same block system."""
     result: Optional[GroupResult]
-    """The critical group by the screening method, or None."""
+    """The critical group by the screening method, or None (no key group, or a given group whose
+    DDA verdict alone the row takes: ``group``)."""
     row: SampleRow
     """The sample's row by the screening method."""
+    group: Optional[frozenset] = None
+    """The group DDA judges (the critical one, or the study's given group); None: nothing can
+    fail."""
 
 
 def _evaluate(job: _Job, item: tuple) -> SampleRow:
@@ -89,10 +94,11 @@ def _evaluate(job: _Job, item: tuple) -> SampleRow:
     index, values, seed = item
     try:
         screened = _screen(job, item)
-        if screened.result is None or job.method is not Method.DDA:
+        if screened.group is None or job.method is not Method.DDA:
             return screened.row
-        result, problem = screened.result, screened.problem
-        dres = dda_evaluation(problem, frozenset(result.blocks), fs_guess=result.fs, with_fs=job.dda_fs,
+        problem = screened.problem
+        fs_guess = screened.result.fs if screened.result is not None else 1.0
+        dres = dda_evaluation(problem, screened.group, fs_guess=fs_guess, with_fs=job.dda_fs,
                               with_friction=False, report=problem.settings.dda.progress)
         return SampleRow(fs=float(dres.fs), failed=not bool(dres.judgement.stable), critical=screened.row.critical)
     except Exception as exc:
@@ -119,6 +125,13 @@ def _screen(job: _Job, item: tuple) -> Screened:
     # DDA on every candidate): the verdict from one run at the sample's strength, FS by
     # strength reduction only when asked (several runs)
     method = job.method.screened_by(settings.screening)
+    if job.group is not None and job.method is Method.DDA and not job.dda_fs:
+        # a given group judged by its DDA verdict alone: the screening method's FS would be
+        # computed and dropped (the row's FS is nan), so only the group is checked
+        group = check_group(problem.system, job.group)
+        if not is_connected(problem.system, group):
+            raise ValueError(f"group {sorted(group)} is not connected: its blocks must share contacts")
+        return Screened(problem=problem, result=None, row=SampleRow.of_group(math.nan, False, group), group=group)
     if job.group is not None:
         result = evaluate_group(problem, job.group, method)
     else:
@@ -126,7 +139,8 @@ def _screen(job: _Job, item: tuple) -> Screened:
     if result is None:
         return Screened(problem=problem, result=None, row=SampleRow(fs=math.inf, failed=False))
     return Screened(problem=problem, result=result,
-                    row=SampleRow.of_group(result.fs, not bool(result.stable), result.blocks))
+                    row=SampleRow.of_group(result.fs, not bool(result.stable), result.blocks),
+                    group=frozenset(result.blocks))
 
 
 def _evaluate_batch(job: _Job, items: tuple) -> list:
@@ -141,11 +155,11 @@ def _evaluate_batch(job: _Job, items: tuple) -> list:
             screened = _screen(job, item)
         except Exception as exc:
             raise _failed(index, values, seed, exc) from exc
-        if screened.result is None:
+        if screened.group is None:
             rows[index] = screened.row
             continue
         member = Member(scene=screened.problem.scene, system=screened.problem.system)
-        key = (frozenset(screened.result.blocks), screened.problem.params)
+        key = (screened.group, screened.problem.params)
         groups.setdefault(key, []).append((item, member, screened))
     for (blocks, params), entries in groups.items():
         settings = entries[0][2].problem.settings
