@@ -100,6 +100,31 @@ def _edge_edge_exit(xy: ti.template(), vnext: ti.template(), vprev: ti.template(
 
 
 @ti.func
+def _past_corner(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), p, w, d9):
+    """Whether vertex p, of a vertex-vertex pair (p, w), has passed w's corner along an edge at
+    w: it projects onto the edge (w, next w) or (prev w, w) beyond round-off from w and lies
+    behind that edge's line beyond round-off (`narrow._VertexPairs`, docs/method/dda.md §3.4).
+    Its contact is then that edge's, not a corner's."""
+    P = _pt(xy, p)
+    out = 0
+    for k in range(2):
+        e = w
+        if k == 1:
+            e = vprev[w]
+        q0 = _pt(xy, e)
+        d = _pt(xy, vnext[e]) - q0
+        l = ti.max(_norm2(d), EDGE_FLOOR)
+        t = _dot2(P - q0, d) / (l * l)
+        dn = _dot2(P - q0, ti.Vector([d[1], -d[0]]) / l)
+        along = t * l > SLACK * d9 and t <= 1.0
+        if k == 1:
+            along = (1.0 - t) * l > SLACK * d9 and t >= 0.0
+        if along and dn < -SLACK * d9:
+            out = 1
+    return out
+
+
+@ti.func
 def _ve_test(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), p, e,
              d0, d9, sin_h1, check_projection):
     """Distance and entrance-angle criteria for vertex p against edge e (§3.3, §3.4).
@@ -253,6 +278,10 @@ def _vertex_vertex(xy: ti.template(), vnext: ti.template(), vprev: ti.template()
                     if k == 1:
                         p, e, w = ib, eB, ia
                     exits += _edge_edge_exit(xy, vnext, vprev, p, e, w, d9)
+                # a vertex that has passed its partner's corner along one of its edges (the
+                # corners of diagonal blocks where four squares meet, after the rows slid): the
+                # vertex-edge tests give both vertices' contacts, one line could hold only one
+                exits += _past_corner(xy, vnext, vprev, ia, ib, d9) + _past_corner(xy, vnext, vprev, ib, ia, d9)
                 if exits == 0:
                     _emit(out_int, out_len, count, slot, base, cap, KIND_VV, ia, eA, ib, eB, 0.0)
                 else:
