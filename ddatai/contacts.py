@@ -16,7 +16,7 @@ import numpy as np
 
 # the states and kinds as plain ints: a NumPy comparison with an IntEnum member costs ~5× one with
 # an int (the member is converted on every call)
-from .layout import E0, E1, KIND, LOCK, OPEN, SLIDE, V0, V1, VE, VV
+from .layout import E0, E1, KIND, LOCK, OPEN, SLIDE, V0, V1, VE
 from .model import ContactMemory, Model
 
 
@@ -296,9 +296,6 @@ class Contacts:
                 edge_len = np.linalg.norm(vertex_xy[cint[sliding, E0]] -
                                           vertex_xy[model.vertex_next[cint[sliding, E0]]], axis=1)
                 omega[sliding] -= shear_dir[sliding] * strength / (model.shear_penalty * edge_len)
-        import os
-        if len(memory.key) and m and os.environ.get("CK_LINE", "1") == "1":
-            line = entrance_line(model, vertex_xy, cint, found, line, normal_force)
         if first_step and m:
             # contacts the equilibrium stage left in memory keep their state; the others start
             # closed where they touch
@@ -353,38 +350,6 @@ def barton_tan(model: Model, joint: np.ndarray, normal_force: np.ndarray, length
         phi = phir + jrc * np.log10(jcs / sigma)
     phi = np.where(sigma > 0, np.clip(phi, phir, cap), np.where(jrc > 0, cap, phir))  # σn → 0: the limit
     return np.tan(np.radians(phi)) / red
-
-
-def entrance_line(model: Model, vertex_xy: np.ndarray, cint: np.ndarray, found: np.ndarray, line: np.ndarray,
-                  normal_force: np.ndarray) -> np.ndarray:
-    """The active line of each vertex-vertex contact transferred from the last step, at the
-    step's start (docs/method/dda.md §2.8.7): the memory's line unless the other one is less
-    penetrated by more than the opening tolerance (and not behind its line by more than the
-    penetration limit). The transfer is by vertex pair, and a pair's entrance lines are
-    re-chosen at every detection (§3.4): where a corner's gap changes side (two squares that
-    meet a third and fourth at one corner, the corner turned by h1/2), the memory's line index
-    names an edge the vertex never crossed. Started on it, the first solve pushed the vertex
-    out by its depth at once: a corner 36 µm behind that line threw a 0.1 m square off at
-    0.08 m/s in a 0.27 ms step (30 × g·Δt) under half its weight. The less penetrated line
-    stores less spring energy, so the switch never creates energy. Updates ``normal_force``
-    of a switched contact to p × its depth; returns the lines."""
-    vv = np.flatnonzero(found & (cint[:, KIND] == VV))
-    if not len(vv):
-        return line
-    dn = np.stack([signed_distance(vertex_xy, model.vertex_next, cint[vv, V0], cint[vv, E0]),
-                   signed_distance(vertex_xy, model.vertex_next, cint[vv, V1], cint[vv, E1])], axis=1)
-    rows = np.arange(len(vv))
-    old = line[vv].astype(np.int64)
-    other = 1 - old
-    behind = dn < -model.penetration_limit
-    switch = (dn[rows, other] > dn[rows, old] + model.open_tol) & ~behind[rows, other]
-    switch |= behind[rows, old] & ~behind[rows, other]
-    line = line.copy()
-    line[vv[switch]] = other[switch]
-    closed = vv[switch]
-    normal_force[closed] = np.where(normal_force[closed] > 0.0,
-                                    model.penalty * np.maximum(-dn[rows, other][switch], 0.0), normal_force[closed])
-    return line
 
 
 def signed_distance(xy: np.ndarray, vnext: np.ndarray, vertex: np.ndarray, edge: np.ndarray) -> np.ndarray:

@@ -39,8 +39,9 @@ EDGE_FLOOR = 1e-150
 EDGE_FLOOR2 = EDGE_FLOOR * EDGE_FLOOR
 TIE = 1e-3
 SLACK = 1e-9
-import os
-PASSED_DEPTH = float(os.environ.get("CK_DEPTH", "1e-6"))
+#: a vertex of a vertex pair that has passed its partner's corner along one of its edges and lies
+#: deeper than this share of d9 behind that edge goes to the vertex-edge rules (`_past_corner`)
+PASSED_DEPTH = 1e-6
 TWO_PI = 2.0 * math.pi
 #: the wedges of a vertex pair do not overlap iff their angles and the two gaps sum to 2π
 #: within this (`kernels._vertex_vertex`)
@@ -376,10 +377,9 @@ class _VertexPairs:
         out[o] = rows.nearer_exit(far, depth, np.where(at_start, topo.row_e[far], exit_e[o])) | (depth < -d9)
         n_par, n_vv = len(par_k), len(kp)
         self.par_elsewhere = out[:n_par]
-        self.vv_elsewhere = out[n_par:n_par + n_vv] | out[n_par + n_vv:]
-        import os
-        if os.environ.get("CK_PAST", "1") == "1":
-            self.vv_elsewhere |= _past_corner(rows, kp, q, prv, d9) | _past_corner(rows, kq, p, prv, d9)
+        # and a vertex that has passed its partner's corner along one of its edges
+        self.vv_elsewhere = out[n_par:n_par + n_vv] | out[n_par + n_vv:] | \
+            _past_corner(rows, kp, q, prv, d9, math.sin(h1)) | _past_corner(rows, kq, p, prv, d9, math.sin(h1))
         # the handed-over rows: the concave pairs' convex vertices, and the exits' vertices
         handed = np.concatenate([np.ones(len(one), bool), self.par_elsewhere, self.vv_elsewhere,
                                  self.vv_elsewhere]).nonzero()[0]
@@ -389,21 +389,22 @@ class _VertexPairs:
         self.handed_rows = np.concatenate([base + prv[hand_w], base + hand_w])
 
 
-def _past_corner(rows: _Rows, k: np.ndarray, w: np.ndarray, prv: np.ndarray, d9: float) -> np.ndarray:
+def _past_corner(rows: _Rows, k: np.ndarray, w: np.ndarray, prv: np.ndarray, d9: float, sin_h1: float) -> np.ndarray:
     """Whether each vertex (side position k) of a vertex-vertex pair has passed its partner w's
     corner along an edge at w: it projects onto the edge (w, next w) or (prev w, w) beyond
-    round-off from w and lies behind that edge's line beyond round-off
-    (`kernels._past_corner`). The corners of diagonal blocks where four squares meet pass
-    each other as soon as a row slides: each then lies on the other's edge, two vertex-edge
+    round-off from w and lies deeper than ``PASSED_DEPTH`` × d9 behind that edge's line, but
+    within the angle tolerance h1 of it seen from w: it slid past the corner along the edge,
+    where a corner that entered head on lies as far behind as along (`kernels._past_corner`).
+    The corners of diagonal blocks where four squares meet pass each other as soon as a row slides: each then lies on the other's edge, two vertex-edge
     contacts that one vertex-vertex contact, acting on one line, cannot hold. The vertex
     left out sank unresisted (36 µm, or 24 µm after a 3.9 mm slide) until the pair's lines
     changed, and its depth was pushed out in one step: a 0.1 m square at 0.04–0.08 m/s in
     a 0.27 ms step (docs/method/dda.md §3.4)."""
     base = rows.topo.row_base[k]
     slack, deep = SLACK * d9, -PASSED_DEPTH * d9
-    r = base + w                  # the edge (w, next w): w at t = 0
-    t, l = rows.t[r], rows.l[r]
-    out = (t * l > slack) & (t <= 1.0) & (rows.dn[r] < deep)
-    r = base + prv[w]             # the edge (prev w, w): w at t = 1
-    t, l = rows.t[r], rows.l[r]
-    return out | (((1.0 - t) * l > slack) & (t >= 0.0) & (rows.dn[r] < deep))
+    r0, r1 = base + w, base + prv[w]      # the edges (w, next w), w at t = 0, and (prev w, w)
+    t0, l0, dn0 = rows.t[r0], rows.l[r0], rows.dn[r0]
+    t1, l1, dn1 = rows.t[r1], rows.l[r1], rows.dn[r1]
+    along0, along1 = t0 * l0, (1.0 - t1) * l1
+    return ((along0 > slack) & (t0 <= 1.0) & (dn0 < deep) & (-dn0 < sin_h1 * along0)) | \
+        ((along1 > slack) & (t1 >= 0.0) & (dn1 < deep) & (-dn1 < sin_h1 * along1))
