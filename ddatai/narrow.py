@@ -401,10 +401,10 @@ def _past_corner(rows: _Rows, k: np.ndarray, w: np.ndarray, prv: np.ndarray, d9:
     changed, and its depth was pushed out in one step: a 0.1 m square at 0.04–0.08 m/s in
     a 0.27 ms step (docs/method/dda.md §3.4)."""
     base = rows.topo.row_base[k]
-    slack, deep = SLACK * d9, -PASSED_DEPTH * d9
+    deep = -PASSED_DEPTH * d9
     r0, r1 = base + w, base + prv[w]      # the edges (w, next w), w at t = 0, and (prev w, w)
     t0, l0, dn0 = rows.t[r0], rows.l[r0], rows.dn[r0]
     t1, l1, dn1 = rows.t[r1], rows.l[r1], rows.dn[r1]
     along0, along1 = t0 * l0, (1.0 - t1) * l1
-    return ((along0 > slack) & (t0 <= 1.0) & (dn0 < deep) & (-dn0 < sin_h1 * along0)) | \
-        ((along1 > slack) & (t1 >= 0.0) & (dn1 < deep) & (-dn1 < sin_h1 * along1))
+    return ((t0 > TIE) & (t0 <= 1.0) & (dn0 < deep) & (-dn0 < sin_h1 * along0)) | \
+        ((1.0 - t1 > TIE) & (t1 >= 0.0) & (dn1 < deep) & (-dn1 < sin_h1 * along1))

@@ -129,10 +129,10 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray) -> tupl
             t.append(float(np.dot(xy[v] - xy[e], d)) / l ** 2)
             dn.append(float(np.dot(xy[v] - xy[e], np.array([d[1], -d[0]]) / l)))
             ln.append(l)
-        slack, deep = SLACK * d9, -PASSED_DEPTH * d9
+        deep = -PASSED_DEPTH * d9
         along = (t[0] * ln[0], (1.0 - t[1]) * ln[1])
-        return (along[0] > slack and t[0] <= 1.0 and dn[0] < deep and -dn[0] < sin_h1 * along[0]) or \
-            (along[1] > slack and t[1] >= 0.0 and dn[1] < deep and -dn[1] < sin_h1 * along[1])
+        return (t[0] > TIE and t[0] <= 1.0 and dn[0] < deep and -dn[0] < sin_h1 * along[0]) or \
+            (1.0 - t[1] > TIE and t[1] >= 0.0 and dn[1] < deep and -dn[1] < sin_h1 * along[1])
 
     def edge_edge(v, e, partner, end):
         # the edge-edge contact of a vertex pair, unless v exits elsewhere (`line_exit`): then

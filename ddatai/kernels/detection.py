@@ -120,14 +120,13 @@ def _past_corner(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), 
         l[k] = ti.max(_norm2(d), EDGE_FLOOR)
         t[k] = _dot2(P - q0, d) / (l[k] * l[k])
         dn[k] = _dot2(P - q0, ti.Vector([d[1], -d[0]]) / l[k])
-    slack = SLACK * d9
     deep = -PASSED_DEPTH * d9
     out = 0
     along0 = t[0] * l[0]           # along the edge (w, next w), w at t = 0
     along1 = (1.0 - t[1]) * l[1]   # along the edge (prev w, w), w at t = 1
-    if along0 > slack and t[0] <= 1.0 and dn[0] < deep and -dn[0] < sin_h1 * along0:
+    if t[0] > TIE and t[0] <= 1.0 and dn[0] < deep and -dn[0] < sin_h1 * along0:
         out = 1
-    if along1 > slack and t[1] >= 0.0 and dn[1] < deep and -dn[1] < sin_h1 * along1:
+    if 1.0 - t[1] > TIE and t[1] >= 0.0 and dn[1] < deep and -dn[1] < sin_h1 * along1:
         out = 1
     return out
 
