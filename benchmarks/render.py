@@ -2,7 +2,7 @@
 
     python benchmarks/render.py
 
-This is the measurement behind the choice of Pillow as the rasteriser (see ddatai/render.py).
+This is the measurement behind the choice of Pillow as the rasteriser (see ddatai/render/__init__.py).
 """
 
 import platform

@@ -88,9 +88,8 @@ def resolve(name: str, unknowns: Optional[int] = None) -> str:
 
 
 from .pardiso import PardisoError, _locate_mkl, _Pardiso  # noqa: F401 (PardisoError: public)
-from .iterative import (KRYLOV_ACCEPT, KRYLOV_BLOCKS, KRYLOV_ITERATIONS, KRYLOV_RESIDUAL,  # noqa: F401
-                        REFINE_ABOVE, REFINE_PASSES, REUSE_FLOOR, REUSE_PASSES, REUSE_RATE, REUSE_RESIDUAL,
-                        _refinement, gmres, refine_to_roundoff)
+from .iterative import (KRYLOV_ACCEPT, KRYLOV_BLOCKS, KRYLOV_ITERATIONS, REFINE_ABOVE, REFINE_PASSES,
+                        REUSE_PASSES, REUSE_RATE, REUSE_RESIDUAL, _refinement, gmres, refine_to_roundoff)
 
 
 class SparseSolver:

@@ -126,7 +126,7 @@ def test_long_gif_is_streamed_in_bounded_memory(tmp_path, monkeypatch):
     path = tmp_path / "long.gif"
     refs: list = []
     most, sizes = [0], []
-    original = render._Painter.image
+    original = render.painter._Painter.image
 
     class Frame(np.ndarray):  # a plain ndarray cannot be weakly referenced
         pass
@@ -138,7 +138,7 @@ def test_long_gif_is_streamed_in_bounded_memory(tmp_path, monkeypatch):
         refs.append(weakref.ref(out))
         return out
 
-    monkeypatch.setattr(render._Painter, "image", image)
+    monkeypatch.setattr(render.painter._Painter, "image", image)
     dd.write_gif(res, path, size=(64, 64), stride=1)
     assert len(sizes) == 600
     assert most[0] <= 3, f"{most[0]} frames alive at once"
@@ -202,13 +202,13 @@ def test_static_run_is_coloured_by_displacement():
     from ddatai import render
 
     res = _static_pair()
-    painter = render._Painter(res, [0, 1, 2], size=(200, 150), labels=None, label_names=None,
+    painter = render.painter._Painter(res, [0, 1, 2], size=(200, 150), labels=None, label_names=None,
                               show_contacts=False, title=None, max_speed=None)
     assert painter.quantity == "displacement" and painter.max_speed == pytest.approx(2.0)
     first, last = painter.block_colours(0)[1], painter.block_colours(2)[1]
     assert first == render.SPEED_COLOURS[0] and last == render.SPEED_COLOURS[-1]
     # with a speed scale given explicitly, speed it is
-    painter = render._Painter(res, [0, 2], size=(200, 150), labels=None, label_names=None,
+    painter = render.painter._Painter(res, [0, 2], size=(200, 150), labels=None, label_names=None,
                               show_contacts=False, title=None, max_speed=1.0)
     assert painter.quantity == "speed" and painter.block_colours(2)[1] == render.SPEED_COLOURS[0]
 
@@ -253,7 +253,7 @@ def test_title_time_and_colour_bar_never_overlap(size, title, colouring):
     res = _static_pair() if colouring == "displacement" else _moving_square(np.linspace(0.0, 12.0, 7))
     labels = np.array([-1, 0]) if colouring == "labels" else None
     frames = list(range(res.n_frames))
-    painter = render._Painter(res, frames, size=size, labels=labels, label_names=["key group"] if labels is not None
+    painter = render.painter._Painter(res, frames, size=size, labels=labels, label_names=["key group"] if labels is not None
                               else None, show_contacts=False, title=title, max_speed=None)
     parts = painter.layout.boxes()
     expected = {"time"} | ({"title"} if title else set()) | \
@@ -278,7 +278,7 @@ def test_title_time_and_colour_bar_never_overlap(size, title, colouring):
     names = sorted(measured)
     for i, a in enumerate(names):
         for b in names[i + 1:]:
-            assert not render._overlap(measured[a], measured[b]), (a, measured[a], b, measured[b], size)
+            assert not render.header._overlap(measured[a], measured[b]), (a, measured[a], b, measured[b], size)
     # the whole frame: its header holds only these parts, and the model lies below the header
     for f in (0, frames[-1]):
         frame = np.asarray(painter.draw(f))
@@ -332,7 +332,7 @@ def test_video_is_streamed_and_smaller_than_the_gif_of_a_long_run(tmp_path, monk
     res = _moving_square(np.linspace(0.0, 10.0, 600))
     refs: list = []
     most = [0]
-    original = render._Painter.image
+    original = render.painter._Painter.image
 
     class Frame(np.ndarray):
         pass
@@ -343,7 +343,7 @@ def test_video_is_streamed_and_smaller_than_the_gif_of_a_long_run(tmp_path, monk
         refs.append(weakref.ref(out))
         return out
 
-    monkeypatch.setattr(render._Painter, "image", image)
+    monkeypatch.setattr(render.painter._Painter, "image", image)
     mp4 = dd.write_video(res, tmp_path / "long.mp4", size=(320, 240), stride=1, fps=60.0)
     assert len(refs) == 600 and most[0] <= 3, most[0]
     gif = dd.write_gif(res, tmp_path / "long.gif", size=(320, 240), stride=1, fps=50.0)

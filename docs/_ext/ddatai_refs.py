@@ -1,7 +1,7 @@
 """Resolve the docstrings' short references the way a reader of the source reads them.
 
 The docstrings of ddatai and kgm name other objects in backticks relative to where they are
-written: `GifStream` in ``ddatai/render.py``, `kernels.violations` in ``ddatai/step.py``,
+written: `GifStream` in ``ddatai/render/__init__.py``, `kernels.violations` in ``ddatai/step.py``,
 `ddatai.start` for a module. Sphinx resolves a reference from the page's module only (and the
 public API pages are under ``ddatai`` and ``kgm``, not the defining modules), so such a
 reference would be reported as broken although its target is documented.

@@ -28,8 +28,9 @@ Run from the command line: ``ddatai run MODEL.geo MODEL.ana --out DIR`` (`ddatai
 No Taichi at import: the solver is loaded only by `NtddaCase.simulate`.
 
 The package: ``records`` (errors, warnings, raw file content), ``text`` (formats, tokens, DDAML),
-``readers`` (the two files in either format), ``geometry`` (ntdda's block cutting and points in
-blocks), ``case`` (the case and its run, the measured-points CSV).
+``readers`` (the two files in either format), ``segments`` (ntdda's segment tests), ``geometry``
+(ntdda's block cutting), ``placement`` (points, materials and fixed lines in the cut blocks),
+``case`` (the case and its run, the measured-points CSV).
 """
 
 from __future__ import annotations

@@ -11,8 +11,8 @@ import numpy as np
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Literal, Optional
-from .geometry import (BlockLocator, block_materials, blocks_inside_other_blocks, clip_fixed_line,
-                       cut_segments, ntdda_fixed_points)
+from .geometry import cut_segments
+from .placement import BlockLocator, block_materials, blocks_inside_other_blocks, clip_fixed_line, ntdda_fixed_points
 from ...params import Joint, Material, Params, UnitWarning
 from ...scene import Scene
 from .records import (NTDDA_GRAVITY, NtddaAnalysis, NtddaBlockMaterial, NtddaFormatError,

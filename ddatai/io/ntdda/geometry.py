@@ -21,8 +21,10 @@ The steps, in ntdda's order (function names of `blocks.c` in brackets):
 6. vertices on the straight line of their neighbours are removed [dc09].
 
 What ntdda does after cutting (hole points, blocks inside blocks, material lines, fixed lines,
-points in blocks) is here too, as separate functions, so that ``ddatai.io.ntdda`` can apply its
-documented choices between them. NumPy and shapely only; no Taichi.
+points in blocks) is in `ddatai.io.ntdda.placement`, as separate functions, so that
+``ddatai.io.ntdda`` can apply its documented choices between them; its names, and those of the
+segment tests (`ddatai.io.ntdda.segments`), are importable from here too. NumPy and shapely
+only; no Taichi.
 """
 
 from __future__ import annotations
@@ -31,10 +33,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-#: Parameter tolerance of ntdda's segment intersection test (lns): t in [-1e-7, 1 + 1e-7].
-_T_TOL = 1e-7
-#: Parallel-line test of lns, relative to w0² (|d0| < 1e-9·w0²).
-_PARALLEL_TOL = 1e-9
+# re-exported only: this module was their home, and callers still import them from here
+from .placement import (BlockLocator, block_containing, block_materials, blocks_inside_other_blocks,
+                        clip_fixed_line, ntdda_fixed_points)
+from .segments import PARAMETER_TOL, domain_scale, segment_intersection
+
+__all__ = ["CutBlocks", "cut_segments", "domain_scale", "segment_intersection", "BlockLocator",
+           "block_containing", "block_materials", "blocks_inside_other_blocks", "clip_fixed_line",
+           "ntdda_fixed_points"]
+
 #: Collinear-vertex test of dc09, relative to w0² (twice the triangle area < 1e-9·w0²).
 _COLLINEAR_TOL = 1e-9
 
@@ -53,61 +60,6 @@ class CutBlocks:
     @property
     def n_blocks(self) -> int:
         return len(self.polygons)
-
-
-def domain_scale(segments: np.ndarray) -> float:
-    """ntdda's w0 (dc02): 1.02·max(H/2, W/2/1.3) over the segment end points [length].
-
-    The 1.3 aspect factor and the 1.02 margin are ntdda's; w0 scales every cutting tolerance.
-    """
-    seg = np.asarray(segments, dtype=float).reshape(-1, 4)
-    x = np.concatenate([seg[:, 0], seg[:, 2]])
-    y = np.concatenate([seg[:, 1], seg[:, 3]])
-    half_w = (x.max() - x.min()) / 2.0
-    half_h = (y.max() - y.min()) / 2.0
-    w0 = half_h if half_w <= 1.3 * half_h else half_w / 1.3
-    return 1.02 * w0
-
-
-def segment_intersection(w0: float, p1, p2, p3, p4, *, collinear: bool = True
-                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """ntdda's segment intersection test (lns), vectorised over broadcast end points.
-
-    Segment i runs p1 -> p2, segment j runs p3 -> p4. Returns ``(hit, t1, t2)``: whether they
-    meet, and the parameters along i and j. Parameters within 1e-7 outside [0, 1] still count
-    (touching end points meet). Parallel segments meet only when collinear and exactly one end
-    point of j lies on i (end-to-end contact); collinear overlaps do not meet. With
-    ``collinear=False`` parallel segments never meet (ntdda's edge-crossing test in dc06).
-    """
-    p1, p2, p3, p4 = (np.asarray(p, dtype=float) for p in (p1, p2, p3, p4))
-    x21, y21 = p2[..., 0] - p1[..., 0], p2[..., 1] - p1[..., 1]
-    x34, y34 = p3[..., 0] - p4[..., 0], p3[..., 1] - p4[..., 1]
-    x31, y31 = p3[..., 0] - p1[..., 0], p3[..., 1] - p1[..., 1]
-    x41, y41 = p4[..., 0] - p1[..., 0], p4[..., 1] - p1[..., 1]
-    d0 = x21 * y34 - x34 * y21
-    d1 = x31 * y34 - x34 * y31
-    d2 = x21 * y31 - x31 * y21
-    eps = _PARALLEL_TOL * w0 * w0
-    lo, hi = -_T_TOL, 1.0 + _T_TOL
-    normal = np.abs(d0) >= eps
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t1n = np.where(normal, d1 / np.where(normal, d0, 1.0), 0.0)
-        t2n = np.where(normal, d2 / np.where(normal, d0, 1.0), 0.0)
-        hit_n = normal & (t1n >= lo) & (t1n <= hi) & (t2n >= lo) & (t2n <= hi)
-        # collinear: parameters of p3 and p4 along i, from the larger coordinate of i's direction
-        colinear = ~normal & (np.abs(d1) < eps)
-        use_x = np.abs(x21) > np.abs(y21)
-        a1 = np.where(use_x, x21, y21)
-        a1 = np.where(a1 == 0.0, np.nan, a1)
-        s3 = np.where(use_x, x31, y31) / a1
-        s4 = np.where(use_x, x41, y41) / a1
-    in3 = (s3 >= lo) & (s3 <= hi)
-    in4 = (s4 >= lo) & (s4 <= hi)
-    hit_c = colinear & (in3 ^ in4) & collinear
-    hit = hit_n | hit_c
-    t1 = np.where(hit_n, t1n, np.where(in3, s3, s4))
-    t2 = np.where(hit_n, t2n, np.where(in3, 0.0, 1.0))
-    return hit, np.where(hit, t1, 0.0), np.where(hit, t2, 0.0)
 
 
 class _NodeIndex:
@@ -322,7 +274,7 @@ def _delete_edges_near_nodes(node_xy, neighbours, edge_line, is_boundary, distan
     t = np.einsum("ij,ij->i", node_xy[n_idx] - a[e_idx], d) / np.einsum("ij,ij->i", d, d)
     foot = a[e_idx] + t[:, None] * d
     dist = np.hypot(*(node_xy[n_idx] - foot).T)
-    near = (t >= -_T_TOL) & (t <= 1 + _T_TOL) & (dist <= distance)
+    near = (t >= -PARAMETER_TOL) & (t <= 1 + PARAMETER_TOL) & (dist <= distance)
     for e in sorted(set(e_idx[near].tolist())):
         _remove_edge(neighbours, edge_line, *keys[e])
 
@@ -429,145 +381,3 @@ def _merge_collinear(ring: np.ndarray, ring_line: np.ndarray, w0: float):
         nxt_k = keep[(q + 1) % len(keep)]
         new_line.append(ring_line[(nxt_k - 1) % m])
     return ring[keep], np.array(new_line, dtype=np.int64)
-
-
-# ---------------------------------------------------------------------------- after cutting
-class BlockLocator:
-    """Finds the block carrying a point the way ntdda's crr does: the first block (in order)
-    that has a vertex within 1e-5·w0 of the point, or contains it, or has it on an edge."""
-
-    def __init__(self, polygons, w0: float):
-        import shapely
-
-        self.polygons = [np.asarray(p, dtype=float) for p in polygons]
-        self.w0 = w0
-        self._shapes = [shapely.Polygon(p) for p in self.polygons]
-        self._tree = shapely.STRtree(self._shapes)
-
-    def locate(self, xy) -> int:
-        """Block index, or -1 if no block carries the point."""
-        import shapely
-
-        p = np.asarray(xy, dtype=float)
-        probe = shapely.Point(float(p[0]), float(p[1]))
-        near = 1e-5 * self.w0
-        for b in sorted(self._tree.query(probe, predicate="dwithin", distance=near).tolist()):
-            if np.min(np.hypot(*(self.polygons[b] - p).T)) < near or \
-                    self._shapes[b].distance(probe) <= 1e-9 * self.w0:
-                return b
-        return -1
-
-
-def block_containing(polygons, xy, w0: float) -> int:
-    """First block (in order) carrying the point (see `BlockLocator`), or -1."""
-    return BlockLocator(polygons, w0).locate(xy)
-
-
-def blocks_inside_other_blocks(polygons) -> list[int]:
-    """Blocks lying inside another block (ntdda dc16 deletes them).
-
-    A set of joint loops not connected to the rest leaves the surrounding block without a hole
-    (ntdda blocks have no holes), so the inner blocks overlap it.
-    """
-    import shapely
-
-    polys = [shapely.Polygon(p) for p in polygons]
-    tree = shapely.STRtree(polys)
-    inside = []
-    for b, poly in enumerate(polys):
-        probe = _probe_inside_first_edge(np.asarray(polygons[b], dtype=float), poly)
-        for other in tree.query(probe, predicate="within"):
-            if other != b:
-                inside.append(b)
-                break
-    return inside
-
-
-def _probe_inside_first_edge(ring: np.ndarray, poly):
-    """A point just inside the block next to the middle of its first edge (ntdda's dc16 probe:
-    a block's centre may lie in a hole it does not have)."""
-    import shapely
-
-    edge = ring[1] - ring[0]
-    length = float(np.hypot(*edge))
-    inward = np.array([-edge[1], edge[0]]) / length
-    mid = 0.5 * (ring[0] + ring[1])
-    step = 1e-6 * length
-    for _ in range(20):
-        probe = shapely.Point(*(mid + step * inward))
-        if poly.contains(probe):
-            return probe
-        step *= 0.5
-    return poly.representative_point()
-
-
-def block_materials(polygons, material_lines, w0: float) -> tuple[np.ndarray, list[int]]:
-    """Material index of every block from material lines (dc13), default 1 (1-based).
-
-    Every block having an edge that the material line meets (ntdda's lns test) gets the line's
-    material; a line that meets no edge gives it to the block containing its first end point.
-    Later lines win. Returns the per-block materials and the indices of material lines that
-    reached no block.
-    """
-    mat = np.zeros(len(polygons), dtype=np.int64)
-    unused = []
-    for k, (x1, y1, x2, y2, m) in enumerate(np.asarray(material_lines, dtype=float).reshape(-1, 5)):
-        touched = False
-        for b, poly in enumerate(polygons):
-            hit, _, _ = segment_intersection(w0, (x1, y1), (x2, y2), poly, np.roll(poly, -1, axis=0))
-            if hit.any():
-                mat[b] = int(m)
-                touched = True
-        if not touched:
-            b = BlockLocator(polygons, w0).locate((x1, y1))
-            if b >= 0:
-                mat[b] = int(m)
-            else:
-                unused.append(k)
-    mat[mat == 0] = 1
-    return mat, unused
-
-
-def clip_fixed_line(polygon: np.ndarray, line, tol: float) -> list[np.ndarray]:
-    """End points of the pieces of a fixed line inside a block (ddatai's rule, docs/ntdda.md §4.8).
-
-    Returns a list of (2,) points: both ends of every piece of positive length of the line
-    within the closed polygon (a line end inside the block, or where the line crosses the
-    block's outline), without duplicates closer than ``tol``.
-    """
-    import shapely
-
-    piece = shapely.intersection(shapely.LineString([line[:2], line[2:]]), shapely.Polygon(polygon))
-    points: list[np.ndarray] = []
-    for part in shapely.get_parts(piece):
-        if part.geom_type != "LineString" or part.length <= tol:
-            continue
-        xy = np.asarray(part.coords)
-        for q in (xy[0], xy[-1]):
-            if all(np.hypot(*(q - p)) > tol for p in points):
-                points.append(q.copy())
-    return points
-
-
-def ntdda_fixed_points(polygons, line, w0: float) -> list[tuple[int, np.ndarray]]:
-    """The fixed points ntdda (dc10) makes from one fixed line, as (block, point) pairs.
-
-    A zero-length line is its point. Otherwise: one point per block edge the line crosses,
-    inset 0.005·w0 into that block; if it crosses no edge, its first end point (block -1 here:
-    ntdda locates it later). Used only to tell the user where ddatai's rule differs.
-    """
-    line = np.asarray(line, dtype=float)
-    if abs(line[0] - line[2]) + abs(line[1] - line[3]) <= 1e-9 * w0:
-        return [(-1, line[:2].copy())]
-    out = []
-    for b, poly in enumerate(polygons):
-        nxt = np.roll(poly, -1, axis=0)
-        hit, t1, _ = segment_intersection(w0, line[:2], line[2:], poly, nxt)
-        for e in np.flatnonzero(hit):
-            x0 = line[:2] + (line[2:] - line[:2]) * t1[e]
-            edge = nxt[e] - poly[e]
-            inward = np.array([-edge[1], edge[0]]) / np.hypot(*edge)
-            out.append((b, x0 + 0.005 * w0 * inward))
-    if not out:
-        out.append((-1, line[:2].copy()))
-    return out
