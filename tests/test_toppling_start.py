@@ -176,3 +176,18 @@ def test_the_slow_turn_on_gives_up_on_a_toppling_column():
     """The same column 1° past its threshold rocks away on its corner under the slowly turned-on
     weight: the turn-on gives up (the stage then releases it)."""
     assert _turn_on_of(15.0)[0] is None
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("frame", ["turned", "tilted"])
+def test_the_4_5_6_7_slow_load_is_the_same_in_both_frames_around_its_threshold(frame):
+    """The 4-5-6-7 squares under the slow ramp (20 rocking time constants) stand at 17.5° and
+    topple at 18.0°, whether gravity is turned on a horizontal plate or ramped vertically on the
+    tilted one. Before diagonal corners that slid past each other became vertex-edge contacts
+    (docs/method/dda.md §3.4), the tilted plate toppled them at 16.5° by corner kicks (a square
+    at 30 g·Δt) and stood at 17.5°, and turned gravity held them at 18.5° (the frames 2.3°
+    apart; turned, it still stands at 18.5°: not monotone). ~3–4 min a frame on a loaded 2-core
+    machine (the toppling run is the long one)."""
+    case = CASES["squares 4-5-6-7"][0]
+    assert not ramp_topples(case, 17.5, frame)
+    assert ramp_topples(case, 18.0, frame)
