@@ -292,7 +292,8 @@ class Stepper:
         # the inertia 2M/Δt² is a large part of K (`ddatai.solver`, reuse)
         reuse, self.factored_at = (dt, beta) == self.factored_at, (dt, beta)
         oc = open_close(self, state, geom, contacts, self.pattern, vec, sca, data0, rhs0,
-                        rotation, timer, p.oc_max_iterations, reuse_first=reuse, hold_cycles=hold_cycles)
+                        rotation, timer, p.oc_max_iterations, reuse_first=reuse, hold_cycles=hold_cycles,
+                        give_up_cycles=not hold_cycles)
         if oc.displacement is None:
             return Attempt(ok=False, cause="nan", iterations=oc.iterations)
         if not oc.converged:

@@ -685,6 +685,26 @@ def test_open_close_cycle_holds_its_contacts_closed():
     assert hold_closed(contacts, law, np.array([True, True, True]), held).tolist() == [True, True, True]
 
 
+def test_open_close_cycle_gives_up_the_try():
+    """A try before the step's last gives up when a set of states (with the VV lines) comes back
+    for the third time (`open_close.cycling`): twice it may still lead elsewhere, the third time
+    the iteration goes round; a set that differs only in a VV line is another set."""
+    from types import SimpleNamespace
+
+    from ddatai.layout import LOCK, OPEN
+    from ddatai.open_close import CYCLE_RECURRENCES, cycling
+
+    a, b = np.array([LOCK, OPEN], np.int8), np.array([OPEN, LOCK], np.int8)
+    contacts = SimpleNamespace(state=a.copy(), line=np.zeros(2, np.int8))
+    recurring, verdicts = {}, []
+    for st in (a, b, a, b, a):
+        contacts.state[:] = st
+        verdicts.append(cycling(contacts, recurring))
+    assert CYCLE_RECURRENCES == 3 and verdicts == [False, False, False, False, True]
+    contacts.line[0] = 1
+    assert not cycling(contacts, recurring)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("seed", [6, 103, 162])
 def test_cut_domain_open_close_cycle_runs_through(seed):
