@@ -346,8 +346,9 @@ def test_corners_of_diagonal_blocks_that_passed_each_other_are_vertex_edge_conta
     turned 0.2°, less than h1/2) were P against block 3's bottom edge and Q against block 0's
     right edge, 2 mm behind it, so Q sank unresisted into block 0's top edge; the pair's lines
     changed as the block turned on, and that depth was pushed out in one step (a square of a
-    toppling stack thrown at 0.08 m/s, 30 g·Δt, docs/method/dda.md §3.4). Q, deeper behind
-    block 0's top edge than PASSED_DEPTH × d9, now sends the pair to the vertex-edge rules:
+    toppling stack thrown at 0.08 m/s, 30 g·Δt, docs/method/dda.md §3.4). Q, past P along
+    block 0's top edge by more than TIE of it, within h1 of its line and deeper behind it than
+    PASSED_DEPTH × d9, now sends the pair to the vertex-edge rules:
     Q against block 0's top edge and P against block 3's bottom edge, the same in the three
     implementations."""
     from ddatai import kernels, reference
