@@ -22,6 +22,7 @@ EDGE_FLOOR2 = EDGE_FLOOR * EDGE_FLOOR
 
 TIE = 1e-3  # same as ddatai.kernels.TIE
 SLACK = 1e-9  # same as ddatai.kernels.SLACK
+PASSED_DEPTH = 1e-6  # same as ddatai.kernels.PASSED_DEPTH
 
 
 # --------------------------------------------------------------------------- broad phase
@@ -117,6 +118,22 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray) -> tupl
         a, c = (nxt[e], nxt[e]) if partner == e else (prv[e], e)
         return dn < -SLACK * d9 and (nearer_exit(P, dn, a, c) or dn < -d9)
 
+    def past_corner(v, w):
+        # v has passed its partner w's corner along an edge at w: it projects onto the edge
+        # beyond round-off from w and lies deeper than PASSED_DEPTH x d9 behind its line, but
+        # within h1 of it seen from w (slid past the corner, not entered head on)
+        t, dn, ln = [], [], []
+        for e in (w, prv[w]):
+            d = xy[nxt[e]] - xy[e]
+            l = max(float(np.linalg.norm(d)), EDGE_FLOOR)
+            t.append(float(np.dot(xy[v] - xy[e], d)) / l ** 2)
+            dn.append(float(np.dot(xy[v] - xy[e], np.array([d[1], -d[0]]) / l)))
+            ln.append(l)
+        deep = -PASSED_DEPTH * d9
+        along = (t[0] * ln[0], (1.0 - t[1]) * ln[1])
+        return (t[0] > TIE and t[0] <= 1.0 and dn[0] < deep and -dn[0] < sin_h1 * along[0]) or \
+            (1.0 - t[1] > TIE and t[1] >= 0.0 and dn[1] < deep and -dn[1] < sin_h1 * along[1])
+
     def edge_edge(v, e, partner, end):
         # the edge-edge contact of a vertex pair, unless v exits elsewhere (`line_exit`): then
         # v against both edges at its partner
@@ -200,11 +217,13 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray) -> tupl
                         edge_edge(ib, ia, ia, prv[ib])
                 else:
                     eA, eB = (ib, prv[ia]) if e5 <= e6 + h1 else (prv[ib], ia)
-                    if not (line_exit(ia, eA, ib) or line_exit(ib, eB, ia)):
+                    if not (line_exit(ia, eA, ib) or line_exit(ib, eB, ia) or past_corner(ia, ib)
+                            or past_corner(ib, ia)):
                         emit(VV, ia, eA, ib, eB)
                         continue
                     # a vertex behind its entrance line entered the edge at the line's far
-                    # corner, or lies beyond d9: each vertex against both edges at the other
+                    # corner, or lies beyond d9, or passed its partner's corner: each vertex
+                    # against both edges at the other
                     for v, w in ((ia, ib), (ib, ia)):
                         for e2 in (prv[w], w):
                             ok, L = ve_test(v, e2, False)

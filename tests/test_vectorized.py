@@ -290,11 +290,12 @@ def test_vertices_exactly_d0_apart_are_a_close_pair():
 
 
 def test_constants_agree_with_the_kernels():
-    from ddatai import kernels, reference
+    from ddatai import kernels, narrow, reference
 
     assert vectorized.EDGE_FLOOR == kernels.EDGE_FLOOR
     assert vectorized.TIE == kernels.TIE
     assert vectorized.SLACK == kernels.SLACK == reference.SLACK
+    assert narrow.PASSED_DEPTH == kernels.PASSED_DEPTH == reference.PASSED_DEPTH
     assert vectorized.TWO_PI == kernels.TWO_PI
 
 
@@ -316,3 +317,60 @@ def test_grid_model_matches_the_kernels():
     _, sca = vectorized.contact_vectors(model, xy, model.block_geometry(xy)["centroid"], cint, omega)
     ve = cint[:, 0] == VE
     assert np.allclose(sca[ve, 2], 0.0, atol=1e-12)  # ds0 = 0 at the lock point (§2.8.3)
+
+
+def _passed_corners(depth, slide=2e-3, turn=0.2):
+    """The four squares of `_x_junction` (unit squares), the upper row slid left by ``slide``
+    along the joint and the upper right block (3) turned by ``turn`` degrees about its lower
+    left corner Q, which then lies ``depth`` behind the top edge of the lower left block (0),
+    ``slide`` past that block's corner P; the upper left block (2) slid 0.01 further, clear of
+    block 3's turned edge. Returns the model, the vertices and (P, Q)."""
+    model, xy = _x_junction(0.0)
+    b = model.vertex_block
+    q = int(model.vertex_offset[3])
+    xy[b == 2, 0] -= slide + 0.01
+    xy[b == 3, 0] -= slide
+    xy[b == 3, 1] -= depth
+    c, s = np.cos(np.radians(turn)), np.sin(np.radians(turn))
+    rel = xy[b == 3] - xy[q]
+    xy[b == 3] = xy[q] + np.stack([c * rel[:, 0] - s * rel[:, 1], s * rel[:, 0] + c * rel[:, 1]], axis=1)
+    return model, xy, int(model.vertex_offset[0]) + 2, q
+
+
+@pytest.mark.parametrize("depth", [1e-6, 1e-4])
+def test_corners_of_diagonal_blocks_that_passed_each_other_are_vertex_edge_contacts(depth):
+    """Where four squares meet and the upper row has slid along the joint, the diagonal blocks'
+    corners P (block 0) and Q (block 3) have passed each other: Q lies on block 0's top edge,
+    P under block 3's bottom edge. They are mutual nearest (2 mm apart, d0 = 12.5 mm), and a
+    vertex-vertex contact acts on one line only: the lines across the smaller gap (block 3
+    turned 0.2°, less than h1/2) were P against block 3's bottom edge and Q against block 0's
+    right edge, 2 mm behind it, so Q sank unresisted into block 0's top edge; the pair's lines
+    changed as the block turned on, and that depth was pushed out in one step (a square of a
+    toppling stack thrown at 0.08 m/s, 30 g·Δt, docs/method/dda.md §3.4). Q, past P along
+    block 0's top edge by more than TIE of it, within h1 of its line and deeper behind it than
+    PASSED_DEPTH × d9, now sends the pair to the vertex-edge rules:
+    Q against block 0's top edge and P against block 3's bottom edge, the same in the three
+    implementations."""
+    from ddatai import kernels, reference
+
+    model, xy, P, Q = _passed_corners(depth)
+    assert np.hypot(*(xy[P] - xy[Q])) < model.search_distance
+    assert depth > kernels.PASSED_DEPTH * model.max_penetration
+    cint = _assert_same(model, xy)
+    cint_r, _ = reference.detect_contacts(model, xy)
+    assert sorted(map(tuple, cint_r.tolist())) == sorted(map(tuple, cint.tolist()))
+    b = model.vertex_block
+    diagonal = {tuple(r) for r in cint.tolist() if {b[r[1]], b[r[2]]} == {0, 3}}
+    top_of_0, bottom_of_3 = P, Q  # block 0's edge (P, next P) is its top edge; block 3's (Q, next Q) its bottom
+    assert diagonal == {(VE, Q, top_of_0, -1, -1), (VE, P, bottom_of_3, -1, -1)}
+
+
+def test_corners_of_diagonal_blocks_touching_to_round_off_stay_a_vertex_vertex_contact():
+    """The same corners with Q on block 0's top edge to within PASSED_DEPTH × d9 (the elastic
+    settlement of an X-junction at rest, 1e-11–1e-10 m): one vertex-vertex contact, as before,
+    so that an X-junction at rest does not flip between representations step by step."""
+    model, xy, P, Q = _passed_corners(1e-12)
+    cint = _assert_same(model, xy)
+    b = model.vertex_block
+    diagonal = [r for r in cint.tolist() if {b[r[1]], b[r[2]]} == {0, 3}]
+    assert len(diagonal) == 1 and diagonal[0][0] == VV

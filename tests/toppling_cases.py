@@ -154,12 +154,15 @@ def _smoothstep(t: float, ramp: float) -> float:
     return x * x * (3.0 - 2.0 * x)
 
 
-def ramp_topples(case: ToppleCase, theta: float) -> bool:
-    """Whether the case topples at ``theta`` with gravity ramped in slowly from rest, no stage."""
+def ramp_topples(case: ToppleCase, theta: float, frame: str = "turned", ramp_times: float = RAMP_TIMES) -> bool:
+    """Whether the case topples at ``theta`` with gravity ramped in slowly from rest, no stage,
+    over ``ramp_times`` rocking time constants: ``frame`` "turned", the plate horizontal in the
+    model and gravity turned by θ; "tilted", the plate tilted by θ in the model (as the start
+    sees it) and gravity ramped vertically."""
     tau = rocking_time(case)
-    ramp, hold = RAMP_TIMES * tau, HOLD_TIMES * tau
-    sc = scene(case, 0.0)
-    th = math.radians(theta)
+    ramp, hold = ramp_times * tau, HOLD_TIMES * tau
+    th = math.radians(theta) if frame == "turned" else 0.0
+    sc = scene(case, 0.0 if frame == "turned" else theta)
     sc.set_ground_acceleration(_turning_gravity(lambda t: th, lambda t: _smoothstep(t, ramp)))
     return _run_until_toppled(sc, dd.Params(initial_equilibrium=False), ramp + hold, TOPPLED * case.tallest)
 

@@ -50,6 +50,14 @@ TIE = 1e-3
 #: and at their ends, to round-off)
 SLACK = 1e-9
 
+#: a vertex of a vertex pair that has passed its partner's corner along one of its edges (the
+#: corners of diagonal blocks where four squares meet, once a row slides) and lies deeper than
+#: this share of d9 behind that edge goes, with its partner, to the vertex-edge rules
+#: (docs/method/dda.md §3.4): beyond the elastic settlement of such corners at rest
+#: (1e-11–1e-10 m of d9 = 3.75 mm in a stack of 0.1 m squares), far short of a depth whose
+#: push-out in one step throws a block (36 µm threw a square at 30 g·Δt)
+PASSED_DEPTH = 1e-6
+
 # columns of the contact-law kernel's outputs (`ddatai.contact_law.ContactLaw` fields)
 LAW_DN, LAW_DS, LAW_FN, LAW_FT, LAW_STRENGTH, LAW_DN_NOW, LAW_FN_NOW, LAW_FT_NOW, LAW_FRICTION_NOW, \
     LAW_ENERGY = range(10)

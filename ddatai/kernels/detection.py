@@ -4,7 +4,7 @@
 
 import taichi as ti
 
-from .common import (EDGE_FLOOR, EDGE_FLOOR2, I32_1, I32_2, F64_1, F64_2, KIND_VE, KIND_VV, SLACK, TIE, TWO_PI,
+from .common import (EDGE_FLOOR, EDGE_FLOOR2, I32_1, I32_2, F64_1, F64_2, KIND_VE, KIND_VV, PASSED_DEPTH, SLACK, TIE, TWO_PI,
                      _cross, _dot2, _norm2, _pt, _wrap)
 
 
@@ -96,6 +96,38 @@ def _edge_edge_exit(xy: ti.template(), vnext: ti.template(), vprev: ti.template(
     if dn < -SLACK * d9:
         if _nearer_exit(xy, vnext, vprev, P, dn, a, c) or dn < -d9:
             out = 1
+    return out
+
+
+@ti.func
+def _past_corner(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), p, w, d9, sin_h1):
+    """Whether vertex p, of a vertex-vertex pair (p, w), has passed w's corner along an edge at
+    w: it projects onto that edge beyond round-off from w and lies deeper than ``PASSED_DEPTH``
+    × d9 behind its line, but within the angle tolerance h1 of it seen from w (it slid past the
+    corner along the edge, where a corner that entered head on lies as far behind as along;
+    `narrow._past_corner`, docs/method/dda.md §3.4). Its contact is then that edge's, not a
+    corner's."""
+    P = _pt(xy, p)
+    t = ti.Vector([0.0, 0.0])
+    dn = ti.Vector([0.0, 0.0])
+    l = ti.Vector([0.0, 0.0])
+    for k in ti.static(range(2)):
+        e = w
+        if k == 1:
+            e = vprev[w]
+        q0 = _pt(xy, e)
+        d = _pt(xy, vnext[e]) - q0
+        l[k] = ti.max(_norm2(d), EDGE_FLOOR)
+        t[k] = _dot2(P - q0, d) / (l[k] * l[k])
+        dn[k] = _dot2(P - q0, ti.Vector([d[1], -d[0]]) / l[k])
+    deep = -PASSED_DEPTH * d9
+    out = 0
+    along0 = t[0] * l[0]           # along the edge (w, next w), w at t = 0
+    along1 = (1.0 - t[1]) * l[1]   # along the edge (prev w, w), w at t = 1
+    if t[0] > TIE and t[0] <= 1.0 and dn[0] < deep and -dn[0] < sin_h1 * along0:
+        out = 1
+    if 1.0 - t[1] > TIE and t[1] >= 0.0 and dn[1] < deep and -dn[1] < sin_h1 * along1:
+        out = 1
     return out
 
 
@@ -253,6 +285,11 @@ def _vertex_vertex(xy: ti.template(), vnext: ti.template(), vprev: ti.template()
                     if k == 1:
                         p, e, w = ib, eB, ia
                     exits += _edge_edge_exit(xy, vnext, vprev, p, e, w, d9)
+                # a vertex that has passed its partner's corner along one of its edges (the
+                # corners of diagonal blocks where four squares meet, after the rows slid): the
+                # vertex-edge tests give both vertices' contacts, one line could hold only one
+                exits += _past_corner(xy, vnext, vprev, ia, ib, d9, sin_h1) + \
+                    _past_corner(xy, vnext, vprev, ib, ia, d9, sin_h1)
                 if exits == 0:
                     _emit(out_int, out_len, count, slot, base, cap, KIND_VV, ia, eA, ib, eB, 0.0)
                 else:
