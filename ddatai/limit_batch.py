@@ -1,7 +1,7 @@
 """The limit-equilibrium programs of many small models solved side by side (docs/method/dda.md
 §8.12): the members of a kgm batch — the samples of a probabilistic study, the probes of a
 bisection round — are one group on one geometry at different joint strengths, so the first
-program of each member's screen (`ddatai.mechanisms.unsupported_at_start`) has the same
+program of each member's screen (``ddatai.mechanisms.unsupported_at_start``) has the same
 equilibrium matrix and loads, and only its strengths (tanφ, cohesion, tensile strength) differ.
 
 `screened_ahead` collects those programs, solves the programs of one matrix together by the

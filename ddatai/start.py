@@ -55,7 +55,7 @@ solve of the model under its weight, the point loads at t = 0 and its initial st
    rigid-block limit equilibrium (`ddatai.limit_equilibrium`, a linear program over the
    contacts touching at t = 0) releases the blocks for which no admissible contact forces
    exist (a small model whose every block they let move is released before the first solve,
-   `ddatai.mechanisms.unsupported_at_start`). Admissible forces do not prove a block held (Coulomb friction is not associated:
+   ``ddatai.mechanisms.unsupported_at_start``). Admissible forces do not prove a block held (Coulomb friction is not associated:
    toppling columns have them), so the blocks still out of balance are then tested by the
    open-close iteration of a static step with their contacts at the strength sliding
    (``test_unbalanced``); where it converges, those that move away in it on which their loads
@@ -186,7 +186,7 @@ def settle(stepper, state: State, welded: bool = False, screen: bool = True) -> 
     contact memory carries the held contacts into the first step, and the stage's record.
     ``welded``: go straight to the welded equilibrium (6.), without the frictional stage.
     ``screen``: release at once a model whose every free block limit equilibrium lets move
-    (`unsupported_at_start`); False: only as the return mapping finds them (the reference
+    (``ddatai.mechanisms.unsupported_at_start``); False: only as the return mapping finds them (the reference
     that tests compare the screen with)."""
     t0 = _time.perf_counter()
     model = stepper.model
