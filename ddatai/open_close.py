@@ -210,8 +210,14 @@ def cycling(contacts: Contacts, recurring: dict) -> bool:
     goes round a cycle (with a contact open the solve closes it, with it closed it pulls free),
     and the try is given up at once for a shorter Δt rather than after ``oc_max_iterations``
     solves (a step of the 1,474-block slope went round a 2-cycle of 5–9 contacts from its 12th
-    solve to its 20th). The step's last try holds such contacts closed instead (`hold_cycling`)."""
+    solve to its 20th). A set kept from one solve to the next is not a return (``recurring[None]``
+    holds the last one). The step's last try holds such contacts closed instead (`hold_cycling`)."""
     key = contacts.state.tobytes() + contacts.line.tobytes()
+    if recurring.get(None) == key:
+        # the same states as the last solve's: not a return but an iteration still converging
+        # on them (lagged friction's forces, the force tolerance of strict convergence)
+        return False
+    recurring[None] = key
     recurring[key] = recurring.get(key, 0) + 1
     return recurring[key] >= CYCLE_RECURRENCES
 
