@@ -10,10 +10,10 @@ step resolves the spring's period, the spring gives the approach back, less the 
 damping. A rocking block (Housner 1963: a plastic impact that keeps the momentum about the
 new corner) then loses energy that depends on Δt, non-monotonically, and the automatic Δt of
 10 ms lost 40 % of the fifth peak. Here a closing is predicted from the contact point's
-velocity and acceleration (`approach_bound`); the step before it ends IMPACT_LEAD of an impact
+velocity and acceleration (``approach_bound``); the step before it ends IMPACT_LEAD of an impact
 step before it; the impact step is IMPACT_OMEGA/√(p/m) long (the spring settles within it);
 its solve finds which contacts hold, and the step is taken again from the impacted blocks'
-velocity projected onto what they admit (`Stepper.impact_projection`, `plastic_start`): a
+velocity projected onto what they admit (`Stepper.impact_projection`, ``plastic_start``): a
 plastic impact at the step's start, restitution 0, the momentum about the contact kept.
 """
 

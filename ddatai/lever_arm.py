@@ -3,7 +3,7 @@ stiffness of a block's rotation, which the first-order step equations leave out.
 
 The step equations linearise each contact's normal and shear distances at the step's start: a
 point X from its block's centroid moves by JX·r for a rotation r (JX = (−Y, X)), and the
-second-order terms q(r̄) of the exact update (`assembly.second_order`) only shift the constant
+second-order terms q(r̄) of the exact update (``assembly.second_order``) only shift the constant
 part of the distance. A contact force then turns its block through the lever arm of the step's
 start while the block turns by r: the force's torque lags the motion, and a block rocking on a
 corner under gravity loses ½·F·R·cos(α − θ)·r² a step (F the corner's force, R its arm): 1.3 %

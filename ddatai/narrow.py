@@ -10,16 +10,16 @@ On a model of a few blocks the arrays hold tens of entries and each NumPy call c
 whatever its size, so the phase is written to make few calls rather than little arithmetic:
 
 - the candidates that depend only on the pair set and the blocks' vertex lists (which vertex
-  faces which vertices and edges) are built once per pair set (`PairTopology`) and reused while
+  faces which vertices and edges) are built once per pair set (``PairTopology``) and reused while
   the broad phase returns the same pairs, as it does step after step for a resting or slowly
   moving model;
 - every vertex of a pair is measured against every edge of the other block in one pass
-  (`_Rows`: the normal distance, the projection parameter, the distance to the edge's start).
+  (``_Rows``: the normal distance, the projection parameter, the distance to the edge's start).
   The kernel's tests all read from it: the vertex-vertex distances of the mutual-nearest rule
-  (an edge is named by its start vertex), the vertex-edge tests (`kernels._ve_test`), the
+  (an edge is named by its start vertex), the vertex-edge tests (``kernels._ve_test``), the
   shortest-exit rule, which measures the vertex against the edges next to its edge
-  (`kernels._nearer_exit`) and against every edge of the block (`kernels._outside_convex`),
-  and the vertex pairs' exit tests (`kernels._edge_edge_exit`). The kernel tests every vertex
+  (``kernels._nearer_exit``) and against every edge of the block (``kernels._outside_convex``),
+  and the vertex pairs' exit tests (``kernels._edge_edge_exit``). The kernel tests every vertex
   against every edge too; this only does it with a few large array operations.
 """
 

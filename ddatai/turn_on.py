@@ -13,7 +13,7 @@ load holds several degrees past the start's tilt topples (docs/guide/equilibrium
 The reference for a threshold is the model loaded slowly from rest (docs/method/dda.md §8.12),
 and with ``Params.start_turn_on`` that is what settles the doubt: the model is run from t = 0
 with its weight turned on over RAMP_TIMES rocking time constants of its free part
-(`rocking_time`, Housner's √(4R/(3g)), R half the diagonal of the free blocks' bounding box),
+(``rocking_time``, Housner's √(4R/(3g)), R half the diagonal of the free blocks' bounding box),
 by a ground acceleration (1 − s(t))·g that the run's own steps carry (s a smoothstep from 0 to
 1; §2.4, the ground's frame), then held for HOLD_TIMES, the blocks that the stage released for
 certain moved out of the way. Where no block moves further than MECHANISM_SIZE of its size, the
