@@ -51,11 +51,8 @@ MAX_ITERATIONS = 120
 STALL_ITERATIONS = 20
 #: ... and in finishing an iteration that stalled within the looser tolerance only
 MAX_FINISH_SOLVES = 8
-#: a pseudo-step's iteration stops for Newton once, for this many iterations, no contact closed or
-#: changed line and none opened pulled by more than ``Params.oc_state_tolerance`` × its blocks'
-#: load (a step's judgement changes no state for less, docs/method/dda.md §4.3; the 40 × 40
-#: grid's first pseudo-step spent 35 of 63 solves on such openings, each a factorisation); where
-#: Newton does not finish, once more where no state changes at all (`_iterate`, ``tail``)
+#: a pseudo-step's first iteration stops for Newton once no contact has changed state in this
+#: many iterations: the rest is the slips' linear convergence (`_iterate`, ``tail``)
 NEWTON_AFTER = 3
 #: a pseudo-step that has not found its equilibrium in this many solves gives up (welded start)
 MAX_STAGE_SOLVES = 1000
@@ -148,7 +145,7 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
     guess = None
     freeze = False
     stalled = False
-    newton = 2  # Newton's tries left (NEWTON_AFTER)
+    newton = True
     touching, line0 = contacts.state != OPEN, contacts.line.copy()  # as limit equilibrium counts them
     while solves < MAX_STAGE_SOLVES:
         keep = ~(out[contacts.block_a] | out[contacts.block_b])
@@ -157,11 +154,11 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
             touching, line0 = touching[keep], line0[keep]
             guess = guess.subset(keep) if guess is not None else None
             frame = Frame.build(stepper, state, geom, contacts, dt)
-        # Newton (``_finish``) where the states settle (NEWTON_AFTER), before anything is
-        # released (a model with a mechanism keeps the path limit equilibrium checks)
-        newton_now = newton > 0 and not freeze and not np.any(out & ~released)
+        # Newton (``_finish``) from where the states settle, once a pseudo-step and before anything
+        # is released (a model with a mechanism keeps the path limit equilibrium checks)
+        newton_now = newton and not freeze and not np.any(out & ~released)
         outcome, raw = _iterate(stepper, frame, contacts, geom, out, size, guess, freeze,
-                                tail=NEWTON_AFTER if newton_now else None, minor_steady=newton == 2)
+                                tail=NEWTON_AFTER if newton_now else None)
         solves += outcome.solves
         if outcome.disp is None:
             return None, solves, out & ~released, contacts, False
@@ -170,7 +167,7 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
         contacts.dn[:] = outcome.law.dn_now
         mechanism = mechanisms(stepper, state.vertex_xy, geom, contacts, outcome.disp, out, size)
         if outcome.steady:  # cut short for Newton: where it does not finish, the return mapping goes on
-            newton -= 1
+            newton = False
             if not mechanism.any():
                 done, n = _finish(stepper, state, geom, frame, contacts, outcome, guess, out, size)
                 solves += n
@@ -255,7 +252,7 @@ def _finish(stepper, state: State, geom: dict, frame: Frame, contacts: Contacts,
 
 def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndarray,
              size: np.ndarray, guess: Optional[Guess], freeze: bool = False,
-             tail: Optional[int] = None, minor_steady: bool = False) -> tuple[Outcome, Guess]:
+             tail: Optional[int] = None) -> tuple[Outcome, Guess]:
     """The return-mapping iteration of one pseudo-step (module docstring, 1.–2.). Every closed
     contact is a spring — normal, and for a vertex-edge one shear from its lock point moved by
     its slip — so that no block loses its stiffness while the iteration finds which contacts
@@ -281,9 +278,7 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
     then in equilibrium within that much. A block that moves away by more than MECHANISM_SIZE
     ends the iteration (`mechanisms`), and so do MAX_ITERATIONS iterations or a stall, and with
     ``tail`` an iteration whose states have not changed for that many iterations (``steady``: the
-    slips' linear convergence is left, which ``_finish`` does in a few solves); with
-    ``minor_steady``, not counting the contacts that open pulled by less than
-    ``Params.oc_state_tolerance`` × the load their blocks carry (NEWTON_AFTER)."""
+    slips' linear convergence is left, which ``_finish`` does in a few solves)."""
     model, p = stepper.model, stepper.params
     free = ~model.block_fixed
     ve = contacts.cint[:, KIND] == VE
@@ -385,9 +380,7 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
                 return outcome, guess
         unbalance = float(np.max(np.maximum(excess, 0.0) / loose, initial=0.0))
         states_moved = changed or alpha < 1.0  # states changed, or the line search stopped short
-        major = bool(np.any(closes | switch | (opens & (pen * law.dn - tensile > state_loose)))) \
-            if minor_steady else states_moved  # a change that moves a force by more than the state tolerance
-        steady = 0 if major else steady + 1
+        steady = 0 if states_moved else steady + 1
         if tail is not None and steady >= tail and it > 1:
             outcome.steady = True
             guess.slip = guess.slip + dslip
