@@ -22,7 +22,7 @@ from typing import Optional
 import numpy as np
 
 from .build import Problem, prepare
-from .faces import check_group, is_connected
+from .faces import check_connected_group, check_group
 from .judges.dda import dda_evaluation
 from .judges.rigid import classify_blocks
 from .kinds import Method
@@ -143,9 +143,7 @@ def evaluate(scene, blocks, method: str = Method.SARMA, *, settings: Optional[Se
 def evaluate_group(problem: Problem, blocks, method: Method) -> GroupResult:
     """`evaluate` on a prepared problem."""
     system, settings = problem.system, problem.settings
-    group = check_group(system, blocks)
-    if not is_connected(system, group):
-        raise ValueError(f"group {sorted(group)} is not connected: its blocks must share contacts")
+    group = check_connected_group(system, blocks)
     screening = method.screened_by(settings.screening)
     row = group_result(system, group, JUDGES[screening](system, group, frozenset()), screening, settings.fs_target)
     return judge_by_dda(problem, row) if method is Method.DDA else row

@@ -56,6 +56,15 @@ def check_group(system: BlockSystem, blocks, *, removed: frozenset = frozenset()
     return frozenset(out)
 
 
+def check_connected_group(system: BlockSystem, blocks) -> frozenset:
+    """`check_group`, and the group one connected set (`is_connected`): the group a user names
+    for one evaluation; raises ValueError saying which check failed."""
+    group = check_group(system, blocks)
+    if not is_connected(system, group):
+        raise ValueError(f"group {sorted(group)} is not connected: its blocks must share contacts")
+    return group
+
+
 def is_connected(system: BlockSystem, blocks: frozenset) -> bool:
     """Whether the blocks form one connected set through shared contacts (§3.2, condition 5)."""
     blocks = set(blocks)

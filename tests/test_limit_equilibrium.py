@@ -5,6 +5,7 @@ leaves its base (b/h < tanθ) whatever its friction; a pushed block holds up to 
 resting on one that slides goes with it; and the equilibrium stage releases exactly the blocks
 that it lets move on the jointed slope, where the stage used to end welded."""
 
+import functools
 import math
 
 import numpy as np
@@ -133,7 +134,9 @@ def test_the_stage_releases_what_limit_equilibrium_lets_move_on_the_jointed_slop
     assert moved[held].max() <= max(start["settlement"], 1e-6)
 
 
+@functools.lru_cache(maxsize=1)
 def _jointed_slope_family_start():
+    """The 400-block slope's start (~10 s), once for the two tests that read it."""
     from benchmarks.scaling import slope_scene
 
     scene, params = slope_scene(400)

@@ -42,7 +42,7 @@ from ddatai.workers import WorkerLost
 
 from ..analysis import analyze_problem, evaluate_group
 from ..build import Problem, prepare
-from ..faces import check_group, is_connected
+from ..faces import check_connected_group
 from ..judges.batch import Member, judge_members
 from ..judges.dda import dda_evaluation
 from ..kinds import METHOD_NAMES, Method, Sampling
@@ -128,9 +128,7 @@ def _screen(job: _Job, item: tuple) -> Screened:
     if job.group is not None and job.method is Method.DDA and not job.dda_fs:
         # a given group judged by its DDA verdict alone: the screening method's FS would be
         # computed and dropped (the row's FS is nan), so only the group is checked
-        group = check_group(problem.system, job.group)
-        if not is_connected(problem.system, group):
-            raise ValueError(f"group {sorted(group)} is not connected: its blocks must share contacts")
+        group = check_connected_group(problem.system, job.group)
         return Screened(problem=problem, result=None, row=SampleRow.of_group(math.nan, False, group), group=group)
     if job.group is not None:
         result = evaluate_group(problem, job.group, method)
