@@ -18,7 +18,9 @@ samples whose groups are the same judged side by side in one run. Its outcome is
 Execution (`ddatai.parallel`): by default rigid and Sarma samples (limit equilibrium, about a
 millisecond each) run in this process, where they are fastest, and DDA samples (seconds each)
 on one local worker process per CPU; ``workers=`` chooses, and ``client=`` (a
-``dask.distributed.Client`` or a scheduler address) runs them on a Dask cluster. A script that
+``dask.distributed.Client`` or a scheduler address) runs them on a Dask cluster. On local
+workers, DDA verdicts on the fused engine are prepared by the workers in NumPy and run by one
+more process, the only one that loads the fused kernel (`_prepared_then_run`). A script that
 starts a study at its top level without an ``if __name__ == "__main__":`` block still gets its
 result by default (in this process, with a warning saying what to add); asked for worker
 processes explicitly, it stops before any work with one line saying what to add. With ``out=``
@@ -213,9 +215,15 @@ def _prepare_batch(job: _Job, items: tuple) -> tuple:
 def _finish_batch(job: _Job, work: tuple) -> list:
     """[(index, `SampleRow`)] of a `_prepare_batch` group: its samples' runs in one launch of
     the fused engine (`kgm.judges.fused.run_prepared`), in the study's process that has loaded
-    the kernel. Errors name the sample (each sample then judged on its own, `_evaluate`)."""
+    the kernel. Errors name the sample (each sample then judged on its own, `_evaluate`).
+    ``work`` an architecture's name: the kernel loaded on it, ahead of the first batch (no rows)."""
     from ..judges.fused import run_prepared
 
+    if isinstance(work, str):  # the kernel loaded ahead of the first batch, on this architecture
+        from ddatai.fused.warm import warm
+
+        warm(work)
+        return []
     entries, prepared = work
     try:
         verdicts = run_prepared(prepared, report=(job.settings or Settings()).dda.progress)
@@ -235,11 +243,15 @@ def _prepared_then_run(job: _Job, batches: list, workers: int):
     from ddatai.workers import Runner
 
     samples: dict = {}  # the runner's key -> the indices of its samples
+    params = (job.settings or Settings()).dda.params
     with Runner(functools.partial(_finish_batch, job)) as runner:
+        if params is not None and params.kernels == "fused" and params.arch in ("cpu", "cuda", "gpu"):
+            # the study asks for the fused engine: its one load starts now, beside the workers
+            runner.submit("load", params.arch)
         def taken(results):
             for key, rows in results:
                 if isinstance(rows, WorkerLost):
-                    yield from ((index, rows) for index in samples.pop(key))
+                    yield from ((index, rows) for index in samples.pop(key, ()))
                 else:
                     samples.pop(key, None)
                     yield from rows
