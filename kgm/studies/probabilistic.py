@@ -248,6 +248,7 @@ def _prepared_then_run(job: _Job, batches: list, workers: int):
         if params is not None and params.kernels == "fused" and params.arch in ("cpu", "cuda", "gpu"):
             # the study asks for the fused engine: its one load starts now, beside the workers
             runner.submit("load", params.arch)
+
         def taken(results):
             for key, rows in results:
                 if isinstance(rows, WorkerLost):
