@@ -9,8 +9,8 @@ cohesion N(20 kPa, 5 kPa) correlated −0.3, seed 1, group {0, 1} of ``scenes/ex
 times, threads pinned in every process (BLAS and Taichi one thread each): the wall time of
 ``kgm.probabilistic`` from its call to its table, the workers' start and their load of the
 fused kernel (Taichi's offline cache) included, and the CPU time (user + system) of the process
-and all its workers (the machine is shared: the wall time follows its load). Prints each run, the medians, and whether the
-two checkouts' tables give every sample the same verdict. Run ``python -m ddatai.fused`` in
+and all its workers (the machine is shared: the wall time follows its load). Prints each run,
+the medians, and whether the two checkouts' tables give every sample the same verdict. Run ``python -m ddatai.fused`` in
 each checkout first (the kernel compiled and cached).
 
 ``--evaluate``: instead, ``kgm.evaluate(Example I, [0, 1], "dda")`` (the fused engine) three
