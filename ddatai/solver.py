@@ -75,6 +75,14 @@ def available(name: str) -> bool:
 #: sparse factorisation with its ordering and symbolic set-up (benchmarks/small_models.py)
 DENSE_UNKNOWNS = 600
 
+#: the dense backend factorises a system of at most this many unknowns (a few dozen free blocks)
+#: instead of trying GMRES with the last factor (``krylov``) or refinement with it (``reuse``):
+#: there LAPACK's factorisation and solve cost less than the Python-level set-up of one GMRES
+#: iteration or one refinement pass (the equilibrium stage of a two-block group solves ~24 such
+#: 12 × 12 systems; benchmarks/small_models.py). Floats differ from the iterative solves' at
+#: round-off only: both stop at a direct solve's accuracy
+DENSE_DIRECT_UNKNOWNS = {"krylov": 192, "reuse": 0}
+
 
 def resolve(name: str, unknowns: Optional[int] = None) -> str:
     """The backend a ``Params.solver`` value selects (for a system of ``unknowns``, if known)."""
@@ -154,6 +162,9 @@ class SparseSolver:
             return self._solve_updating(data, indices, indptr, rhs, n, springs, reuse)
         if self._updating is not None:
             self._updating.forget()  # another K: its factor no longer follows the springs
+        if self.backend == "dense":  # small: LAPACK factorises cheaper than an iterative solve
+            krylov = krylov and n > DENSE_DIRECT_UNKNOWNS["krylov"]
+            reuse = reuse and n > DENSE_DIRECT_UNKNOWNS["reuse"]
         if krylov:
             x = self._solve_krylov(data, indices, indptr, rhs, n)
             if x is not None:
