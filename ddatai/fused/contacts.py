@@ -139,22 +139,14 @@ def _corner_row(E: ti.template(), base, mend, v, e):
     (`ddatai.contacts.inherited_from_corner`), −1 if none."""
     row = -1
     for side in range(2):
-        w = e
-        if side == 1:
-            w = E.vnext[e]
+        w = e if side == 0 else E.vnext[e]
+        # the VV key orders its vertices by block; line 0 is vertex0's
         first = E.vblock[v] < E.vblock[w]
-        a = w
-        b = v
-        need = 1
-        if first:
-            a = v
-            b = w
-            need = 0
-        if row < 0:
-            r = _find(E, base, mend, VV, a, b)
-            if r >= 0:
-                if E.memi[r, MEMI_STATE] != OPEN and E.memi[r, MEMI_LINE] == need and E.memi[r, MEMI_SIDE] == side:
-                    row = r
+        r = _find(E, base, mend, VV, v if first else w, w if first else v)
+        if row < 0 and r >= 0:
+            if E.memi[r, MEMI_STATE] != OPEN and E.memi[r, MEMI_LINE] == (0 if first else 1) and \
+                    E.memi[r, MEMI_SIDE] == side:
+                row = r
     return row
 
 
@@ -459,18 +451,11 @@ def hand_over(E: ti.template(), m):
         kept = st == LOCK or (keep_sliding and st == SLIDE)
         E.memi[c, MEMI_BOND] = ti.cast(E.cint[c, CI_BOND] != 0 and kept, ti.i32)
         E.memi[c, MEMI_DIR] = E.cint[c, CI_DIR]
-        side = -1
-        if k0 == VV:
-            # `ContactMemory.line_side`: the active line's edge starts (0) or ends (1) at the partner
-            edge = E.cint[c, CI_E0]
-            partner = E.cint[c, CI_V1]
-            if E.cint[c, CI_LINE] == 1:
-                edge = E.cint[c, CI_E1]
-                partner = E.cint[c, CI_V0]
-            side = 1
-            if edge == partner:
-                side = 0
-        E.memi[c, MEMI_SIDE] = side
+        # `ContactMemory.line_side`: the active line's edge starts (0) or ends (1) at the partner
+        one = E.cint[c, CI_LINE] == 1
+        edge = E.cint[c, CI_E1] if one else E.cint[c, CI_E0]
+        partner = E.cint[c, CI_V0] if one else E.cint[c, CI_V1]
+        E.memi[c, MEMI_SIDE] = -1 if k0 != VV else (0 if edge == partner else 1)
         E.memf[c, MEMF_OMEGA] = E.cf[c, CF_OMEGA]
         E.memf[c, MEMF_DN] = E.cf[c, CF_DN]
         E.memf[c, MEMF_NF] = E.cf[c, CF_NF]
