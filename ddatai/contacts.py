@@ -16,7 +16,7 @@ import numpy as np
 
 # the states and kinds as plain ints: a NumPy comparison with an IntEnum member costs ~5× one with
 # an int (the member is converted on every call)
-from .layout import E0, E1, KIND, LOCK, OPEN, SLIDE, V0, V1, VE, VV
+from .layout import E0, E1, KIND, LOCK, OPEN, SLIDE, V0, V1, VE
 from .model import ContactMemory, Model
 
 
@@ -280,13 +280,6 @@ class Contacts:
             closed = found.copy()
             closed[found] = memory.state[src] != OPEN
             normal_force[closed] = memory.normal_force[pos[closed]]
-            heir, row = inherited_from_corner(model, cint, memory, found)
-            # a corner pair handed over to the vertex-edge rules: the contact on the edge of the
-            # VV contact's active line goes on closed, with its normal force and, as the VV
-            # contact had none, no shear force (locked where its vertex is)
-            state[heir] = LOCK
-            shear_dir[heir] = memory.shear_dir[row]
-            normal_force[heir] = memory.normal_force[row]
         slip = np.zeros(m)
         if len(memory.slip) and m:
             slip[found] = memory.slip[src]
@@ -338,51 +331,7 @@ class Contacts:
                              omega=self.omega.copy(), bond=self.bond & locked,
                              shear_dir=self.shear_dir.copy(), dn=self.dn.copy(),
                              normal_force=self.normal_force.copy(), kind=self.cint[:, KIND].astype(np.int8),
-                             slip=self.slip.copy() if self.slip.any() else np.zeros(0),
-                             line_side=line_side(self.cint, self.line))
-
-
-def line_side(cint: np.ndarray, line: np.ndarray) -> np.ndarray:
-    """(m,) int8 `ContactMemory.line_side`: of each VV contact, whether the edge of its active
-    line starts (0) or ends (1) at the partner vertex; −1 for a VE contact."""
-    first = line == 0
-    edge = np.where(first, cint[:, E0], cint[:, E1])
-    partner = np.where(first, cint[:, V1], cint[:, V0])
-    return np.where(cint[:, KIND] == VV, np.where(edge == partner, 0, 1), -1).astype(np.int8)
-
-
-def inherited_from_corner(model: Model, cint: np.ndarray, memory: ContactMemory, found: np.ndarray
-                          ) -> tuple[np.ndarray, np.ndarray]:
-    """The vertex-edge contacts that were last step's closed vertex-vertex contacts on their
-    active line, and those rows of ``memory``: (indices into ``cint``, memory rows).
-
-    A VV pair whose corners slid past each other is handed over to the vertex-edge rules
-    (docs/method/dda.md §3.4); the vertex of its active line then lies on that line's edge, and
-    the VE contact of that vertex and edge is the same contact, not a new one: it inherits the
-    VV contact's memory (§3.7) instead of starting open and closing in the step's iteration.
-    The edge is named by ``memory.line_side`` at the partner vertex w: side 0 the edge that
-    starts at w, side 1 the one that ends there. ``found``: the contacts found by their own key."""
-    none = np.zeros(0, np.int64)
-    if len(memory.line_side) != len(memory.key) or not len(memory.key):
-        return none, none
-    cand = np.flatnonzero(~found & (cint[:, KIND] == VE))
-    if not len(cand):
-        return none, none
-    n = np.int64(model.n_vertices)
-    v = cint[cand, V0].astype(np.int64)
-    e = cint[cand, E0].astype(np.int64)
-    heirs, rows = [], []
-    for side, w in ((0, e), (1, model.vertex_next[e].astype(np.int64))):
-        # the VV key orders its vertices by block (vertex0 on the pair's first block), and line
-        # 0 is vertex0's
-        first = model.vertex_block[v] < model.vertex_block[w]
-        key = n * n + np.where(first, v * n + w, w * n + v)
-        pos = np.minimum(np.searchsorted(memory.key, key), len(memory.key) - 1)
-        hit = (memory.key[pos] == key) & (memory.kind[pos] == VV) & (memory.state[pos] != OPEN) & \
-            (memory.line[pos] == np.where(first, 0, 1)) & (memory.line_side[pos] == side)
-        heirs.append(cand[hit])
-        rows.append(pos[hit])
-    return np.concatenate(heirs), np.concatenate(rows)
+                             slip=self.slip.copy() if self.slip.any() else np.zeros(0))
 
 
 def barton_tan(model: Model, joint: np.ndarray, normal_force: np.ndarray, length: np.ndarray,

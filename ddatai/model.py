@@ -230,18 +230,13 @@ class ContactMemory:
     slip: np.ndarray = field(default_factory=lambda: np.zeros(0))
     """(m,) shear displacement slid so far [m] (softening Barton–Bandis joints; empty when
     the model has none)."""
-    line_side: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int8))
-    """(m,) int8 the edge of a VV contact's active line, at the partner vertex: 0 the edge that
-    starts there, 1 the one that ends there (−1 for a VE contact); the vertex-edge contact on
-    that edge inherits the VV contact's memory when the pair is handed over (docs/method/dda.md
-    §3.7). Empty: not kept (nothing is inherited)."""
 
     @staticmethod
     def empty() -> "ContactMemory":
         z = np.zeros(0)
         return ContactMemory(key=np.zeros(0, np.int64), state=z.astype(np.int8), line=z.astype(np.int8),
                              omega=z, bond=z.astype(bool), shear_dir=z.astype(np.int8), dn=z,
-                             normal_force=z, kind=z.astype(np.int8), line_side=z.astype(np.int8))
+                             normal_force=z, kind=z.astype(np.int8))
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)

@@ -376,64 +376,6 @@ def test_corners_of_diagonal_blocks_touching_to_round_off_stay_a_vertex_vertex_c
     assert len(diagonal) == 1 and diagonal[0][0] == VV
 
 
-def _corner_memory(model, P, Q, line, side, state=1, normal_force=2.5e5):
-    """A one-row `ContactMemory`: last step's vertex-vertex contact of P (block 0) and Q
-    (block 3), acting on ``line`` (0: P's, 1: Q's) whose edge ``side`` says (0: the edge that
-    starts at the partner, 1: the one that ends there), ``state`` (1: closed)."""
-    from ddatai.model import ContactMemory
-
-    n = model.n_vertices
-    one = lambda v, t: np.array([v], t)  # noqa: E731
-    return ContactMemory(key=one(n * n + P * n + Q, np.int64), state=one(state, np.int8), line=one(line, np.int8),
-                         omega=one(0.0, float), bond=one(False, bool), shear_dir=one(-1, np.int8),
-                         dn=one(-1e-7, float), normal_force=one(normal_force, float), kind=one(VV, np.int8),
-                         line_side=one(side, np.int8))
-
-
-@pytest.mark.parametrize("line", [0, 1])
-def test_a_corner_pair_handed_over_carries_its_memory_to_the_contact_on_its_active_line(line):
-    """The passed corners of `_passed_corners` (Q 1 µm behind block 0's top edge): last step
-    they were one vertex-vertex contact, closed on ``line`` (0: P against block 3's bottom edge,
-    the edge that starts at Q; 1: Q against block 0's top edge, the edge that starts at P).
-    Handed over, the vertex-edge contact of that vertex and edge is the same contact: it starts
-    closed (locked where its vertex is: the VV contact carried no shear), with the VV contact's
-    normal force and sliding direction, instead of open (docs/method/dda.md §3.7); the other
-    vertex's contact, on an edge the VV contact did not act on, starts open. The memory hands
-    the side of the active line's edge on (`ContactMemory.line_side`)."""
-    from ddatai.contacts import Contacts, line_side
-    from ddatai.layout import LOCK, OPEN
-
-    model, xy, P, Q = _passed_corners(1e-6)
-    cint, length = vectorized.detect_contacts(model, xy)
-    c = Contacts.start(model, xy, cint, length, _corner_memory(model, P, Q, line, side=0), False)
-    heir = np.flatnonzero((cint[:, 0] == VE) & (cint[:, 1] == (P, Q)[line]) & (cint[:, 2] == (Q, P)[line]))
-    other = np.flatnonzero((cint[:, 0] == VE) & (cint[:, 1] == (Q, P)[line]) & (cint[:, 2] == (P, Q)[line]))
-    assert len(heir) == 1 and len(other) == 1
-    assert c.state[heir[0]] == LOCK and c.normal_force[heir[0]] == 2.5e5 and c.shear_dir[heir[0]] == -1
-    assert c.omega[heir[0]] == edge_projection(xy, model.vertex_next, cint[heir, 1], cint[heir, 2])[0]
-    assert c.state[other[0]] == OPEN
-    # a VV contact's memory names its active line's edge at the partner
-    vv = np.array([[VV, P, Q, Q, int(model.vertex_prev[P])], [VV, P, int(model.vertex_prev[Q]), Q, P]], np.int32)
-    assert line_side(vv, np.array([0, 1])).tolist() == [0, 0]
-    assert line_side(vv, np.array([1, 0])).tolist() == [1, 1]
-
-
-@pytest.mark.parametrize("line, side, state", [(0, 1, 1), (1, 1, 1), (0, 0, 0)])
-def test_a_corner_pair_handed_over_carries_nothing_to_another_edge_or_from_an_open_contact(line, side, state):
-    """The same hand-over, but the VV contact acted on the other edge at the partner (side 1:
-    block 3's left edge, block 0's right edge), or was open: both vertex-edge contacts start
-    open, as new contacts do (docs/method/dda.md §3.7)."""
-    from ddatai.contacts import Contacts
-    from ddatai.layout import OPEN
-
-    model, xy, P, Q = _passed_corners(1e-6)
-    cint, length = vectorized.detect_contacts(model, xy)
-    c = Contacts.start(model, xy, cint, length, _corner_memory(model, P, Q, line, side, state), False)
-    b = model.vertex_block
-    diagonal = np.flatnonzero(np.isin(b[cint[:, 1]], (0, 3)) & np.isin(b[cint[:, 2]], (0, 3)))
-    assert len(diagonal) == 2 and np.all(c.state[diagonal] == OPEN)
-
-
 def test_an_open_corner_contact_carries_no_normal_force_from_a_line_it_does_not_use():
     """The passed corners slid the other way (the upper row 2 mm to the right, block 3 turned
     0.2°): a new vertex-vertex contact whose line 0 (P against block 3's bottom edge) lies 7 µm

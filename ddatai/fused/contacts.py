@@ -15,7 +15,7 @@ from .layout import (BG_CX, BG_CY, BI_ROW, BI_V0, BI_V1, BW_ROT, CF_ARM, CF_COH,
                      CI_BOND0, CI_COUPLED, CI_COUPLED0, CI_DIR, CI_DIR0, CI_E0, CI_E1, CI_JOINT, CI_KIND,
                      CI_LINE, CI_LINE0, CI_STATE, CI_STATE0, CI_V0, CI_V1, FLAG_BOND_SLIP, JF_COH, JF_TAN,
                      JF_TEN, MEMF_DN, MEMF_NF, MEMF_OMEGA, MEMI_BOND, MEMI_DIR, MEMI_K2, MEMI_KIND, MEMI_LINE,
-                     MEMI_SIDE, MEMI_STATE, MEMI_V0, MF_D0, MF_D9, MF_H1, MF_OPEN_TOL, MF_PENALTY, MF_SHEAR, MI_B0, MI_B1,
+                     MEMI_STATE, MEMI_V0, MF_D0, MF_D9, MF_H1, MF_OPEN_TOL, MF_PENALTY, MF_SHEAR, MI_B0, MI_B1,
                      MI_C0, MI_CCAP, MI_FLAGS, MI_NC, MI_NF, MI_NM, MI_Q0, MI_Q1, MI_R0, MI_STEP)
 
 VE = 0
@@ -116,41 +116,6 @@ def _signed_distance(E: ti.template(), v, e):
 
 
 @ti.func
-def _find(E: ti.template(), lo, hi, k0, k1, k2):
-    """The memory row in [lo, hi) of key (k0, k1, k2), −1 if none (binary search)."""
-    a = lo
-    b = hi
-    while a < b:
-        mid = (a + b) // 2
-        if _less(E.memi[mid, MEMI_KIND], E.memi[mid, MEMI_V0], E.memi[mid, MEMI_K2], k0, k1, k2):
-            a = mid + 1
-        else:
-            b = mid
-    found = -1
-    if a < hi:
-        if E.memi[a, MEMI_KIND] == k0 and E.memi[a, MEMI_V0] == k1 and E.memi[a, MEMI_K2] == k2:
-            found = a
-    return found
-
-
-@ti.func
-def _corner_row(E: ti.template(), base, mend, v, e):
-    """The memory row of last step's closed VV contact whose active line was vertex v on edge e
-    (`ddatai.contacts.inherited_from_corner`), −1 if none."""
-    row = -1
-    for side in range(2):
-        w = e if side == 0 else E.vnext[e]
-        # the VV key orders its vertices by block; line 0 is vertex0's
-        first = E.vblock[v] < E.vblock[w]
-        r = _find(E, base, mend, VV, v if first else w, w if first else v)
-        if row < 0 and r >= 0:
-            if E.memi[r, MEMI_STATE] != OPEN and E.memi[r, MEMI_LINE] == (0 if first else 1) and \
-                    E.memi[r, MEMI_SIDE] == side:
-                row = r
-    return row
-
-
-@ti.func
 def start(E: ti.template(), m, n):
     """Joint properties and the last step's memory attached to the n detected contacts
     (`ddatai.contacts.Contacts.start`: states transferred by identity, lock points kept while
@@ -222,15 +187,6 @@ def start(E: ti.template(), m, n):
                 strength = nf * tan + coh * length * bond
                 edge = ti.sqrt(_dot2(d, d))
                 omega -= sdir * strength / (E.mf[m, MF_SHEAR] * edge)
-        heir = -1
-        if found == 0 and kind == VE and base < mend:
-            heir = _corner_row(E, base, mend, v, e)
-        if heir >= 0:
-            # a corner pair handed over: the contact on the edge of the VV contact's active line
-            # goes on closed, with its normal force and no shear force (`Contacts.start`)
-            state = LOCK
-            sdir = E.memi[heir, MEMI_DIR]
-            nf = E.memf[heir, MEMF_NF]
         elif first:
             touching = ti.max(dn0, dn1) <= E.mf[m, MF_OPEN_TOL]
             if kind == VV:
@@ -451,11 +407,6 @@ def hand_over(E: ti.template(), m):
         kept = st == LOCK or (keep_sliding and st == SLIDE)
         E.memi[c, MEMI_BOND] = ti.cast(E.cint[c, CI_BOND] != 0 and kept, ti.i32)
         E.memi[c, MEMI_DIR] = E.cint[c, CI_DIR]
-        # `ContactMemory.line_side`: the active line's edge starts (0) or ends (1) at the partner
-        one = E.cint[c, CI_LINE] == 1
-        edge = E.cint[c, CI_E1] if one else E.cint[c, CI_E0]
-        partner = E.cint[c, CI_V0] if one else E.cint[c, CI_V1]
-        E.memi[c, MEMI_SIDE] = -1 if k0 != VV else (0 if edge == partner else 1)
         E.memf[c, MEMF_OMEGA] = E.cf[c, CF_OMEGA]
         E.memf[c, MEMF_DN] = E.cf[c, CF_DN]
         E.memf[c, MEMF_NF] = E.cf[c, CF_NF]

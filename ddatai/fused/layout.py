@@ -81,9 +81,8 @@ CF_LAW = 17               # + 10·slot + the fields below
 CF_ARM = CF_LAW + 20
 N_CF = CF_LAW + 23
 # ``memi`` (int32) / ``memf`` (float64): the contact memory of the last step (§3.7), sorted by key
-# (MEMI_SIDE: `ContactMemory.line_side`, −1 where not kept)
-MEMI_KIND, MEMI_V0, MEMI_K2, MEMI_STATE, MEMI_LINE, MEMI_BOND, MEMI_DIR, MEMI_SIDE = range(8)
-N_MEMI = 8
+MEMI_KIND, MEMI_V0, MEMI_K2, MEMI_STATE, MEMI_LINE, MEMI_BOND, MEMI_DIR = range(7)
+N_MEMI = 7
 MEMF_OMEGA, MEMF_DN, MEMF_NF = range(3)
 N_MEMF = 3
 

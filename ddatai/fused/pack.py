@@ -275,7 +275,6 @@ def pack(members: list, launch_steps: int) -> dict:
             A["memi"][cs, L.MEMI_LINE] = memory.line
             A["memi"][cs, L.MEMI_BOND] = memory.bond
             A["memi"][cs, L.MEMI_DIR] = memory.shear_dir
-            A["memi"][cs, L.MEMI_SIDE] = memory.line_side if len(memory.line_side) == nm else -1
             A["memf"][cs, L.MEMF_OMEGA] = memory.omega
             A["memf"][cs, L.MEMF_DN] = memory.dn
             A["memf"][cs, L.MEMF_NF] = memory.normal_force
@@ -303,8 +302,7 @@ def unpack_state(A: dict, k: int, member: Member):
                            bond=memi[order, L.MEMI_BOND].astype(bool),
                            shear_dir=memi[order, L.MEMI_DIR].astype(np.int8), dn=memf[order, L.MEMF_DN].copy(),
                            normal_force=memf[order, L.MEMF_NF].copy(),
-                           kind=memi[order, L.MEMI_KIND].astype(np.int8),
-                           line_side=memi[order, L.MEMI_SIDE].astype(np.int8))
+                           kind=memi[order, L.MEMI_KIND].astype(np.int8))
     p0 = int(mi[L.MI_P0])
     nfix, nload, nmeas = len(mo.fixed_point_block), len(mo.load_block), len(mo.measured_block)
     pxy = A["pf"][p0:p0 + nfix + nload + nmeas, L.PF_X:L.PF_Y + 1]
