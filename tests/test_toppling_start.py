@@ -104,9 +104,10 @@ def test_the_start_fails_the_goodman_bray_slope_wherever_a_slow_load_does_and_wi
 
 #: cases where the default start topples the stack well below the slow load (measured, bisection
 #: to 0.2°): its stage releases the blocks in doubt, and they start under sudden gravity. Safe,
-#: not within the band (docs/guide/equilibrium_start.md). The start's brackets since the corner
-#: hand-over carries its memory are `START_BRACKETS`; the bisections here were not rerun since
-CONSERVATIVE = {"squares 4-5-6-7": (15.6, 19.0), "squares 4-4-4": (23.375, 24.5)}
+#: not within the band (docs/guide/equilibrium_start.md). The 3-4-5 stack left them with the
+#: corner rule (its start topples it at 24.25°, stands at 24.475°, `START_POINTS`); the bisections here
+#: were not rerun since
+CONSERVATIVE = {"squares 4-5-6-7": (15.6, 19.0), "squares 4-4-4": (22.07, 24.5)}
 
 
 @pytest.mark.slow
@@ -130,42 +131,47 @@ def test_toppling_family_start_against_slow_load(name):
         assert closed - 0.2 < ramp <= closed + RESOLUTION, (ramp, closed)
 
 
-#: the default start's bracket on the stacks of squares (it stands at lo, topples at hi)
-#: [degrees], measured by bisection to 0.1° (0.0625° on 4-4-4) with the corner hand-over
-#: carrying the VV contact's memory (docs/method/dda.md §3.7); before it (and the corner rule),
-#: 20.0–20.2°, 15.6–15.8° and 22.04–22.07° (standing again at 22.09° and 23.0°)
-START_BRACKETS = {"squares 3-4-5": (24.475, 24.55), "squares 4-5-6-7": (15.5, 15.6),
-                  "squares 4-4-4": (23.3125, 23.375)}
+#: the default start on the stacks of squares: tilt [degrees] -> whether it topples the stack,
+#: measured on the code since the corner rule (docs/method/dda.md §3.4; the table of
+#: docs/guide/equilibrium_start.md before it had the start's thresholds at 20.0–20.2°,
+#: 15.6–15.8° and 22.04–22.07°). Not monotone in the tilt on 3-4-5 and 4-4-4: it topples them
+#: at 24.25° and 22.07° and stands again at 24.475° and 22.09°
+START_POINTS = {"squares 3-4-5": {24.25: True, 24.475: False, 24.55: True},
+                "squares 4-5-6-7": {15.5: False, 15.6: True},
+                "squares 4-4-4": {22.04: False, 22.0703: True, 22.0859: False}}
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", list(START_BRACKETS))
-def test_the_default_start_topples_the_square_stacks_in_its_bracket(name):
-    """The default start stands at the bracket's lower end and topples at its upper end; on the
-    4-4-4 stack it now also stands at 22.07° and 22.09°, where it toppled at 22.07° and stood at
-    22.09° before (not monotone in the tilt). 20–100 s a run on a loaded 2-core machine."""
+@pytest.mark.parametrize("name", list(START_POINTS))
+def test_the_default_start_on_the_square_stacks_at_the_measured_tilts(name):
+    """The default start topples each stack of squares exactly where the table says (each start
+    releases the blocks in doubt under sudden gravity; 15–60 s a run on a loaded 2-core
+    machine). The slow load's lowest toppling tilt measured on them is 24.25° (3-4-5, gravity
+    turned over 20 rocking time constants: `test_the_slow_load_on_the_square_stacks_at_the_measured_tilts`),
+    18.0° (4-5-6-7) and 23.25° (4-4-4): the start's lowest lies at or below each."""
     case = CASES[name][0]
-    lo, hi = START_BRACKETS[name]
-    assert not start_topples(case, lo) and start_topples(case, hi)
-    if name == "squares 4-4-4":
-        assert not start_topples(case, 22.0703) and not start_topples(case, 22.0859)
+    for theta, topples in START_POINTS[name].items():
+        assert start_topples(case, theta) == topples, (name, theta)
+
+
+#: the slow load on the stacks of squares (`ramp_topples`): (tilt [degrees], frame, ramp length
+#: [rocking time constants]) -> whether it topples the stack, measured on the code since the
+#: corner rule; the lowest toppling tilt of the scan (`toppling_cases.scan_topples`) is at most
+#: the lowest toppling one here
+SLOW_POINTS = {"squares 3-4-5": {(24.25, "turned", 20.0): True},
+               "squares 4-4-4": {(23.25, "turned", 20.0): True}}
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="the default start holds the 3-4-5 stack at 24.25-24.475 deg, where the "
-                   "slow gravity ramp of 20 rocking time constants in the turned frame topples it (the "
-                   "conservative reference of the scan); the stage releases 11 of its 12 blocks in doubt, and "
-                   "sudden gravity does not topple them there (docs/guide/equilibrium_start.md)")
-def test_the_default_start_topples_the_3_4_5_stack_where_the_slow_load_scan_does():
-    """Never above the slow load, against the conservative reference (the lowest tilt at which
-    any ramp of the scan topples the stack, `toppling_cases.scan_topples`): at 24.25° the ramp
-    of 20 rocking time constants, gravity turned on a horizontal plate, topples the 3-4-5 stack
-    (tilted: it stands); the default start holds it there and topples it only from 24.55°
-    (`START_BRACKETS`), 0.25–0.3° above. Measured on main before the corner hand-over's memory as
-    well (it held the stack at 24.4°). ~3–4 min loaded."""
-    case = CASES["squares 3-4-5"][0]
-    assert ramp_topples(case, 24.25, "turned", 20.0)
-    assert start_topples(case, 24.25)
+@pytest.mark.parametrize("name", list(SLOW_POINTS))
+def test_the_slow_load_on_the_square_stacks_at_the_measured_tilts(name):
+    """The slow ramp topples the 3-4-5 stack at 24.25° and the 4-4-4 stack at 23.25° (gravity
+    turned on a horizontal plate over 20 rocking time constants), where the default start
+    topples them too (3-4-5) or has toppled them from 22.07° (4-4-4): the start is not above
+    the slow load there. 30–230 s a run on a loaded 2-core machine."""
+    case = CASES[name][0]
+    for (theta, frame, ramp), topples in SLOW_POINTS[name].items():
+        assert ramp_topples(case, theta, frame, ramp) == topples, (name, theta, frame, ramp)
 
 
 @pytest.mark.slow
@@ -174,13 +180,13 @@ def test_the_4_4_4_stack_no_longer_stands_from_the_start_where_a_slow_load_toppl
     stack, the slow ramp (20 rocking time constants) toppled it by corner kicks; with diagonal
     corners that slid past each other taken as vertex-edge contacts (docs/method/dda.md §3.4) it
     stands there, and to 24.0° in both frames, and topples at 24.5°. The default start topples
-    the stack from 23.375° (`START_BRACKETS`), 0.6–1.1° below. ~75 s on a loaded 2-core
-    machine, 8 runs."""
+    the stack at 24.0° and 24.5° (and at 22.0703°, its bisection's threshold: it is still not
+    monotone, holding it at 22.0859°). ~75 s on a loaded 2-core machine, 10 runs."""
     case = CASES["squares 4-4-4"][0]
     assert not ramp_topples(case, 22.0859) and not start_topples(case, 22.0859)
     for frame in ("turned", "tilted"):
         assert not ramp_topples(case, 24.0, frame) and ramp_topples(case, 24.5, frame), frame
-    assert start_topples(case, 24.0) and start_topples(case, 24.5)
+    assert start_topples(case, 24.0) and start_topples(case, 24.5) and start_topples(case, 22.0703)
 
 
 def _turn_on_of(theta: float, b: float = 0.05, h: float = 0.2):
