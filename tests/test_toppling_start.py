@@ -135,10 +135,13 @@ def test_toppling_family_start_against_slow_load(name):
 #: measured on the code since the corner rule (docs/method/dda.md §3.4; the table of
 #: docs/guide/equilibrium_start.md before it had the start's thresholds at 20.0–20.2°,
 #: 15.6–15.8° and 22.04–22.07°). Not monotone in the tilt on 3-4-5 and 4-4-4: it topples them
-#: at 24.25° and 22.07° and stands again at 24.475° and 22.09°
+#: at 24.25° and 22.07° and stands again at 24.475° and 22.09°. At 22.07° and 23.25° the stage
+#: releases all 12 blocks of the 4-4-4 stack in doubt, at 22.04° and 22.09° it holds them all;
+#: released, they topple at 22.07° but stand at 23.25°, where the slow ramp topples them
+#: (`SLOW_POINTS`): there the start holds a stack that a slow load topples
 START_POINTS = {"squares 3-4-5": {24.25: True, 24.475: False, 24.55: True},
                 "squares 4-5-6-7": {15.5: False, 15.6: True},
-                "squares 4-4-4": {22.04: False, 22.0703: True, 22.0859: False}}
+                "squares 4-4-4": {22.04: False, 22.0703: True, 22.0859: False, 23.25: False}}
 
 
 @pytest.mark.slow
