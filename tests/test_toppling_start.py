@@ -149,9 +149,10 @@ START_POINTS = {"squares 3-4-5": {24.25: True, 24.475: False, 24.55: True},
 def test_the_default_start_on_the_square_stacks_at_the_measured_tilts(name):
     """The default start topples each stack of squares exactly where the table says (each start
     releases the blocks in doubt under sudden gravity; 15–60 s a run on a loaded 2-core
-    machine). The slow load's lowest toppling tilt found on them is above 24.25° (3-4-5: none of
-    the runs at 24.0° and 24.25° of `test_the_slow_load_on_the_square_stacks_at_the_measured_tilts`
-    topples it), 18.0° (4-5-6-7) and 23.25° (4-4-4): the start's lowest lies below each."""
+    machine). Against the slow load (`test_the_slow_load_on_the_square_stacks_at_the_measured_tilts`):
+    no loading of the scan topples the 3-4-5 stack at 24.0°, where the start holds it; the
+    lowest slow-load toppling found is 18.0° on 4-5-6-7 and 23.25° on 4-4-4, where the start
+    holds the 4-4-4 stack (it topples it at 22.07° and from 24.0°)."""
     case = CASES[name][0]
     for theta, topples in START_POINTS[name].items():
         assert start_topples(case, theta) == topples, (name, theta)
