@@ -336,26 +336,29 @@ class _Scatter:
 
     def outer(self, rows_i, rows_j, slot_ij, slot_ji, k, u, w, u2, w2) -> None:
         """k·[u; w][u2; w2]ᵀ of each contact (u, u2 on block-row/column i, w, w2 on j): the
-        diagonal blocks of free i and j, and the off-diagonal ones where both are free."""
+        diagonal blocks of free i and j, and the off-diagonal ones where both are free. The four
+        6 × 6 blocks of every contact are formed at once (a few dozen NumPy calls are most of a
+        small model's assembly) and taken in the order (i, i), (i, j), (j, j), (j, i), each over
+        the contacts in order: the entries, and the floats, of one piece per block side."""
         diag_slot, stride = self.pattern.diag_slot, self.pattern.stride
         on_i, on_j = rows_i >= 0, rows_j >= 0
         both = on_i & on_j
-        for r, on, slot, a, own, other in ((rows_i, on_i, slot_ij, u, u2, w2), (rows_j, on_j, slot_ji, w, w2, u2)):
-            ka = (k[:, None] * a)[:, :, None]
-            rows = r[on]
-            within_block = stride[rows].astype(np.int64)[:, None, None] * _SIX[None, :, None] + _SIX[None, None, :]
-            self.data_at.append((diag_slot[rows].astype(np.int64)[:, None, None] + within_block).ravel())
-            self.data_add.append((ka[on] * own[on][:, None, :]).ravel())
-            pair = both[on]
-            self.data_at.append((slot[both].astype(np.int64)[:, None, None] + within_block[pair]).ravel())
-            self.data_add.append((ka[both] * other[both][:, None, :]).ravel())
+        keep = np.array([on_i, both, on_j, both])                        # (4, n): which blocks exist
+        left = k[:, None] * np.array([u, w])                              # (2, n, 6): k·u, k·w
+        right = np.array([u2, w2, w2, u2])
+        values = left[[0, 0, 1, 1]][:, :, :, None] * right[:, :, None, :]  # (4, n, 6, 6)
+        base = np.array([diag_slot[rows_i], slot_ij, diag_slot[rows_j], slot_ji], np.int64)
+        rows_stride = stride[np.array([rows_i, rows_i, rows_j, rows_j])].astype(np.int64)
+        at = base[:, :, None, None] + rows_stride[:, :, None, None] * _SIX[:, None] + _SIX
+        self.data_at.append(at[keep].ravel())
+        self.data_add.append(values[keep].ravel())
 
     def force(self, rows_i, rows_j, f_i, f_j) -> None:
         """Forces f_i on the rows of free blocks i, f_j on those of free blocks j."""
-        for r, f in ((rows_i, f_i), (rows_j, f_j)):
-            on = r >= 0
-            self.rhs_at.append(((6 * r[on])[:, None] + _SIX).ravel())
-            self.rhs_add.append(f[on].ravel())
+        rows = np.array([rows_i, rows_j])
+        on = rows >= 0
+        self.rhs_at.append(((6 * rows[on])[:, None] + _SIX).ravel())
+        self.rhs_add.append(np.array([f_i, f_j])[on].ravel())
 
     def add_to(self, data: np.ndarray, rhs: np.ndarray) -> None:
         if self.data_at:

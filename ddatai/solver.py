@@ -75,6 +75,14 @@ def available(name: str) -> bool:
 #: sparse factorisation with its ordering and symbolic set-up (benchmarks/small_models.py)
 DENSE_UNKNOWNS = 600
 
+#: the dense backend factorises a system of at most this many unknowns (32 free blocks) where a
+#: later solve of an open-close iteration would try GMRES with the last factor (``krylov``):
+#: LAPACK's factorisation and solve of such a matrix cost less than GMRES's set-up and one
+#: iteration (the equilibrium stage of a two-block group solves ~24 systems of 12 unknowns; paired
+#: on this machine: 12 unknowns, a factorisation ~50 µs, GMRES ~300 µs more; 192: ~0.9 against
+#: ~1.5 ms). Both reach a direct solve's accuracy, so their solutions differ at round-off only
+DENSE_KRYLOV_UNKNOWNS = 192
+
 
 def resolve(name: str, unknowns: Optional[int] = None) -> str:
     """The backend a ``Params.solver`` value selects (for a system of ``unknowns``, if known)."""
@@ -154,6 +162,8 @@ class SparseSolver:
             return self._solve_updating(data, indices, indptr, rhs, n, springs, reuse)
         if self._updating is not None:
             self._updating.forget()  # another K: its factor no longer follows the springs
+        if self.backend == "dense" and n <= DENSE_KRYLOV_UNKNOWNS:
+            krylov = False  # a factorisation costs less than GMRES here (DENSE_KRYLOV_UNKNOWNS)
         if krylov:
             x = self._solve_krylov(data, indices, indptr, rhs, n)
             if x is not None:

@@ -129,6 +129,7 @@ class Stepper:
         self.params = model.params
         self.buffers = _Buffers()
         self.narrow = vectorized.NarrowCache()  # the NumPy narrow phase's candidates of the last pairs
+        self._detected = None  # (model, vertex_xy, cint, length) of the NumPy path's last detection
         self.free_idx = np.flatnonzero(~model.block_fixed)
         self.solver = SparseSolver(model.params.solver, unknowns=6 * model.n_free)
         # a block's weight, the smallest load the open-close judgement measures it by [N/m]
@@ -271,7 +272,15 @@ class Stepper:
         (`contacts.detect_contacts`) or, for a small model, their NumPy twin
         (`vectorized.detect_contacts`)."""
         if self.model.numpy_path:
-            return vectorized.detect_contacts(self.model, vertex_xy, self.narrow)
+            # the equilibrium stage detects at one geometry up to three times in a row (its
+            # screen, its first pseudo-step, the release test), about half its detections: the
+            # last answer is kept (a copy each way, so that no caller's edit reaches it)
+            last = self._detected
+            if last is not None and last[0] is self.model and np.array_equal(last[1], vertex_xy):
+                return last[2].copy(), last[3].copy()
+            cint, length = vectorized.detect_contacts(self.model, vertex_xy, self.narrow)
+            self._detected = (self.model, np.array(vertex_xy), cint.copy(), length.copy())
+            return cint, length
         return detect_contacts(self.model, vertex_xy, self.buffers)
 
     def attempt(self, state: State, geom: dict, contacts0: Contacts, vec0: np.ndarray, sca0: np.ndarray,

@@ -315,3 +315,27 @@ def test_pairs_kept_between_detections_find_the_contacts_of_a_fresh_broad_phase(
         np.testing.assert_array_equal(length, fresh_length)
         state = stepper.advance(state).state
     assert kept >= 10 and found >= 3, (kept, found)
+
+
+def test_numpy_path_detection_at_the_same_geometry_gives_the_same_contacts():
+    """`Stepper.detect` on the NumPy path keeps its last answer for the same geometry (the
+    equilibrium stage detects at one geometry up to three times in a row): the same contacts as
+    a fresh detection, handed out as copies that a caller may change, and a moved geometry
+    detected anew."""
+    from ddatai import vectorized
+
+    model = build_model(random_jointed_scene(3), dd.Params(kernels="numpy"))
+    assert model.numpy_path
+    stepper = Stepper(model)
+    xy = perturbed_vertices(model, 3, shift=0.1 * model.search_distance)
+    cint, length = stepper.detect(xy)
+    assert len(length) > 0
+    cint[:] = -1
+    length[:] = 0.0  # a caller's edit does not reach the kept answer
+    again, again_length = stepper.detect(xy.copy())
+    fresh, fresh_length = vectorized.detect_contacts(model, xy, None)
+    np.testing.assert_array_equal(again, fresh)
+    np.testing.assert_array_equal(again_length, fresh_length)
+    moved = xy.copy()
+    moved[model.vertex_block == int(np.flatnonzero(~model.block_fixed)[0])] += 0.5 * model.search_distance
+    np.testing.assert_array_equal(stepper.detect(moved)[0], vectorized.detect_contacts(model, moved, None)[0])

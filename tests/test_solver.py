@@ -246,13 +246,17 @@ def _changed_states(seed, changes):
 
 
 @pytest.mark.parametrize("backend", ["dense", *BACKENDS])
-def test_krylov_solve_with_the_last_factor_matches_the_direct_solve(backend):
+def test_krylov_solve_with_the_last_factor_matches_the_direct_solve(backend, monkeypatch):
     """A later solve of a step (``krylov``): K differs from the matrix last factorised by a few
     contacts' states; GMRES preconditioned by the old factor gives the direct solution (1e-10
     relative) at a direct solve's residual, without a factorisation. Many changes exhaust its
-    iterations: the matrix is factorised, and the new factor serves the next solves."""
+    iterations: the matrix is factorised, and the new factor serves the next solves. (The dense
+    backend tries GMRES only above ``DENSE_KRYLOV_UNKNOWNS``, which this small system is made
+    to exceed.)"""
+    from ddatai import solver as solver_module
     from ddatai.solver import KRYLOV_ACCEPT
 
+    monkeypatch.setattr(solver_module, "DENSE_KRYLOV_UNKNOWNS", 0)
     pattern, systems = _changed_states(2, (1, 2, None))
     (data0, rhs0), few, more, many = systems
     n = len(rhs0)
@@ -275,3 +279,22 @@ def test_krylov_solve_with_the_last_factor_matches_the_direct_solve(backend):
     x = solver.solve(data, pattern.indices, pattern.indptr, 0.5 * rhs, pattern=pattern, krylov=True)
     assert (solver.factorisations, solver.krylov) == (2, 3)
     assert np.abs(x - 0.5 * direct).max() < 1e-10 * np.abs(direct).max()
+
+
+def test_dense_backend_factorises_small_systems_instead_of_gmres():
+    """At most ``DENSE_KRYLOV_UNKNOWNS`` unknowns the dense backend factorises where a solve asks
+    for GMRES with the last factor (cheaper there): the same solution as a fresh direct solve
+    to round-off, a factorisation counted and no Krylov solve."""
+    from ddatai.solver import DENSE_KRYLOV_UNKNOWNS
+
+    pattern, systems = _changed_states(2, (1, 2, None))
+    (data0, rhs0), few, more, _ = systems
+    n = len(rhs0)
+    assert n <= DENSE_KRYLOV_UNKNOWNS
+    solver = SparseSolver("dense")
+    solver.solve(data0, pattern.indices, pattern.indptr, rhs0, pattern=pattern)
+    for data, rhs in (few, more):
+        x = solver.solve(data, pattern.indices, pattern.indptr, rhs, pattern=pattern, krylov=True)
+        direct = SparseSolver("dense").solve(data, pattern.indices, pattern.indptr, rhs)
+        np.testing.assert_array_equal(x, direct)  # the same LAPACK calls on the same matrix
+    assert (solver.factorisations, solver.krylov) == (3, 0)
