@@ -46,15 +46,17 @@ def machine() -> str:
 
 def table(rows: list[dict]) -> str:
     staged = any("start_s" in r for r in rows)  # the settled protocol: the stage beside the steps
-    head = "| family | blocks | contacts | ms/step | ms per OC iteration | OC it./step | ms per 1-OC step (steps) | contacts ms | assembly ms | solve ms | judge + update ms | peak MB | solver |"
-    lines = [head + (" stage s (solves) |" if staged else ""), "|---" * (14 if staged else 13) + "|"]
+    head = "| family | blocks | contacts | ms/step | CPU ms/step | ms per OC iteration | OC it./step | ms per 1-OC step (steps) | contacts ms | assembly ms | solve ms | judge + update ms | peak MB | solver |"
+    lines = [head + (" stage s (solves) |" if staged else ""), "|---" * (15 if staged else 14) + "|"]
     for r in rows:
         one = f"{r['ms_one_oc']:.1f} ({r['one_oc_steps']})" if r.get("ms_one_oc") else "–"
         stage = ""
         if staged:
             stage = (f" {r['start_s']:.2f} ({r['start_solves']}{', welded' if r.get('start_welded') else ''}) |"
                      if "start_s" in r else " – |")
-        lines.append(f"| {r['family']} | {r['blocks']:,} | {r['contacts']:,} | {r['ms_per_step']:.1f} | "
+        # CPU time of the (one-thread) process: on a shared machine the wall time is the load's
+        cpu = f"{r['cpu_ms_per_step']:.1f}" if "cpu_ms_per_step" in r else "–"
+        lines.append(f"| {r['family']} | {r['blocks']:,} | {r['contacts']:,} | {r['ms_per_step']:.1f} | {cpu} | "
                      f"{r['ms_per_oc']:.1f} | {r['oc_per_step']:.1f} | {one} | {r['ms_contacts']:.1f} | {r['ms_assembly']:.1f} | "
                      f"{r['ms_solve']:.1f} | {r['ms_update']:.1f} | {r['peak_mb']:.0f} | {r['solver']} |" + stage)
     nt = [r for r in rows if r["family"] == "grid" and r["blocks"] in NTDDA_GRID_OC]
@@ -154,11 +156,13 @@ def write_report(rows: list[dict], protocol: str, arch: str, out: Path, suffix: 
         own = [r for r in rows if r["family"] == family]
         step, oc = growth_exponent(own), growth_exponent(own, key="ms_per_oc")
         one = growth_exponent([r for r in own if r.get("ms_one_oc")], key="ms_one_oc")
+        cpu = growth_exponent([r for r in own if "cpu_ms_per_step" in r], key="cpu_ms_per_step")
         # the sizes the fit really spans (the range is 1,600 to 25,600)
         span = [r["blocks"] for r in own if 1600 * 0.9 <= r["blocks"] <= 25600 * 1.1]
         where = f"{min(span):,} to {max(span):,}" if len(span) >= 2 else "1,600 to 25,600"
         text.append(f"Growth exponent from {where} blocks ({family}): {step:.2f} per step, {oc:.2f} per "
-                    f"open-close iteration" + ("" if math.isnan(one) else f", {one:.2f} per 1-OC step"))
+                    f"open-close iteration" + ("" if math.isnan(one) else f", {one:.2f} per 1-OC step") +
+                    ("" if math.isnan(cpu) else f", {cpu:.2f} per step in CPU time"))
     text += ["", "With ntdda's protocol the large sizes time only steps 2-5, before the ringing of the sudden "
              "start builds up, so they take fewer open-close iterations per step than the small sizes; the "
              "cost of a step at a fixed iteration count (per 1-OC step, per iteration) is the measure of "
