@@ -310,8 +310,9 @@ def judge(model: Model, contacts: Contacts, law: ContactLaw, bad: np.ndarray,
     closed = law.closed
     contacts.normal_force[closed] = np.maximum(law.fn[closed], 0.0)
     # a contact left closed (within the state tolerance) that the law opens carries no normal
-    # force: its friction bound is 0, not the force of an earlier solve
-    contacts.normal_force[~closed & (contacts.state != OPEN)] = 0.0
+    # force: its friction bound is 0, not the force of an earlier solve; nor does an open VV
+    # contact (it has no friction: its force is only what it hands on)
+    contacts.normal_force[~closed & ((contacts.state != OPEN) | vv)] = 0.0
     if law.tan_phi is not None:
         # Barton–Bandis: the next solve's secant friction is that of this solve's σn (eq.
         # BB3); a sliding contact whose friction was not it is a `violations` Coulomb

@@ -258,7 +258,15 @@ class Contacts:
         bond = np.zeros(m, bool)
         shear_dir = np.ones(m, np.int8)
         omega = edge_projection(vertex_xy, model.vertex_next, cint[:, V0], cint[:, E0])
-        normal_force = model.penalty * np.maximum(-dn0, 0.0)
+        # a VV contact acts on one of its two lines: a new one starts on the less penetrated
+        # (§2.8.7), and the start penetration that sets its normal force is that line's, never
+        # that of a line it does not use (a corner 0.75 mm past the other's edge is no 1e7 N/m)
+        vv = ~ve
+        dn1 = np.full(m, -np.inf)
+        if vv.any():
+            dn1[vv] = signed_distance(vertex_xy, model.vertex_next, cint[vv, V1], cint[vv, E1])
+        line[vv] = dn1[vv] > dn0[vv]
+        normal_force = model.penalty * np.maximum(-np.where(line == 1, dn1, dn0), 0.0)
         tan_phi = model.joint_tan_phi[joint]
         if len(memory.key) and m:
             pos = np.minimum(np.searchsorted(memory.key, key), len(memory.key) - 1)
@@ -266,6 +274,7 @@ class Contacts:
             src = pos[found]
             state[found] = memory.state[src]
             line[found] = memory.line[src]
+            normal_force[found & vv] = model.penalty * np.maximum(-np.where(line == 1, dn1, dn0)[found & vv], 0.0)
             bond[found] = memory.bond[src]
             shear_dir[found] = memory.shear_dir[src]
             closed = found.copy()
@@ -300,14 +309,9 @@ class Contacts:
             # contacts the equilibrium stage left in memory keep their state; the others start
             # closed where they touch
             new = np.ones(m, bool) if not len(memory.key) else ~found
-            dn1 = np.full(m, -np.inf)
-            vv = ~ve
-            if vv.any():
-                dn1[vv] = signed_distance(vertex_xy, model.vertex_next, cint[vv, V1], cint[vv, E1])
             touching = (np.maximum(dn0, dn1) <= model.open_tol) & new
             state[touching & ve] = LOCK
             state[touching & vv] = SLIDE
-            line[vv & new] = (dn1[vv & new] > dn0[vv & new]).astype(np.int8)
             bond[touching & ve & (length > 0)] = True
         return Contacts(
             cint=cint, length=length, key=key, block_a=a, block_b=b,

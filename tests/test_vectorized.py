@@ -374,3 +374,37 @@ def test_corners_of_diagonal_blocks_touching_to_round_off_stay_a_vertex_vertex_c
     b = model.vertex_block
     diagonal = [r for r in cint.tolist() if {b[r[1]], b[r[2]]} == {0, 3}]
     assert len(diagonal) == 1 and diagonal[0][0] == VV
+
+
+def test_an_open_corner_contact_carries_no_normal_force_from_a_line_it_does_not_use():
+    """The passed corners slid the other way (the upper row 2 mm to the right, block 3 turned
+    0.2°): a new vertex-vertex contact whose line 0 (P against block 3's bottom edge) lies 7 µm
+    deep and whose line 1 (Q against block 0's right edge) 2 mm clear. It starts on the less
+    penetrated line, open, and the start penetration that sets its normal force is that line's:
+    none. (It took line 0's: p × 7 µm = 1.7e6 N/m; a corner 0.75 mm past the other's edge carried
+    ~1e7 N/m while open, docs/method/dda.md §2.8.7.) And the judgement of a solve in which the
+    law opens a VV contact leaves it no normal force from an earlier solve."""
+    from types import SimpleNamespace
+
+    from ddatai.contact_law import judge
+    from ddatai.contacts import Contacts
+    from ddatai.layout import OPEN
+    from ddatai.model import ContactMemory
+
+    model, xy, P, Q = _passed_corners(1e-12, -2e-3)
+    cint, length = vectorized.detect_contacts(model, xy)
+    c = Contacts.start(model, xy, cint, length, ContactMemory.empty(), False)
+    k = np.flatnonzero((cint[:, 0] == VV) & (cint[:, 1] == P) & (cint[:, 3] == Q))
+    assert len(k) == 1
+    assert c.line[k[0]] == 1 and c.state[k[0]] == OPEN and c.normal_force[k[0]] == 0.0
+    # an earlier solve's force on the open VV contact, and on an open VE contact
+    c.normal_force[:] = 1e7
+    m = c.n
+    zeros = np.zeros(m)
+    law = SimpleNamespace(dn=np.full(m, 1e-3), ds=zeros, line=c.line.copy(), closed=np.zeros(m, bool),
+                          state=np.full(m, OPEN, np.int8), direction=np.ones(m, np.int8), fn=zeros, ft=zeros,
+                          strength=zeros, dn_now=np.full(m, 1e-3), fn_now=zeros, ft_now=zeros, friction_now=zeros,
+                          energy=0.0, tan_phi=None)
+    judge(model, c, law, np.zeros(m, bool))
+    vv = cint[:, 0] == VV
+    assert np.all(c.normal_force[vv] == 0.0)

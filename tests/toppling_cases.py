@@ -167,6 +167,26 @@ def ramp_topples(case: ToppleCase, theta: float, frame: str = "turned", ramp_tim
     return _run_until_toppled(sc, dd.Params(initial_equilibrium=False), ramp + hold, TOPPLED * case.tallest)
 
 
+#: the slow-load reference of a toppling tilt is a scan: the lowest tilt, on a grid of
+#: SCAN_STEP degrees, at which the gravity ramp of any of these frames and ramp lengths (in
+#: rocking time constants) topples the case (`scan_topples`); on stacks of square blocks the
+#: ramp's outcome near the threshold depends on the frame and the ramp's rate, so one ramp is no
+#: reference and the lowest over the scan is the conservative one (docs/guide/equilibrium_start.md)
+SCAN_FRAMES = ("turned", "tilted")
+SCAN_RAMPS = (10.0, 20.0, 40.0)
+SCAN_STEP = 0.25
+
+
+def scan_topples(case: ToppleCase, theta: float) -> tuple:
+    """The first (frame, ramp length) of the scan under which the case topples at ``theta``
+    (`ramp_topples`), or () where every one of them holds it (6 runs then)."""
+    for ramp in SCAN_RAMPS:
+        for frame in SCAN_FRAMES:
+            if ramp_topples(case, theta, frame, ramp):
+                return frame, ramp
+    return ()
+
+
 def slow_tilt_angle(case: ToppleCase, theta0: float, rate: float, theta_max: float) -> float:
     """The tilt [degrees] at which the case starts to topple when tilted from ``theta0`` at
     ``rate`` [degrees/s] (gravity ramped in at θ0 over RAMP_TIMES rocking time constants and

@@ -143,12 +143,21 @@ def start(E: ti.template(), m, n):
         p2 = _pt(E.vxy, E.vnext[e])
         d = _pt(E.vxy, e) - p2
         omega = _dot2(_pt(E.vxy, v) - p2, d) / _dot2(d, d)
-        nf = p * ti.max(-dn0, 0.0)
         tan = E.jf[joint, JF_TAN]
         coh = E.jf[joint, JF_COH]
         length = E.clen[c]
         state = OPEN
+        # a VV contact starts on its less penetrated line, and its start normal force is that
+        # line's penetration (`Contacts.start`)
+        dn1 = -1e300
         line = 0
+        if kind == VV:
+            dn1 = _signed_distance(E, E.cint[c, CI_V1], E.cint[c, CI_E1])
+            line = ti.cast(dn1 > dn0, ti.i32)
+        dline = dn0
+        if line == 1:
+            dline = dn1
+        nf = p * ti.max(-dline, 0.0)
         bond = 0
         sdir = 1
         found = 0
@@ -164,6 +173,11 @@ def start(E: ti.template(), m, n):
             line = E.memi[mp, MEMI_LINE]
             bond = E.memi[mp, MEMI_BOND]
             sdir = E.memi[mp, MEMI_DIR]
+            if kind == VV:
+                dline = dn0
+                if line == 1:
+                    dline = dn1
+                nf = p * ti.max(-dline, 0.0)
             if state != OPEN:
                 nf = E.memf[mp, MEMF_NF]
             if state == LOCK:
@@ -174,12 +188,8 @@ def start(E: ti.template(), m, n):
                 edge = ti.sqrt(_dot2(d, d))
                 omega -= sdir * strength / (E.mf[m, MF_SHEAR] * edge)
         elif first:
-            dn1 = -1e300
-            if kind == VV:
-                dn1 = _signed_distance(E, E.cint[c, CI_V1], E.cint[c, CI_E1])
             touching = ti.max(dn0, dn1) <= E.mf[m, MF_OPEN_TOL]
             if kind == VV:
-                line = ti.cast(dn1 > dn0, ti.i32)
                 if touching:
                     state = SLIDE
             elif touching:

@@ -240,7 +240,7 @@ def judge(E: ti.template(), m, slot, couple):
         closed = E.cint[c, i + LI_CLOSED] != 0
         if closed:
             E.cf[c, CF_NF] = ti.max(E.cf[c, f + LF_FN], 0.0)
-        elif E.cint[c, CI_STATE] != OPEN:
+        elif E.cint[c, CI_STATE] != OPEN or vv:
             E.cf[c, CF_NF] = 0.0
         if bad:
             E.cf[c, CF_DN] = E.cf[c, f + LF_DN]
