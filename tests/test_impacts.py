@@ -18,7 +18,7 @@ def test_closed_joints_loaded_suddenly_are_no_impacts():
     at once (its scaling runs' sudden start): the joints are closed from the first step and
     compress while the grid rings on its springs. None of that is an impact, so no step is
     taken again from a plastic impact (before the rule asked for a contact open at the step's
-    start: 10 of the first 12 steps, each solved twice). ~0.5 s."""
+    start: 10 of the first 12 steps, each solved twice). 0.7 s at a load of 2."""
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
     from scaling_scenes import grid_scene
 
