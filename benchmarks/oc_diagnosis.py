@@ -24,7 +24,6 @@ the CPU time per simulated second.
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import pickle
 import sys
@@ -35,26 +34,23 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from scaling_scenes import case_parser, case_scene, use_checkout  # noqa: E402
+
+use_checkout()
 
 
 def main() -> None:
     import ddatai as dd
     import ddatai.open_close as oc
-    import scaling
     from ddatai.layout import KIND, LOCK, OPEN, SLIDE, VV
     from ddatai.start import settle
     from ddatai.step import Stepper
 
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--family", default="slope", choices=tuple(scaling.SCENES))
-    ap.add_argument("--size", type=int, default=391)
-    ap.add_argument("--steps", type=int, default=4)
+    ap = case_parser(__doc__)
     ap.add_argument("--dt", default="", help="fixed Δt values to compare (default: the scene's)")
-    ap.add_argument("--params", default="", help="Params fields NAME=VALUE,... (as scaling.py)")
     ap.add_argument("--cache", type=Path, default=Path("/tmp"))
     a = ap.parse_args()
-    scene, params = scaling.SCENES[a.family](a.size)
-    params = dataclasses.replace(params, **scaling.parse_params(a.params))
+    scene, params = case_scene(a)
     cache = a.cache / f"oc_diagnosis_{a.family}{a.size}.pkl"
     if cache.exists():
         state = pickle.loads(cache.read_bytes())

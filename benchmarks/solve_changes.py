@@ -1,7 +1,7 @@
 """What changes between the solves of a step's open–close iteration, and so what a factor update,
 a Krylov solve or a re-assembly of the changed contacts could reach.
 
-    python benchmarks/solve_changes.py [--family slope] [--size 391] [--steps 4]
+    python benchmarks/solve_changes.py [--family slope] [--size 391] [--steps 4] [--params NAME=VALUE,...]
 
 After the equilibrium stage (the settled protocol of ``benchmarks/scaling.py``), for each later
 solve of each timed step: in how many blocks' rows K differs from the matrix last factorised,
@@ -14,29 +14,26 @@ blocks' rows changed. Prints the counts and a summary.
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from scaling_scenes import case_parser, case_scene, use_checkout  # noqa: E402
+
+use_checkout()
 
 
 def main() -> None:
     import ddatai as dd
-    import scaling
     from ddatai.iterative import KRYLOV_BLOCKS
     from ddatai.solver import SparseSolver
     from ddatai.start import settle
     from ddatai.step import Stepper
 
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--family", default="slope", choices=tuple(scaling.SCENES))
-    ap.add_argument("--size", type=int, default=391)
-    ap.add_argument("--steps", type=int, default=4)
-    a = ap.parse_args()
-    scene, params = scaling.SCENES[a.family](a.size)
+    a = case_parser(__doc__).parse_args()
+    scene, params = case_scene(a)
     model = dd.build_model(scene, params)
     stepper = Stepper(model)
     state, start = settle(stepper, model.initial_state())

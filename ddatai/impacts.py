@@ -43,7 +43,10 @@ IMPACT_NEGLIGIBLE = 1e-6
 def approach_bound(model: Model, state: State, contacts, vec: np.ndarray, sca: np.ndarray,
                    dt: float) -> tuple[float, np.ndarray]:
     """The step's Δt where a contact is about to close (module docstring), and which contacts
-    this step is the impact step of. A contact of gap g (0 once closed) closing at rate c (the
+    this step is the impact step of. A contact open at the step's start (one the last step's
+    solve closed carries its approach in its spring: ntdda's grid under sudden gravity took the
+    compression of its closed joints for impacts, every step taken again) of gap g (0 where
+    penetrated) closing at rate c (the
     rate of its normal distance at the step start's velocities, −(e·v_a + g·v_b) of
     docs/method/dda.md §2.8.1) and accelerating at k (the same at the last step's
     accelerations: a rocking block's corner gains 6 % of its approach in its last 10 ms step)
@@ -70,7 +73,9 @@ def approach_bound(model: Model, state: State, contacts, vec: np.ndarray, sca: n
     # point's, from its blocks' velocities and accelerations of the last step)
     speed = -_normal_rate(vec, a, b, pick, state.block_velocity)
     accel = -_normal_rate(vec, a, b, pick, state.block_accel)
-    moving = np.flatnonzero((speed > 0.0) | (accel > 0.0))
+    # a contact closed at the step's start (by the last step's accepted solve) carries its
+    # approach in its spring: loading, not a closing
+    moving = np.flatnonzero(((speed > 0.0) | (accel > 0.0)) & (contacts.state == OPEN))
     if not len(moving):
         return dt, none
     geom = state.geometry if state.geometry is not None else model.block_geometry(state.vertex_xy)

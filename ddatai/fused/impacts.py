@@ -62,7 +62,9 @@ def _closing(E: ti.template(), m, c, dt, frac):
     tau = 0.0
     a = E.cint[c, CI_A]
     b = E.cint[c, CI_B]
-    if (speed > 0.0 or accel > 0.0) and (E.bint[a, BI_ROW] >= 0 or E.bint[b, BI_ROW] >= 0):
+    # a contact closed at the step's start carries its approach in its spring: not a closing
+    if (speed > 0.0 or accel > 0.0) and E.cint[c, CI_STATE] == OPEN and \
+            (E.bint[a, BI_ROW] >= 0 or E.bint[b, BI_ROW] >= 0):
         mass = 0.0
         if E.bint[a, BI_ROW] >= 0:
             mass = E.bmat[a, BM_RHO] * E.bgeo[a, BG_AREA]
