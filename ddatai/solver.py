@@ -112,6 +112,9 @@ class SparseSolver:
         # the last factorisation: (symmetric, (indptr, indices), solve(r) with its factor)
         self._factor = None
         self._factored_data = None
+        # whether the factor in hand is the exact factor of ``_factored_data`` (a direct
+        # factorisation without perturbed pivots): a solve with it then needs no refinement
+        self._exact = False
         self.factorisations = 0  # numeric factorisations so far
         self.lu_factorisations = 0  # those of a non-symmetric K (LU)
         self.reused = 0          # solves done by refinement with an earlier factor (``reuse``)
@@ -168,6 +171,7 @@ class SparseSolver:
         self.lu_factorisations += not symmetric
         # the matrix of the factor, against which a Krylov solve measures its change
         self._factored_data = np.array(data, dtype=np.float64)
+        self._exact = True  # unless PARDISO perturbs a pivot (`_solve_pardiso`)
         return self._factorise(data, indices, indptr, rhs, n, symmetric)
 
     def _solve_updating(self, data, indices, indptr, rhs, n, springs, reuse) -> np.ndarray:
@@ -177,6 +181,7 @@ class SparseSolver:
         factor first; otherwise a CHOLMOD factorisation, or the backend's LU where K is not
         positive definite."""
         u = self._updating
+        self._exact = False  # CHOLMOD's factors follow the springs by updates: always checked
         b = np.ascontiguousarray(rhs, dtype=np.float64)
         if u.factor is not None and self._same(self._factor[1] if self._factor else None, indptr, indices) \
                 and u.update(springs, n):
@@ -244,6 +249,14 @@ class SparseSolver:
         b = np.ascontiguousarray(rhs, dtype=np.float64)
         if not np.any(b):
             return np.zeros(n)
+        if self._exact and self.backend != "dense" and len(self._factored_data) == len(data) and \
+                np.array_equal(self._factored_data, data):
+            # K is the matrix factorised (the equilibrium stage's iterates whose contact states
+            # did not change: only F moved): the solve is a direct one, the one the
+            # factorisation itself would give, which is not refined either; refinement to
+            # round-off took 3.4 solves at 1,600 blocks (benchmarks/results/large_round4.md)
+            self.last_residual = 0.0
+            return solve(b)
         k = self._dense(data, indices, indptr, n) if self.backend == "dense" else \
             csr_matrix((data, indices, indptr), shape=(n, n))
         x, residual, done = _refinement(k, b, solve(b), solve, REUSE_RESIDUAL, REUSE_PASSES, REUSE_RATE)
@@ -370,6 +383,7 @@ class SparseSolver:
                 # kept by reference: pattern arrays are never written after `BlockPattern.build`
                 h.key, h.n = (indptr, indices), n
             if h.perturbed_pivots:
+                self._exact = False
                 x = self._refine(h, data, indices, indptr, a_data, a_ptr, a_idx, b, x, n)
         except PardisoError:  # a failed factorisation is a non-finite solution
             h.key = None
