@@ -8,8 +8,9 @@ cohesion N(20 kPa, 5 kPa) correlated −0.3, seed 1, group {0, 1} of ``scenes/ex
 Δt 1.3 ms, p = 1·E, 2 worker processes, the fused engine), A and B alternating ``--repeats``
 times, threads pinned in every process (BLAS and Taichi one thread each): the wall time of
 ``kgm.probabilistic`` from its call to its table, the workers' start and their load of the
-fused kernel (Taichi's offline cache) included. Prints each run, the medians, and whether the
-two checkouts' tables give every sample the same verdict. Run ``python -m ddatai.fused`` in
+fused kernel (Taichi's offline cache) included, and the CPU time (user + system) of the process
+and all its workers (the machine is shared: the wall time follows its load). Prints each run,
+the medians, and whether the two checkouts' tables give every sample the same verdict. Run ``python -m ddatai.fused`` in
 each checkout first (the kernel compiled and cached).
 
 ``--evaluate``: instead, ``kgm.evaluate(Example I, [0, 1], "dda")`` (the fused engine) three
@@ -22,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -85,6 +87,7 @@ def main() -> None:
         evaluate(a)
         return
     walls = {"A": [], "B": []}
+    cpus = {"A": [], "B": []}
     tables = {}
     print(f"# Example II DDA-judged study, {a.samples} samples, 2 workers; load {os.getloadavg()[0]:.1f}", flush=True)
     for rep in range(a.repeats):
@@ -92,18 +95,25 @@ def main() -> None:
             out = f"/tmp/ddatai_study_ab_{name}.npy"
             code = STUDY.format(root=str(Path(root).resolve()), script=f"{Path(root).resolve()}/scenes/example_2.py",
                                 kernels="fused", n=a.samples, out=out)
+            before = resource.getrusage(resource.RUSAGE_CHILDREN)
             proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=root,
                                   env={**os.environ, **PINNED}, timeout=3600)
+            after = resource.getrusage(resource.RUSAGE_CHILDREN)
             if proc.returncode != 0:
                 raise SystemExit(proc.stderr[-3000:])
             wall, pf = proc.stdout.strip().splitlines()[-1].split()
+            cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
             walls[name].append(float(wall))
+            cpus[name].append(cpu)
             tables[name] = np.load(out)
-            print(f"run {rep + 1} {name}: {float(wall):.1f} s ({a.samples / float(wall):.1f} samples/s), P_f {pf}, "
+            print(f"run {rep + 1} {name}: {float(wall):.1f} s ({a.samples / float(wall):.1f} samples/s), "
+                  f"CPU {cpu:.1f} s (the process and its workers, user + system), P_f {pf}, "
                   f"load {os.getloadavg()[0]:.1f}", flush=True)
     for name, root in (("A", a.a), ("B", a.b)):
         w = statistics.median(walls[name])
-        print(f"{name} ({root}): median {w:.1f} s, {a.samples / w:.1f} samples/s")
+        print(f"{name} ({root}): median {w:.1f} s, {a.samples / w:.1f} samples/s; "
+              f"CPU median {statistics.median(cpus[name]):.1f} s")
+    print(f"B/A (CPU) pair by pair: {', '.join(f'{b / x:.2f}' for x, b in zip(cpus['A'], cpus['B']))}")
     ratios = [b / x for x, b in zip(walls["A"], walls["B"])]
     print(f"B/A pair by pair: {', '.join(f'{r:.2f}' for r in ratios)}; "
           f"the same verdicts sample by sample: {bool(np.array_equal(tables['A'], tables['B']))}")

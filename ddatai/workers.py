@@ -260,3 +260,145 @@ def run_processes(fn: Callable, chunks: Sequence[list], n_workers: int, *, split
     """`ProcessPool.run` on a pool of its own, closed at the end."""
     with ProcessPool(fn, n_workers) as pool:
         yield from pool.run(chunks, split=split, max_deaths=max_deaths)
+
+
+# ---------------------------------------------------------------------- one process, many items
+def _serve_in_order(inbox, conn, payload: bytes) -> None:
+    """`Runner`'s process: load the function, then run the items of ``inbox`` in the order
+    sent, one message per item."""
+    try:
+        fn = pickle.loads(payload)
+    except BaseException as exc:  # noqa: BLE001 - reported to the parent, which raises it
+        conn.send(("fatal", None, _pickled_exception(exc), traceback.format_exc()))
+        return
+    while True:
+        message = inbox.get()
+        if message is None:
+            return
+        key, item = message
+        try:
+            conn.send(("result", key, fn(item)))
+        except Exception as exc:  # noqa: BLE001 - raised in the caller
+            conn.send(("error", key, _pickled_exception(exc), traceback.format_exc()))
+            return
+
+
+class Runner:
+    """One worker process that runs ``fn`` on items sent to it (`submit`), one at a time in the
+    order sent, keeping what it loaded between them: a study's one process that has loaded the
+    fused kernel and runs the batches its other workers prepared (`kgm.probabilistic`).
+    `submit` never waits (a queue's thread sends the item); `poll` takes the results that
+    have come, `drain` waits for all. A process that dies loses nothing that completed: a fresh
+    one runs the items not yet returned again, and the item it was running when it died
+    ``max_deaths`` times (default 2) is given up (`WorkerLost` in place of its result). An
+    exception raised by ``fn`` is raised in the caller with the worker's traceback as its cause.
+    A context manager; `close` stops the process."""
+
+    def __init__(self, fn: Callable, *, max_deaths: int = 2):
+        import multiprocessing
+
+        self._ctx = multiprocessing.get_context("spawn")  # as `ProcessPool`: no half-started runtimes
+        self._payload = pickle.dumps(fn)
+        self.max_deaths = int(max_deaths)
+        self._pending: dict = {}  # key -> item, sent and not yet returned (in the order sent)
+        self._deaths: dict = {}   # key -> deaths charged
+        self._process = None
+
+    def __enter__(self) -> "Runner":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close(kill=exc[0] is not None)
+
+    def _start(self) -> None:
+        self._inbox = self._ctx.Queue()
+        self._conn, child = self._ctx.Pipe(duplex=False)
+        self._process = self._ctx.Process(target=_serve_in_order, args=(self._inbox, child, self._payload),
+                                          name="ddatai-runner")
+        self._process.start()
+        child.close()
+        for key, item in self._pending.items():
+            self._inbox.put((key, item))
+
+    def submit(self, key, item) -> None:
+        """Send ``item`` to the process (started the first time); its result comes back under
+        ``key`` from `poll` or `drain`."""
+        if key in self._pending:
+            raise ValueError(f"an item with key {key!r} is already running")
+        self._pending[key] = item
+        if self._process is None:
+            self._start()
+        else:
+            self._inbox.put((key, item))
+
+    @property
+    def pending(self) -> int:
+        """Items sent and not yet returned [-]."""
+        return len(self._pending)
+
+    def poll(self, timeout: float = 0.0) -> list:
+        """The ``(key, result)`` of the items completed since the last call, waiting at most
+        ``timeout`` seconds for the first of them [s]."""
+        from multiprocessing.connection import wait
+
+        if self._process is None or not self._pending:
+            return []
+        out = []
+        ready = wait([self._conn, self._process.sentinel], timeout)
+        closed = False
+        if ready:
+            try:
+                while self._conn.poll():
+                    kind, key, *rest = self._conn.recv()
+                    if kind == "result":
+                        self._pending.pop(key, None)
+                        out.append((key, rest[0]))
+                    else:  # an exception in fn: raised here, the process has ended
+                        exc = pickle.loads(rest[0])
+                        exc.__cause__ = RemoteTraceback(rest[1])
+                        self.close(kill=True)
+                        raise exc
+            except (EOFError, OSError):
+                closed = True
+        if closed and self._pending:
+            out += self._lost()
+        return out
+
+    def _lost(self) -> list:
+        """The process died: the item it was running (the first not returned) is charged a death,
+        and a fresh process runs the rest again. Returns the items given up."""
+        self._process.join(JOIN_TIMEOUT)
+        code = self._process.exitcode
+        self._conn.close()
+        self._inbox.close()
+        self._inbox.cancel_join_thread()
+        self._process = None
+        key = next(iter(self._pending))
+        count = self._deaths[key] = self._deaths.get(key, 0) + 1
+        given_up = []
+        if count >= self.max_deaths:
+            self._pending.pop(key)
+            given_up.append((key, WorkerLost(deaths=count, exitcode=code)))
+        if self._pending:
+            self._start()
+        return given_up
+
+    def drain(self) -> Iterator[tuple[Any, Any]]:
+        """``(key, result)`` of every item not yet returned, as each completes."""
+        while self._pending:
+            yield from self.poll(timeout=1.0)
+
+    def close(self, *, kill: bool = False) -> None:
+        """Stop the process (``kill``: at once, whatever it is doing)."""
+        if self._process is None:
+            return
+        if not kill and not self._pending and self._process.is_alive():
+            self._inbox.put(None)
+            self._process.join(JOIN_TIMEOUT)
+        if self._process.is_alive():
+            self._process.kill()
+            self._process.join(JOIN_TIMEOUT)
+        self._conn.close()
+        self._inbox.close()
+        self._inbox.cancel_join_thread()
+        self._process = None

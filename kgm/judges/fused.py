@@ -15,6 +15,7 @@ Like `kgm.judges.run`, this module imports Taichi only inside the function that 
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np
@@ -33,13 +34,39 @@ def judge_fused(members, blocks: frozenset, *, settings: DdaSettings, params: Op
     engine does not judge them (``Params.kernels`` "numpy" or "taichi", "auto" where the batch
     does not pay the kernel, or a sub-model with what the engine leaves to today's path:
     ``ddatai.fused.pack.covers``). ``report`` is called with each judgement."""
+    prepared = prepare_fused(members, blocks, settings=settings, params=params, removed=removed)
+    return None if prepared is None else run_prepared(prepared, report=report)
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class Prepared:
+    """A batch of judgements made ready for the fused engine (`prepare_fused`): each member's
+    sub-model settled by its own equilibrium stage, as a run of the engine, with what its
+    verdict needs. Picklable: a study's worker processes prepare batches in NumPy and one
+    process, which has loaded the kernel, runs them (`run_prepared`)."""
+
+    runs: list
+    """One `ddatai.fused.pack.Member` a member."""
+    plans: list
+    """Each member's `RunPlan`."""
+    fields: list
+    """Each member's figures for its `DdaJudgement` (friction, reduction, model, moving and
+    scene blocks, batch)."""
+    seconds: float
+    """Wall time of the preparation (the sub-models and their stages) [s]."""
+
+
+def prepare_fused(members, blocks: frozenset, *, settings: DdaSettings, params: Optional[Params] = None,
+                  removed: frozenset = frozenset()) -> Optional[Prepared]:
+    """The batch of `judge_fused` up to its launch, in NumPy (no Taichi): the sub-models built
+    and settled, or None where the fused engine does not judge them (`judge_fused`)."""
     from ddatai.fused.pack import Member as Run
     from ddatai.fused.pack import covers
     from ddatai.fused.policy import choose_batch
     from ddatai.model import build_model
 
     if not members:
-        return []
+        return Prepared(runs=[], plans=[], fields=[], seconds=0.0)
     plans = [RunPlan.of(m.system, blocks, settings, params) for m in members]
     prm = plans[0].params
     steps = sum(p.duration / (prm.dt if prm.dt is not None else prm.dt_max) for p in plans)
@@ -60,28 +87,39 @@ def judge_fused(members, blocks: frozenset, *, settings: DdaSettings, params: Op
     # stages' limit-equilibrium screens solved side by side first, `ddatai.limit_batch`)
     models = [model for _, _, model in built]
     states = settle_many(models) if prm.initial_equilibrium else [m.initial_state() for m in models]
-    runs = []
-    for (sub, ids, model), plan, state in zip(built, plans, states):
+    runs, fields = [], []
+    for m, (sub, ids, model), plan, state in zip(members, built, plans, states):
         runs.append(Run(model=model, state=state, t_end=plan.duration, stop_at=plan.stop_at,
                         rest_limit=-1.0 if plan.rest_speed is None else plan.rest_speed,
                         rest_steps=plan.rest_steps, group=tuple(ids.index(b) for b in sorted(blocks))))
+        fields.append(dict(friction=m.friction, reduction=m.reduction, model_blocks=len(ids),
+                           moving_blocks=sum(not s.fixed for s in sub.blocks), scene_blocks=m.scene.n_blocks,
+                           batch=len(members)))
+    return Prepared(runs=runs, plans=plans, fields=fields, seconds=time.perf_counter() - start)
+
+
+def run_prepared(prepared: Prepared, *, report: Report = None) -> list:
+    """The judgements of a `prepare_fused` batch: its members in one launch of the fused engine
+    (which this process loads the first time, `ddatai.fused.engine`), each verdict taken from
+    its run's history; ``report`` is called with each."""
     from ddatai.fused import engine
     from ddatai.fused import layout
 
-    outcomes = engine.run(runs, arch=prm.arch)
+    if not prepared.runs:
+        return []
+    start = time.perf_counter()
+    outcomes = engine.run(prepared.runs, arch=prepared.plans[0].params.arch)
     ends = {engine.STATUS[layout.STOP_MOVED]: RunEnd.STOPPED_EARLY, engine.STATUS[layout.STOP_REST]: RunEnd.AT_REST}
-    wall = time.perf_counter() - start
+    wall = prepared.seconds + time.perf_counter() - start
     out = []
-    for m, (sub, ids, model), plan, run, o in zip(members, built, plans, runs, outcomes):
+    for plan, run, fields, o in zip(prepared.plans, prepared.runs, prepared.fields, outcomes):
         times = np.concatenate([[0.0], o.history[:, 0]])
         disp = np.concatenate([[0.0], o.history[:, 1]])
         end, cause = ends.get(o.status, RunEnd.DURATION), ""
         if o.status == engine.STATUS[layout.DIVERT]:
             times, disp, end, cause = _go_on(o, run, times, disp, plan)
         j = verdict(times, disp, delta=plan.delta, duration=plan.duration, end=end, cause=cause, wall_time=wall,
-                    friction=m.friction, reduction=m.reduction, model_blocks=len(ids),
-                    moving_blocks=sum(not s.fixed for s in sub.blocks), scene_blocks=m.scene.n_blocks,
-                    batch=len(members))
+                    **fields)
         if report is not None:
             report(j)
         out.append(j)

@@ -18,7 +18,9 @@ samples whose groups are the same judged side by side in one run. Its outcome is
 Execution (`ddatai.parallel`): by default rigid and Sarma samples (limit equilibrium, about a
 millisecond each) run in this process, where they are fastest, and DDA samples (seconds each)
 on one local worker process per CPU; ``workers=`` chooses, and ``client=`` (a
-``dask.distributed.Client`` or a scheduler address) runs them on a Dask cluster. A script that
+``dask.distributed.Client`` or a scheduler address) runs them on a Dask cluster. On local
+workers, DDA verdicts on the fused engine are prepared by the workers in NumPy and run by one
+more process, the only one that loads the fused kernel (`_prepared_then_run`). A script that
 starts a study at its top level without an ``if __name__ == "__main__":`` block still gets its
 result by default (in this process, with a warning saying what to add); asked for worker
 processes explicitly, it stops before any work with one line saying what to add. With ``out=``
@@ -174,6 +176,101 @@ def _evaluate_batch(job: _Job, items: tuple) -> list:
     return [(item[0], rows[item[0]]) for item in items]
 
 
+def _prepare_batch(job: _Job, items: tuple) -> tuple:
+    """`_evaluate_batch` up to the fused engine's launch, in NumPy (a study's worker process,
+    which never loads the kernel): ``(rows, work)``, the ``(index, SampleRow)`` of the samples
+    decided here (no key group, or a batch that the fused engine does not judge, judged here as
+    `_evaluate_batch` judges it), and ``[(entries, prepared)]`` for `_finish_batch`: each group's
+    samples ``(item, critical)`` and its `kgm.judges.fused.Prepared` batch. Errors name the
+    sample."""
+    from ..judges.fused import prepare_fused
+
+    rows, groups = [], {}
+    for item in items:
+        index, values, seed = item
+        try:
+            screened = _screen(job, item)
+        except Exception as exc:
+            raise _failed(index, values, seed, exc) from exc
+        if screened.group is None:
+            rows.append((index, screened.row))
+            continue
+        member = Member(scene=screened.problem.scene, system=screened.problem.system)
+        groups.setdefault((screened.group, screened.problem.params), []).append((item, member, screened))
+    work = []
+    for (blocks, params), entries in groups.items():
+        settings = entries[0][2].problem.settings
+        try:
+            prepared = prepare_fused([member for _, member, _ in entries], blocks, settings=settings.dda,
+                                     params=params)
+        except Exception:
+            prepared = None  # judged here, each sample on its own where it errs (`_evaluate_batch`)
+        if prepared is None:
+            rows += _evaluate_batch(job, tuple(item for item, _, _ in entries))
+            continue
+        work.append(([(item, screened.row.critical) for item, _, screened in entries], prepared))
+    return rows, work
+
+
+def _finish_batch(job: _Job, work: tuple) -> list:
+    """[(index, `SampleRow`)] of a `_prepare_batch` group: its samples' runs in one launch of
+    the fused engine (`kgm.judges.fused.run_prepared`), in the study's process that has loaded
+    the kernel. Errors name the sample (each sample then judged on its own, `_evaluate`).
+    ``work`` an architecture's name: the kernel loaded on it, ahead of the first batch (no rows)."""
+    from ..judges.fused import run_prepared
+
+    if isinstance(work, str):  # the kernel loaded ahead of the first batch, on this architecture
+        from ddatai.fused.warm import warm
+
+        warm(work)
+        return []
+    entries, prepared = work
+    try:
+        verdicts = run_prepared(prepared, report=(job.settings or Settings()).dda.progress)
+    except Exception:
+        return [(item[0], _evaluate(job, item)) for item, _ in entries]
+    return [(item[0], SampleRow(fs=math.nan, failed=not j.stable, critical=critical))
+            for (item, critical), j in zip(entries, verdicts)]
+
+
+def _prepared_then_run(job: _Job, batches: list, workers: int):
+    """(index, row) of every sample of ``batches`` on local worker processes that prepare each
+    batch in NumPy (`_prepare_batch`) and one more process, the only one that loads the fused
+    kernel, that runs what they prepared (`_finish_batch`, `ddatai.workers.Runner`): a study
+    pays the kernel's load once, not once a worker. A batch lost with the runner is recorded as
+    lost, sample by sample."""
+    from ddatai.parallel import run
+    from ddatai.workers import Runner
+
+    samples: dict = {}  # the runner's key -> the indices of its samples
+    params = (job.settings or Settings()).dda.params
+    with Runner(functools.partial(_finish_batch, job)) as runner:
+        if params is not None and params.kernels == "fused" and params.arch in ("cpu", "cuda", "gpu"):
+            # the study asks for the fused engine: its one load starts now, beside the workers
+            runner.submit("load", params.arch)
+
+        def taken(results):
+            for key, rows in results:
+                if isinstance(rows, WorkerLost):
+                    yield from ((index, rows) for index in samples.pop(key, ()))
+                else:
+                    samples.pop(key, None)
+                    yield from rows
+
+        for index, out in run(functools.partial(_prepare_batch, job), [(b[0][0], b) for b in batches],
+                              workers=workers, chunk=1, split=_split_batch):
+            if isinstance(out, WorkerLost):
+                yield index, out
+                continue
+            rows, work = out
+            yield from rows
+            for k, part in enumerate(work):
+                samples[(index, k)] = [item[0] for item, _ in part[0]]
+                runner.submit((index, k), part)
+            yield from taken(runner.poll())
+        yield from taken(runner.drain())
+
+
 def _describe(values: Mapping) -> str:
     return ", ".join(f"{k}={v:.6g}" if isinstance(v, float) else f"{k}={v}" for k, v in values.items())
 
@@ -269,8 +366,14 @@ def probabilistic(build, variables: Mapping, n: int, *, method: str = Method.SAR
         sharing = 1 if client is None and workers == 1 else _n_workers(client, workers)
         size = max(1, min(size, SAVED_BATCH, -(-len(items) // sharing)))
         batches = [tuple(items[i:i + size]) for i in range(0, len(items), size)]
-        flat = _rows_of_batches(run(functools.partial(_evaluate_batch, job), [(b[0][0], b) for b in batches],
-                                    client=client, workers=workers, chunk=1, split=_split_batch))
+        if client is None and workers > 1:
+            # the workers prepare each batch in NumPy and one more process runs them all on the
+            # fused kernel, loaded once a study (a batch that the fused engine does not judge is
+            # judged where it was prepared)
+            flat = _prepared_then_run(job, batches, workers)
+        else:
+            flat = _rows_of_batches(run(functools.partial(_evaluate_batch, job), [(b[0][0], b) for b in batches],
+                                        client=client, workers=workers, chunk=1, split=_split_batch))
     else:
         flat = run(functools.partial(_evaluate, job), [(it[0], it) for it in items], client=client, workers=workers)
     writer = StudyFile(Path(out), identity, names) if out is not None else None

@@ -1,0 +1,81 @@
+"""`ddatai.workers.Runner`: one worker process that runs the items sent to it in order, keeping
+what it loaded (a study's process that holds the fused kernel), and survives its own death: the
+items not yet returned run again in a fresh process, and the item it was running when it died
+twice is recorded as lost. And the split of a DDA-judged study's batch that feeds it:
+`kgm.studies.probabilistic._prepare_batch` settles the members in NumPy without the kernel."""
+
+import math
+
+import pytest
+
+import worker_cases
+from ddatai.workers import RemoteTraceback, Runner, WorkerLost
+
+
+def test_the_runner_returns_every_item_in_the_order_sent():
+    with Runner(worker_cases.square) as runner:
+        for k in range(6):
+            runner.submit(("batch", k), k)
+        assert runner.pending == 6
+        out = list(runner.drain())
+        assert runner.pending == 0
+    assert out == [(("batch", k), k * k) for k in range(6)]
+    with pytest.raises(ValueError, match="already running"):
+        with Runner(worker_cases.square) as runner:
+            runner.submit(0, 1)
+            runner.submit(0, 2)
+
+
+def test_a_runner_that_dies_runs_the_rest_again_and_gives_up_the_killer():
+    """Item 7 kills its process every time: the items before it have returned, those after it
+    run in a fresh process, and 7 is given up after its second death."""
+    with Runner(worker_cases.kills_on_seven) as runner:
+        for k in (1, 2, 7, 3, 4):
+            runner.submit(k, k)
+        out = dict(runner.drain())
+    assert sorted(out) == [1, 2, 3, 4, 7]
+    assert all(out[k] == k * k for k in (1, 2, 3, 4))
+    assert isinstance(out[7], WorkerLost) and out[7].deaths == 2 and out[7].exitcode == -9
+
+
+def test_an_error_in_the_runner_is_raised_with_its_traceback():
+    with Runner(worker_cases.fails_on_three) as runner:
+        for k in (1, 3, 5):
+            runner.submit(k, k)
+        with pytest.raises(ValueError, match="three is refused") as info:
+            list(runner.drain())
+    assert isinstance(info.value.__cause__, RemoteTraceback)
+    assert "fails_on_three" in str(info.value.__cause__)
+
+
+def test_a_study_batch_is_prepared_without_the_fused_kernel(monkeypatch):
+    """`_prepare_batch` of two Example II samples on the fused engine: each member's sub-model
+    built and settled by its own stage (NumPy), nothing launched; the samples keep their order
+    and their critical group."""
+    from pathlib import Path
+
+    import ddatai as dd
+    from ddatai.fused import engine
+    from ddatai.parallel import ScriptFunction
+    from kgm.kinds import Method
+    from kgm.settings import DdaSettings, Settings
+    from kgm.studies.probabilistic import _Job, _prepare_batch
+
+    def refused(*args, **kwargs):
+        raise AssertionError("a study's worker launched the fused kernel")
+
+    monkeypatch.setattr(engine, "run", refused)
+    root = Path(__file__).resolve().parents[1]
+    settings = Settings(dda=DdaSettings(params=dd.Params(dt=0.0013, penalty_ratio=1.0, kernels="fused")))
+    job = _Job(build=ScriptFunction(str(root / "scenes" / "example_2.py")), method=Method.DDA, settings=settings,
+               group=frozenset({0, 1}), pass_seed=False)
+    items = tuple((i, {"friction": f, "cohesion": 20e3}, 7 + i) for i, f in enumerate((16.0, 30.0)))
+    rows, work = _prepare_batch(job, items)
+    assert rows == []
+    (entries, prepared), = work
+    assert [item[0] for item, _ in entries] == [0, 1]
+    assert all(critical == (0, 1) or set(critical) == {0, 1} for _, critical in entries)
+    assert len(prepared.runs) == 2 and len(prepared.plans) == 2
+    assert all(math.isfinite(p.delta) and p.delta > 0 for p in prepared.plans)
+    # every member starts from its own stage's state (time 0, settled or released)
+    assert all(run.state.time == 0.0 for run in prepared.runs)
