@@ -29,6 +29,10 @@ per pass, to a relative residual of `REUSE_RESIDUAL` or its round-off floor belo
 if it falls slower (the states changed, the blocks moved far) the matrix is factorised as
 usual (the stepper does not ask when Δt changed). One or a few triangular solves and products
 with K cost 1.5–6 ms at 1,600 blocks, a factorisation 11–21 ms (docs/method/dda.md §9).
+Where K is the very matrix factorised (the equilibrium stage's iterates whose contact states
+did not change: only F moved) and its factorisation perturbed no pivot, the solve with the
+factor is the direct solve itself, as accurate as the factorisation's own, and is not refined
+(refinement to round-off took 3.4 solves at 1,600 blocks).
 
 **Krylov solves with the last factor.** The later solves of an open-close iteration differ
 from the matrix last factorised by the terms of the contacts whose state changed (each lock ↔
@@ -120,6 +124,9 @@ class SparseSolver:
         # the last factorisation: (symmetric, (indptr, indices), solve(r) with its factor)
         self._factor = None
         self._factored_data = None
+        # whether the factor in hand is the exact factor of ``_factored_data`` (a direct
+        # factorisation without perturbed pivots): a solve with it then needs no refinement
+        self._exact = False
         self.factorisations = 0  # numeric factorisations so far
         self.lu_factorisations = 0  # those of a non-symmetric K (LU)
         self.reused = 0          # solves done by refinement with an earlier factor (``reuse``)
@@ -178,6 +185,7 @@ class SparseSolver:
         self.lu_factorisations += not symmetric
         # the matrix of the factor, against which a Krylov solve measures its change
         self._factored_data = np.array(data, dtype=np.float64)
+        self._exact = True  # unless PARDISO perturbs a pivot (`_solve_pardiso`)
         return self._factorise(data, indices, indptr, rhs, n, symmetric)
 
     def _solve_updating(self, data, indices, indptr, rhs, n, springs, reuse) -> np.ndarray:
@@ -187,6 +195,7 @@ class SparseSolver:
         factor first; otherwise a CHOLMOD factorisation, or the backend's LU where K is not
         positive definite."""
         u = self._updating
+        self._exact = False  # CHOLMOD's factors follow the springs by updates: always checked
         b = np.ascontiguousarray(rhs, dtype=np.float64)
         if u.factor is not None and self._same(self._factor[1] if self._factor else None, indptr, indices) \
                 and u.update(springs, n):
@@ -254,6 +263,14 @@ class SparseSolver:
         b = np.ascontiguousarray(rhs, dtype=np.float64)
         if not np.any(b):
             return np.zeros(n)
+        if self._exact and self.backend != "dense" and len(self._factored_data) == len(data) and \
+                np.array_equal(self._factored_data, data):
+            # K is the matrix factorised (the equilibrium stage's iterates whose contact states
+            # did not change: only F moved): the solve is a direct one, the one the
+            # factorisation itself would give, which is not refined either; refinement to
+            # round-off took 3.4 solves at 1,600 blocks (benchmarks/results/large_round4.md)
+            self.last_residual = 0.0
+            return solve(b)
         k = self._dense(data, indices, indptr, n) if self.backend == "dense" else \
             csr_matrix((data, indices, indptr), shape=(n, n))
         x, residual, done = _refinement(k, b, solve(b), solve, REUSE_RESIDUAL, REUSE_PASSES, REUSE_RATE)
@@ -380,6 +397,7 @@ class SparseSolver:
                 # kept by reference: pattern arrays are never written after `BlockPattern.build`
                 h.key, h.n = (indptr, indices), n
             if h.perturbed_pivots:
+                self._exact = False
                 x = self._refine(h, data, indices, indptr, a_data, a_ptr, a_idx, b, x, n)
         except PardisoError:  # a failed factorisation is a non-finite solution
             h.key = None
