@@ -46,7 +46,7 @@ class Prepared:
     process, which has loaded the kernel, runs them (`run_prepared`)."""
 
     runs: list
-    """One `ddatai.fused.pack.Member` a member."""
+    """One ``ddatai.fused.pack.Member`` a member."""
     plans: list
     """Each member's `RunPlan`."""
     fields: list

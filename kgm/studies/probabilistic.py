@@ -20,7 +20,7 @@ millisecond each) run in this process, where they are fastest, and DDA samples (
 on one local worker process per CPU; ``workers=`` chooses, and ``client=`` (a
 ``dask.distributed.Client`` or a scheduler address) runs them on a Dask cluster. On local
 workers, DDA verdicts on the fused engine are prepared by the workers in NumPy and run by one
-more process, the only one that loads the fused kernel (`_prepared_then_run`). A script that
+more process, the only one that loads the fused kernel (``_prepared_then_run``). A script that
 starts a study at its top level without an ``if __name__ == "__main__":`` block still gets its
 result by default (in this process, with a warning saying what to add); asked for worker
 processes explicitly, it stops before any work with one line saying what to add. With ``out=``
