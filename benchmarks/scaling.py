@@ -153,41 +153,6 @@ def reference_timings(model, stepper, state) -> dict:
                 same_contacts=bool(len(cint) == len(cint_k) and np.array_equal(cint, cint_k)))
 
 
-def reference_timings(model, stepper, state) -> dict:
-    """NumPy reference path on the current state: detection, and one dense assembly, against
-    the Taichi kernels' detection and one sparse assembly."""
-    from ddatai import reference
-    from ddatai.assembly import BlockPattern, assemble_blocks, assemble_contacts, contact_vectors
-    from ddatai.contact_law import friction_force
-    from ddatai.contacts import Contacts, detect_contacts
-    from ddatai.kinematics import newmark_beta
-
-    geom = model.block_geometry(state.vertex_xy)
-    t = time.perf_counter()
-    cint, length = reference.detect_contacts(model, state.vertex_xy)
-    ref_detect = time.perf_counter() - t
-    t = time.perf_counter()
-    cint_k, length_k = detect_contacts(model, state.vertex_xy, stepper.buffers)
-    ti_detect = time.perf_counter() - t
-    contacts = Contacts.start(model, state.vertex_xy, cint_k, length_k, state.memory, False)
-    vec, sca = contact_vectors(model, state.vertex_xy, geom, contacts)
-    pattern = BlockPattern.build(model, contacts)
-    beta = newmark_beta(model.params, state)
-    t = time.perf_counter()
-    data, rhs = assemble_blocks(model, state, geom, pattern, 1e-3, beta)
-    assemble_contacts(model, contacts, pattern, vec, sca, data, rhs, stepper.serial_scatter)
-    ti_assemble = time.perf_counter() - t
-    t = time.perf_counter()
-    reference.assemble_dense(model, state.vertex_xy, state.block_velocity, state.block_stress,
-                             state.fixed_point_xy, state.load_xy, np.zeros((len(model.load_block), 2)),
-                             1e-3, model.gravity, contacts, vec, sca, friction_force(contacts),
-                             accel=state.block_accel, beta=beta)
-    ref_assemble = time.perf_counter() - t
-    return dict(ref_detect_ms=ref_detect * 1e3, ti_detect_ms=ti_detect * 1e3,
-                ref_assemble_ms=ref_assemble * 1e3, ti_assemble_ms=ti_assemble * 1e3,
-                same_contacts=bool(len(cint) == len(cint_k) and np.array_equal(cint, cint_k)))
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", default="1,4,16,64,100,256,400,1024,1600,4096,6400,16384,25600")
