@@ -143,12 +143,13 @@ def _screen(job: _Job, item: tuple) -> Screened:
                     group=frozenset(result.blocks))
 
 
-def _evaluate_batch(job: _Job, items: tuple) -> list:
-    """[(index, `SampleRow`)] of DDA verdicts of several samples (``dda_fs`` off): each sample
-    screened on its own, then the samples whose critical groups are the same blocks of the same
-    geometry judged side by side in one run (`kgm.judges.batch.judge_members`; the verdict of each is
-    the one a run of its own gives). Errors name the sample."""
-    rows, groups = {}, {}
+def _screened_groups(job: _Job, items: tuple) -> tuple:
+    """``(decided, groups)`` of several samples, each screened on its own: ``decided`` the
+    ``(index, SampleRow)`` of the samples with no key group, ``groups`` the others by key group
+    and parameters, ``{(blocks, params): [(item, Member, Screened)]}`` (the samples whose critical
+    groups are the same blocks of the same geometry, to be judged side by side). Errors name the
+    sample."""
+    decided, groups = [], {}
     for item in items:
         index, values, seed = item
         try:
@@ -156,23 +157,36 @@ def _evaluate_batch(job: _Job, items: tuple) -> list:
         except Exception as exc:
             raise _failed(index, values, seed, exc) from exc
         if screened.group is None:
-            rows[index] = screened.row
+            decided.append((index, screened.row))
             continue
         member = Member(scene=screened.problem.scene, system=screened.problem.system)
-        key = (screened.group, screened.problem.params)
-        groups.setdefault(key, []).append((item, member, screened))
+        groups.setdefault((screened.group, screened.problem.params), []).append((item, member, screened))
+    return decided, groups
+
+
+def _judge_group(job: _Job, blocks, params, entries: list) -> list:
+    """[(index, `SampleRow`)] of one `_screened_groups` group judged side by side in one run
+    (`kgm.judges.batch.judge_members`; the verdict of each is the one a run of its own gives).
+    Errors name the sample (each sample then judged on its own, `_evaluate`)."""
+    settings = entries[0][2].problem.settings
+    try:
+        verdicts = judge_members([member for _, member, _ in entries], blocks, settings=settings.dda,
+                                 params=params, exact=True, report=settings.dda.progress)
+    except Exception:
+        # which sample: each on its own, so that the error names it
+        return [(item[0], _evaluate(job, item)) for item, _, _ in entries]
+    return [(item[0], SampleRow(fs=math.nan, failed=not j.stable, critical=screened.row.critical))
+            for (item, _, screened), j in zip(entries, verdicts)]
+
+
+def _evaluate_batch(job: _Job, items: tuple) -> list:
+    """[(index, `SampleRow`)] of DDA verdicts of several samples (``dda_fs`` off): each sample
+    screened on its own, then the samples whose critical groups are the same blocks of the same
+    geometry judged side by side in one run (`_judge_group`). Errors name the sample."""
+    decided, groups = _screened_groups(job, items)
+    rows = dict(decided)
     for (blocks, params), entries in groups.items():
-        settings = entries[0][2].problem.settings
-        try:
-            verdicts = judge_members([member for _, member, _ in entries], blocks, settings=settings.dda,
-                                     params=params, exact=True, report=settings.dda.progress)
-        except Exception:
-            # which sample: each on its own, so that the error names it
-            for item, _, _ in entries:
-                rows[item[0]] = _evaluate(job, item)
-            continue
-        for (item, _, screened), j in zip(entries, verdicts):
-            rows[item[0]] = SampleRow(fs=math.nan, failed=not j.stable, critical=screened.row.critical)
+        rows.update(_judge_group(job, blocks, params, entries))
     return [(item[0], rows[item[0]]) for item in items]
 
 
@@ -185,18 +199,7 @@ def _prepare_batch(job: _Job, items: tuple) -> tuple:
     sample."""
     from ..judges.fused import prepare_fused
 
-    rows, groups = [], {}
-    for item in items:
-        index, values, seed = item
-        try:
-            screened = _screen(job, item)
-        except Exception as exc:
-            raise _failed(index, values, seed, exc) from exc
-        if screened.group is None:
-            rows.append((index, screened.row))
-            continue
-        member = Member(scene=screened.problem.scene, system=screened.problem.system)
-        groups.setdefault((screened.group, screened.problem.params), []).append((item, member, screened))
+    rows, groups = _screened_groups(job, items)
     work = []
     for (blocks, params), entries in groups.items():
         settings = entries[0][2].problem.settings
@@ -204,9 +207,9 @@ def _prepare_batch(job: _Job, items: tuple) -> tuple:
             prepared = prepare_fused([member for _, member, _ in entries], blocks, settings=settings.dda,
                                      params=params)
         except Exception:
-            prepared = None  # judged here, each sample on its own where it errs (`_evaluate_batch`)
+            prepared = None  # judged here, each sample on its own where it errs (`_judge_group`)
         if prepared is None:
-            rows += _evaluate_batch(job, tuple(item for item, _, _ in entries))
+            rows += _judge_group(job, blocks, params, entries)
             continue
         work.append(([(item, screened.row.critical) for item, _, screened in entries], prepared))
     return rows, work
