@@ -192,6 +192,18 @@ def settle(stepper, state: State, welded: bool = False, screen: bool = True) -> 
     model = stepper.model
     if not needs_settling(model):
         return state, NOTHING
+    if stepper.solver.backend == "dense":
+        # its hundreds of small dense solves on one BLAS thread, asked for once (`ddatai.threads`)
+        from .threads import one_blas_thread
+
+        with one_blas_thread():
+            return _settle(stepper, state, welded, screen, t0)
+    return _settle(stepper, state, welded, screen, t0)
+
+
+def _settle(stepper, state: State, welded: bool, screen: bool, t0: float) -> tuple[State, StartRecord]:
+    """`settle` of a model that needs settling."""
+    model = stepper.model
     factorised = stepper.solver.factorisations
     geom = model.block_geometry(state.vertex_xy)
     size = np.sqrt(geom["area"])
