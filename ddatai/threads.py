@@ -11,7 +11,7 @@ no-op without it) and gives them back their count afterwards.
 
 from __future__ import annotations
 
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 
 _BLAS = None  # the BLAS libraries' controllers (threadpoolctl), found once
 
@@ -50,3 +50,9 @@ def one_blas_thread():
         _DEPTH -= 1
         for c, n in held:
             c.set_num_threads(n)
+
+
+def dense_solves(solver):
+    """`one_blas_thread` around a stretch of a dense solver's solves (``solver.backend``
+    "dense"; another backend's threads are its own): one limit for all of them."""
+    return one_blas_thread() if solver.backend == "dense" else nullcontext()
