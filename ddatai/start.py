@@ -187,8 +187,7 @@ def settle(stepper, state: State, welded: bool = False, screen: bool = True) -> 
     contact memory carries the held contacts into the first step, and the stage's record.
     ``welded``: go straight to the welded equilibrium (6.), without the frictional stage.
     ``screen``: release at once a model whose every free block limit equilibrium lets move
-    (``ddatai.mechanisms.unsupported_at_start``); False: only as the return mapping finds them (the reference
-    that tests compare the screen with)."""
+    (``ddatai.mechanisms.unsupported_at_start``); False: only as the return mapping finds them (the tests' reference)."""
     t0 = _time.perf_counter()
     model = stepper.model
     if not needs_settling(model):
@@ -201,8 +200,7 @@ def settle(stepper, state: State, welded: bool = False, screen: bool = True) -> 
         settled, record, converged = _stage(stepper, state, size, dt_static, t0, welded=welded, screen=screen,
                                             slow=not welded and model.params.start_turn_on and feasible(model))
         if not converged:
-            # no frictional equilibrium found: start from the welded one, each contact then at most
-            # at its strength (module docstring, 6.), rather than under sudden gravity
+            # no frictional equilibrium: start from the welded one (module docstring, 6.)
             settled, again, _ = _stage(stepper, state, size, dt_static, t0, welded=True)
             record = replace(again, solves=record.solves + again.solves)
     return settled, replace(record, factorisations=stepper.solver.factorisations - factorised,
