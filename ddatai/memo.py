@@ -13,6 +13,7 @@ what it gets. Errors are never kept: bad input raises each time.
 
 from __future__ import annotations
 
+import threading
 from collections import OrderedDict
 from typing import Any, Callable, Hashable
 
@@ -21,6 +22,7 @@ import numpy as np
 #: entries each memo keeps (the most recently used); a study repeats one geometry, a scene's
 #: polygons are a few hundred
 DEFAULT_ENTRIES = 64
+_NONE = object()  # no result kept
 
 
 def key(*arrays) -> tuple:
@@ -40,25 +42,31 @@ class GeometryMemo:
     def __init__(self, entries: int = DEFAULT_ENTRIES):
         self.entries = entries
         self._kept: "OrderedDict[Hashable, Any]" = OrderedDict()
+        self._lock = threading.Lock()
         self.hits = 0
         self.misses = 0
 
     def get(self, k: Hashable, compute: Callable[[], Any]) -> Any:
-        """A copy of the result kept under ``k``, else ``compute()``'s, kept (and a copy given)."""
-        if k in self._kept:
-            self._kept.move_to_end(k)
-            self.hits += 1
-            return _copy(self._kept[k])
-        self.misses += 1
+        """A copy of the result kept under ``k``, else ``compute()``'s, kept (and a copy given).
+        Safe from several threads (a study's threaded workers): ``compute`` runs outside the lock."""
+        with self._lock:
+            kept = self._kept.get(k, _NONE)
+            if kept is not _NONE:
+                self._kept.move_to_end(k)
+                self.hits += 1
+                return _copy(kept)
+            self.misses += 1
         value = compute()  # an error propagates and nothing is kept
-        self._kept[k] = _copy(value)
-        if len(self._kept) > self.entries:
-            self._kept.popitem(last=False)
+        with self._lock:
+            self._kept[k] = _copy(value)
+            while len(self._kept) > self.entries:
+                self._kept.popitem(last=False)
         return value
 
     def clear(self) -> None:
-        self._kept.clear()
-        self.hits = self.misses = 0
+        with self._lock:
+            self._kept.clear()
+            self.hits = self.misses = 0
 
 
 def _copy(value):

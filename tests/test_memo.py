@@ -110,3 +110,20 @@ def test_the_memo_keeps_only_its_most_recent_entries():
     assert memo.misses == 4
     assert memo.get(key(np.full(2, 2.0)), lambda: -1.0) == 2.0
     assert memo.hits == 1
+
+
+def test_threads_share_the_memo_safely():
+    """A study's threaded workers build their scenes at once: every thread gets the result
+    computed alone."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    memo = GeometryMemo(3)
+    arrays = [np.full((4, 2), float(i % 5)) for i in range(200)]
+
+    def one(a):
+        return memo.get(key(a), lambda: a.sum())
+
+    with ThreadPoolExecutor(4) as pool:
+        got = list(pool.map(one, arrays))
+    assert got == [a.sum() for a in arrays]
+    assert memo.hits + memo.misses == 200
