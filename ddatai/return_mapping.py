@@ -18,7 +18,7 @@ import numpy as np
 from scipy.sparse import csr_matrix
 
 from .assembly import BlockPattern, assemble_blocks, assemble_contacts, contact_vectors
-from .contact_law import contact_law
+from .contact_law import contact_law, stage_law
 from .contacts import Contacts
 from .kinematics import block_displacement
 from .layout import KIND, LOCK, OPEN, SLIDE, VE
@@ -326,7 +326,7 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
         alpha = line_search(stepper, frame, contacts, sca, disp, target - disp, shearing) \
             if changed and it > 1 else 1.0
         disp = target if alpha == 1.0 else disp + alpha * (target - disp)
-        law = contact_law(stepper.model, coupled(contacts), frame.vec, sca, disp)
+        law = stage_law(stepper.model, contacts, frame.vec, sca, disp)  # coupled: this solve's N
         outcome.disp, outcome.law = disp, law
         moved = block_displacement(stepper.model, frame.vertex_xy, geom, disp)
         far = free & ~out & (moved > MECHANISM_SIZE * size)
