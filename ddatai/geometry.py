@@ -20,6 +20,8 @@ from .memo import GeometryMemo, key
 COLLINEAR_TOL = 1e-10
 #: polygons of at most this many vertices keep their validated form (`ddatai.memo`)
 MEMO_VERTICES = 256
+#: scenes of at most this many vertices keep their overlap check and kgm's edge contacts
+MEMO_SCENE_VERTICES = 20_000
 _POLYGONS = GeometryMemo(4096)
 _OVERLAP_FREE = GeometryMemo(16)
 
@@ -206,8 +208,11 @@ def check_overlaps(scene, *, what: str = "") -> None:
     # the same polygons as a check that passed (a study's scene built again): passed (`ddatai.memo`)
     if len(scene.blocks) < 2:
         return
-    shape = key(np.concatenate([s.vertices for s in scene.blocks]), np.array([len(s.vertices) for s in scene.blocks]))
-    _OVERLAP_FREE.get(shape, lambda: _check_overlaps(scene, what))
+    xy = np.concatenate([s.vertices for s in scene.blocks])
+    if len(xy) > MEMO_SCENE_VERTICES:  # a large scene: its key would cost memory, and it rarely repeats
+        _check_overlaps(scene, what)
+        return
+    _OVERLAP_FREE.get(key(xy, np.array([len(s.vertices) for s in scene.blocks])), lambda: _check_overlaps(scene, what))
 
 
 def _check_overlaps(scene, what: str) -> bool:

@@ -14,7 +14,7 @@ from typing import Any, Optional
 
 import numpy as np
 
-from ddatai.geometry import check_overlaps, polygon_integrals
+from ddatai.geometry import MEMO_SCENE_VERTICES, check_overlaps, polygon_integrals
 from ddatai.memo import GeometryMemo, key
 
 from .settings import Settings
@@ -219,7 +219,10 @@ _CONTACTS = GeometryMemo(16)
 
 
 def _find_contacts(specs, offset, xy, scale, gap) -> list[tuple]:
-    """`_edge_contacts`, kept for the next call with the same vertices, scale and gap."""
+    """`_edge_contacts`, kept for the next call with the same vertices, scale and gap (a scene
+    of at most ``ddatai.geometry.MEMO_SCENE_VERTICES``)."""
+    if len(xy) > MEMO_SCENE_VERTICES:
+        return _edge_contacts(specs, offset, xy, scale, gap)
     return _CONTACTS.get(key(np.ascontiguousarray(xy, dtype=np.float64), np.asarray(offset, np.int64),
                              float(scale), float(gap)),
                          lambda: _edge_contacts(specs, offset, xy, scale, gap))

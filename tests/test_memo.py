@@ -127,3 +127,15 @@ def test_threads_share_the_memo_safely():
         got = list(pool.map(one, arrays))
     assert got == [a.sum() for a in arrays]
     assert memo.hits + memo.misses == 200
+
+
+def test_a_large_scene_is_checked_without_the_memo(monkeypatch):
+    """Scenes above MEMO_SCENE_VERTICES are checked and searched afresh, nothing kept."""
+    monkeypatch.setattr(geometry, "MEMO_SCENE_VERTICES", 3)
+    monkeypatch.setattr(kgm_build, "MEMO_SCENE_VERTICES", 3)
+    _clear()
+    scene, _ = _example_2()()
+    for _ in range(2):
+        kgm_build.build_block_system(scene)
+    assert geometry._OVERLAP_FREE.hits + geometry._OVERLAP_FREE.misses == 0
+    assert kgm_build._CONTACTS.hits + kgm_build._CONTACTS.misses == 0
