@@ -11,13 +11,14 @@ released (docs/method/dda.md §8.12).
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import cached_property
 from typing import Optional
 
 import numpy as np
 from scipy.sparse import csr_matrix
 
 from .assembly import BlockPattern, assemble_blocks, assemble_contacts, contact_vectors
-from .contact_law import contact_law
+from .contact_law import contact_law, stage_law
 from .contacts import Contacts
 from .kinematics import block_displacement
 from .layout import KIND, LOCK, OPEN, SLIDE, VE
@@ -76,16 +77,20 @@ class Frame:
     pattern: BlockPattern
     data: np.ndarray
     rhs: np.ndarray
-    k_blocks: object  # the block part of K as a CSR matrix (the energy of `return_steps.line_search`)
+
+    @cached_property
+    def k_blocks(self):
+        """The block part of K as a CSR matrix (the energy of `return_steps.line_search`), made
+        when a line search first needs it (most frames have none)."""
+        n = 6 * self.pattern.n_rows
+        return csr_matrix((self.data, self.pattern.indices, self.pattern.indptr), shape=(n, n))
 
     @staticmethod
     def build(stepper, state: State, geom: dict, contacts: Contacts, dt: float) -> "Frame":
         vec, sca = contact_vectors(stepper.model, state.vertex_xy, geom, contacts)
         pattern = BlockPattern.build(stepper.model, contacts)
         data, rhs = assemble_blocks(stepper.model, state, geom, pattern, dt, STAGE_BETA, static_start=True)
-        n = 6 * pattern.n_rows
-        return Frame(vertex_xy=state.vertex_xy, vec=vec, sca=sca, pattern=pattern, data=data, rhs=rhs,
-                      k_blocks=csr_matrix((data, pattern.indices, pattern.indptr), shape=(n, n)))
+        return Frame(vertex_xy=state.vertex_xy, vec=vec, sca=sca, pattern=pattern, data=data, rhs=rhs)
 
 
 @dataclass(kw_only=True)
@@ -321,7 +326,7 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
         alpha = line_search(stepper, frame, contacts, sca, disp, target - disp, shearing) \
             if changed and it > 1 else 1.0
         disp = target if alpha == 1.0 else disp + alpha * (target - disp)
-        law = contact_law(stepper.model, coupled(contacts), frame.vec, sca, disp)
+        law = stage_law(stepper.model, contacts, frame.vec, sca, disp)  # coupled: this solve's N
         outcome.disp, outcome.law = disp, law
         moved = block_displacement(stepper.model, frame.vertex_xy, geom, disp)
         far = free & ~out & (moved > MECHANISM_SIZE * size)
