@@ -45,7 +45,8 @@ def screened_ahead(steppers, states):
     limit-equilibrium program answered from programs solved side by side (`solve_programs`),
     the rest as the stage alone asks them (`limit_equilibrium.unsupported_programs`). The members
     that share their geometry share its detection (`ddatai.batch_detect.share_detection`). The
-    first programs' answers stay primed for the stages' own tests, which may ask them again."""
+    screens' answers stay primed for the stages' own tests, which may ask them again (as a
+    stage alone finds its screen's last programs among those solved lately)."""
     from .batch_detect import share_detection
     from .mechanisms import SCREENED, screen_programs
 
@@ -59,9 +60,16 @@ def screened_ahead(steppers, states):
             done[id(st)] = (st, s, end.value)
     answers = solve_programs([p for _, _, _, p in started])
     le.PRIMED.update(answers)
+
+    def solve(*program):  # a screen's later programs, kept too: its stage's tests may ask them again
+        out = le._interior_point(*program)
+        answers[le.program_key(*program)] = None if out is None else (out[0], out[1].copy())
+        return out
+
     try:
         for st, s, programs, first in started:
-            done[id(st)] = (st, s, le.answered(programs, le._interior_point, first))
+            done[id(st)] = (st, s, le.answered(programs, solve, first))
+        le.PRIMED.update(answers)
         SCREENED.update(done)
         yield
     finally:
