@@ -11,11 +11,12 @@ touch it, added in the contacts' order. So the rows of the blocks touched by a c
 are assembled again from the block terms with every contact that touches those blocks, in the
 same order, by the same kernel, and copied into the kept K: the result is the full assembly's,
 float for float. F moves with the slips of the contacts at their strength: its contact terms
-are added in full, in NumPy (``contact_rhs``: the same products added in the kernel's order, a
-quarter of the kernel's time, which also adds the ~24 entries of K of each contact).
+are added in full by a kernel that adds them alone (`kernels.assemble_contact_loads`, the
+same terms in the same order, without the 144 entries of K that each spring adds with them;
+its NumPy twin is ``contact_rhs``).
 
-The Taichi path only: on the small-model NumPy path (`Model.numpy_path`) a full assembly costs
-about what the bookkeeping does.
+From ``PARTIAL_FROM`` contacts on, on the Taichi path: with fewer, and on the small-model
+NumPy path (`Model.numpy_path`), a full assembly costs no more than the bookkeeping.
 """
 
 from __future__ import annotations
@@ -25,49 +26,60 @@ import numpy as np
 from .assembly import BlockPattern, assemble_contacts
 from .contact_law import friction_terms
 from .contacts import Contacts
-from .layout import KIND, LOCK, OPEN, S_E0, S_ES, S_G0, S_GS, SLIDE, VE
+from .layout import KIND, LOCK, N_SLOTS, OPEN, S_E0, S_ES, S_G0, S_GS, SLIDE, VE
 
 #: past this share of the block-rows touched by changed contacts, K is assembled in full
 FULL_ABOVE = 0.5
+#: with fewer contacts than this, every iterate assembles K in full: the two kernel launches
+#: and the bookkeeping of a partial one cost more (the stage of the 391-block slope, ~2,300
+#: contacts: 1.49 ms an iterate in full, 1.65 ms partial; ~9,300 contacts: 4.4–6.4 ms in full,
+#: 3.0–3.4 ms partial; benchmarks/results/large_round5.md)
+PARTIAL_FROM = 4000
 
 _SIX = np.arange(6)
 
 
-def _subset(contacts: Contacts, keep: np.ndarray) -> Contacts:
-    return Contacts(**{k: v[keep] for k, v in vars(contacts).items()})
-
-
 def contact_rhs(model, contacts: Contacts, vec: np.ndarray, sca: np.ndarray, rhs: np.ndarray) -> None:
-    """Add the contact terms of F alone, those of `assembly.assemble_contacts` (§2.8), to
-    ``rhs`` in place: −p·d₀·∇dn of each closed contact's active line, −k_s·d_s·∇ds of a locked
+    """The NumPy twin of `kernels.assemble_contact_loads`: add the contact terms of F alone,
+    those of `assembly.assemble_contacts` (§2.8), to ``rhs`` in place: −p·d₀·∇dn of each closed contact's active line, −k_s·d_s·∇ds of a locked
     vertex-edge one, −sgn·S·∇ds of a sliding one (S = a − b·dn₀, `contact_law.friction_terms`),
-    in the kernel's order (contact by contact, the normal spring first)."""
+    the same products added in the kernel's order (contact by contact, the normal spring
+    first). Entries on no free block's rows go to a sink past the end (no masks: a gather and
+    one ``np.add.at``)."""
     closed = np.flatnonzero(contacts.state != OPEN)
     if not len(closed):
         return
-    cint, dof, vblock = contacts.cint, model.block_dof, model.vertex_block
-    q = contacts.line[closed].astype(np.int64)
-    ri = dof[vblock[cint[closed, 1 + 2 * q]]].astype(np.int64)
-    rj = dof[vblock[cint[closed, 2 + 2 * q]]].astype(np.int64)
+    dof, vblock = model.block_dof, model.vertex_block
+    cint = contacts.cint[closed]
+    line1 = contacts.line[closed] == 1
+    ri = dof[vblock[np.where(line1, cint[:, 3], cint[:, 1])]].astype(np.int64)
+    rj = dof[vblock[np.where(line1, cint[:, 4], cint[:, 2])]].astype(np.int64)
     state = contacts.state[closed]
-    ve = cint[closed, KIND] == VE
-    locked, sliding = ve & (state == LOCK), ve & (state == SLIDE)
-    normal = (-model.penalty) * sca[closed, q]
-    const, slope = friction_terms(model, contacts)
-    c = closed[sliding]
-    friction = contacts.shear_dir[c].astype(np.float64) * (const[c] - slope[c] * sca[c, 0])
-    shear = np.zeros(len(closed))
-    shear[locked] = (-model.shear_penalty) * sca[closed[locked], 2]
-    shear[sliding] = -friction
-    values = np.empty((len(closed), 4, 6))
-    values[:, 0] = normal[:, None] * vec[closed, S_E0 + 2 * q]
-    values[:, 1] = normal[:, None] * vec[closed, S_G0 + 2 * q]
-    values[:, 2] = shear[:, None] * vec[closed, S_ES]
-    values[:, 3] = shear[:, None] * vec[closed, S_GS]
-    rows = np.stack([ri, rj, ri, rj], axis=1)                                  # (n, 4)
-    keep = (rows >= 0) & np.stack([np.ones_like(ve), np.ones_like(ve), ve, ve], axis=1)
-    at = 6 * rows[:, :, None] + _SIX
-    np.add.at(rhs, at[keep].ravel(), values[keep].ravel())
+    ve = cint[:, KIND] == VE
+    sliding = ve & (state == SLIDE)
+    near = sca[closed]
+    coefficient = np.empty((len(closed), 4))
+    coefficient[:, 0] = (-model.penalty) * np.where(line1, near[:, 1], near[:, 0])
+    coefficient[:, 1] = coefficient[:, 0]
+    coefficient[:, 2] = np.where(ve & (state == LOCK), (-model.shear_penalty) * near[:, 2], 0.0)
+    if sliding.any():
+        const, slope = friction_terms(model, contacts)
+        c = closed[sliding]
+        coefficient[sliding, 2] = -(contacts.shear_dir[c].astype(np.float64) * (const[c] - slope[c] * sca[c, 0]))
+    coefficient[:, 3] = coefficient[:, 2]
+    # the four gradients of each contact, one gather: (n, 4, 6)
+    first = N_SLOTS * closed + S_E0 + 2 * line1
+    slots = np.stack([first, first + (S_G0 - S_E0), N_SLOTS * closed + S_ES, N_SLOTS * closed + S_GS], axis=1)
+    gradient = vec.reshape(-1, 6)[slots]
+    sink = len(rhs) // 6                                              # a block-row past the last
+    rows = np.empty((len(closed), 4), np.int64)
+    rows[:, 0] = rows[:, 2] = np.where(ri >= 0, ri, sink)
+    rows[:, 1] = rows[:, 3] = np.where(rj >= 0, rj, sink)
+    rows[~ve, 2:] = sink                                              # no shear term
+    extended = np.zeros(len(rhs) + 6)
+    extended[:len(rhs)] = rhs
+    np.add.at(extended, (6 * rows[:, :, None] + _SIX).ravel(), (coefficient[:, :, None] * gradient).ravel())
+    rhs[:] = extended[:len(rhs)]
 
 
 class ContactSystem:
@@ -87,6 +99,7 @@ class ContactSystem:
         self.full = 0      # assemblies of all contacts
         self.partial = 0   # re-assemblies of some block-rows
         self.kept = 0      # iterates whose K had not changed
+        self.scratch = self.scratch_rhs = None  # what `_rows_again` assembles into
 
     @staticmethod
     def _key(contacts: Contacts) -> tuple:
@@ -98,26 +111,28 @@ class ContactSystem:
     def system(self, contacts: Contacts, sca: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(K's CSR data, F) with the contacts' terms for their states and ``sca``."""
         model = self.model
-        if model.numpy_path or self.data is None or len(self.key[0]) != contacts.n:
+        if model.numpy_path or contacts.n < PARTIAL_FROM or self.data is None or \
+                len(self.key[0]) != contacts.n:
             return self._assemble_all(contacts, sca)
+        from . import kernels as K
+
+        const, slope = friction_terms(model, contacts)
         changed = np.zeros(contacts.n, bool)
         for old, new in zip(self.key, self._key(contacts)):
             changed |= old != new
         if changed.any():
-            touched = np.zeros(model.n_blocks, bool)
-            touched[contacts.block_a[changed]] = touched[contacts.block_b[changed]] = True
-            touched &= ~model.block_fixed  # a fixed block has no rows (nor its other contacts a part)
-            rows = model.block_dof[touched]
-            rows = rows[rows >= 0]
-            if len(rows) > FULL_ABOVE * self.pattern.n_rows:
+            touched = self._blocks(contacts, changed)
+            if np.count_nonzero(touched) > FULL_ABOVE * self.pattern.n_rows:
                 return self._assemble_all(contacts, sca)
-            self.data = self._rows_again(contacts, sca, touched, rows)
+            self.data = self._rows_again(K, contacts, sca, const, slope, touched)
             self.key = self._key(contacts)
             self.partial += 1
         else:
             self.kept += 1
         rhs = self.block_rhs.copy()
-        contact_rhs(model, contacts, self.vec, sca, rhs)
+        K.assemble_contact_loads(contacts.cint, contacts.state, contacts.line, model.vertex_block, model.block_dof,
+                                 self.vec, sca, const, slope, contacts.shear_dir, model.penalty,
+                                 model.shear_penalty, rhs, self.serial_scatter)
         return self.data, rhs
 
     def _assemble_all(self, contacts: Contacts, sca: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -127,21 +142,39 @@ class ContactSystem:
         self.full += 1
         return data, rhs
 
-    def _rows_again(self, contacts: Contacts, sca: np.ndarray, touched: np.ndarray, rows: np.ndarray
-                    ) -> np.ndarray:
-        """The last K with the block-rows ``rows`` (of the blocks ``touched``) assembled again
-        from the block terms and every contact that touches those blocks, in order."""
-        near = touched[contacts.block_a] | touched[contacts.block_b]
-        pattern = self.pattern
-        scratch, scratch_rhs = self.block_data.copy(), np.zeros_like(self.block_rhs)
-        local = _subset(contacts, near)
-        part = BlockPattern(**{**vars(pattern), "slot_ab": pattern.slot_ab[near], "slot_ba": pattern.slot_ba[near]})
-        assemble_contacts(self.model, local, part, self.vec[near], sca[near], scratch, scratch_rhs,
-                          self.serial_scatter)
-        # block-row r is contiguous in the CSR data: indptr[6r] up to indptr[6r + 6]
-        start = pattern.indptr[6 * rows].astype(np.int64)
-        count = pattern.indptr[6 * rows + 6].astype(np.int64) - start
-        at = np.repeat(start - np.cumsum(count) + count, count) + np.arange(int(count.sum()))
+    def _blocks(self, contacts: Contacts, which: np.ndarray) -> np.ndarray:
+        """(B,) the free blocks of the contacts ``which`` (a fixed block has no rows)."""
+        blocks = np.zeros(self.model.n_blocks, bool)
+        blocks[contacts.block_a[which]] = blocks[contacts.block_b[which]] = True
+        return blocks & ~self.model.block_fixed
+
+    def _row_entries(self, blocks: np.ndarray) -> np.ndarray:
+        """Positions in the CSR data of the block-rows of ``blocks``: block-row r is contiguous,
+        indptr[6r] up to indptr[6r + 6]."""
+        rows = self.model.block_dof[blocks]
+        indptr = self.pattern.indptr
+        start = indptr[6 * rows].astype(np.int64)
+        count = indptr[6 * rows + 6].astype(np.int64) - start
+        return np.repeat(start - np.cumsum(count) + count, count) + np.arange(int(count.sum()))
+
+    def _rows_again(self, K, contacts: Contacts, sca: np.ndarray, const: np.ndarray, slope: np.ndarray,
+                    touched: np.ndarray) -> np.ndarray:
+        """The last K with the block-rows of the blocks ``touched`` assembled again from the block
+        terms and every contact that touches those blocks, in order, by the kernel of the full
+        assembly (into a scratch copy whose rows it writes are first reset to the block terms)."""
+        near = np.flatnonzero(touched[contacts.block_a] | touched[contacts.block_b])
+        if self.scratch is None:
+            self.scratch, self.scratch_rhs = self.block_data.copy(), np.zeros_like(self.block_rhs)
+        else:
+            written = self._row_entries(self._blocks(contacts, near))
+            self.scratch[written] = self.block_data[written]
+        model, pattern = self.model, self.pattern
+        K.assemble_contacts(contacts.cint[near], contacts.state[near], contacts.line[near], model.vertex_block,
+                            model.block_dof, self.vec[near], sca[near], const[near], slope[near],
+                            contacts.shear_dir[near], pattern.slot_ab[near], pattern.slot_ba[near],
+                            pattern.diag_slot, pattern.stride, model.penalty, model.shear_penalty,
+                            self.scratch, self.scratch_rhs, self.serial_scatter)
+        at = self._row_entries(touched)
         data = self.data.copy()
-        data[at] = scratch[at]
+        data[at] = self.scratch[at]
         return data
