@@ -41,11 +41,11 @@ _SIX = np.arange(6)
 
 def contact_rhs(model, contacts: Contacts, vec: np.ndarray, sca: np.ndarray, rhs: np.ndarray) -> None:
     """The NumPy twin of `kernels.assemble_contact_loads`: add the contact terms of F alone,
-    those of `assembly.assemble_contacts` (§2.8), to ``rhs`` in place: −p·d₀·∇dn of each closed contact's active line, −k_s·d_s·∇ds of a locked
-    vertex-edge one, −sgn·S·∇ds of a sliding one (S = a − b·dn₀, `contact_law.friction_terms`),
-    the same products added in the kernel's order (contact by contact, the normal spring
-    first). Entries on no free block's rows go to a sink past the end (no masks: a gather and
-    one ``np.add.at``)."""
+    those of `assembly.assemble_contacts` (§2.8), to ``rhs`` in place: −p·d₀·∇dn of each closed
+    contact's active line, −k_s·d_s·∇ds of a locked vertex-edge one, −sgn·S·∇ds of a sliding
+    one (S = a − b·dn₀, `contact_law.friction_terms`), the same products added in the kernel's
+    order (contact by contact, the normal spring first). Entries on no free block's rows go to
+    a sink past the end (no masks: a gather and one ``np.add.at``)."""
     closed = np.flatnonzero(contacts.state != OPEN)
     if not len(closed):
         return
