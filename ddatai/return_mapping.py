@@ -17,7 +17,7 @@ from typing import Optional
 import numpy as np
 from scipy.sparse import csr_matrix
 
-from .assembly import BlockPattern, assemble_blocks, assemble_contacts, contact_vectors
+from .assembly import BlockPattern, assemble_blocks, contact_vectors
 from .contact_law import contact_law, stage_law
 from .contacts import Contacts
 from .kinematics import block_displacement
@@ -25,6 +25,7 @@ from .layout import KIND, LOCK, OPEN, SLIDE, VE
 from .model import State
 from .limit_equilibrium import unsupported_blocks
 from .open_close import solve
+from .reassembly import ContactSystem
 from .return_steps import anderson, line_search
 from .updates import Springs, block_rows
 from .mechanisms import MECHANISM_SIZE, anchored, loaded_away, mechanisms, test_unbalanced
@@ -297,6 +298,7 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
     pen, ks = model.penalty, model.shear_penalty
     disp = np.zeros((model.n_blocks, 6))
     rows = block_rows(model, contacts) if stepper.solver.updates and p.factor_updates else None
+    system = ContactSystem(model, frame.pattern, frame.vec, frame.data, frame.rhs, stepper.serial_scatter)
     history: list = []
     flips = np.zeros(contacts.n, np.int64)  # how often each contact opened or closed
     changed = True  # the closed contacts changed: K is factorised
@@ -311,8 +313,8 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
         sca = frame.sca.copy()
         sca[:, 2] -= guess.slip  # ds from the lock point moved by the slip
         sca[:, 0] -= guess.gap   # dn from the spring's rest point moved by the opening
-        data, rhs = frame.data.copy(), frame.rhs.copy()
-        assemble_contacts(stepper.model, contacts, frame.pattern, frame.vec, sca, data, rhs, stepper.serial_scatter)
+        # K again only on the rows of blocks whose contacts opened or closed (`ddatai.reassembly`)
+        data, rhs = system.system(contacts, sca)
         # K changes only where contacts open or close: the last factor solves it otherwise, and
         # where CHOLMOD is installed its rank updates follow those that do (`ddatai.updates`)
         springs = Springs.of(model, contacts, frame.vec, rows) if rows is not None else None
