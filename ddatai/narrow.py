@@ -216,8 +216,26 @@ def _mutual_nearest(rows: _Rows, topo: PairTopology, d0: float) -> np.ndarray:
     return nearest
 
 
-def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray, cache: NarrowCache | None = None
-                 ) -> tuple[np.ndarray, np.ndarray]:
+def handed_pairs(model: Model, memory) -> np.ndarray | None:
+    """The vertex pairs that the last step's contacts (``memory``, a `ddatai.model.ContactMemory`)
+    put in vertex-edge contacts at an edge's end: (vertex, each end of its edge), as sorted keys
+    min·n + max of the two vertex indices; None where the memory has no vertex-edge contact.
+    A corner pair among them that the vertex-pair rules handed to the vertex-edge rules keeps
+    that hand-over while a vertex lies past its partner at all (`narrow_phase`, ``handed``)."""
+    if memory is None or not len(memory.key):
+        return None
+    nv = np.int64(model.n_vertices)
+    ve = memory.kind == VE
+    if not ve.any():
+        return None
+    v, e = np.divmod(memory.key[ve], nv)
+    w = np.concatenate([e, model.vertex_next[e].astype(np.int64)])
+    v = np.concatenate([v, v])
+    return np.unique(np.minimum(v, w) * nv + np.maximum(v, w))
+
+
+def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray, cache: NarrowCache | None = None,
+                 handed: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Contacts of the candidate block pairs (A < B): (cint (m, 5) int32 — kind, vertex0,
     edge0, vertex1, edge1 — and length (m,)), in canonical order (``contacts.sort_contacts``).
 
@@ -240,7 +258,8 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray, cache: 
     nearest = _mutual_nearest(rows, topo, d0)
     kP = (nearest[:topo.n_a] >= 0).nonzero()[0]
     kQ = nearest[kP]
-    pairs_ = _VertexPairs(geo, rows, topo.vertex[kP], topo.vertex[kQ], kP, kQ, h1, d9) if len(kP) else None
+    pairs_ = _VertexPairs(geo, rows, topo.vertex[kP], topo.vertex[kQ], kP, kQ, h1, d9, handed, model.n_vertices) \
+        if len(kP) else None
 
     # 2., 3. every vertex against every edge of the other block (its projection on the edge),
     # except the edges that end at its mutual-nearest partner; and the rows that the vertex
@@ -324,7 +343,8 @@ class _VertexPairs:
       the vertex's own edge lies along the line.
     """
 
-    def __init__(self, geo: _Geometry, rows: _Rows, P, Q, kP, kQ, h1: float, d9: float):
+    def __init__(self, geo: _Geometry, rows: _Rows, P, Q, kP, kQ, h1: float, d9: float,
+                 handed: np.ndarray | None = None, n_vertices: int = 0):
         nxt, prv, topo = geo.nxt, geo.prv, rows.topo
         cP, cQ = geo.convex[P], geo.convex[Q]
         one = (cP != cQ).nonzero()[0]
@@ -380,6 +400,19 @@ class _VertexPairs:
         # and a vertex that has passed its partner's corner along one of its edges
         self.vv_elsewhere = out[n_par:n_par + n_vv] | out[n_par + n_vv:] | \
             _past_corner(rows, kp, q, prv, d9, math.sin(h1)) | _past_corner(rows, kq, p, prv, d9, math.sin(h1))
+        if handed is not None and n_vv:
+            # a pair handed over last step stays handed over while either vertex lies past its
+            # partner at all (hysteresis): pushed out by its vertex-edge contact to within
+            # PASSED_DEPTH x d9, it went back to one vertex-vertex contact, whose one line let
+            # the other vertex sink, to be handed over again the step after (docs/method/dda.md §3.4)
+            nv = np.int64(n_vertices)
+            key = np.minimum(p, q).astype(np.int64) * nv + np.maximum(p, q)
+            at = np.minimum(np.searchsorted(handed, key), len(handed) - 1)
+            was = (handed[at] == key) & ~self.vv_elsewhere
+            if was.any():
+                w = was.nonzero()[0]
+                self.vv_elsewhere[w] = _past_corner(rows, kp[w], q[w], prv, d9, math.sin(h1), persist=True) | \
+                    _past_corner(rows, kq[w], p[w], prv, d9, math.sin(h1), persist=True)
         # the handed-over rows: the concave pairs' convex vertices, and the exits' vertices
         handed = np.concatenate([np.ones(len(one), bool), self.par_elsewhere, self.vv_elsewhere,
                                  self.vv_elsewhere]).nonzero()[0]
@@ -389,7 +422,8 @@ class _VertexPairs:
         self.handed_rows = np.concatenate([base + prv[hand_w], base + hand_w])
 
 
-def _past_corner(rows: _Rows, k: np.ndarray, w: np.ndarray, prv: np.ndarray, d9: float, sin_h1: float) -> np.ndarray:
+def _past_corner(rows: _Rows, k: np.ndarray, w: np.ndarray, prv: np.ndarray, d9: float, sin_h1: float,
+                 persist: bool = False) -> np.ndarray:
     """Whether each vertex (side position k) of a vertex-vertex pair has passed its partner w's
     corner along an edge at w: it projects onto the edge (w, next w) or (prev w, w) beyond
     round-off from w and lies deeper than ``PASSED_DEPTH`` × d9 behind that edge's line, but
@@ -399,8 +433,18 @@ def _past_corner(rows: _Rows, k: np.ndarray, w: np.ndarray, prv: np.ndarray, d9:
     contacts that one vertex-vertex contact, acting on one line, cannot hold. The vertex
     left out sank unresisted (36 µm, or 24 µm after a 3.9 mm slide) until the pair's lines
     changed, and its depth was pushed out in one step: a 0.1 m square at 0.04–0.08 m/s in
-    a 0.27 ms step (docs/method/dda.md §3.4)."""
+    a 0.27 ms step (docs/method/dda.md §3.4).
+
+    ``persist``: whether a vertex of a pair handed over last step still lies past its partner
+    at all: it projects onto the edge beyond round-off (``SLACK``) from w, within h1 of the
+    edge's line on either side, at any depth (`narrow_phase`, ``handed``)."""
     base = rows.topo.row_base[k]
+    if persist:
+        r0, r1 = base + w, base + prv[w]
+        t0, t1 = rows.t[r0], rows.t[r1]
+        along0, along1 = t0 * rows.l[r0], (1.0 - t1) * rows.l[r1]
+        return ((t0 > SLACK) & (t0 <= 1.0) & (np.abs(rows.dn[r0]) < sin_h1 * along0)) | \
+            ((1.0 - t1 > SLACK) & (t1 >= 0.0) & (np.abs(rows.dn[r1]) < sin_h1 * along1))
     deep = -PASSED_DEPTH * d9
     r0, r1 = base + w, base + prv[w]      # the edges (w, next w), w at t = 0, and (prev w, w)
     t0, l0, dn0 = rows.t[r0], rows.l[r0], rows.dn[r0]

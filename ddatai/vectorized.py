@@ -59,14 +59,15 @@ def broad_phase(model: Model, vertex_xy: np.ndarray, margin: float) -> np.ndarra
     return out
 
 
-def detect_contacts(model: Model, vertex_xy: np.ndarray, cache: NarrowCache | None = None
-                    ) -> tuple[np.ndarray, np.ndarray]:
+def detect_contacts(model: Model, vertex_xy: np.ndarray, cache: NarrowCache | None = None,
+                    handed: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Broad + narrow phase in NumPy. Returns (cint, length) in canonical order, as
     ``ddatai.contacts.detect_contacts``. ``cache`` keeps the candidate pairs (a Verlet list,
-    ``ddatai.contacts.PairList``) and the pairs' candidates between calls (``ddatai.narrow.NarrowCache``)."""
+    ``ddatai.contacts.PairList``) and the pairs' candidates between calls (``ddatai.narrow.NarrowCache``).
+    ``handed``: the corner pairs in vertex-edge contacts at the last step (``narrow.handed_pairs``)."""
     if cache is None:
-        return narrow_phase(model, vertex_xy, broad_phase(model, vertex_xy, model.search_distance), None)
-    return narrow_phase(model, vertex_xy, cache.pair_list.pairs(model, vertex_xy, broad_phase), cache)
+        return narrow_phase(model, vertex_xy, broad_phase(model, vertex_xy, model.search_distance), None, handed)
+    return narrow_phase(model, vertex_xy, cache.pair_list.pairs(model, vertex_xy, broad_phase), cache, handed)
 
 
 # --------------------------------------------------------------------------- contact vectors
