@@ -216,26 +216,8 @@ def _mutual_nearest(rows: _Rows, topo: PairTopology, d0: float) -> np.ndarray:
     return nearest
 
 
-def handed_pairs(model: Model, memory) -> np.ndarray | None:
-    """The vertex pairs that the last step's contacts (``memory``, a `ddatai.model.ContactMemory`)
-    put in vertex-edge contacts at an edge's end: (vertex, each end of its edge), as sorted keys
-    min·n + max of the two vertex indices; None where the memory has no vertex-edge contact.
-    A corner pair among them that the vertex-pair rules handed to the vertex-edge rules keeps
-    that hand-over while a vertex lies past its partner at all (`narrow_phase`, ``handed``)."""
-    if memory is None or not len(memory.key):
-        return None
-    nv = np.int64(model.n_vertices)
-    ve = memory.kind == VE
-    if not ve.any():
-        return None
-    v, e = np.divmod(memory.key[ve], nv)
-    w = np.concatenate([e, model.vertex_next[e].astype(np.int64)])
-    v = np.concatenate([v, v])
-    return np.unique(np.minimum(v, w) * nv + np.maximum(v, w))
-
-
 def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray, cache: NarrowCache | None = None,
-                 handed: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                 last_keys: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Contacts of the candidate block pairs (A < B): (cint (m, 5) int32 — kind, vertex0,
     edge0, vertex1, edge1 — and length (m,)), in canonical order (``contacts.sort_contacts``).
 
@@ -258,7 +240,7 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray, cache: 
     nearest = _mutual_nearest(rows, topo, d0)
     kP = (nearest[:topo.n_a] >= 0).nonzero()[0]
     kQ = nearest[kP]
-    pairs_ = _VertexPairs(geo, rows, topo.vertex[kP], topo.vertex[kQ], kP, kQ, h1, d9, handed, model.n_vertices) \
+    pairs_ = _VertexPairs(geo, rows, topo.vertex[kP], topo.vertex[kQ], kP, kQ, h1, d9, last_keys, model.n_vertices) \
         if len(kP) else None
 
     # 2., 3. every vertex against every edge of the other block (its projection on the edge),
@@ -344,7 +326,7 @@ class _VertexPairs:
     """
 
     def __init__(self, geo: _Geometry, rows: _Rows, P, Q, kP, kQ, h1: float, d9: float,
-                 handed: np.ndarray | None = None, n_vertices: int = 0):
+                 last_keys: np.ndarray | None = None, n_vertices: int = 0):
         nxt, prv, topo = geo.nxt, geo.prv, rows.topo
         cP, cQ = geo.convex[P], geo.convex[Q]
         one = (cP != cQ).nonzero()[0]
@@ -400,15 +382,18 @@ class _VertexPairs:
         # and a vertex that has passed its partner's corner along one of its edges
         self.vv_elsewhere = out[n_par:n_par + n_vv] | out[n_par + n_vv:] | \
             _past_corner(rows, kp, q, prv, d9, math.sin(h1)) | _past_corner(rows, kq, p, prv, d9, math.sin(h1))
-        if handed is not None and n_vv:
+        if last_keys is not None and len(last_keys) and n_vv:
             # a pair handed over last step stays handed over while either vertex lies past its
             # partner at all (hysteresis): pushed out by its vertex-edge contact to within
             # PASSED_DEPTH x d9, it went back to one vertex-vertex contact, whose one line let
-            # the other vertex sink, to be handed over again the step after (docs/method/dda.md §3.4)
+            # the other vertex sink, to be handed over again the step after (docs/method/dda.md
+            # §3.4). Handed over: a vertex was in a vertex-edge contact (key vertex·n + edge) on
+            # an edge at its partner, (w, next w) or (prev w, w)
             nv = np.int64(n_vertices)
-            key = np.minimum(p, q).astype(np.int64) * nv + np.maximum(p, q)
-            at = np.minimum(np.searchsorted(handed, key), len(handed) - 1)
-            was = (handed[at] == key) & ~self.vv_elsewhere
+            p64, q64 = p.astype(np.int64), q.astype(np.int64)
+            keys = np.stack([p64 * nv + q64, p64 * nv + prv[q], q64 * nv + p64, q64 * nv + prv[p]])
+            at = np.minimum(np.searchsorted(last_keys, keys), len(last_keys) - 1)
+            was = (last_keys[at] == keys).any(axis=0) & ~self.vv_elsewhere
             if was.any():
                 w = was.nonzero()[0]
                 self.vv_elsewhere[w] = _past_corner(rows, kp[w], q[w], prv, d9, math.sin(h1), persist=True) | \
@@ -429,15 +414,16 @@ def _past_corner(rows: _Rows, k: np.ndarray, w: np.ndarray, prv: np.ndarray, d9:
     round-off from w and lies deeper than ``PASSED_DEPTH`` × d9 behind that edge's line, but
     within the angle tolerance h1 of it seen from w: it slid past the corner along the edge,
     where a corner that entered head on lies as far behind as along (`kernels._past_corner`).
-    The corners of diagonal blocks where four squares meet pass each other as soon as a row slides: each then lies on the other's edge, two vertex-edge
-    contacts that one vertex-vertex contact, acting on one line, cannot hold. The vertex
+    The corners of diagonal blocks where four squares meet pass each other as soon as a row
+    slides: each then lies on the other's edge, two vertex-edge contacts that one
+    vertex-vertex contact, acting on one line, cannot hold. The vertex
     left out sank unresisted (36 µm, or 24 µm after a 3.9 mm slide) until the pair's lines
     changed, and its depth was pushed out in one step: a 0.1 m square at 0.04–0.08 m/s in
     a 0.27 ms step (docs/method/dda.md §3.4).
 
     ``persist``: whether a vertex of a pair handed over last step still lies past its partner
     at all: it projects onto the edge beyond round-off (``SLACK``) from w, within h1 of the
-    edge's line on either side, at any depth (`narrow_phase`, ``handed``)."""
+    edge's line on either side, at any depth (`narrow_phase`, ``last_keys``)."""
     base = rows.topo.row_base[k]
     if persist:
         r0, r1 = base + w, base + prv[w]

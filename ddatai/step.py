@@ -45,7 +45,6 @@ from .energy import state_energy, step_work
 from .kinematics import max_vertex_displacement, move_points, newmark_beta, update
 from .layout import KIND, LOCK, OPEN, SLIDE, VV
 from .model import Model, State
-from .narrow import handed_pairs
 from .open_close import open_close, solve
 from .records import StepRecord, StepTimer
 from .results import SimulationError
@@ -130,7 +129,7 @@ class Stepper:
         self.params = model.params
         self.buffers = _Buffers()
         self.narrow = vectorized.NarrowCache()  # the NumPy narrow phase's candidates of the last pairs
-        self._detected = None  # (model, vertex_xy, cint, length, handed) of the NumPy path's last detection
+        self._detected = None  # (model, vertex_xy, cint, length, last keys) of the NumPy path's last detection
         self.free_idx = np.flatnonzero(~model.block_fixed)
         self.solver = SparseSolver(model.params.solver, unknowns=6 * model.n_free)
         # a block's weight, the smallest load the open-close judgement measures it by [N/m]
@@ -277,13 +276,14 @@ class Stepper:
             # the equilibrium stage detects at one geometry up to three times in a row (its
             # screen, its first pseudo-step, the release test), about half its detections: the
             # last answer is kept (a copy each way, so that no caller's edit reaches it)
-            handed = handed_pairs(self.model, memory)
+            keys = memory.key if memory is not None and len(memory.key) else None
             last = self._detected
             if last is not None and last[0] is self.model and np.array_equal(last[1], vertex_xy) and \
-                    _same(last[4], handed):
+                    _same(last[4], keys):
                 return last[2].copy(), last[3].copy()
-            cint, length = vectorized.detect_contacts(self.model, vertex_xy, self.narrow, handed)
-            self._detected = (self.model, np.array(vertex_xy), cint.copy(), length.copy(), handed)
+            cint, length = vectorized.detect_contacts(self.model, vertex_xy, self.narrow, keys)
+            self._detected = (self.model, np.array(vertex_xy), cint.copy(), length.copy(),
+                              None if keys is None else keys.copy())
             return cint, length
         return detect_contacts(self.model, vertex_xy, self.buffers)
 
@@ -393,5 +393,5 @@ class Stepper:
 
 
 def _same(a: "np.ndarray | None", b: "np.ndarray | None") -> bool:
-    """Whether two `narrow.handed_pairs` answers are the same (None: no memory)."""
+    """Whether two detections read the same last step's contact keys (None: no memory)."""
     return (a is None and b is None) or (a is not None and b is not None and np.array_equal(a, b))

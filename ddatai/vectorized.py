@@ -60,14 +60,15 @@ def broad_phase(model: Model, vertex_xy: np.ndarray, margin: float) -> np.ndarra
 
 
 def detect_contacts(model: Model, vertex_xy: np.ndarray, cache: NarrowCache | None = None,
-                    handed: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                    last_keys: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Broad + narrow phase in NumPy. Returns (cint, length) in canonical order, as
     ``ddatai.contacts.detect_contacts``. ``cache`` keeps the candidate pairs (a Verlet list,
     ``ddatai.contacts.PairList``) and the pairs' candidates between calls (``ddatai.narrow.NarrowCache``).
-    ``handed``: the corner pairs in vertex-edge contacts at the last step (``narrow.handed_pairs``)."""
+    ``last_keys``: the sorted keys of the last step's contacts (``ContactMemory.key``), which
+    keep a corner pair's hand-over to the vertex-edge rules (``narrow.narrow_phase``)."""
     if cache is None:
-        return narrow_phase(model, vertex_xy, broad_phase(model, vertex_xy, model.search_distance), None, handed)
-    return narrow_phase(model, vertex_xy, cache.pair_list.pairs(model, vertex_xy, broad_phase), cache, handed)
+        return narrow_phase(model, vertex_xy, broad_phase(model, vertex_xy, model.search_distance), None, last_keys)
+    return narrow_phase(model, vertex_xy, cache.pair_list.pairs(model, vertex_xy, broad_phase), cache, last_keys)
 
 
 # --------------------------------------------------------------------------- contact vectors

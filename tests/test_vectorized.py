@@ -376,18 +376,11 @@ def test_corners_of_diagonal_blocks_touching_to_round_off_stay_a_vertex_vertex_c
     assert len(diagonal) == 1 and diagonal[0][0] == VV
 
 
-def _handed_memory(model, cint):
-    """The memory of a step whose contacts were ``cint`` (only keys and kinds matter here)."""
+def _last_keys(model, cint):
+    """The sorted contact keys (``ContactMemory.key``) of a step whose contacts were ``cint``."""
     from ddatai.contacts import contact_keys
-    from ddatai.model import ContactMemory
 
-    key = contact_keys(cint, model.n_vertices)
-    o = np.argsort(key)
-    m = len(key)
-    z = np.zeros(m)
-    return ContactMemory(key=key[o], state=np.zeros(m, np.int8), line=np.zeros(m, np.int8), omega=z,
-                         bond=np.zeros(m, bool), shear_dir=np.ones(m, np.int8), dn=z, normal_force=z,
-                         kind=cint[o, 0].astype(np.int8))
+    return np.sort(contact_keys(cint, model.n_vertices))
 
 
 @pytest.mark.parametrize("depth", [1e-12, -1e-7])
@@ -397,26 +390,23 @@ def test_a_corner_pair_handed_to_the_vertex_edge_rules_stays_handed_while_a_vert
     PASSED_DEPTH × d9 of the edge (1e-12 behind it) or 0.1 µm clear of it: read without memory
     they are one vertex-vertex contact again (and were, every other step: 2,018 hand-overs in
     1,057 of the 1,319 steps of the 4-5-6-7 stack's slow ramp at 18°), but with the last step's
-    contacts (`narrow.handed_pairs`) the pair keeps its two vertex-edge contacts while Q lies
-    past P along block 0's top edge. A pair whose last contact was vertex-vertex (an
-    X-junction at rest) is read as before."""
-    from ddatai.narrow import handed_pairs
-
+    contacts' keys (``narrow_phase``'s ``last_keys``) the pair keeps its two vertex-edge
+    contacts while Q lies past P along block 0's top edge. A pair whose last contact was
+    vertex-vertex (an X-junction at rest) is read as before."""
     model, xy_deep, P, Q = _passed_corners(1e-4)
     before, _ = vectorized.detect_contacts(model, xy_deep)
-    memory = _handed_memory(model, before)
+    handed = _last_keys(model, before)
     _, xy, _, _ = _passed_corners(depth)
     b = model.vertex_block
     cint, _ = vectorized.detect_contacts(model, xy)
     assert [r[0] for r in cint.tolist() if {b[r[1]], b[r[2]]} == {0, 3}] == [VV]
-    handed = handed_pairs(model, memory)
     cint, _ = vectorized.detect_contacts(model, xy, None, handed)
     diagonal = {tuple(r) for r in cint.tolist() if {b[r[1]], b[r[2]]} == {0, 3}}
     assert diagonal == {(VE, Q, P, -1, -1), (VE, P, Q, -1, -1)}
     # an X-junction whose pair was a vertex-vertex contact last step stays one
     _, rest, _, _ = _passed_corners(1e-12)
-    vv_memory = _handed_memory(model, vectorized.detect_contacts(model, rest)[0])
-    cint, _ = vectorized.detect_contacts(model, rest, None, handed_pairs(model, vv_memory))
+    vv_keys = _last_keys(model, vectorized.detect_contacts(model, rest)[0])
+    cint, _ = vectorized.detect_contacts(model, rest, None, vv_keys)
     assert [r[0] for r in cint.tolist() if {b[r[1]], b[r[2]]} == {0, 3}] == [VV]
     # and the hand-over ends once neither vertex lies past its partner (the rows slid back)
     _, back, _, _ = _passed_corners(1e-12, slide=-2e-3)
