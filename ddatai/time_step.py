@@ -18,7 +18,7 @@ def choose_time_step(model: Model, state: State, geom: dict) -> float:
     by ``dt_growth`` per step after a cut. After a lead step (``State.dt_before_lead``: one that
     a predicted closing shortened, `ddatai.impacts`) the growth starts from the Δt before it:
     its length says where the contact closes, not what the open-close iteration can carry
-    (a slope's lead step of 5 µs among 0.3 ms steps held the next ten steps below 0.03 ms)."""
+    (a failing slope's 5 µs lead step after a 0.1 ms step held its next seven steps below 0.032 ms)."""
     p = model.params
     free = ~model.block_fixed
     limit = p.dt if p.dt is not None else p.dt_max
