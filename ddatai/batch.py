@@ -184,8 +184,7 @@ def combined_state(batch: Batch, model: Model, members: Sequence[Model], states:
         fixed_point_xy=np.concatenate([moved(k, s.fixed_point_xy) for k, s in enumerate(states)]).reshape(-1, 2),
         load_xy=np.concatenate([moved(k, s.load_xy) for k, s in enumerate(states)]).reshape(-1, 2),
         measured_xy=np.concatenate([moved(k, s.measured_xy) for k, s in enumerate(states)]).reshape(-1, 2),
-        dt=max(s.dt for s in states), dt_before_lead=max(s.dt_before_lead for s in states),
-        accel=max(s.accel for s in states),
+        dt=max(s.dt for s in states), accel=max(s.accel for s in states),
         memory=ContactMemory(key=key[order], **joined), energy=energy, **extra)
 
 
@@ -238,6 +237,5 @@ def member_states(batch: Batch, model: Model, members: Sequence[Model], state: S
             fixed_point_xy=part("fixed_point_xy", "fixed_point_block") - back,
             load_xy=part("load_xy", "load_block") - back,
             measured_xy=part("measured_xy", "measured_block") - back,
-            dt=state.dt, dt_before_lead=state.dt_before_lead, accel=state.accel, memory=memory, energy=None,
-            **extra))
+            dt=state.dt, accel=state.accel, memory=memory, energy=None, **extra))
     return out

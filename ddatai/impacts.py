@@ -55,10 +55,9 @@ def approach_bound(model: Model, state: State, contacts, vec: np.ndarray, sca: n
     τ = IMPACT_OMEGA/ω is its impact step, ω = √(p/m) the contact spring's frequency, m the
     lighter free block's mass (the horizon: a step the growth limit holds short after a lead
     step still sees the closing). Where it closes at t_c > 2·IMPACT_LEAD·τ, the step ends
-    IMPACT_LEAD·τ before (in flight: a lead step); else this is its impact step, τ long (at
-    most the time-step rule's Δt, its growth limit counted from the step before the lead step,
-    ``State.dt_before_lead``), and the contacts closing within it its impacts. Returns (Δt, the
-    contacts impacting)."""
+    IMPACT_LEAD·τ before (in flight); else this is its impact step, τ long (at most the
+    displacement rule's Δt, without its growth limit), and the contacts closing within it its
+    impacts. Returns (Δt, the contacts impacting)."""
     frac = model.params.impact_overshoot
     none = np.zeros(contacts.n, bool)
     if frac is None or contacts.n == 0 or state.step == 0:
@@ -99,11 +98,10 @@ def approach_bound(model: Model, state: State, contacts, vec: np.ndarray, sca: n
         # in flight: the step ends IMPACT_LEAD of an impact step before the first closing
         return float(min(dt, np.min(t_close - IMPACT_LEAD * tau))), none
     # the impact: a step long beside the contact spring's period, which its implicit solve
-    # settles, at most what the time-step rule allows, its growth limit counted from the step
-    # before the lead step (`State.dt_before_lead`: the lead step's shortness does not hold it
-    # back, and a run held short by its open-close iteration does not jump to a step it cannot
-    # carry); the contacts that close within it are its impacts
-    step = float(min(choose_time_step(model, state, geom), tau[now].max()))
+    # settles, at most what the displacement rule allows without its growth limit (a lead
+    # step shortened by a closing does not hold it back); the contacts that close within it
+    # are its impacts
+    step = float(min(choose_time_step(model, state.replace(dt=0.0), geom), tau[now].max()))
     closing = np.zeros(contacts.n, bool)
     closing[moving[t_close <= step]] = True
     return step, closing

@@ -267,11 +267,6 @@ class State:
     """Time step of the last accepted step [s] (0 before the first)."""
     accel: float
     """Largest block acceleration seen in the last step [m/s²] (for the automatic time step)."""
-    dt_before_lead: float = 0.0
-    """Where the last step was a lead step (shortened to end just before a contact closes,
-    `ddatai.impacts`), the Δt its growth limit started from: the last Δt the open-close iteration
-    was not held short by a closing [s]; 0 otherwise. The next step grows from it, not from the
-    lead step (`ddatai.time_step`)."""
     memory: ContactMemory = field(default_factory=ContactMemory.empty)
     """Contact data carried to the next step."""
     energy: Optional[float] = None

@@ -162,8 +162,6 @@ class Stepper:
         contacts, vec, sca = self.find_contacts(state, geom)
         t0 = timer.add("contacts", t0)
         bound, closing = approach_bound(model, state, contacts, vec, sca, dt)
-        # a lead step (ends before a closing): the next step grows from the Δt before it
-        lead_from = max(state.dt, state.dt_before_lead) if bound < dt and not closing.any() else 0.0
         dt = end_on(max(bound, min(dt, self.shortest_time_step())), state.time, t_end)
 
         cuts = oc_total = 0
@@ -193,8 +191,6 @@ class Stepper:
         if self.softening:
             accumulate_slip(model, attempt.contacts, attempt.vec, attempt.displacement)
         new_state = update(model, start, geom, attempt.displacement, attempt.contacts, dt, attempt.vertex_xy)
-        # (a lead step the iteration could not carry whole grows from its cut Δt, as any step)
-        new_state = new_state.replace(dt_before_lead=lead_from if not cuts else 0.0)
         t0 = timer.add("update", t0)
         new_state, energy, work = self.energy_balance(state, new_state, geom, contacts, attempt, dt)
         timer.add("energy", t0)

@@ -15,10 +15,7 @@ def choose_time_step(model: Model, state: State, geom: dict) -> float:
     """Automatic Δt (docs/method/dda.md §4.6): the step whose predicted largest vertex
     displacement, ½·a·Δt² + v·Δt, equals g2·w0; at most ``dt_max`` and at most
     ``dt_growth`` × the previous step. A fixed ``Params.dt`` is used as given, growing back
-    by ``dt_growth`` per step after a cut. After a lead step (``State.dt_before_lead``: one that
-    a predicted closing shortened, `ddatai.impacts`) the growth starts from the Δt before it:
-    its length says where the contact closes, not what the open-close iteration can carry
-    (a failing slope's 5 µs lead step after a 0.1 ms step held its next seven steps below 0.032 ms)."""
+    by ``dt_growth`` per step after a cut."""
     p = model.params
     free = ~model.block_fixed
     limit = p.dt if p.dt is not None else p.dt_max
@@ -50,9 +47,8 @@ def choose_time_step(model: Model, state: State, geom: dict) -> float:
         else:
             dt = limit
         limit = min(limit, dt)
-    last = max(state.dt, state.dt_before_lead)
-    if last > 0:
-        limit = min(limit, p.dt_growth * last)
+    if state.dt > 0:
+        limit = min(limit, p.dt_growth * state.dt)
     return limit
 
 

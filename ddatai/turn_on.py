@@ -122,8 +122,7 @@ def turn_on(stepper, initial: State, released: np.ndarray,
         return None
     steps = state.step
     state = state.replace(time=0.0, step=0, block_velocity=initial.block_velocity.copy(),
-                          block_accel=np.zeros_like(initial.block_accel), dt=0.0, dt_before_lead=0.0, accel=0.0,
-                          energy=None)
+                          block_accel=np.zeros_like(initial.block_accel), dt=0.0, accel=0.0, energy=None)
     released = released.copy()
     while True:
         state = restore(model, state, initial, released)
