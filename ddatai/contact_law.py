@@ -126,19 +126,10 @@ def contact_law(model: Model, contacts: Contacts, vec: np.ndarray, sca: np.ndarr
                       energy=float(np.sum(out_f[K.LAW_ENERGY])), packed=(out_f, out_i))
 
 
-def contact_law_numpy(model: Model, contacts: Contacts, vec: np.ndarray, sca: np.ndarray,
-                      disp: np.ndarray, shift: Optional[np.ndarray] = None) -> ContactLaw:
-    """The contact law at the displacements ``disp`` (§2.8, §4.3), without changing
-    ``contacts``: the NumPy path of `contact_law` (the path of Barton–Bandis joints).
-
-    A contact is closed while its normal distance dn ≤ T·L/p (bonded) or 0, with normal
-    force −p·dn; a closed vertex-edge contact sticks while its shear spring force k_s·ds ≤
-    S = N·tanφ + c·L (bonded), else it slides with friction S against the sign of ds (the
-    return mapping of a penalty-regularised Coulomb law: ds is measured from the lock point
-    of the step start, so a sliding contact's trial force starts at its friction). Also
-    the forces that the state each contact has now gives at ``disp``.
-    """
-    m = model
+def _law_core(m: Model, contacts: Contacts, vec: np.ndarray, sca: np.ndarray, disp: np.ndarray,
+              shift: Optional[np.ndarray]):
+    """The part of `contact_law_numpy` that `stage_law` shares: (dn, ds, line, closed,
+    strength, dn_now, tan φ, vv, ve, the tensile allowance)."""
     a, b = contacts.block_a, contacts.block_b
     da, db = disp[a], disp[b]
     shift = np.zeros_like(sca) if shift is None else shift
@@ -178,6 +169,24 @@ def contact_law_numpy(model: Model, contacts: Contacts, vec: np.ndarray, sca: np
                                  contacts.length[bb], contacts.slip[bb])
     strength = m.penalty * np.maximum(-dn, 0.0) * tan_phi + \
         contacts.cohesion * contacts.length * contacts.bond
+    return dn, ds, line, closed, strength, dn_now, tan_phi, vv, ve, allowance
+
+
+def contact_law_numpy(model: Model, contacts: Contacts, vec: np.ndarray, sca: np.ndarray,
+                      disp: np.ndarray, shift: Optional[np.ndarray] = None) -> ContactLaw:
+    """The contact law at the displacements ``disp`` (§2.8, §4.3), without changing
+    ``contacts``: the NumPy path of `contact_law` (the path of Barton–Bandis joints).
+
+    A contact is closed while its normal distance dn ≤ T·L/p (bonded) or 0, with normal
+    force −p·dn; a closed vertex-edge contact sticks while its shear spring force k_s·ds ≤
+    S = N·tanφ + c·L (bonded), else it slides with friction S against the sign of ds (the
+    return mapping of a penalty-regularised Coulomb law: ds is measured from the lock point
+    of the step start, so a sliding contact's trial force starts at its friction). Also
+    the forces that the state each contact has now gives at ``disp``.
+    """
+    m = model
+    dn, ds, line, closed, strength, dn_now, tan_phi, vv, ve, allowance = _law_core(m, contacts, vec, sca, disp,
+                                                                                  shift)
     # the friction the next solve can apply: N of the last one (or of this one, coupled)
     used = np.where(contacts.coupled, strength, friction_force(contacts))
     trial = m.shear_penalty * ds
@@ -201,6 +210,35 @@ def contact_law_numpy(model: Model, contacts: Contacts, vec: np.ndarray, sca: np
                       ft=ft, strength=strength, dn_now=dn_now, fn_now=fn_now, ft_now=ft_now,
                       friction_now=friction_now, energy=energy,
                       tan_phi=tan_phi if len(m.joint_barton) else None)
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class StageLaw:
+    """The fields of `ContactLaw` that the equilibrium stage's return mapping reads
+    (`stage_law`), the same arrays."""
+
+    dn: np.ndarray
+    ds: np.ndarray
+    line: np.ndarray
+    closed: np.ndarray
+    fn: np.ndarray
+    strength: np.ndarray
+    dn_now: np.ndarray
+    tan_phi: Optional[np.ndarray] = None
+
+
+def stage_law(model: Model, contacts: Contacts, vec: np.ndarray, sca: np.ndarray, disp: np.ndarray):
+    """`contact_law` of the equilibrium stage's return mapping (its contacts coupled: the
+    strength of this solve's N): on the NumPy path only the fields it reads (`StageLaw`: its
+    ~sixty calls an iterate on arrays of a few contacts are most of a small model's stage), the
+    same floats as `contact_law_numpy`'s; on the kernel path the kernel's whole law."""
+    if not (contacts.n == 0 or len(model.joint_barton) or model.numpy_path):
+        c = contacts.copy()
+        c.coupled[:] = True
+        return contact_law(model, c, vec, sca, disp)
+    dn, ds, line, closed, strength, dn_now, tan_phi, _, _, _ = _law_core(model, contacts, vec, sca, disp, None)
+    return StageLaw(dn=dn, ds=ds, line=line, closed=closed, fn=np.where(closed, -model.penalty * dn, 0.0),
+                    strength=strength, dn_now=dn_now, tan_phi=tan_phi if len(model.joint_barton) else None)
 
 
 def violations(model: Model, contacts: Contacts, law: ContactLaw, block_load: np.ndarray) -> np.ndarray:

@@ -12,10 +12,18 @@ from typing import Optional
 
 import numpy as np
 
+from .memo import GeometryMemo, key
+
 #: Relative tolerance below which a vertex is treated as lying on the line of its neighbours
 #: (abs(sin) of the turning angle). Shapely's noding leaves such vertices at T-junctions; they are
 #: removed because a flat vertex duplicates the edge contacts around it.
 COLLINEAR_TOL = 1e-10
+#: polygons of at most this many vertices keep their validated form (`ddatai.memo`)
+MEMO_VERTICES = 256
+#: scenes of at most this many vertices keep their overlap check and kgm's edge contacts
+MEMO_SCENE_VERTICES = 20_000
+_POLYGONS = GeometryMemo(4096)
+_OVERLAP_FREE = GeometryMemo(16)
 
 
 def validate_polygon(vertices, *, name: str = "block") -> np.ndarray:
@@ -30,6 +38,14 @@ def validate_polygon(vertices, *, name: str = "block") -> np.ndarray:
         xy = np.asarray(vertices, dtype=np.float64)
     except (TypeError, ValueError) as exc:
         raise ValueError(f"{name}: vertices must be a sequence of (x, y) pairs ({exc})") from None
+    if xy.ndim == 2 and len(xy) <= MEMO_VERTICES:
+        # a polygon met before (a study's scene built again): its result (`ddatai.memo`)
+        return _POLYGONS.get(key(xy), lambda: _validated(xy, name))
+    return _validated(xy, name)
+
+
+def _validated(xy: np.ndarray, name: str) -> np.ndarray:
+    """`validate_polygon` of the float64 array ``xy``."""
     if xy.ndim != 2 or xy.shape[1] != 2:
         raise ValueError(f"{name}: vertices must have shape (n, 2), got {xy.shape}")
     if not np.all(np.isfinite(xy)):
@@ -189,17 +205,29 @@ def check_overlaps(scene, *, what: str = "") -> None:
     above `OVERLAP_AREA` of the smaller), with the overlap's area and its depth (area over
     half its perimeter: the thickness of a thin overlap) [m]; ``what`` is added to the
     message."""
+    # the same polygons as a check that passed (a study's scene built again): passed (`ddatai.memo`)
+    if len(scene.blocks) < 2:
+        return
+    xy = np.concatenate([s.vertices for s in scene.blocks])
+    if len(xy) > MEMO_SCENE_VERTICES:  # a large scene: its key would cost memory, and it rarely repeats
+        _check_overlaps(scene, what)
+        return
+    _OVERLAP_FREE.get(key(xy, np.array([len(s.vertices) for s in scene.blocks])), lambda: _check_overlaps(scene, what))
+
+
+def _check_overlaps(scene, what: str) -> bool:
+    """`check_overlaps`: True, or ValueError."""
     import shapely
 
     polys = np.array([shapely.Polygon(s.vertices) for s in scene.blocks], dtype=object)
     if len(polys) < 2:
-        return
+        return True
     tree = shapely.STRtree(polys)
     a, b = tree.query(polys, predicate="intersects")
     keep = a < b
     a, b = a[keep], b[keep]
     if not len(a):
-        return
+        return True
     common = shapely.intersection(polys[a], polys[b])
     inter = shapely.area(common)
     areas = shapely.area(polys)
@@ -209,3 +237,4 @@ def check_overlaps(scene, *, what: str = "") -> None:
         depth = 2.0 * inter[k] / max(float(shapely.length(common[k])), 1e-300)
         raise ValueError(f"blocks {a[k]} and {b[k]} overlap at the start (overlap area {inter[k]:.3g} m², "
                          f"about {depth:.3g} m deep)" + (f": {what}" if what else ""))
+    return True

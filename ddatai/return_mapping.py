@@ -11,19 +11,21 @@ released (docs/method/dda.md §8.12).
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import cached_property
 from typing import Optional
 
 import numpy as np
 from scipy.sparse import csr_matrix
 
-from .assembly import BlockPattern, assemble_blocks, assemble_contacts, contact_vectors
-from .contact_law import contact_law
+from .assembly import BlockPattern, assemble_blocks, contact_vectors
+from .contact_law import contact_law, stage_law
 from .contacts import Contacts
 from .kinematics import block_displacement
 from .layout import KIND, LOCK, OPEN, SLIDE, VE
 from .model import State
 from .limit_equilibrium import unsupported_blocks
 from .open_close import solve
+from .reassembly import ContactSystem
 from .return_steps import anderson, line_search
 from .updates import Springs, block_rows
 from .mechanisms import MECHANISM_SIZE, anchored, loaded_away, mechanisms, test_unbalanced
@@ -76,16 +78,20 @@ class Frame:
     pattern: BlockPattern
     data: np.ndarray
     rhs: np.ndarray
-    k_blocks: object  # the block part of K as a CSR matrix (the energy of `return_steps.line_search`)
+
+    @cached_property
+    def k_blocks(self):
+        """The block part of K as a CSR matrix (the energy of `return_steps.line_search`), made
+        when a line search first needs it (most frames have none)."""
+        n = 6 * self.pattern.n_rows
+        return csr_matrix((self.data, self.pattern.indices, self.pattern.indptr), shape=(n, n))
 
     @staticmethod
     def build(stepper, state: State, geom: dict, contacts: Contacts, dt: float) -> "Frame":
         vec, sca = contact_vectors(stepper.model, state.vertex_xy, geom, contacts)
         pattern = BlockPattern.build(stepper.model, contacts)
         data, rhs = assemble_blocks(stepper.model, state, geom, pattern, dt, STAGE_BETA, static_start=True)
-        n = 6 * pattern.n_rows
-        return Frame(vertex_xy=state.vertex_xy, vec=vec, sca=sca, pattern=pattern, data=data, rhs=rhs,
-                      k_blocks=csr_matrix((data, pattern.indices, pattern.indptr), shape=(n, n)))
+        return Frame(vertex_xy=state.vertex_xy, vec=vec, sca=sca, pattern=pattern, data=data, rhs=rhs)
 
 
 @dataclass(kw_only=True)
@@ -292,6 +298,7 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
     pen, ks = model.penalty, model.shear_penalty
     disp = np.zeros((model.n_blocks, 6))
     rows = block_rows(model, contacts) if stepper.solver.updates and p.factor_updates else None
+    system = ContactSystem(model, frame.pattern, frame.vec, frame.data, frame.rhs, stepper.serial_scatter)
     history: list = []
     flips = np.zeros(contacts.n, np.int64)  # how often each contact opened or closed
     changed = True  # the closed contacts changed: K is factorised
@@ -306,8 +313,8 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
         sca = frame.sca.copy()
         sca[:, 2] -= guess.slip  # ds from the lock point moved by the slip
         sca[:, 0] -= guess.gap   # dn from the spring's rest point moved by the opening
-        data, rhs = frame.data.copy(), frame.rhs.copy()
-        assemble_contacts(stepper.model, contacts, frame.pattern, frame.vec, sca, data, rhs, stepper.serial_scatter)
+        # K again only on the rows of blocks whose contacts opened or closed (`ddatai.reassembly`)
+        data, rhs = system.system(contacts, sca)
         # K changes only where contacts open or close: the last factor solves it otherwise, and
         # where CHOLMOD is installed its rank updates follow those that do (`ddatai.updates`)
         springs = Springs.of(model, contacts, frame.vec, rows) if rows is not None else None
@@ -321,7 +328,7 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
         alpha = line_search(stepper, frame, contacts, sca, disp, target - disp, shearing) \
             if changed and it > 1 else 1.0
         disp = target if alpha == 1.0 else disp + alpha * (target - disp)
-        law = contact_law(stepper.model, coupled(contacts), frame.vec, sca, disp)
+        law = stage_law(stepper.model, contacts, frame.vec, sca, disp)  # coupled: this solve's N
         outcome.disp, outcome.law = disp, law
         moved = block_displacement(stepper.model, frame.vertex_xy, geom, disp)
         far = free & ~out & (moved > MECHANISM_SIZE * size)

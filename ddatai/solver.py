@@ -258,8 +258,6 @@ class SparseSolver:
         factor_symmetric, key, solve = self._factor
         if factor_symmetric != symmetric or not self._same(key, indptr, indices):
             return None
-        from scipy.sparse import csr_matrix
-
         b = np.ascontiguousarray(rhs, dtype=np.float64)
         if not np.any(b):
             return np.zeros(n)
@@ -271,8 +269,12 @@ class SparseSolver:
             # round-off took 3.4 solves at 1,600 blocks (benchmarks/results/large_round4.md)
             self.last_residual = 0.0
             return solve(b)
-        k = self._dense(data, indices, indptr, n) if self.backend == "dense" else \
-            csr_matrix((data, indices, indptr), shape=(n, n))
+        if self.backend == "dense":
+            k = self._dense(data, indices, indptr, n)
+        else:
+            from scipy.sparse import csr_matrix
+
+            k = csr_matrix((data, indices, indptr), shape=(n, n))
         x, residual, done = _refinement(k, b, solve(b), solve, REUSE_RESIDUAL, REUSE_PASSES, REUSE_RATE)
         if not done:
             return None  # K has moved too far from the factor: factorise

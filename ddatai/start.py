@@ -117,6 +117,7 @@ from .model import ContactMemory, State
 from .open_close import solve
 from .mechanisms import FALL_IN_SIZES, mechanisms, restore, sunk_into_released, unsupported_at_start
 from .return_mapping import STAGE_BETA, Frame, coupled, return_mapping, subset_contacts
+from .threads import dense_solves
 from .turn_on import feasible, turn_on
 #: at most this many pseudo-steps (each re-solves the increment at the settled geometry; the
 #: second is ~strain × the first, the third round-off)
@@ -186,23 +187,22 @@ def settle(stepper, state: State, welded: bool = False, screen: bool = True) -> 
     contact memory carries the held contacts into the first step, and the stage's record.
     ``welded``: go straight to the welded equilibrium (6.), without the frictional stage.
     ``screen``: release at once a model whose every free block limit equilibrium lets move
-    (``ddatai.mechanisms.unsupported_at_start``); False: only as the return mapping finds them (the reference
-    that tests compare the screen with)."""
+    (``ddatai.mechanisms.unsupported_at_start``); False: only as the return mapping finds them (the tests' reference)."""
     t0 = _time.perf_counter()
     model = stepper.model
     if not needs_settling(model):
         return state, NOTHING
-    factorised = stepper.solver.factorisations
-    geom = model.block_geometry(state.vertex_xy)
-    size = np.sqrt(geom["area"])
-    dt_static = _pseudo_time_step(stepper, geom, size)
-    settled, record, converged = _stage(stepper, state, size, dt_static, t0, welded=welded, screen=screen,
-                                        slow=not welded and model.params.start_turn_on and feasible(model))
-    if not converged:
-        # no frictional equilibrium found: start from the welded one, each contact then at most
-        # at its strength (module docstring, 6.), rather than under sudden gravity
-        settled, again, _ = _stage(stepper, state, size, dt_static, t0, welded=True)
-        record = replace(again, solves=record.solves + again.solves)
+    with dense_solves(stepper.solver):  # its many small solves on one BLAS thread, asked for once
+        factorised = stepper.solver.factorisations
+        geom = model.block_geometry(state.vertex_xy)
+        size = np.sqrt(geom["area"])
+        dt_static = _pseudo_time_step(stepper, geom, size)
+        settled, record, converged = _stage(stepper, state, size, dt_static, t0, welded=welded, screen=screen,
+                                            slow=not welded and model.params.start_turn_on and feasible(model))
+        if not converged:
+            # no frictional equilibrium: start from the welded one (module docstring, 6.)
+            settled, again, _ = _stage(stepper, state, size, dt_static, t0, welded=True)
+            record = replace(again, solves=record.solves + again.solves)
     return settled, replace(record, factorisations=stepper.solver.factorisations - factorised,
                             wall_time=_time.perf_counter() - t0)
 

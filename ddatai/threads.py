@@ -11,7 +11,7 @@ no-op without it) and gives them back their count afterwards.
 
 from __future__ import annotations
 
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 
 _BLAS = None  # the BLAS libraries' controllers (threadpoolctl), found once
 
@@ -28,14 +28,31 @@ def _controllers() -> list:
     return _BLAS
 
 
+_DEPTH = 0  # how many blocks are open: inside one, BLAS is limited already
+
+
 @contextmanager
 def one_blas_thread():
-    """BLAS limited to one thread inside the block."""
+    """BLAS limited to one thread inside the block. A block inside another costs nothing (a
+    small model's equilibrium stage opens one around its hundreds of solves, each of which
+    opens one: asking each library for its thread count costs ~0.1 ms a solve)."""
+    global _DEPTH
+    if _DEPTH:
+        yield
+        return
     held = [(c, c.num_threads) for c in _controllers() if c.num_threads != 1]
     for c, _ in held:
         c.set_num_threads(1)
+    _DEPTH += 1
     try:
         yield
     finally:
+        _DEPTH -= 1
         for c, n in held:
             c.set_num_threads(n)
+
+
+def dense_solves(solver):
+    """`one_blas_thread` around a stretch of a dense solver's solves (``solver.backend``
+    "dense"; another backend's threads are its own): one limit for all of them."""
+    return one_blas_thread() if solver.backend == "dense" else nullcontext()

@@ -14,7 +14,8 @@ from typing import Any, Optional
 
 import numpy as np
 
-from ddatai.geometry import check_overlaps, polygon_integrals
+from ddatai.geometry import MEMO_SCENE_VERTICES, check_overlaps, polygon_integrals
+from ddatai.memo import GeometryMemo, key
 
 from .settings import Settings
 from .system import CONTACT_GAP, DISTANCE_TOL, MIN_CONTACT, BlockSystem, cross
@@ -212,7 +213,22 @@ def _contact_water(scene, start: np.ndarray, end: np.ndarray, joint: np.ndarray,
     return np.bincount(edge, weights=w, minlength=len(start)).astype(float)
 
 
+#: the edge contacts of the geometries met last (a study builds its scene again at each sample's
+#: strength: the same polygons, the same contacts; `ddatai.memo`)
+_CONTACTS = GeometryMemo(16)
+
+
 def _find_contacts(specs, offset, xy, scale, gap) -> list[tuple]:
+    """`_edge_contacts`, kept for the next call with the same vertices, scale and gap (a scene
+    of at most ``ddatai.geometry.MEMO_SCENE_VERTICES``)."""
+    if len(xy) > MEMO_SCENE_VERTICES:
+        return _edge_contacts(specs, offset, xy, scale, gap)
+    return _CONTACTS.get(key(np.ascontiguousarray(xy, dtype=np.float64), np.asarray(offset, np.int64),
+                             float(scale), float(gap)),
+                         lambda: _edge_contacts(specs, offset, xy, scale, gap))
+
+
+def _edge_contacts(specs, offset, xy, scale, gap) -> list[tuple]:
     """Collinear (within ``gap`` [m]), oppositely directed, overlapping edge pairs of different
     blocks.
 

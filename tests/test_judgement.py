@@ -149,3 +149,41 @@ def test_force_tests_measure_the_load_of_free_blocks(seed):
         np.testing.assert_array_equal(violations(model, c, law, load)[picked],
                                       violations_numpy(model, c, ref, load)[picked])
         assert np.all(violations_numpy(model, c, ref, load)[picked] == marked)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_stage_law_is_the_numpy_law_of_coupled_contacts(seed):
+    """`stage_law` (the equilibrium stage's return mapping) gives, bit for bit, the fields of
+    `contact_law_numpy` on the contacts coupled (the strength of this solve's N) that the stage
+    reads, on random states, bonds, strengths, lines and displacements, without Taichi."""
+    from ddatai.contact_law import stage_law
+    from ddatai.vectorized import detect_contacts as detect_numpy
+
+    scene = random_jointed_scene(seed)
+    model = build_model(scene, dd.Params(dt=1e-3, kernels="numpy"))
+    rng = np.random.default_rng(seed)
+    xy = perturbed_vertices(model, seed, shift=0.2 * model.search_distance)
+    cint, length = detect_numpy(model, xy)
+    c = Contacts.start(model, xy, cint, length, ContactMemory.empty(), False)
+    assert c.n > 20
+    vv = cint[:, 0] == 1
+    c.state[:] = np.where(vv, rng.choice([0, 1], c.n), rng.integers(0, 3, c.n))
+    c.line[:] = np.where(vv, rng.integers(0, 2, c.n), 0)
+    c.bond[:] = rng.random(c.n) < 0.5
+    c.tensile[:] = rng.uniform(0, 1e5, c.n)
+    c.cohesion[:] = rng.uniform(0, 1e5, c.n)
+    c.tan_phi[:] = rng.uniform(0, 1.2, c.n)
+    vec, sca = contact_vectors(model, xy, model.block_geometry(xy), c)
+    sca[:, :2] -= np.where(rng.random((c.n, 2)) < 0.2, 3.0 * model.penetration_limit, 0.0)
+    coupled = c.copy()
+    coupled.coupled[:] = True
+    scale = model.search_distance
+    for _ in range(3):
+        disp = np.zeros((model.n_blocks, 6))
+        free = ~model.block_fixed
+        disp[free, :3] = rng.normal(0, scale, (int(free.sum()), 3)) * [1.0, 1.0, 0.1]
+        law, ref = stage_law(model, c, vec, sca, disp), contact_law_numpy(model, coupled, vec, sca, disp)
+        assert 0 < law.closed.sum() < c.n
+        for f in ("dn", "ds", "line", "closed", "fn", "strength", "dn_now"):
+            assert getattr(law, f).tobytes() == getattr(ref, f).tobytes(), f
+        assert law.tan_phi is None and ref.tan_phi is None

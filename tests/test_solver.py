@@ -298,3 +298,25 @@ def test_dense_backend_factorises_small_systems_instead_of_gmres():
         direct = SparseSolver("dense").solve(data, pattern.indices, pattern.indptr, rhs)
         np.testing.assert_array_equal(x, direct)  # the same LAPACK calls on the same matrix
     assert (solver.factorisations, solver.krylov) == (3, 0)
+
+
+def test_one_blas_thread_nests():
+    """A limit inside another keeps BLAS at one thread until the outer one ends, which gives the
+    libraries back their count (the equilibrium stage opens one around all its solves)."""
+    threadpoolctl = pytest.importorskip("threadpoolctl")
+    from ddatai.threads import _controllers, one_blas_thread
+
+    if not _controllers():
+        pytest.skip("no BLAS library that threadpoolctl controls")
+
+    def counts():
+        return [c.num_threads for c in _controllers()]
+
+    with threadpoolctl.threadpool_limits(limits=2, user_api="blas"):
+        before = counts()
+        with one_blas_thread():
+            assert counts() == [1] * len(before)
+            with one_blas_thread():
+                assert counts() == [1] * len(before)
+            assert counts() == [1] * len(before)
+        assert counts() == before

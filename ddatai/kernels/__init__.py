@@ -14,7 +14,7 @@ the assembly of K and F) and `ddatai.kernels.law` (the contact law and the open-
 judgement). The names below are those the step's modules use.
 """
 
-from .assembly import assemble_blocks, assemble_contacts, assemble_points, contact_vectors, second_order_shift
+from .assembly import assemble_blocks, assemble_contact_loads, assemble_contacts, assemble_points, contact_vectors, second_order_shift
 from .broad import big_query, grid_bin, grid_query, grid_scatter
 from .common import (E0, E1, EDGE_FLOOR, EDGE_FLOOR2, ES, G0, G1, GS, IN_BOND, IN_COHESION, IN_COUPLED,
                      IN_LENGTH, IN_LINE, IN_NORMAL_FORCE, IN_SHEAR_DIR, IN_STATE, IN_TAN_PHI, IN_TENSILE,
@@ -25,7 +25,7 @@ from .detection import narrow_phase
 from .law import contact_law, internal_force, violations
 
 __all__ = [
-    "assemble_blocks", "assemble_contacts", "assemble_points", "big_query", "contact_law", "contact_vectors",
+    "assemble_blocks", "assemble_contact_loads", "assemble_contacts", "assemble_points", "big_query", "contact_law", "contact_vectors",
     "grid_bin", "grid_query", "grid_scatter", "internal_force", "narrow_phase", "second_order_shift",
     "violations",
     "E0", "E1", "EDGE_FLOOR", "EDGE_FLOOR2", "ES", "G0", "G1", "GS", "IN_BOND", "IN_COHESION", "IN_COUPLED",

@@ -165,11 +165,28 @@ def _spring(vec: ti.template(), c, su, sw, k, d0, ri, rj, sij, sji,
             diag_slot: ti.template(), stride: ti.template(), data: ti.template(), rhs: ti.template()):
     """Add the spring energy ½ k (d0 + uᵀDi + wᵀDj)² of contact c (u = vec[c, su], w = vec[c, sw])."""
     _outer(vec, c, su, sw, su, sw, k, ri, rj, sij, sji, diag_slot, stride, data)
+    _spring_load(vec, c, su, sw, k, d0, ri, rj, rhs)
+
+
+@ti.func
+def _spring_load(vec: ti.template(), c, su, sw, k, d0, ri, rj, rhs: ti.template()):
+    """The spring's part of F: −k·d0·[u; w] on the rows of blocks i, j (`_spring`)."""
     for a in range(6):
         if ri >= 0:
             ti.atomic_add(rhs[6 * ri + a], -k * d0 * vec[c, su, a])
         if rj >= 0:
             ti.atomic_add(rhs[6 * rj + a], -k * d0 * vec[c, sw, a])
+
+
+@ti.func
+def _friction_load(vec: ti.template(), c, f, ri, rj, rhs: ti.template()):
+    """A sliding contact's friction in F: −f·[e_s; g_s] on the rows of blocks i, j, f = sgn·S
+    (`assemble_contacts`)."""
+    for a in range(6):
+        if ri >= 0:
+            ti.atomic_add(rhs[6 * ri + a], -f * vec[c, ES, a])
+        if rj >= 0:
+            ti.atomic_add(rhs[6 * rj + a], -f * vec[c, GS, a])
 
 
 @ti.kernel
@@ -212,11 +229,32 @@ def assemble_contacts(cint: I32_2, state: I8_1, line: I8_1, vblock: I32_1, dof: 
                     sgn = ti.cast(shear_dir[c], ti.f64)
                     # internal force sgn·S(D)·∇ds with S = a − b·(dn0 + ∇dnᵀD)
                     f = sgn * (friction_const[c] - friction_slope[c] * sca[c, 0])
-                    for a in range(6):
-                        if ri >= 0:
-                            ti.atomic_add(rhs[6 * ri + a], -f * vec[c, ES, a])
-                        if rj >= 0:
-                            ti.atomic_add(rhs[6 * rj + a], -f * vec[c, GS, a])
+                    _friction_load(vec, c, f, ri, rj, rhs)
                     if friction_slope[c] != 0.0:
                         _outer(vec, c, ES, GS, E0, G0, -sgn * friction_slope[c], ri, rj, sij, sji,
                                diag_slot, stride, data)
+
+
+@ti.kernel
+def assemble_contact_loads(cint: I32_2, state: I8_1, line: I8_1, vblock: I32_1, dof: I32_1,
+                           vec: F64_3, sca: F64_2, friction_const: F64_1, friction_slope: F64_1,
+                           shear_dir: I8_1, penalty: ti.f64, shear_penalty: ti.f64, rhs: F64_1,
+                           serial: ti.template()):
+    """The F part of `assemble_contacts` alone, its K terms left out: each closed contact's
+    −k·d0·∇d of its springs and a sliding one's friction, the same terms added in the same
+    order (an iterate whose K is kept, `ddatai.reassembly`). Its NumPy twin is
+    `ddatai.reassembly.contact_rhs`."""
+    ti.loop_config(serialize=serial)
+    for c in range(cint.shape[0]):
+        st = state[c]
+        if st != STATE_OPEN:
+            q = ti.cast(line[c], ti.i32)
+            ri = dof[vblock[cint[c, 1 + 2 * q]]]
+            rj = dof[vblock[cint[c, 2 + 2 * q]]]
+            _spring_load(vec, c, E0 + 2 * q, G0 + 2 * q, penalty, sca[c, q], ri, rj, rhs)
+            if cint[c, 0] == KIND_VE:
+                if st == STATE_LOCK:
+                    _spring_load(vec, c, ES, GS, shear_penalty, sca[c, 2], ri, rj, rhs)
+                else:
+                    sgn = ti.cast(shear_dir[c], ti.f64)
+                    _friction_load(vec, c, sgn * (friction_const[c] - friction_slope[c] * sca[c, 0]), ri, rj, rhs)

@@ -1,0 +1,82 @@
+"""Results of pure geometric functions kept for the next call with the same geometry.
+
+A study, a sweep or a bisection builds its scene again and again with another friction or
+cohesion (`kgm.probabilistic`, the critical-friction search): the block polygons, their
+overlap check and their edge contacts are the same each time, and their checks and searches
+(shapely, a few hundred NumPy calls) cost as much as the rest of a small model's build. The
+functions that do them are functions of the vertex coordinates alone; each keeps its last
+results here under the exact bytes of its input (`key`), so a repeated geometry gets the very
+result it got before, the same floats, and any other input (a coordinate one ulp away) is
+computed afresh. A result is handed out as a copy (`GeometryMemo.get`): a caller may change
+what it gets. Errors are never kept: bad input raises each time.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections import OrderedDict
+from typing import Any, Callable, Hashable
+
+import numpy as np
+
+#: entries each memo keeps (the most recently used); a study repeats one geometry, a scene's
+#: polygons are a few hundred
+DEFAULT_ENTRIES = 64
+_NONE = object()  # no result kept
+
+
+def key(*arrays) -> tuple:
+    """The exact identity of the arrays (dtype, shape and bytes) and of any plain values."""
+    out = []
+    for a in arrays:
+        if isinstance(a, np.ndarray):
+            out.append((a.dtype.str, a.shape, a.tobytes()))
+        else:
+            out.append(a)
+    return tuple(out)
+
+
+class GeometryMemo:
+    """A bounded map from `key` to a result (least recently used dropped first)."""
+
+    def __init__(self, entries: int = DEFAULT_ENTRIES):
+        self.entries = entries
+        self._kept: "OrderedDict[Hashable, Any]" = OrderedDict()
+        self._lock = threading.Lock()
+        self.hits = 0
+        self.misses = 0
+
+    def get(self, k: Hashable, compute: Callable[[], Any]) -> Any:
+        """A copy of the result kept under ``k``, else ``compute()``'s, kept (and a copy given).
+        Safe from several threads (a study's threaded workers): ``compute`` runs outside the lock."""
+        with self._lock:
+            kept = self._kept.get(k, _NONE)
+            if kept is not _NONE:
+                self._kept.move_to_end(k)
+                self.hits += 1
+                return _copy(kept)
+            self.misses += 1
+        value = compute()  # an error propagates and nothing is kept
+        with self._lock:
+            self._kept[k] = _copy(value)
+            while len(self._kept) > self.entries:
+                self._kept.popitem(last=False)
+        return value
+
+    def clear(self) -> None:
+        with self._lock:
+            self._kept.clear()
+            self.hits = self.misses = 0
+
+
+def _copy(value):
+    """A copy that shares nothing mutable with ``value`` (arrays, lists of tuples of numbers)."""
+    if isinstance(value, np.ndarray):
+        return value.copy()
+    if isinstance(value, list):
+        return [_copy(v) for v in value]
+    if isinstance(value, tuple):
+        return tuple(_copy(v) for v in value)
+    if value is None or isinstance(value, (bool, int, float, str, np.generic)):
+        return value
+    raise TypeError(f"GeometryMemo keeps arrays, lists, tuples and numbers, not {type(value).__name__}")
