@@ -216,8 +216,8 @@ def _mutual_nearest(rows: _Rows, topo: PairTopology, d0: float) -> np.ndarray:
     return nearest
 
 
-def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray, cache: NarrowCache | None = None
-                 ) -> tuple[np.ndarray, np.ndarray]:
+def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray, cache: NarrowCache | None = None,
+                 last_keys: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Contacts of the candidate block pairs (A < B): (cint (m, 5) int32 — kind, vertex0,
     edge0, vertex1, edge1 — and length (m,)), in canonical order (``contacts.sort_contacts``).
 
@@ -240,7 +240,8 @@ def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray, cache: 
     nearest = _mutual_nearest(rows, topo, d0)
     kP = (nearest[:topo.n_a] >= 0).nonzero()[0]
     kQ = nearest[kP]
-    pairs_ = _VertexPairs(geo, rows, topo.vertex[kP], topo.vertex[kQ], kP, kQ, h1, d9) if len(kP) else None
+    pairs_ = _VertexPairs(geo, rows, topo.vertex[kP], topo.vertex[kQ], kP, kQ, h1, d9, last_keys, model.n_vertices) \
+        if len(kP) else None
 
     # 2., 3. every vertex against every edge of the other block (its projection on the edge),
     # except the edges that end at its mutual-nearest partner; and the rows that the vertex
@@ -324,7 +325,8 @@ class _VertexPairs:
       the vertex's own edge lies along the line.
     """
 
-    def __init__(self, geo: _Geometry, rows: _Rows, P, Q, kP, kQ, h1: float, d9: float):
+    def __init__(self, geo: _Geometry, rows: _Rows, P, Q, kP, kQ, h1: float, d9: float,
+                 last_keys: np.ndarray | None = None, n_vertices: int = 0):
         nxt, prv, topo = geo.nxt, geo.prv, rows.topo
         cP, cQ = geo.convex[P], geo.convex[Q]
         one = (cP != cQ).nonzero()[0]
@@ -380,6 +382,22 @@ class _VertexPairs:
         # and a vertex that has passed its partner's corner along one of its edges
         self.vv_elsewhere = out[n_par:n_par + n_vv] | out[n_par + n_vv:] | \
             _past_corner(rows, kp, q, prv, d9, math.sin(h1)) | _past_corner(rows, kq, p, prv, d9, math.sin(h1))
+        if last_keys is not None and len(last_keys) and n_vv:
+            # a pair handed over last step stays handed over while either vertex lies past its
+            # partner at all (hysteresis): pushed out by its vertex-edge contact to within
+            # PASSED_DEPTH x d9, it went back to one vertex-vertex contact, whose one line let
+            # the other vertex sink, to be handed over again the step after (docs/method/dda.md
+            # §3.4). Handed over: a vertex was in a vertex-edge contact (key vertex·n + edge) on
+            # an edge at its partner, (w, next w) or (prev w, w)
+            nv = np.int64(n_vertices)
+            p64, q64 = p.astype(np.int64), q.astype(np.int64)
+            keys = np.stack([p64 * nv + q64, p64 * nv + prv[q], q64 * nv + p64, q64 * nv + prv[p]])
+            at = np.minimum(np.searchsorted(last_keys, keys), len(last_keys) - 1)
+            was = (last_keys[at] == keys).any(axis=0) & ~self.vv_elsewhere
+            if was.any():
+                w = was.nonzero()[0]
+                self.vv_elsewhere[w] = _past_corner(rows, kp[w], q[w], prv, d9, math.sin(h1), persist=True) | \
+                    _past_corner(rows, kq[w], p[w], prv, d9, math.sin(h1), persist=True)
         # the handed-over rows: the concave pairs' convex vertices, and the exits' vertices
         handed = np.concatenate([np.ones(len(one), bool), self.par_elsewhere, self.vv_elsewhere,
                                  self.vv_elsewhere]).nonzero()[0]
@@ -389,18 +407,30 @@ class _VertexPairs:
         self.handed_rows = np.concatenate([base + prv[hand_w], base + hand_w])
 
 
-def _past_corner(rows: _Rows, k: np.ndarray, w: np.ndarray, prv: np.ndarray, d9: float, sin_h1: float) -> np.ndarray:
+def _past_corner(rows: _Rows, k: np.ndarray, w: np.ndarray, prv: np.ndarray, d9: float, sin_h1: float,
+                 persist: bool = False) -> np.ndarray:
     """Whether each vertex (side position k) of a vertex-vertex pair has passed its partner w's
     corner along an edge at w: it projects onto the edge (w, next w) or (prev w, w) beyond
     round-off from w and lies deeper than ``PASSED_DEPTH`` × d9 behind that edge's line, but
     within the angle tolerance h1 of it seen from w: it slid past the corner along the edge,
     where a corner that entered head on lies as far behind as along (`kernels._past_corner`).
-    The corners of diagonal blocks where four squares meet pass each other as soon as a row slides: each then lies on the other's edge, two vertex-edge
-    contacts that one vertex-vertex contact, acting on one line, cannot hold. The vertex
+    The corners of diagonal blocks where four squares meet pass each other as soon as a row
+    slides: each then lies on the other's edge, two vertex-edge contacts that one
+    vertex-vertex contact, acting on one line, cannot hold. The vertex
     left out sank unresisted (36 µm, or 24 µm after a 3.9 mm slide) until the pair's lines
     changed, and its depth was pushed out in one step: a 0.1 m square at 0.04–0.08 m/s in
-    a 0.27 ms step (docs/method/dda.md §3.4)."""
+    a 0.27 ms step (docs/method/dda.md §3.4).
+
+    ``persist``: whether a vertex of a pair handed over last step still lies past its partner
+    at all: it projects onto the edge beyond round-off (``SLACK``) from w, within h1 of the
+    edge's line on either side, at any depth (`narrow_phase`, ``last_keys``)."""
     base = rows.topo.row_base[k]
+    if persist:
+        r0, r1 = base + w, base + prv[w]
+        t0, t1 = rows.t[r0], rows.t[r1]
+        along0, along1 = t0 * rows.l[r0], (1.0 - t1) * rows.l[r1]
+        return ((t0 > SLACK) & (t0 <= 1.0) & (np.abs(rows.dn[r0]) < sin_h1 * along0)) | \
+            ((1.0 - t1 > SLACK) & (t1 >= 0.0) & (np.abs(rows.dn[r1]) < sin_h1 * along1))
     deep = -PASSED_DEPTH * d9
     r0, r1 = base + w, base + prv[w]      # the edges (w, next w), w at t = 0, and (prev w, w)
     t0, l0, dn0 = rows.t[r0], rows.l[r0], rows.dn[r0]

@@ -288,7 +288,7 @@ def _pseudo_steps(stepper, initial: State, state: State, released: np.ndarray, s
     unsettled = False
     for pseudo_steps in range(MAX_PSEUDO_STEPS):
         geom = state.geometry if state.geometry is not None else model.block_geometry(state.vertex_xy)
-        cint, length = stepper.detect(state.vertex_xy)
+        cint, length = stepper.detect(state.vertex_xy, memory)
         contacts = Contacts.start(model, state.vertex_xy, cint, length, memory, True)
         contacts = subset_contacts(contacts, ~(released[contacts.block_a] | released[contacts.block_b]))
         if not np.any(contacts.state != OPEN):

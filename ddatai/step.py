@@ -131,7 +131,7 @@ class Stepper:
         self.params = model.params
         self.buffers = _Buffers()
         self.narrow = vectorized.NarrowCache()  # the NumPy narrow phase's candidates of the last pairs
-        self._detected = None  # (model, vertex_xy, cint, length) of the NumPy path's last detection
+        self._detected = None  # (model, vertex_xy, cint, length, last keys) of the NumPy path's last detection
         self.free_idx = np.flatnonzero(~model.block_fixed)
         self.solver = SparseSolver(model.params.solver, unknowns=6 * model.n_free)
         # a block's weight, the smallest load the open-close judgement measures it by [N/m]
@@ -260,7 +260,7 @@ class Stepper:
         """The step's contacts (detection, and the memory of the last step transferred, §3),
         with their vectors; the block pattern follows them (reused while the pairs stay)."""
         model = self.model
-        cint, length = self.detect(state.vertex_xy)
+        cint, length = self.detect(state.vertex_xy, state.memory)
         contacts = Contacts.start(model, state.vertex_xy, cint, length, state.memory, state.step == 0)
         self.pattern = BlockPattern.build(model, contacts, self.pattern)
         vec, sca = contact_vectors(model, state.vertex_xy, geom, contacts)
@@ -269,19 +269,23 @@ class Stepper:
         contacts.ds[:] = np.where(contacts.cint[:, KIND] == VV, 0.0, sca[:, 2])
         return contacts, vec, sca
 
-    def detect(self, vertex_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def detect(self, vertex_xy: np.ndarray, memory=None) -> tuple[np.ndarray, np.ndarray]:
         """The contacts at ``vertex_xy`` (cint, length), canonical order: the Taichi kernels
         (`contacts.detect_contacts`) or, for a small model, their NumPy twin
-        (`vectorized.detect_contacts`)."""
+        (`vectorized.detect_contacts`), which reads the last step's contacts (``memory``) to
+        keep a corner pair's hand-over to the vertex-edge rules (docs/method/dda.md §3.4)."""
         if self.model.numpy_path:
             # the equilibrium stage detects at one geometry up to three times in a row (its
             # screen, its first pseudo-step, the release test), about half its detections: the
             # last answer is kept (a copy each way, so that no caller's edit reaches it)
+            keys = memory.key if memory is not None and len(memory.key) else None
             last = self._detected
-            if last is not None and last[0] is self.model and np.array_equal(last[1], vertex_xy):
+            if last is not None and last[0] is self.model and np.array_equal(last[1], vertex_xy) and \
+                    _same(last[4], keys):
                 return last[2].copy(), last[3].copy()
-            cint, length = vectorized.detect_contacts(self.model, vertex_xy, self.narrow)
-            self._detected = (self.model, np.array(vertex_xy), cint.copy(), length.copy())
+            cint, length = vectorized.detect_contacts(self.model, vertex_xy, self.narrow, keys)
+            self._detected = (self.model, np.array(vertex_xy), cint.copy(), length.copy(),
+                              None if keys is None else keys.copy())
             return cint, length
         return detect_contacts(self.model, vertex_xy, self.buffers)
 
@@ -403,3 +407,8 @@ class Stepper:
         new_state = new_state.replace(energy=sum(energy))
         dissipated = external - (new_state.energy - state.energy) - friction
         return new_state, energy, (external, friction, dissipated)
+
+
+def _same(a: "np.ndarray | None", b: "np.ndarray | None") -> bool:
+    """Whether two detections read the same last step's contact keys (None: no memory)."""
+    return (a is None and b is None) or (a is not None and b is not None and np.array_equal(a, b))

@@ -59,14 +59,16 @@ def broad_phase(model: Model, vertex_xy: np.ndarray, margin: float) -> np.ndarra
     return out
 
 
-def detect_contacts(model: Model, vertex_xy: np.ndarray, cache: NarrowCache | None = None
-                    ) -> tuple[np.ndarray, np.ndarray]:
+def detect_contacts(model: Model, vertex_xy: np.ndarray, cache: NarrowCache | None = None,
+                    last_keys: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Broad + narrow phase in NumPy. Returns (cint, length) in canonical order, as
     ``ddatai.contacts.detect_contacts``. ``cache`` keeps the candidate pairs (a Verlet list,
-    ``ddatai.contacts.PairList``) and the pairs' candidates between calls (``ddatai.narrow.NarrowCache``)."""
+    ``ddatai.contacts.PairList``) and the pairs' candidates between calls (``ddatai.narrow.NarrowCache``).
+    ``last_keys``: the sorted keys of the last step's contacts (``ContactMemory.key``), which
+    keep a corner pair's hand-over to the vertex-edge rules (``narrow.narrow_phase``)."""
     if cache is None:
-        return narrow_phase(model, vertex_xy, broad_phase(model, vertex_xy, model.search_distance), None)
-    return narrow_phase(model, vertex_xy, cache.pair_list.pairs(model, vertex_xy, broad_phase), cache)
+        return narrow_phase(model, vertex_xy, broad_phase(model, vertex_xy, model.search_distance), None, last_keys)
+    return narrow_phase(model, vertex_xy, cache.pair_list.pairs(model, vertex_xy, broad_phase), cache, last_keys)
 
 
 # --------------------------------------------------------------------------- contact vectors

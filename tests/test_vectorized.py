@@ -376,6 +376,44 @@ def test_corners_of_diagonal_blocks_touching_to_round_off_stay_a_vertex_vertex_c
     assert len(diagonal) == 1 and diagonal[0][0] == VV
 
 
+def _last_keys(model, cint):
+    """The sorted contact keys (``ContactMemory.key``) of a step whose contacts were ``cint``."""
+    from ddatai.contacts import contact_keys
+
+    return np.sort(contact_keys(cint, model.n_vertices))
+
+
+@pytest.mark.parametrize("depth", [1e-12, -1e-7])
+def test_a_corner_pair_handed_to_the_vertex_edge_rules_stays_handed_while_a_vertex_lies_past_its_partner(depth):
+    """The persistent hand-over (docs/method/dda.md §3.4). The passed corners, handed to the
+    vertex-edge rules at 1e-4 deep, then pushed out by their vertex-edge contact to within
+    PASSED_DEPTH × d9 of the edge (1e-12 behind it) or 0.1 µm clear of it: read without memory
+    they are one vertex-vertex contact again (and were, every other step: 2,018 hand-overs in
+    1,057 of the 1,319 steps of the 4-5-6-7 stack's slow ramp at 18°), but with the last step's
+    contacts' keys (``narrow_phase``'s ``last_keys``) the pair keeps its two vertex-edge
+    contacts while Q lies past P along block 0's top edge. A pair whose last contact was
+    vertex-vertex (an X-junction at rest) is read as before."""
+    model, xy_deep, P, Q = _passed_corners(1e-4)
+    before, _ = vectorized.detect_contacts(model, xy_deep)
+    handed = _last_keys(model, before)
+    _, xy, _, _ = _passed_corners(depth)
+    b = model.vertex_block
+    cint, _ = vectorized.detect_contacts(model, xy)
+    assert [r[0] for r in cint.tolist() if {b[r[1]], b[r[2]]} == {0, 3}] == [VV]
+    cint, _ = vectorized.detect_contacts(model, xy, None, handed)
+    diagonal = {tuple(r) for r in cint.tolist() if {b[r[1]], b[r[2]]} == {0, 3}}
+    assert diagonal == {(VE, Q, P, -1, -1), (VE, P, Q, -1, -1)}
+    # an X-junction whose pair was a vertex-vertex contact last step stays one
+    _, rest, _, _ = _passed_corners(1e-12)
+    vv_keys = _last_keys(model, vectorized.detect_contacts(model, rest)[0])
+    cint, _ = vectorized.detect_contacts(model, rest, None, vv_keys)
+    assert [r[0] for r in cint.tolist() if {b[r[1]], b[r[2]]} == {0, 3}] == [VV]
+    # and the hand-over ends once neither vertex lies past its partner (the rows slid back)
+    _, back, _, _ = _passed_corners(1e-12, slide=-2e-3)
+    cint, _ = vectorized.detect_contacts(model, back, None, handed)
+    assert not {tuple(r) for r in cint.tolist()} & {(VE, Q, P, -1, -1), (VE, P, Q, -1, -1)}
+
+
 def test_an_open_corner_contact_carries_no_normal_force_from_a_line_it_does_not_use():
     """The passed corners slid the other way (the upper row 2 mm to the right, block 3 turned
     0.2°): a new vertex-vertex contact whose line 0 (P against block 3's bottom edge) lies 7 µm

@@ -134,9 +134,19 @@ def _run_until_toppled(sc: dd.Scene, params, duration: float, limit: float) -> b
     return False
 
 
+def start_duration(case: ToppleCase) -> float:
+    """How long a run from the start is watched [s]: as long as the slow load's whole run, its
+    ramp and its hold at full gravity ((RAMP_TIMES + HOLD_TIMES) rocking time constants, in
+    which the slow load may topple the case), and at least DURATION. A stack that the stage
+    releases in doubt starts under sudden gravity and may stop after its first jolt (the 4-4-4
+    squares at 23.25°: 2 mm in 0.17 s, then nothing to 4.7 s) or rock on slowly."""
+    return max(DURATION, (RAMP_TIMES + HOLD_TIMES) * rocking_time(case))
+
+
 def start_topples(case: ToppleCase, theta: float, params=None) -> bool:
-    """Whether the case topples at tilt ``theta`` from the default start (``params`` None)."""
-    return _run_until_toppled(scene(case, theta), params, DURATION, TOPPLED * case.tallest)
+    """Whether the case topples at tilt ``theta`` from the default start (``params`` None),
+    watched for `start_duration`."""
+    return _run_until_toppled(scene(case, theta), params, start_duration(case), TOPPLED * case.tallest)
 
 
 def _turning_gravity(theta_of_t, scale_of_t):
@@ -154,17 +164,81 @@ def _smoothstep(t: float, ramp: float) -> float:
     return x * x * (3.0 - 2.0 * x)
 
 
-def ramp_topples(case: ToppleCase, theta: float, frame: str = "turned", ramp_times: float = RAMP_TIMES) -> bool:
+def ramp_topples(case: ToppleCase, theta: float, frame: str = "turned", ramp_times: float = RAMP_TIMES,
+                 dt_max: float | None = None) -> bool:
     """Whether the case topples at ``theta`` with gravity ramped in slowly from rest, no stage,
     over ``ramp_times`` rocking time constants: ``frame`` "turned", the plate horizontal in the
     model and gravity turned by θ; "tilted", the plate tilted by θ in the model (as the start
-    sees it) and gravity ramped vertically."""
+    sees it) and gravity ramped vertically. ``dt_max``: the run's largest time step
+    (`Params.dt_max`; None: the default, 10 ms) — RESOLVED_DT resolves the stacks of squares."""
     tau = rocking_time(case)
     ramp, hold = ramp_times * tau, HOLD_TIMES * tau
     th = math.radians(theta) if frame == "turned" else 0.0
     sc = scene(case, 0.0 if frame == "turned" else theta)
     sc.set_ground_acceleration(_turning_gravity(lambda t: th, lambda t: _smoothstep(t, ramp)))
-    return _run_until_toppled(sc, dd.Params(initial_equilibrium=False), ramp + hold, TOPPLED * case.tallest)
+    params = dd.Params(initial_equilibrium=False) if dt_max is None else \
+        dd.Params(initial_equilibrium=False, dt_max=dt_max)
+    return _run_until_toppled(sc, params, ramp + hold, TOPPLED * case.tallest)
+
+
+#: a time step that resolves the slow load of the stacks of 0.1 m squares [s] (their rocking
+#: time constant is 0.15–0.18 s: τ/80). At the default 10 ms (τ/17) the ramp of 20 constants
+#: sets the 4-4-4 stack rocking at 23.25° from ~1 % of its weight, growing ~12/s (gravity at
+#: that share drives at most ~1/s), and topples it, where 10 and 40 constants, 2 ms or lagged
+#: friction hold it (docs/guide/equilibrium_start.md)
+RESOLVED_DT = 2e-3
+
+
+def _corner_pairs(model, memory) -> tuple[set, set]:
+    """(the vertex pairs of vertex-vertex contacts, the (vertex, edge end) pairs of vertex-edge
+    contacts) of a step's contact memory."""
+    nv = model.n_vertices
+    from ddatai.layout import VV
+
+    vv = memory.kind == VV
+    first, second = np.divmod(memory.key[vv] - nv * nv, nv)
+    pairs = {(int(min(a, b)), int(max(a, b))) for a, b in zip(first, second)}
+    ends = set()
+    for a, e in zip(*np.divmod(memory.key[~vv], nv)):
+        for w in (int(e), int(model.vertex_next[e])):
+            ends.add((int(min(a, w)), int(max(a, w))))
+    return pairs, ends
+
+
+def ramp_handovers(case: ToppleCase, theta: float, frame: str = "turned", ramp_times: float = RAMP_TIMES) -> dict:
+    """`ramp_topples`'s run step by step, counting the corner hand-overs: the vertex pairs (P, Q)
+    that change representation between steps, a vertex-vertex contact one step and a
+    vertex-edge contact of P on an edge at Q (or of Q on an edge at P) the next, or back
+    (docs/method/dda.md §3.4); and the kicks, each step's largest change of a free block's
+    velocity |Δv| / (g·Δt). Returns steps, hand-overs, steps with one, the largest kick and
+    whether the case toppled."""
+    from ddatai.step import Stepper
+
+    tau = rocking_time(case)
+    ramp, hold = ramp_times * tau, HOLD_TIMES * tau
+    th = math.radians(theta) if frame == "turned" else 0.0
+    sc = scene(case, 0.0 if frame == "turned" else theta)
+    sc.set_ground_acceleration(_turning_gravity(lambda t: th, lambda t: _smoothstep(t, ramp)))
+    model = dd.build_model(sc, dd.Params(initial_equilibrium=False))
+    stepper = Stepper(model)
+    state = model.initial_state()
+    free = ~model.block_fixed
+    out = dict(steps=0, handovers=0, steps_with=0, kick=0.0, toppled=False)
+    last_vv, last_ends = set(), set()
+    while state.time < ramp + hold:
+        new = stepper.advance(state).state
+        dv = np.hypot(*(new.block_velocity[free, :2] - state.block_velocity[free, :2]).T)
+        out["kick"] = max(out["kick"], float(dv.max()) / (G * (new.time - state.time)))
+        vv, ends = _corner_pairs(model, new.memory)
+        n = len((last_vv - vv) & ends) + len((vv - last_vv) & last_ends)
+        out["handovers"] += n
+        out["steps_with"] += n > 0
+        out["steps"] += 1
+        last_vv, last_ends, state = vv, ends, new
+        if float(np.abs(state.vertex_xy - model.vertex_xy0).max()) > TOPPLED * case.tallest:
+            out["toppled"] = True
+            break
+    return out
 
 
 #: the slow-load reference of a toppling tilt is a scan: the lowest tilt, on a grid of
