@@ -17,7 +17,9 @@ def detection_key(model, vertex_xy: np.ndarray):
     """The data that a NumPy detection of ``model`` at ``vertex_xy`` reads
     (`ddatai.vectorized.detect_contacts`: the vertex lists and positions, which blocks are fixed,
     the search distance, the penetration limit and the angle tolerance), as bytes; None for a
-    model detected by the kernels (nothing is shared)."""
+    model detected by the kernels (nothing is shared). The last step's contact keys, which the
+    narrow phase reads too, are the caller's: an adopted detection answers only a call with the
+    same ones (`ddatai.step.Stepper.detect`)."""
     if not model.numpy_path:
         return None
     arrays = (vertex_xy, model.vertex_next, model.vertex_prev, model.vertex_block, model.vertex_offset,

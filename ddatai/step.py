@@ -294,8 +294,8 @@ class Stepper:
         their topology) as ``other``'s, whose model's detection reads the same data
         (`ddatai.batch_detect.detection_key`): the same answers as its own detection, without
         it (copies, so that no caller's edit reaches the other)."""
-        model, xy, cint, length = other._detected
-        self._detected = (self.model, xy.copy(), cint.copy(), length.copy())
+        model, xy, cint, length, keys = other._detected
+        self._detected = (self.model, xy.copy(), cint.copy(), length.copy(), None if keys is None else keys.copy())
         mine, theirs = self.narrow.pair_list, other.narrow.pair_list
         if theirs.found is not None:
             mine.found, mine.found_at, mine.margin = theirs.found.copy(), theirs.found_at.copy(), theirs.margin
