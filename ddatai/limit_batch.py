@@ -40,19 +40,43 @@ def settle_many(models, states=None) -> list:
 
 @contextmanager
 def screened_ahead(steppers, states):
-    """While the body runs, the first limit-equilibrium program of the screen of each member
-    (``steppers[k]`` from ``states[k]``, `ddatai.mechanisms.screen_program`) is answered from
-    programs solved side by side (`solve_programs`)."""
-    from .mechanisms import screen_program
+    """While the body runs, the screen of each member (``steppers[k]`` from ``states[k]``,
+    `ddatai.mechanisms.unsupported_at_start`) is the one done here, once: its first
+    limit-equilibrium program answered from programs solved side by side (`solve_programs`),
+    the rest as the stage alone asks them (`limit_equilibrium.unsupported_programs`). The members
+    that share their geometry share its detection (`ddatai.batch_detect.share_detection`). The
+    screens' answers stay primed for the stages' own tests, which may ask them again (as a
+    stage alone finds its screen's last programs among those solved lately)."""
+    from .batch_detect import share_detection
+    from .mechanisms import SCREENED, screen_programs
 
-    programs = [p for p in (screen_program(st, s) for st, s in zip(steppers, states)) if p is not None]
-    answers = solve_programs(programs)
+    share_detection(steppers, states)
+    started, done = [], {}
+    for st, s in zip(steppers, states):
+        programs = screen_programs(st, s)
+        try:
+            started.append((st, s, programs, next(programs)))
+        except StopIteration as end:
+            done[id(st)] = (st, s, end.value)
+    answers = solve_programs([p for _, _, _, p in started])
     le.PRIMED.update(answers)
+
+    def solve(*program):  # a screen's later programs, kept too: its stage's tests may ask them again
+        out = le._interior_point(*program)
+        answers[le.program_key(*program)] = None if out is None else (out[0], out[1].copy())
+        return out
+
     try:
+        for st, s, programs, first in started:
+            done[id(st)] = (st, s, le.answered(programs, solve, first))
+        le.PRIMED.update(answers)
+        SCREENED.update(done)
         yield
     finally:
         for key in answers:
             le.PRIMED.pop(key, None)
+        for key in done:
+            SCREENED.pop(key, None)
 
 
 def solve_programs(programs) -> dict:

@@ -70,7 +70,28 @@ def unsupported_blocks(model, vertex_xy: np.ndarray, geom: dict, contacts: Conta
     None where the program does not apply (`applicable`) or does not converge. ``solve``: the
     programs' solver, ``solve(a, b, tan_phi, cohesion, tensile) -> (unbalance, y) or None``
     (default `_interior_point`; `ddatai.limit_batch` passes one that collects the programs)."""
-    solve = solve or _interior_point
+    return answered(unsupported_programs(model, vertex_xy, geom, contacts, touching, out), solve or _interior_point)
+
+
+def answered(programs, solve, program=None):
+    """The value that the generator ``programs`` returns when each program it yields is answered
+    by ``solve(*program)`` (`unsupported_programs`); ``program``: the one at which it already
+    stands (`ddatai.limit_batch.screened_ahead` took its first program to solve it ahead)."""
+    try:
+        if program is None:
+            program = next(programs)
+        while True:
+            program = programs.send(solve(*program))
+    except StopIteration as end:
+        return end.value
+
+
+def unsupported_programs(model, vertex_xy: np.ndarray, geom: dict, contacts: Contacts,
+                         touching: np.ndarray, out: np.ndarray):
+    """`unsupported_blocks` as a generator: it yields each program ``(a, b, tan_phi, cohesion,
+    tensile)`` and is sent its answer, and returns the blocks (or None): a member's screen
+    can stop at its first program, whose answer is solved side by side with the other
+    members', and go on from there (`ddatai.limit_batch.screened_ahead`)."""
     if not applicable(model):
         return None
     centroid = geom["centroid"]
@@ -129,8 +150,8 @@ def unsupported_blocks(model, vertex_xy: np.ndarray, geom: dict, contacts: Conta
         unit = float(np.median(weight[tested]))
         equilibrium = _equilibrium_matrix(sel, block_a, block_b, point, normal, tangent, centroid, row_of,
                                           3 * n_blocks, unit / scale)
-        outcome = solve(equilibrium, load[tested].ravel() / scale, contacts.tan_phi[sel],
-                        cohesion[sel] / unit, tensile[sel] / unit)
+        outcome = yield (equilibrium, load[tested].ravel() / scale, contacts.tan_phi[sel],
+                         cohesion[sel] / unit, tensile[sel] / unit)
         if outcome is None:
             return None
         unbalance, y = outcome

@@ -14,7 +14,7 @@ from .contacts import Contacts
 from .geometry import displacement_matrix
 from .assembly import contact_vectors, load_forces
 from .kinematics import block_displacement
-from .limit_equilibrium import applicable, unsupported_blocks
+from .limit_equilibrium import _interior_point, answered, applicable, unsupported_blocks, unsupported_programs
 from .layout import KIND, LOCK, OPEN, SLIDE, VE
 from .model import ContactMemory, State
 from .open_close import open_close
@@ -247,21 +247,32 @@ def unsupported_at_start(stepper, state: State) -> np.ndarray:
     lets only some blocks move, the stage finds them as without the screen (a mechanism thrown
     away in the return mapping first, the program on the rest), and releases the same blocks.
     None where nothing touches, or where the program does not apply (bolts, water) or does
-    not converge."""
-    return _screen(stepper, state)
+    not converge. Inside `ddatai.limit_batch.screened_ahead`, the answer that the batch found
+    for this stepper at this state (the same computation, done once)."""
+    ahead = SCREENED.get(id(stepper))
+    if ahead is not None and ahead[0] is stepper and ahead[1] is state:
+        return ahead[2].copy()
+    return answered(screen_programs(stepper, state), _interior_point)
+
+
+#: the screens that `ddatai.limit_batch.screened_ahead` finished ahead, while its stages run:
+#: {id(stepper): (stepper, state, released)}
+SCREENED: dict = {}
 
 
 def screen_program(stepper, state: State):
     """The data ``(a, b, tan_phi, cohesion, tensile)`` of the first limit-equilibrium program
     that `unsupported_at_start` solves for this model, or None where it solves none
     (`ddatai.limit_batch`: the programs of many members solved side by side)."""
-    asked = []
-    _screen(stepper, state, solve=lambda *program: asked.append(program))
-    return asked[0] if asked else None
+    try:
+        return next(screen_programs(stepper, state))
+    except StopIteration:
+        return None
 
 
-def _screen(stepper, state: State, solve=None) -> np.ndarray:
-    """`unsupported_at_start`, its programs solved by ``solve`` (`unsupported_blocks`)."""
+def screen_programs(stepper, state: State):
+    """`unsupported_at_start` as a generator (`limit_equilibrium.unsupported_programs`): it
+    yields the screen's programs, is sent their answers, and returns the released blocks."""
     model = stepper.model
     none = np.zeros(model.n_blocks, bool)
     free = ~model.block_fixed
@@ -272,5 +283,5 @@ def _screen(stepper, state: State, solve=None) -> np.ndarray:
     contacts = Contacts.start(model, state.vertex_xy, cint, length, ContactMemory.empty(), True)
     if not np.any(contacts.state != OPEN):
         return none  # nothing touches: the stage has nothing to hold or release
-    found = unsupported_blocks(model, state.vertex_xy, geom, contacts, np.ones(contacts.n, bool), none, solve)
+    found = yield from unsupported_programs(model, state.vertex_xy, geom, contacts, np.ones(contacts.n, bool), none)
     return free if found is not None and np.all(found[free]) else none

@@ -27,6 +27,8 @@ its last factor, the sparse pattern, the detection buffers and candidates.
 
 from __future__ import annotations
 
+import copy
+
 import math
 import time as _time
 import warnings
@@ -286,6 +288,21 @@ class Stepper:
                               None if keys is None else keys.copy())
             return cint, length
         return detect_contacts(self.model, vertex_xy, self.buffers)
+
+    def adopt_detection(self, other: "Stepper") -> None:
+        """This stepper's NumPy detection caches (its last detection, its candidate pairs and
+        their topology) as ``other``'s, whose model's detection reads the same data
+        (`ddatai.batch_detect.detection_key`): the same answers as its own detection, without
+        it (copies, so that no caller's edit reaches the other)."""
+        model, xy, cint, length, keys = other._detected
+        self._detected = (self.model, xy.copy(), cint.copy(), length.copy(), None if keys is None else keys.copy())
+        mine, theirs = self.narrow.pair_list, other.narrow.pair_list
+        if theirs.found is not None:
+            mine.found, mine.found_at, mine.margin = theirs.found.copy(), theirs.found_at.copy(), theirs.margin
+        if other.narrow.topology is not None:
+            topology = copy.copy(other.narrow.topology)
+            topology.vertex_next = self.model.vertex_next  # equal arrays (the key): `PairTopology.matches`
+            self.narrow.topology = topology
 
     def attempt(self, state: State, geom: dict, contacts0: Contacts, vec0: np.ndarray, sca0: np.ndarray,
                 dt: float, timer: StepTimer, hold_cycles: bool = False) -> Attempt:

@@ -13,7 +13,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 #: the engine: what a simulation runs through
 CORE = ("assembly", "backend", "contact_law", "contacts", "cutting", "diagnosis", "energy", "fused", "geometry", "iterative", "kernels",
-        "limit_batch", "limit_equilibrium", "mechanisms", "return_mapping", "return_steps",
+        "batch_detect", "limit_batch", "limit_equilibrium", "mechanisms", "return_mapping", "return_steps",
         "reassembly", "recorder", "records",
         "kinematics", "layout", "model", "model_checks", "narrow", "open_close", "params", "reference", "results", "scene",
         "solver", "pardiso", "updates", "start", "step", "support", "threads", "time_step", "water")

@@ -72,3 +72,62 @@ def test_settle_many_starts_each_member_as_its_own_stage():
             np.testing.assert_array_equal(getattr(state.memory, name), getattr(alone.memory, name))
     assert 0 < released < len(models)
     assert not le.PRIMED  # the answers solved ahead are dropped after the stages
+
+
+def test_a_member_s_screen_is_done_once_in_its_batch(monkeypatch):
+    """Inside `screened_ahead`, each member's screen is the one done there, once: its stage
+    does not screen again, and the released blocks are those of its own screen alone."""
+    from ddatai import mechanisms
+
+    models = study_models(4)
+    alone = [mechanisms.unsupported_at_start(Stepper(m), m.initial_state()) for m in models]
+    calls = []
+    programs = mechanisms.screen_programs
+    monkeypatch.setattr(mechanisms, "screen_programs", lambda *a: calls.append(1) or programs(*a))
+    steppers, states = [Stepper(m) for m in models], [m.initial_state() for m in models]
+    with limit_batch.screened_ahead(steppers, states):
+        assert len(calls) == len(models)
+        for st, s, own in zip(steppers, states, alone):
+            np.testing.assert_array_equal(mechanisms.unsupported_at_start(st, s), own)
+            settle(st, s)
+        assert len(calls) == len(models)  # the stages asked the batch's screens
+        # another state of the same stepper is screened on its own
+        moved = states[0].replace(vertex_xy=states[0].vertex_xy + 1e-9)
+        mechanisms.unsupported_at_start(steppers[0], moved)
+        assert len(calls) == len(models) + 1
+    assert not mechanisms.SCREENED and not le.PRIMED
+    assert any(own.any() for own in alone) and not all(own.any() for own in alone)
+
+
+def test_members_share_the_first_detection_only_by_its_key():
+    """`ddatai.batch_detect`: the members on one geometry detect once; each member's detections
+    after adopting it (at t = 0 and at a settled geometry, through the kept pairs and their
+    topology) are its own detection's to the bit; a model whose detection reads other data
+    (another geometry, another search distance) keeps its own."""
+    from dataclasses import replace
+
+    from ddatai.batch_detect import detection_key, share_detection
+    from ddatai.contacts import Contacts
+    from ddatai.model import ContactMemory
+    from scenes import example_1
+
+    models = study_models(3)
+    other = group_model(example_1, friction=12.0)
+    wider = replace(models[0], search_distance=2.0 * models[0].search_distance)
+    assert detection_key(wider, wider.vertex_xy0) != detection_key(models[0], models[0].vertex_xy0)
+    batch = models + [other, wider]
+    steppers, states = [Stepper(m) for m in batch], [m.initial_state() for m in batch]
+    assert share_detection(steppers, states) == len(models) - 1
+    assert len({detection_key(st.model, s.vertex_xy) for st, s in zip(steppers, states)}) == 3
+    for st, s in zip(steppers, states):
+        own = Stepper(st.model)
+        free = ~st.model.block_fixed[st.model.vertex_block]
+        settled = s.vertex_xy + np.where(free[:, None], [[1e-5, -2e-5]], 0.0)  # within the pairs' skin
+        # the first pseudo-step's memory: the contacts at t = 0 (the narrow phase reads their keys)
+        memory = Contacts.start(st.model, s.vertex_xy, *own.detect(s.vertex_xy), ContactMemory.empty(), True) \
+            .memory(bond_breaks_on_slip=False)
+        own = Stepper(st.model)
+        for xy, last in ((s.vertex_xy, None), (settled, None), (settled, memory), (s.vertex_xy, memory)):
+            for got, want in zip(st.detect(xy, last), own.detect(xy, last)):
+                np.testing.assert_array_equal(got, want)
+                assert got.dtype == want.dtype
