@@ -384,7 +384,7 @@ class _VertexPairs:
             _past_corner(rows, kp, q, prv, d9, math.sin(h1)) | _past_corner(rows, kq, p, prv, d9, math.sin(h1))
         if last_keys is not None and len(last_keys) and n_vv:
             # a pair handed over last step stays handed over while either vertex lies past its
-            # partner at all (hysteresis): pushed out by its vertex-edge contact to within
+            # partner at all, on or behind the edge's line (hysteresis): pushed out by its vertex-edge contact to within
             # PASSED_DEPTH x d9, it went back to one vertex-vertex contact, whose one line let
             # the other vertex sink, to be handed over again the step after (docs/method/dda.md
             # §3.4). Handed over: a vertex was in a vertex-edge contact (key vertex·n + edge) on
@@ -422,15 +422,18 @@ def _past_corner(rows: _Rows, k: np.ndarray, w: np.ndarray, prv: np.ndarray, d9:
     a 0.27 ms step (docs/method/dda.md §3.4).
 
     ``persist``: whether a vertex of a pair handed over last step still lies past its partner
-    at all: it projects onto the edge beyond round-off (``SLACK``) from w, within h1 of the
-    edge's line on either side, at any depth (`narrow_phase`, ``last_keys``)."""
+    at all: it projects onto the edge beyond round-off (``SLACK``) from w and lies on or behind
+    the edge's line, within h1 of it, at any depth (`narrow_phase`, ``last_keys``). A vertex
+    clear of the line ends it: a shrinking edge-to-edge contact whose block lifts off keeps no
+    open vertex-edge contact at the edge's end (ntdda's push block, tests/test_ntdda.py)."""
     base = rows.topo.row_base[k]
     if persist:
         r0, r1 = base + w, base + prv[w]
         t0, t1 = rows.t[r0], rows.t[r1]
         along0, along1 = t0 * rows.l[r0], (1.0 - t1) * rows.l[r1]
-        return ((t0 > SLACK) & (t0 <= 1.0) & (np.abs(rows.dn[r0]) < sin_h1 * along0)) | \
-            ((1.0 - t1 > SLACK) & (t1 >= 0.0) & (np.abs(rows.dn[r1]) < sin_h1 * along1))
+        dn0, dn1 = rows.dn[r0], rows.dn[r1]
+        return ((t0 > SLACK) & (t0 <= 1.0) & (dn0 <= 0.0) & (-dn0 < sin_h1 * along0)) | \
+            ((1.0 - t1 > SLACK) & (t1 >= 0.0) & (dn1 <= 0.0) & (-dn1 < sin_h1 * along1))
     deep = -PASSED_DEPTH * d9
     r0, r1 = base + w, base + prv[w]      # the edges (w, next w), w at t = 0, and (prev w, w)
     t0, l0, dn0 = rows.t[r0], rows.l[r0], rows.dn[r0]

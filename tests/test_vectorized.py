@@ -383,11 +383,11 @@ def _last_keys(model, cint):
     return np.sort(contact_keys(cint, model.n_vertices))
 
 
-@pytest.mark.parametrize("depth", [1e-12, -1e-7])
+@pytest.mark.parametrize("depth", [1e-12, 0.0])
 def test_a_corner_pair_handed_to_the_vertex_edge_rules_stays_handed_while_a_vertex_lies_past_its_partner(depth):
     """The persistent hand-over (docs/method/dda.md §3.4). The passed corners, handed to the
     vertex-edge rules at 1e-4 deep, then pushed out by their vertex-edge contact to within
-    PASSED_DEPTH × d9 of the edge (1e-12 behind it) or 0.1 µm clear of it: read without memory
+    PASSED_DEPTH × d9 of the edge (1e-12 behind it) or onto its line: read without memory
     they are one vertex-vertex contact again (and were, every other step: 2,018 hand-overs in
     1,057 of the 1,319 steps of the 4-5-6-7 stack's slow ramp at 18°), but with the last step's
     contacts' keys (``narrow_phase``'s ``last_keys``) the pair keeps its two vertex-edge
@@ -412,6 +412,11 @@ def test_a_corner_pair_handed_to_the_vertex_edge_rules_stays_handed_while_a_vert
     _, back, _, _ = _passed_corners(1e-12, slide=-2e-3)
     cint, _ = vectorized.detect_contacts(model, back, None, handed)
     assert not {tuple(r) for r in cint.tolist()} & {(VE, Q, P, -1, -1), (VE, P, Q, -1, -1)}
+    # or once the vertices are clear of the edges' lines (0.1 µm: the block lifted off; a
+    # hand-over kept there held an open contact at an edge's end, ntdda's push block)
+    _, clear, _, _ = _passed_corners(-1e-7)
+    cint, _ = vectorized.detect_contacts(model, clear, None, handed)
+    assert [r[0] for r in cint.tolist() if {b[r[1]], b[r[2]]} == {0, 3}] == [VV]
 
 
 def test_an_open_corner_contact_carries_no_normal_force_from_a_line_it_does_not_use():
