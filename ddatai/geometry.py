@@ -18,7 +18,7 @@ from .memo import GeometryMemo, key
 #: (abs(sin) of the turning angle). Shapely's noding leaves such vertices at T-junctions; they are
 #: removed because a flat vertex duplicates the edge contacts around it.
 COLLINEAR_TOL = 1e-10
-#: polygons of at most this many vertices keep their validated form (`ddatai.memo`)
+#: polygons of at most this many vertices keep their validated form (``ddatai.memo``)
 MEMO_VERTICES = 256
 #: scenes of at most this many vertices keep their overlap check and kgm's edge contacts
 MEMO_SCENE_VERTICES = 20_000

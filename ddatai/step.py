@@ -292,7 +292,7 @@ class Stepper:
     def adopt_detection(self, other: "Stepper") -> None:
         """This stepper's NumPy detection caches (its last detection, its candidate pairs and
         their topology) as ``other``'s, whose model's detection reads the same data
-        (`ddatai.batch_detect.detection_key`): the same answers as its own detection, without
+        (``ddatai.batch_detect.detection_key``): the same answers as its own detection, without
         it (copies, so that no caller's edit reaches the other)."""
         model, xy, cint, length, keys = other._detected
         self._detected = (self.model, xy.copy(), cint.copy(), length.copy(), None if keys is None else keys.copy())

@@ -243,7 +243,7 @@ def assemble_contact_loads(cint: I32_2, state: I8_1, line: I8_1, vblock: I32_1, 
     """The F part of `assemble_contacts` alone, its K terms left out: each closed contact's
     −k·d0·∇d of its springs and a sliding one's friction, the same terms added in the same
     order (an iterate whose K is kept, `ddatai.reassembly`). Its NumPy twin is
-    `ddatai.reassembly.contact_rhs`."""
+    ``ddatai.reassembly.contact_rhs``."""
     ti.loop_config(serialize=serial)
     for c in range(cint.shape[0]):
         st = state[c]

@@ -45,16 +45,16 @@ class StudyLevel:
 @dataclass(frozen=True, kw_only=True, eq=False)
 class DesignPoint:
     """FORM's design point (`kgm.Study.design_point`): the most probable combination of the
-    inputs at which the slope fails; the variables with the largest |α| drive failure."""
+    inputs at which the slope fails; the variables with the largest ‖α‖ drive failure."""
 
     values: dict
     """The variables at the design point, in their units: name -> value."""
     u: np.ndarray
     """The design point in standard normal space (d,) [-]."""
     beta: float
-    """Reliability index |u*| (negative where the median inputs fail) [-]."""
+    """Reliability index ‖u*‖ (negative where the median inputs fail) [-]."""
     alpha: dict
-    """Sensitivity of each sampled variable: αᵢ = −(∂g/∂uᵢ)/|∇g| (Σ αᵢ² = 1; αᵢ < 0: failure
+    """Sensitivity of each sampled variable: αᵢ = −(∂g/∂uᵢ)/‖∇g‖ (Σ αᵢ² = 1; αᵢ < 0: failure
     lies towards low values of the variable's normal score) [-]."""
     fs: float
     """FS at the design point (≈ 1) [-]."""

@@ -46,7 +46,7 @@ def _rare(study, what: str) -> None:
 
 
 def important_variables(study) -> list:
-    """The sampled variables, those that drive failure most first: by |α| of the design point
+    """The sampled variables, those that drive failure most first: by ‖α‖ of the design point
     (importance sampling), or by how far the failed samples of the last level lie from the
     median along each normal score (subset simulation)."""
     names = [k for k in study.variables if np.ptp(study.table[k]) > 0.0] or list(study.variables)

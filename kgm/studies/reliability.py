@@ -14,7 +14,7 @@ its workers. A nan value (a sample that could not be evaluated) counts as safe (
   n·(1 + (1 − p0)·log(P_f)/log(p0)) evaluations.
 * `form`: the design point u* (the most probable failure point, nearest the origin on g = 0)
   by HL-RF iterations with a merit line search (Zhang & Der Kiureghian 1995), gradients by
-  forward differences; β = ±|u*| and P_f ≈ Φ(−β).
+  forward differences; β = ±‖u*‖ and P_f ≈ Φ(−β).
 * `importance_sampling`: samples of N(u*, I) weighted by φ(u)/φ(u − u*) (Melchers 1989): an
   unbiased P_f with its sampling c.o.v.
 
@@ -273,9 +273,9 @@ class FormResult:
     u: np.ndarray
     """Design point u* in standard normal space (d,) [-]."""
     beta: float
-    """Reliability index: |u*|, negative where g(0) ≤ 0 (the median point fails) [-]."""
+    """Reliability index: ‖u*‖, negative where g(0) ≤ 0 (the median point fails) [-]."""
     alpha: np.ndarray
-    """Unit vector −∇g/|∇g| at u* (d,): the importance of each variable, αᵢ² summing to 1 [-]."""
+    """Unit vector −∇g/‖∇g‖ at u* (d,): the importance of each variable, αᵢ² summing to 1 [-]."""
     g: float
     """g(u*) [units of g]."""
     iterations: int
@@ -295,9 +295,9 @@ def form(g: Callable, dim: int, *, start: Optional[np.ndarray] = None, step: flo
          max_iterations: int = 50) -> FormResult:
     """The design point of g by the improved HL-RF iteration (module docstring): from u, with
     g and its forward-difference gradient ∇g (steps of ``step`` in u, one batch of dim + 1
-    points), the HL-RF point u' = ((∇g·u − g)/|∇g|²)·∇g, reached along u' − u by halving the
-    step until the merit ½|u|² + c·|g| (c = 2|u|/|∇g| + 1) decreases. Stops when |g| ≤ tol·|g(start)|
-    and u is parallel to ∇g within ``tol``, or the step is shorter than tol·max(1, |u|)."""
+    points), the HL-RF point u' = ((∇g·u − g)/‖∇g‖²)·∇g, reached along u' − u by halving the
+    step until the merit ½‖u‖² + c·‖g‖ (c = 2‖u‖/‖∇g‖ + 1) decreases. Stops when ‖g‖ ≤ tol·‖g(start)‖
+    and u is parallel to ∇g within ``tol``, or the step is shorter than tol·max(1, ‖u‖)."""
     _check(dim, 2, 0)
     u = np.zeros(dim) if start is None else np.array(start, dtype=float).reshape(dim)
     if not (step > 0.0 and tol > 0.0):

@@ -214,8 +214,8 @@ def recession_directions(normals: np.ndarray, tol: float = 1e-10) -> Optional[np
 
 
 def chebyshev_centre(normals: np.ndarray, offsets: np.ndarray, bound: float) -> tuple[np.ndarray, float]:
-    """Centre and radius of the largest ball inside {x: A x ≤ b} (|x|∞ ≤ ``bound``), by
-    `scipy.optimize.linprog`: maximise r subject to aᵢ·x + r|aᵢ| ≤ bᵢ."""
+    """Centre and radius of the largest ball inside {x: A x ≤ b} (‖x‖∞ ≤ ``bound``), by
+    `scipy.optimize.linprog`: maximise r subject to aᵢ·x + r‖aᵢ‖ ≤ bᵢ."""
     from scipy.optimize import linprog
 
     a = np.asarray(normals, dtype=float)

@@ -14,7 +14,7 @@ Barton–Bandis: the project's joint law `ddatai.BartonBandis.tan_friction`, the
 Water forces are part of r, so Nᵢ is the effective normal force. Then
 
     FS = (Σ Qᵢ − p·ŝ) / S                       (sliding on one or two planes)
-    FS = max(0, −p·r̂) / |r|                      (falling: only passive support holds it)
+    FS = max(0, −p·r̂) / ‖r‖                      (falling: only passive support holds it)
     FS = ∞                                       (no admissible mode)
 
 and the block's acceleration along ŝ when it is not held is a = (S − ΣQᵢ + p·ŝ)/m.
@@ -264,7 +264,7 @@ def required_force(contacts: Sequence[Contact], active: np.ndarray, passive: Opt
     With ``direction`` None the direction is the optimum for the current mode (closed form:
     Hoek & Bray's minimum anchor force, Wyllie & Mah eq. III.99–III.111, extended to passive
     forces and any faces): FS = F is linear in the force T along d, Q₀ + T g·d = F(S₀ − T ŝ·d),
-    so T = (F·S₀ − Q₀)/|g + F ŝ'| along d ∥ g − F ŝ. A mode that changes on the way (contact
+    so T = (F·S₀ − Q₀)/‖g + F ŝ'‖ along d ∥ g − F ŝ. A mode that changes on the way (contact
     lost on a face) is caught by re-solving along that direction with a root search on the full
     equilibrium. Returns (0, d) when FS already reaches the target.
     """
