@@ -2,7 +2,7 @@
 batch — the samples of a probabilistic study, the probes of a bisection round — are one group
 on one geometry at different joint strengths, so each member's first detection, at t = 0 (its
 screen's and its first pseudo-step's, `ddatai.start`), finds the same contacts. It is done once
-for the members whose detection reads the same data (`detection_key`: every field of the
+for the members whose detection reads the same data (``detection_key``: every field of the
 model and of the state that the NumPy broad and narrow phases read), and handed to the others
 with the candidate pairs and their topology (`ddatai.step.Stepper.adopt_detection`): each
 member's detections then give, to the bit, what its own would have given.

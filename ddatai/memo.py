@@ -5,9 +5,9 @@ cohesion (`kgm.probabilistic`, the critical-friction search): the block polygons
 overlap check and their edge contacts are the same each time, and their checks and searches
 (shapely, a few hundred NumPy calls) cost as much as the rest of a small model's build. The
 functions that do them are functions of the vertex coordinates alone; each keeps its last
-results here under the exact bytes of its input (`key`), so a repeated geometry gets the very
+results here under the exact bytes of its input (``key``), so a repeated geometry gets the very
 result it got before, the same floats, and any other input (a coordinate one ulp away) is
-computed afresh. A result is handed out as a copy (`GeometryMemo.get`): a caller may change
+computed afresh. A result is handed out as a copy (``GeometryMemo.get``): a caller may change
 what it gets. Errors are never kept: bad input raises each time.
 """
 
