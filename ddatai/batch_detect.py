@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .memo import key
+
 
 def detection_key(model, vertex_xy: np.ndarray):
     """The data that a NumPy detection of ``model`` at ``vertex_xy`` reads
@@ -24,8 +26,8 @@ def detection_key(model, vertex_xy: np.ndarray):
         return None
     arrays = (vertex_xy, model.vertex_next, model.vertex_prev, model.vertex_block, model.vertex_offset,
               model.block_fixed)
-    return tuple((a.dtype.str, a.shape, a.tobytes()) for a in (np.asarray(x) for x in arrays)) + \
-        (float(model.search_distance), float(model.max_penetration), float(model.params.angle_tolerance))
+    return key(*(np.asarray(x) for x in arrays), float(model.search_distance), float(model.max_penetration),
+               float(model.params.angle_tolerance))
 
 
 def share_detection(steppers, states) -> int:
@@ -34,13 +36,13 @@ def share_detection(steppers, states) -> int:
     first: dict = {}
     shared = 0
     for stepper, state in zip(steppers, states):
-        key = detection_key(stepper.model, state.vertex_xy)
-        if key is None:
+        k = detection_key(stepper.model, state.vertex_xy)
+        if k is None:
             continue
-        if key not in first:
+        if k not in first:
             stepper.detect(state.vertex_xy)
-            first[key] = stepper
+            first[k] = stepper
         else:
-            stepper.adopt_detection(first[key])
+            stepper.adopt_detection(first[k])
             shared += 1
     return shared

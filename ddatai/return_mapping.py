@@ -18,7 +18,7 @@ import numpy as np
 from scipy.sparse import csr_matrix
 
 from .assembly import BlockPattern, assemble_blocks, contact_vectors
-from .contact_law import contact_law, stage_law
+from .contact_law import stage_law
 from .contacts import Contacts
 from .kinematics import block_displacement
 from .layout import KIND, LOCK, OPEN, SLIDE, VE
