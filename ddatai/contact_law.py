@@ -21,6 +21,7 @@ from typing import Optional
 
 import numpy as np
 
+from . import side_by_side
 from .contacts import Contacts, barton_tan
 from .layout import KIND, LOCK, OPEN, S_E0, S_E1, S_ES, S_G0, S_G1, S_GS, SLIDE, VV
 from .model import Model
@@ -172,6 +173,7 @@ def _law_core(m: Model, contacts: Contacts, vec: np.ndarray, sca: np.ndarray, di
     return dn, ds, line, closed, strength, dn_now, tan_phi, vv, ve, allowance
 
 
+@side_by_side.operation("contact_law_numpy")
 def contact_law_numpy(model: Model, contacts: Contacts, vec: np.ndarray, sca: np.ndarray,
                       disp: np.ndarray, shift: Optional[np.ndarray] = None) -> ContactLaw:
     """The contact law at the displacements ``disp`` (§2.8, §4.3), without changing
@@ -227,6 +229,7 @@ class StageLaw:
     tan_phi: Optional[np.ndarray] = None
 
 
+@side_by_side.operation("stage_law")
 def stage_law(model: Model, contacts: Contacts, vec: np.ndarray, sca: np.ndarray, disp: np.ndarray):
     """`contact_law` of the equilibrium stage's return mapping (its contacts coupled: the
     strength of this solve's N): on the NumPy path only the fields it reads (`StageLaw`: its

@@ -16,6 +16,7 @@ program costs a fraction of a millisecond where alone it costs tens of them.
 from __future__ import annotations
 
 from contextlib import contextmanager
+from functools import partial
 
 import numpy as np
 
@@ -29,13 +30,16 @@ def settle_many(models, states=None) -> list:
     """Each model settled by its own equilibrium stage (`ddatai.start.settle`, from its initial
     state or ``states[k]``), the first programs of their screens solved side by side first
     (`screened_ahead`): the settled states, as each stage alone gives them."""
+    from . import side_by_side
     from .start import settle
     from .step import Stepper
 
     steppers = [Stepper(m) for m in models]
     states = [m.initial_state() for m in models] if states is None else list(states)
     with screened_ahead(steppers, states):
-        return [settle(st, s)[0] for st, s in zip(steppers, states)]
+        # side by side: each member's stage as alone, their contact assembly and law evaluated
+        # for all the members waiting at them at once (`ddatai.side_by_side`)
+        return [out[0] for out in side_by_side.run([partial(settle, st, s) for st, s in zip(steppers, states)])]
 
 
 @contextmanager
