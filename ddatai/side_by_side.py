@@ -26,6 +26,9 @@ from __future__ import annotations
 
 from typing import Callable
 
+#: run members side by side where greenlet is installed (False: one after the other, as without
+#: it; the benchmarks' reference)
+ENABLED = True
 #: whether members are running side by side somewhere (checked first: costs nothing otherwise)
 ACTIVE = 0
 #: {name: the plain function} of the side by side operations (`operation`)
@@ -129,7 +132,7 @@ def run(calls) -> list:
     ``calls``)."""
     global ACTIVE
     calls = list(calls)
-    if len(calls) < 2 or not _greenlets() or type(_current()) is _Member:
+    if len(calls) < 2 or not ENABLED or not _greenlets() or type(_current()) is _Member:
         return [c() for c in calls]
     from . import stage_batch  # noqa: F401  (registers the operations' batched implementations)
 

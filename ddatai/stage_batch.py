@@ -26,6 +26,7 @@ import numpy as np
 from . import side_by_side
 from .assembly import contact_terms_numpy
 from .contact_law import ContactLaw, StageLaw, _law_core, friction_force, friction_terms, friction_used
+from .kinematics import vertex_displacement
 from .layout import LOCK, OPEN, SLIDE
 
 def _offsets(sizes) -> np.ndarray:
@@ -188,6 +189,29 @@ def contact_law_many(requests) -> list:
     return out
 
 
+# ------------------------------------------------------------------ how far blocks move
+def block_displacement_many(requests) -> list:
+    """`kinematics.block_displacement` of each request (each vertex moved by its block's D with
+    the exact rotation, the largest of each block's), one evaluation over all."""
+    args = [_bound(a, kw, ("model", "vertex_xy", "geom", "disp")) for a, kw in requests]
+    models = [a[0] for a in args]
+    n_blocks = [m.n_blocks for m in models]
+    n_vertices = [len(m.vertex_block) for m in models]
+    block = _cat([m.vertex_block for m in models]) + np.repeat(_offsets(np.array(n_blocks)), n_vertices)
+    start = _cat([m.vertex_offset[:-1] for m in models]) + np.repeat(_offsets(np.array(n_vertices)), n_blocks)
+    xy = _cat([a[1] for a in args])
+    model = SimpleNamespace(vertex_block=block)
+    moved = vertex_displacement(model, xy, {"centroid": _cat([a[2]["centroid"] for a in args])},
+                                _cat([a[3] for a in args]))
+    return _split(np.maximum.reduceat(moved, start), _offsets(np.array(n_blocks)), n_blocks)
+
+
+def _displacement_group(*args, **kwargs):
+    model = args[0] if args else kwargs["model"]
+    return ("displacement",) if len(model.vertex_block) else None
+
+
+side_by_side.register("block_displacement", _displacement_group, block_displacement_many)
 side_by_side.register("assemble_contacts", _assembly_group, assemble_contacts_many)
 side_by_side.register("stage_law", _law_group, stage_law_many)
 side_by_side.register("contact_law_numpy", _law_group, contact_law_many)
