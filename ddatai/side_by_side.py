@@ -24,6 +24,7 @@ other (the same results).
 
 from __future__ import annotations
 
+from collections import Counter
 from typing import Callable
 
 #: run members side by side where greenlet is installed (False: one after the other, as without
@@ -38,6 +39,8 @@ _PLAIN: dict = {}
 #: the results, one a request, each request the ``(args, kwargs)`` of one member's call (an
 #: exception instance among them is raised in that member)
 _BATCHED: dict = {}
+#: {(name, whether members were evaluated together): evaluations} since the process started
+EVALUATIONS: Counter = Counter()
 _Member = None      # the greenlet class of a member (`_greenlets`)
 _current = None     # greenlet.getcurrent
 
@@ -102,6 +105,7 @@ def _evaluate(name: str, requests: list) -> list:
     """The results of ``requests`` of operation ``name``: batched, or each alone where there is
     one or where the batched implementation raises (an error then goes to its own member)."""
     plain = _PLAIN[name]
+    EVALUATIONS[name, len(requests) > 1] += 1
     if len(requests) > 1:
         try:
             return _BATCHED[name][1](requests)
@@ -114,6 +118,9 @@ def _evaluate(name: str, requests: list) -> list:
         except Exception as err:
             outs.append(_Raise(err))
     return outs
+
+
+_START = object()  # a member's first switch: its call begins
 
 
 class _Raise:
@@ -143,7 +150,10 @@ def run(calls) -> list:
 
     def advance(k, value):
         try:
-            out = members[k].throw(value.err) if isinstance(value, _Raise) else members[k].switch(value)
+            if value is _START:
+                out = members[k].switch()
+            else:
+                out = members[k].throw(value.err) if isinstance(value, _Raise) else members[k].switch(value)
         except Exception as err:  # the member's own error, raised once the others finish
             errors[k] = err
             return
@@ -155,7 +165,7 @@ def run(calls) -> list:
     ACTIVE += 1
     try:
         for k in range(len(calls)):
-            advance(k, None)
+            advance(k, _START)
         while waiting:
             groups: dict = {}
             for k, req in waiting.items():
