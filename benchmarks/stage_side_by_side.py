@@ -1,7 +1,7 @@
 """A batch's equilibrium stages side by side (``ddatai.side_by_side``) against one after the
 other, in one process.
 
-    python benchmarks/stage_side_by_side.py [--samples 200] [--batch 40] [--rounds 3]
+    python benchmarks/stage_side_by_side.py [--samples 200] [--batch 40] [--rounds 3] [--evaluate 11]
 
 The members of Example II's DDA-judged study (``benchmarks/stage_levers.py``'s samples: group
 {0, 1} of ``scenes/example_2.py``, friction N(22°, 2°), cohesion N(20 kPa, 5 kPa), correlated
@@ -16,6 +16,11 @@ contact memory) with its record's held, released and solves. Threads pinned (BLA
 
 Prints the CPU ms a member of a batch's stages takes each way, their ratio, the median ratio of
 the pairs, and whether every member's settled state and record are the same to the bit.
+
+``--evaluate N``: then ``kgm.evaluate(Example I, [0, 1], "dda")`` (``scenes/example_1.py``, its
+own parameters) with the fused kernel loaded in the process, once to warm, then N pairs alternating side by side and one after the other:
+the median CPU and wall seconds of a call each way, the median pair ratio, how many calls took
+at most 0.5 s, and each way's critical friction and FS (the same in every call).
 """
 
 from __future__ import annotations
@@ -44,6 +49,7 @@ def main() -> None:
     ap.add_argument("--samples", type=int, default=200)
     ap.add_argument("--batch", type=int, default=40)
     ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--evaluate", type=int, default=0)
     a = ap.parse_args()
     from ddatai import side_by_side
     from ddatai.limit_batch import screened_ahead
@@ -78,6 +84,36 @@ def main() -> None:
           f"batch's stages; {held} of {a.samples} members hold blocks); ratio {off / on:.3f}, median pair "
           f"{pairs:.3f}; every settled state and record the same to the bit: {same}; load "
           f"{os.getloadavg()[0]:.1f}")
+    if a.evaluate:
+        evaluate(a.evaluate)
+
+
+def evaluate(pairs: int) -> None:
+    import kgm
+    from ddatai import side_by_side
+    from scenes import example_1
+
+    from ddatai.fused import warm
+
+    warm.warm()  # the fused kernel in this process (from Taichi's offline cache): kgm's bisection takes it
+    scene, params = example_1.build()
+    kgm.evaluate(scene, [0, 1], "dda", params=params)  # what the first call needs
+    got = {True: [], False: []}
+    for r in range(pairs):
+        for together in ((True, False) if r % 2 else (False, True)):
+            side_by_side.ENABLED = together
+            c, w = time.process_time(), time.perf_counter()
+            row = kgm.evaluate(scene, [0, 1], "dda", params=params)
+            got[together].append((time.process_time() - c, time.perf_counter() - w, round(row.critical_friction, 6),
+                                  round(row.fs, 6)))
+    side_by_side.ENABLED = True
+    for together, label in ((True, "side by side"), (False, "one after the other")):
+        g = got[together]
+        print(f"kgm.evaluate(Example I, [0, 1], 'dda') {label}: CPU median {statistics.median(x[0] for x in g):.3f} s, "
+              f"wall median {statistics.median(x[1] for x in g):.3f} s, <= 0.5 s CPU in "
+              f"{sum(x[0] <= 0.5 for x in g)} of {len(g)}; (critical friction, FS): {sorted({x[2:] for x in g})}")
+    ratio = statistics.median(b[0] / a[0] for a, b in zip(got[True], got[False]))
+    print(f"median pair ratio (one after the other / side by side, CPU) {ratio:.3f}; load {os.getloadavg()[0]:.1f}")
 
 
 if __name__ == "__main__":
