@@ -51,7 +51,7 @@ def main() -> None:
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--evaluate", type=int, default=0)
     a = ap.parse_args()
-    from ddatai import side_by_side
+    from ddatai import side_by_side, stage_batch  # noqa: F401  (registers the stage's operations)
     from ddatai.limit_batch import screened_ahead
     from ddatai.start import settle
     from ddatai.step import Stepper

@@ -83,7 +83,7 @@ def main() -> None:
     blocks = frozenset({0, 1})
     rows, runs, subs = [], [], []
     try:
-        from ddatai import side_by_side
+        from ddatai import side_by_side, stage_batch  # noqa: F401  (registers the stage's operations)
     except ImportError:  # before the stages ran side by side
         side_by_side = None
     try:

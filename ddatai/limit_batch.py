@@ -30,7 +30,7 @@ def settle_many(models, states=None) -> list:
     """Each model settled by its own equilibrium stage (`ddatai.start.settle`, from its initial
     state or ``states[k]``), the first programs of their screens solved side by side first
     (`screened_ahead`): the settled states, as each stage alone gives them."""
-    from . import side_by_side
+    from . import side_by_side, stage_batch  # noqa: F401  (stage_batch: the stage's operations side by side)
     from .start import settle
     from .step import Stepper
 

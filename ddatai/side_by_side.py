@@ -83,7 +83,7 @@ def operation(name: str) -> Callable:
         _PLAIN[name] = fn
 
         def side_by_side(*args, **kwargs):
-            if ACTIVE and type(_current()) is _Member:
+            if ACTIVE and type(_current()) is _Member and name in _BATCHED:
                 key = _BATCHED[name][0](*args, **kwargs)
                 if key is not None:
                     return _current().parent.switch(_Request(name, key, args, kwargs))
@@ -97,7 +97,9 @@ def operation(name: str) -> Callable:
 
 
 def register(name: str, group: Callable, batched: Callable) -> None:
-    """The group and the batched implementation of the operation ``name`` (`operation`)."""
+    """The group and the batched implementation of the operation ``name`` (`operation`; the
+    equilibrium stage's are `ddatai.stage_batch`'s, registered where it is imported). An
+    operation without them runs alone in each member."""
     _BATCHED[name] = (group, batched)
 
 
@@ -141,8 +143,6 @@ def run(calls) -> list:
     calls = list(calls)
     if len(calls) < 2 or not ENABLED or not _greenlets() or type(_current()) is _Member:
         return [c() for c in calls]
-    from . import stage_batch  # noqa: F401  (registers the operations' batched implementations)
-
     results: list = [None] * len(calls)
     errors: dict = {}
     waiting: dict = {}

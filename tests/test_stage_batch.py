@@ -13,7 +13,7 @@ from functools import partial
 import numpy as np
 import pytest
 
-from ddatai import limit_batch, side_by_side
+from ddatai import limit_batch, side_by_side, stage_batch  # noqa: F401  (registers the stage's operations)
 from ddatai.start import settle
 from ddatai.step import Stepper
 from test_limit_batch import study_models
