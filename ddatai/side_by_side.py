@@ -19,7 +19,8 @@ order, so each member gets its own floats to the bit), and resumes them with the
 A member whose control flow goes its own way simply waits less often with the others.
 
 Without ``greenlet`` installed, or with a single member, the computations run one after the
-other (the same results).
+other (the same results). Side by side, a member's wall-clock records (`StartRecord.wall_time`)
+count the time of the members beside it too.
 """
 
 from __future__ import annotations
