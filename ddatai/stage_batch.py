@@ -12,8 +12,8 @@ its own terms in its own order: each member's result is, to the bit, the one its
 
 - ``assemble_contacts`` (`ddatai.assembly.assemble_contacts`): the contact springs and friction
   loads added into each member's K and F, in place;
-- ``stage_law`` (`ddatai.contact_law.stage_law`): the return mapping's contact law;
-- ``contact_law_numpy`` (`ddatai.contact_law.contact_law_numpy`): the whole law (the
+- ``stage_law`` (``ddatai.contact_law.stage_law``): the return mapping's contact law;
+- ``contact_law_numpy`` (``ddatai.contact_law.contact_law_numpy``): the whole law (the
   open-close iteration of the stage's finish and tests, the balance check).
 """
 
