@@ -10,7 +10,7 @@ shapes and the same calls, one member after the other.
 `run` runs each member's computation in its own greenlet (a coroutine with its own stack, the
 ``greenlet`` package): the member's code is the code that runs alone — every decision of its
 stage made by the same functions, in the same order — and where it reaches one of the *side by
-side operations* (`operation`: the contact assembly, the contact law), it hands its arguments
+side operations* (``operation``: the contact assembly, the contact law), it hands its arguments
 to the scheduler and waits. When every member waits (or has finished), the scheduler takes the
 largest group of members waiting at the same operation with the same constants, evaluates
 the operation once over their arrays concatenated with a member axis (`ddatai.stage_batch`:
