@@ -25,9 +25,8 @@ import numpy as np
 
 from . import side_by_side
 from .assembly import contact_terms_numpy
-from .contact_law import ContactLaw, StageLaw, _law_core, friction_force, friction_terms, friction_used
+from .contact_law import ContactLaw, StageLaw, _law_core, _law_terms, friction_terms
 from .kinematics import vertex_displacement
-from .layout import LOCK, OPEN, SLIDE
 
 def _offsets(sizes) -> np.ndarray:
     """Where each member's entries start in the concatenation of arrays of ``sizes``."""
@@ -50,20 +49,25 @@ def _split(a: np.ndarray, starts: np.ndarray, counts) -> list:
     return [a[s:s + n] for s, n in zip(starts.tolist(), counts)]
 
 
-def _contacts(models, contacts, counts):
-    """The members' contacts (the fields the law reads) concatenated, their vertices and blocks
-    moved by the members before them."""
-    n_blocks = np.array([m.n_blocks for m in models])
+#: the contact fields that each operation reads besides ``cint``
+_ASSEMBLY_FIELDS = ("state", "line", "shear_dir", "coupled", "cohesion", "length", "bond", "normal_force", "tan_phi")
+_STAGE_LAW_FIELDS = ("line", "bond", "tensile", "length", "tan_phi", "cohesion")
+_LAW_FIELDS = _STAGE_LAW_FIELDS + ("coupled", "normal_force", "state", "shear_dir")
+
+
+def _contacts(models, contacts, counts, fields, blocks: bool):
+    """The members' contacts concatenated (``fields``, ``cint`` with its vertices moved by the
+    members' before them, and with ``blocks`` their blocks so moved)."""
     n_vertices = np.array([len(m.vertex_block) for m in models])
-    block_at = np.repeat(_offsets(n_blocks), counts)
     cint = _cat([c.cint for c in contacts])
     vertex_at = np.repeat(_offsets(n_vertices), counts)[:, None]
     cint = np.concatenate([cint[:, :1], np.where(cint[:, 1:] >= 0, cint[:, 1:] + vertex_at, cint[:, 1:])], axis=1)
-    fields = {k: _cat([getattr(c, k) for c in contacts])
-              for k in ("line", "bond", "tensile", "length", "tan_phi", "cohesion", "coupled", "normal_force",
-                        "state", "shear_dir")}
-    return SimpleNamespace(cint=cint, block_a=_cat([c.block_a for c in contacts]) + block_at,
-                           block_b=_cat([c.block_b for c in contacts]) + block_at, n=int(sum(counts)), **fields)
+    out = SimpleNamespace(cint=cint, n=int(sum(counts)), **{k: _cat([getattr(c, k) for c in contacts]) for k in fields})
+    if blocks:
+        block_at = np.repeat(_offsets(np.array([m.n_blocks for m in models])), counts)
+        out.block_a = _cat([c.block_a for c in contacts]) + block_at
+        out.block_b = _cat([c.block_b for c in contacts]) + block_at
+    return out
 
 
 # ------------------------------------------------------------------ the contact assembly
@@ -84,7 +88,7 @@ def assemble_contacts_many(requests) -> list:
     datas, rhss = [a[5] for a in args], [a[6] for a in args]
     counts = [c.n for c in contacts]
     m0 = models[0]
-    c = _contacts(models, contacts, counts)
+    c = _contacts(models, contacts, counts, _ASSEMBLY_FIELDS, blocks=False)
     const, slope = friction_terms(m0, c)
     data_at = _offsets(np.array([len(d) for d in datas]))
     rows = np.array([len(m.block_dof) for m in models])
@@ -129,12 +133,12 @@ def _bound(args, kwargs, names) -> list:
     return out
 
 
-def _law_inputs(requests):
+def _law_inputs(requests, fields):
     args = [_bound(a, kw, _LAW_ARGS) for a, kw in requests]
     models = [a[0] for a in args]
     contacts = [a[1] for a in args]
     counts = [c.n for c in contacts]
-    c = _contacts(models, contacts, counts)
+    c = _contacts(models, contacts, counts, fields, blocks=True)
     sca = _cat([a[3] for a in args])
     shifts = [a[5] for a in args]
     shift = None if all(s is None for s in shifts) else \
@@ -146,7 +150,7 @@ def _law_inputs(requests):
 
 def stage_law_many(requests) -> list:
     """`contact_law.stage_law` of each request (a NumPy-path model), one `_law_core` over all."""
-    c, counts, m, vec, sca, disp, _ = _law_inputs(requests)
+    c, counts, m, vec, sca, disp, _ = _law_inputs(requests, _STAGE_LAW_FIELDS)
     dn, ds, line, closed, strength, dn_now, _, _, _, _ = _law_core(m, c, vec, sca, disp, None)
     fn = np.where(closed, -m.penalty * dn, 0.0)
     at = _offsets(np.array(counts))
@@ -158,34 +162,17 @@ def stage_law_many(requests) -> list:
 def contact_law_many(requests) -> list:
     """`contact_law.contact_law_numpy` of each request, the law's terms over all at once; each
     member's energy summed over its own contacts, as alone."""
-    c, counts, m, vec, sca, disp, shift = _law_inputs(requests)
-    dn, ds, line, closed, strength, dn_now, tan_phi, vv, ve, allowance = _law_core(m, c, vec, sca, disp, shift)
-    used = np.where(c.coupled, strength, friction_force(c))
-    trial = m.shear_penalty * ds
-    stick = np.abs(trial) <= used
-    ft = np.where(closed & ve, np.where(stick, trial, np.sign(ds) * used), 0.0)
-    state = np.where(closed, np.where(ve & stick, LOCK, SLIDE), OPEN).astype(np.int8)
-    normal_energy = 0.5 * m.penalty * np.where(dn <= allowance, dn * dn, allowance * allowance)
-    limit = used / m.shear_penalty
-    huber = np.where(np.abs(ds) <= limit, 0.5 * m.shear_penalty * ds * ds, used * (np.abs(ds) - 0.5 * limit))
-    now = c.state
-    fn_now = np.where(now == OPEN, 0.0, -m.penalty * dn_now)
-    friction_now = friction_used(m, c, dn_now)
-    ft_now = np.where(now == LOCK, trial, np.where(now == SLIDE, c.shear_dir * friction_now, 0.0))
-    ft_now[vv] = 0.0
-    direction = np.where(ds >= 0, 1, -1).astype(np.int8)
-    fn = np.where(closed, -m.penalty * dn, 0.0)
+    c, counts, m, vec, sca, disp, shift = _law_inputs(requests, _LAW_FIELDS)
+    dn, ds, line, closed, strength, dn_now, _, vv, ve, allowance = _law_core(m, c, vec, sca, disp, shift)
+    terms, normal_energy, huber = _law_terms(m, c, dn, ds, closed, strength, dn_now, vv, ve, allowance)
     at = _offsets(np.array(counts))
-    fields = (dn, ds, line, closed, state, direction, fn, ft, strength, dn_now, fn_now, ft_now, friction_now)
-    parts = [_split(x, at, counts) for x in fields]
+    fields = dict(dn=dn, ds=ds, line=line, closed=closed, strength=strength, dn_now=dn_now, **terms)
+    parts = {k: _split(x, at, counts) for k, x in fields.items()}
     out = []
-    for k, p in enumerate(zip(*parts)):
-        s, n = int(at[k]), counts[k]
-        shear = (closed[s:s + n] & ve[s:s + n])
+    for k, (s, n) in enumerate(zip(at.tolist(), counts)):
+        shear = closed[s:s + n] & ve[s:s + n]
         energy = float(np.sum(normal_energy[s:s + n]) + np.sum(huber[s:s + n][shear]))
-        out.append(ContactLaw(dn=p[0], ds=p[1], line=p[2], closed=p[3], state=p[4], direction=p[5], fn=p[6],
-                              ft=p[7], strength=p[8], dn_now=p[9], fn_now=p[10], ft_now=p[11],
-                              friction_now=p[12], energy=energy, tan_phi=None))
+        out.append(ContactLaw(energy=energy, tan_phi=None, **{name: part[k] for name, part in parts.items()}))
     return out
 
 

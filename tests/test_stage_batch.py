@@ -111,3 +111,61 @@ def test_an_operation_s_error_is_its_member_s_own(members):
     assert out[1] == "raised"
     np.testing.assert_array_equal(out[0], block_displacement(m, m.vertex_xy0, geom, disp))
     np.testing.assert_array_equal(out[2], out[0])
+
+
+def test_each_operation_over_many_members_gives_each_its_own_floats(members):
+    """`ddatai.stage_batch`'s operations on members with other contact counts (Example II's
+    group at three strengths, its contacts at t = 0 less one or two, locked, some sliding with
+    coupled friction, a random D): every field of each member's result, and its K data and F,
+    equal its own call's to the bit."""
+    from ddatai.assembly import BlockPattern, assemble_blocks, assemble_contacts, contact_vectors
+    from ddatai.contact_law import contact_law_numpy, stage_law
+    from ddatai.contacts import Contacts
+    from ddatai.kinematics import block_displacement
+    from ddatai.layout import SLIDE
+    from ddatai.model import ContactMemory
+
+    from ddatai.return_mapping import subset_contacts
+
+    rng = np.random.default_rng(7)
+    calls = []
+    for k, m in enumerate(members[:3]):
+        st, s = Stepper(m), m.initial_state()
+        c = Contacts.start(m, s.vertex_xy, *st.detect(s.vertex_xy), ContactMemory.empty(), True)
+        c = subset_contacts(c, np.arange(c.n) < c.n - k)  # other contact counts
+        c.state[::3] = SLIDE
+        c.coupled[::2] = True
+        c.normal_force[:] = rng.uniform(0.0, 1e5, c.n)
+        geom = m.block_geometry(s.vertex_xy)
+        vec, sca = contact_vectors(m, s.vertex_xy, geom, c)
+        pattern = BlockPattern.build(m, c)
+        data, rhs = assemble_blocks(m, s, geom, pattern, 1.0, 0.5, static_start=True)
+        disp = np.where(m.block_fixed[:, None], 0.0, rng.normal(0.0, 1e-4, (m.n_blocks, 6)))
+        calls.append((m, c, vec, sca, disp, geom, pattern, data, rhs))
+    assert len({c.n for _, c, *_ in calls}) == 3
+    # one group: the constants that members evaluated together share
+    assert len({stage_batch._law_group(m, c, vec, sca, disp) for m, c, vec, sca, disp, *_ in calls}) == 1
+    assert len({stage_batch._assembly_group(m, c) for m, c, *_ in calls}) == 1
+    law = {"stage_law": (stage_law, stage_batch.stage_law_many),
+           "contact_law_numpy": (contact_law_numpy, stage_batch.contact_law_many)}
+    for plain, many in law.values():
+        together = many([((m, c, vec, sca, disp), {}) for m, c, vec, sca, disp, *_ in calls])
+        for (m, c, vec, sca, disp, *_), got in zip(calls, together):
+            want = plain.__wrapped__(m, c, vec, sca, disp)
+            for name, value in vars(want).items():
+                if isinstance(value, np.ndarray):
+                    np.testing.assert_array_equal(getattr(got, name), value, err_msg=name)
+                else:
+                    assert getattr(got, name) == value, name
+    alone = [(data.copy(), rhs.copy()) for *_, data, rhs in calls]
+    for (m, c, vec, sca, _, _, pattern, _, _), (data, rhs) in zip(calls, alone):
+        assemble_contacts.__wrapped__(m, c, pattern, vec, sca, data, rhs, False)
+    stage_batch.assemble_contacts_many([((m, c, pattern, vec, sca, data, rhs, False), {})
+                                        for m, c, vec, sca, _, _, pattern, data, rhs in calls])
+    for (*_, data, rhs), (want_data, want_rhs) in zip(calls, alone):
+        np.testing.assert_array_equal(data, want_data)
+        np.testing.assert_array_equal(rhs, want_rhs)
+    moved = stage_batch.block_displacement_many([((m, m.vertex_xy0, geom, disp), {})
+                                                 for m, _, _, _, disp, geom, *_ in calls])
+    for (m, _, _, _, disp, geom, *_), got in zip(calls, moved):
+        np.testing.assert_array_equal(got, block_displacement.__wrapped__(m, m.vertex_xy0, geom, disp))
