@@ -166,6 +166,13 @@ class Params:
     """Impacts: closing past this × the penetration limit (``ddatai.impacts``; None: off) [-]."""
     midstep_lever_arms: bool = True
     """Contact vertices' lever arms at mid-step (docs/method/dda.md §5.3; False: the step start's)."""
+    lever_arm_rotation: Literal["iterate", "predicted"] = "iterate"
+    """The rotation the mid-step lever arms are taken at: "iterate", each solve's latest iterate
+    (every contact vertex's column of K moves at every solve); "predicted", the rotation the
+    step's carried motion predicts, the same for all its solves, so that its solves' K differ
+    only where contacts change state and the later solves follow the last factor (GMRES,
+    CHOLMOD updates). The distances stay exact at each iterate; the lever arm's slope is the
+    midpoint's to O(r̄·(r̄ − r_pred)) (docs/method/dda.md §5.3, `ddatai.lever_arm`)."""
     dt_min_ratio: float = 1e-4
     """Smallest time step, as a fraction of ``dt`` (or ``dt_max``) [-]. A step that cannot be
     made to converge above it stops the run with a `SimulationError`."""
@@ -325,6 +332,8 @@ class Params:
                  f"got {self.oc_force_tolerance!r}")
         _require(self.oc_friction in ("lagged", "coupled"),
                  f"Params.oc_friction must be 'lagged' or 'coupled', got {self.oc_friction!r}")
+        _require(self.lever_arm_rotation in ("iterate", "predicted"),
+                 f"Params.lever_arm_rotation must be 'iterate' or 'predicted', got {self.lever_arm_rotation!r}")
         _require(self.oc_force_reference in ("load", "strength"),
                  f"Params.oc_force_reference must be 'load' or 'strength', got {self.oc_force_reference!r}")
         _require(self.dt_min_ratio < 1.0, f"Params.dt_min_ratio must be < 1, got {self.dt_min_ratio!r}")
