@@ -16,6 +16,12 @@ levers of the symmetric step:
 - ``lagged+predicted``: lagged friction (a symmetric K) with them;
 - ``lagged+predicted+updates``: and CHOLMOD's rank updates (``factor_updates``, [cholmod]).
 
+``--krylov-check``: the solver's test of whether a later solve may try GMRES (how many blocks'
+rows of K changed since the factor, `ddatai.iterative.changed_blocks`) against its sorting twin
+(``changed_blocks_reference``, the code before it), on the K of every solve of ``--steps``
+steps of the first variant, alternating, each timed ``--rounds`` × 5 times: the median ms of
+each, their ratio, and whether every answer is the same.
+
 Prints, per variant and round: median wall and CPU ms a step, CPU s per simulated second (the
 variants' Δt may differ), solves and factorisations (LU among them) a step, the solves done by
 GMRES with the last factor, by CHOLMOD updates, by refinement; and the median of the rounds.
@@ -106,6 +112,48 @@ COLUMNS = ("ms", "cpu_ms", "cpu_per_sim", "solve_ms", "solves", "factorisations"
            "reused", "dt_ms", "cuts")
 
 
+def krylov_check(scene, params, state, fields: dict, steps: int, rounds: int) -> None:
+    """The ``--krylov-check`` comparison (module docstring)."""
+    import ddatai as dd
+    from ddatai import iterative
+    from ddatai.solver import SparseSolver
+    from ddatai.step import Stepper
+
+    cases = []
+    original = SparseSolver._solve_krylov
+
+    def record(self, data, indices, indptr, rhs, n):
+        if self._factored_data is not None and len(self._factored_data) == len(data):
+            cases.append((np.array(data), self._factored_data.copy(), indptr))
+        return original(self, data, indices, indptr, rhs, n)
+
+    SparseSolver._solve_krylov = record
+    try:
+        stepper = Stepper(dd.build_model(scene, dataclasses.replace(params, **fields)))
+        for _ in range(steps):
+            state, _ = stepper.step(state)
+    finally:
+        SparseSolver._solve_krylov = original
+    times = {"changed_blocks": [], "changed_blocks_reference": []}
+    same = True
+    for r in range(rounds * 5):
+        for name in (times if r % 2 == 0 else list(times)[::-1]):
+            f = getattr(iterative, name)
+            t0 = time.perf_counter()
+            answers = [f(*c) for c in cases]
+            times[name].append((time.perf_counter() - t0) / max(len(cases), 1) * 1e3)
+            if name == "changed_blocks":
+                new = answers
+            else:
+                old = answers
+        same &= new == old
+    med = {k: statistics.median(v) for k, v in times.items()}
+    print(f"krylov check on {len(cases)} solves' K ({len(cases[0][0]) if cases else 0} entries): "
+          f"changed_blocks {med['changed_blocks']:.3f} ms, reference {med['changed_blocks_reference']:.3f} ms, "
+          f"ratio {med['changed_blocks'] / med['changed_blocks_reference']:.3f}; same answers: {same}; "
+          f"blocks changed (median) {statistics.median(new) if cases else 0}", flush=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--family", default="slope", choices=tuple(SCENES))
@@ -114,9 +162,13 @@ def main() -> None:
     ap.add_argument("--warmup", type=int, default=1)
     ap.add_argument("--rounds", type=int, default=2)
     ap.add_argument("--variant", action="append", default=None, help="NAME=FIELD=VALUE,... (repeatable)")
+    ap.add_argument("--krylov-check", action="store_true", help="time the solver's GMRES test (docstring)")
     args = ap.parse_args()
     variants = [v.split("=", 1) for v in (args.variant or DEFAULT_VARIANTS)]
     scene, params, state = settled_state(args.family, args.size)
+    if args.krylov_check:
+        krylov_check(scene, params, state, parse_params(variants[0][1]), args.steps, args.rounds)
+        return
     results: dict = {name: [] for name, _ in variants}
     print(f"{args.family} {args.size}: {args.steps} steps after {args.warmup}, {args.rounds} rounds; "
           f"load {os.getloadavg()[0]:.2f}", flush=True)
