@@ -254,7 +254,7 @@ class Params:
     (`STRICT_CONVERGENCE`)."""
     oc_friction: Literal["coupled", "lagged"] = "coupled"
     """Sliding friction: "coupled", N of the same solve (an LU); "lagged", N of the last solve as a load (a
-    Cholesky; coupled where it stalls): 2–6× the solves on the failing slope (docs/guide/performance.md)."""
+    Cholesky; coupled where it stalls): 1.4–6× the solves on the failing slope (docs/guide/performance.md)."""
     factor_updates: bool = False
     """CHOLMOD rank updates where states change (stage, lagged; `ddatai.updates`); off: no time saved."""
     oc_state_tolerance: float = 1e-3
