@@ -10,7 +10,11 @@ its outcome as an ``OpenClose`` value.
 
 The later solves of the iteration differ from the last factorised K by the contacts that
 changed state: they are tried by GMRES preconditioned by that factor (`ddatai.solver`,
-``krylov``) while few blocks' rows changed.
+``krylov``) while few blocks' rows changed. With the contact vertices' lever arms at each
+iterate's rotation (`ddatai.lever_arm`, the default) every turning contact's rotation column
+moves as well; ``Params.lever_arm_rotation = "predicted"`` keeps the step's predicted rotation
+for them through all its solves (one array of contact vectors), so that only the contacts whose
+state changed move K (docs/method/dda.md §5.3).
 
 Friction (``Params.oc_friction``): "coupled" (the default) takes a sliding contact's friction
 from the normal force of the same solve (a non-symmetric term in K, an LU); "lagged" solves with each sliding contact's friction from
