@@ -119,6 +119,7 @@ from .mechanisms import FALL_IN_SIZES, mechanisms, restore, sunk_into_released, 
 from .return_mapping import STAGE_BETA, Frame, coupled, return_mapping, subset_contacts
 from .threads import dense_solves
 from .turn_on import feasible, turn_on
+from .in_doubt import watched
 #: at most this many pseudo-steps (each re-solves the increment at the settled geometry; the
 #: second is ~strain × the first, the third round-off)
 MAX_PSEUDO_STEPS = 8
@@ -168,6 +169,9 @@ class StartRecord:
     turn_on_steps: int = 0
     """Steps of the slow gravity turn-on that settled the stage's doubt (`ddatai.turn_on`; 0:
     none ran) [-]."""
+    in_doubt: int = 0
+    """Of the released blocks, those released in doubt (no converged test moved or held them):
+    the run's first steps resolve their rocking (`ddatai.in_doubt`, `State.in_doubt`) [-]."""
 
 
 #: the record of a model with nothing to settle
@@ -219,11 +223,12 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
     free = ~model.block_fixed
     initial = state
     released = unsupported_at_start(stepper, state) if screen and not welded else np.zeros(model.n_blocks, bool)
+    in_doubt = np.zeros(model.n_blocks, bool)  # released because no converged test decided
     solves = 0
     while True:
         doubt = np.zeros(model.n_blocks, bool) if slow else None
         state, last, memory, n, stalled, unsettled, failed = _pseudo_steps(stepper, initial, state, released, size,
-                                                                           dt, welded, doubt)
+                                                                           dt, welded, doubt, in_doubt)
         solves += n
         if doubt is not None and doubt.any() and not failed:
             slow_end = turn_on(stepper, initial, released, SUNK_FRACTION)
@@ -265,18 +270,20 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
     held = free & ~released
     moved = np.hypot(*(state.vertex_xy - initial.vertex_xy).T)
     settlement = float(np.max(moved[held[model.vertex_block]], initial=0.0))
+    in_doubt &= free & released
     record = StartRecord(solves=solves, held=int(np.count_nonzero(held)),
                          released=int(np.count_nonzero(free & released)), settlement=settlement,
                          at_strength=len(at_strength & set(memory.key.tolist())),
                          wall_time=_time.perf_counter() - t0, welded=welded, stalled=stalled,
-                         unsettled=unsettled)
-    return state.replace(memory=memory), record, True
+                         unsettled=unsettled, in_doubt=int(np.count_nonzero(in_doubt)))
+    return state.replace(memory=memory, in_doubt=watched(model, in_doubt)), record, True
 
 
 def _pseudo_steps(stepper, initial: State, state: State, released: np.ndarray, size: np.ndarray, dt: float,
-                  welded: bool, doubt: "np.ndarray | None" = None):
+                  welded: bool, doubt: "np.ndarray | None" = None, in_doubt: "np.ndarray | None" = None):
     """The pseudo-steps of `_stage` from ``state`` with the ``released`` blocks out (updated in
-    place with the blocks it releases; ``doubt``: with those in doubt, `return_mapping`). Returns (state, the last pseudo-step's contacts, their
+    place with the blocks it releases; ``doubt``: with those in doubt, ``in_doubt``: with those
+    released in doubt, `return_mapping`). Returns (state, the last pseudo-step's contacts, their
     memory, solves, stalled, unsettled, whether a pseudo-step found no equilibrium)."""
     model = stepper.model
     free = ~model.block_fixed
@@ -302,7 +309,7 @@ def _pseudo_steps(stepper, initial: State, state: State, released: np.ndarray, s
                 # pseudo-step first, which takes the first one's linearisation error out)
                 break
             disp, n, found, contacts, stalled = return_mapping(stepper, state, geom, contacts, dt, released,
-                                                                size, frame, doubt)
+                                                                size, frame, doubt, in_doubt)
         solves += n
         if disp is None:  # no equilibrium found
             return state, last, memory, solves, stalled, unsettled, True
