@@ -143,10 +143,8 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
     iteration has stalled, the pseudo-step ends there (*stalled*: its contacts handed over at
     most at their strength). ``doubt`` (where the stage can settle it by a slow turn-on,
     `ddatai.turn_on`): the blocks that the open-close test would release where limit equilibrium
-    holds every block are marked in it, in place, instead, and the pseudo-step ends stalled.
-    ``in_doubt``: otherwise, the blocks that it releases because that test did not converge
-    (released in doubt) are marked in it, in place (`ddatai.in_doubt`: the run's first steps
-    resolve their rocking).
+    holds every block are marked in it, in place, instead, and the pseudo-step ends stalled; else
+    ``in_doubt`` marks those released as that test did not converge (`ddatai.in_doubt`).
     Returns (D, or None when no equilibrium was found; solves; the newly released blocks; the
     contacts as handed over, `_hand_over`; whether it stalled)."""
     out = released.copy()

@@ -170,8 +170,8 @@ class StartRecord:
     """Steps of the slow gravity turn-on that settled the stage's doubt (`ddatai.turn_on`; 0:
     none ran) [-]."""
     in_doubt: int = 0
-    """Of the released blocks, those released in doubt (no converged test moved or held them):
-    the run's first steps resolve their rocking (`ddatai.in_doubt`, `State.in_doubt`) [-]."""
+    """Released blocks that no converged test moved or held (in doubt): their first steps are
+    resolved (`ddatai.in_doubt`) [-]."""
 
 
 #: the record of a model with nothing to settle
@@ -223,8 +223,7 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
     free = ~model.block_fixed
     initial = state
     released = unsupported_at_start(stepper, state) if screen and not welded else np.zeros(model.n_blocks, bool)
-    in_doubt = np.zeros(model.n_blocks, bool)  # released because no converged test decided
-    solves = 0
+    in_doubt, solves = np.zeros(model.n_blocks, bool), 0  # in_doubt: released as no converged test decided
     while True:
         doubt = np.zeros(model.n_blocks, bool) if slow else None
         state, last, memory, n, stalled, unsettled, failed = _pseudo_steps(stepper, initial, state, released, size,
@@ -265,12 +264,11 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
         # contacts sliding at their strength are handed over locked at it (force-continuous):
         # the stage ends in an equilibrium of springs, and they keep their bonds
         sliding = _lock_at_strength(stepper, last, state.vertex_xy)
-        at_strength |= _keys(last, sliding)
+        at_strength |= set(last.key[sliding].tolist())
         memory = last.memory(stepper.params.bond_breaks_on_slip)
     held = free & ~released
     moved = np.hypot(*(state.vertex_xy - initial.vertex_xy).T)
     settlement = float(np.max(moved[held[model.vertex_block]], initial=0.0))
-    in_doubt &= free & released
     record = StartRecord(solves=solves, held=int(np.count_nonzero(held)),
                          released=int(np.count_nonzero(free & released)), settlement=settlement,
                          at_strength=len(at_strength & set(memory.key.tolist())),
@@ -281,10 +279,9 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
 
 def _pseudo_steps(stepper, initial: State, state: State, released: np.ndarray, size: np.ndarray, dt: float,
                   welded: bool, doubt: "np.ndarray | None" = None, in_doubt: "np.ndarray | None" = None):
-    """The pseudo-steps of `_stage` from ``state`` with the ``released`` blocks out (updated in
-    place with the blocks it releases; ``doubt``: with those in doubt, ``in_doubt``: with those
-    released in doubt, `return_mapping`). Returns (state, the last pseudo-step's contacts, their
-    memory, solves, stalled, unsettled, whether a pseudo-step found no equilibrium)."""
+    """The pseudo-steps of `_stage` from ``state`` with the ``released`` blocks out (updated in place with
+    the blocks it releases; ``doubt``, ``in_doubt``: `return_mapping`'s). Returns (state, the last
+    pseudo-step's contacts, their memory, solves, stalled, unsettled, whether a pseudo-step found no equilibrium)."""
     model = stepper.model
     free = ~model.block_fixed
     memory = ContactMemory.empty()
@@ -450,10 +447,6 @@ def _welded_step(stepper, state: State, geom: dict, contacts: Contacts, dt: floa
         if not mechanism.any():
             return disp, solves, out & ~released, contacts
         out |= mechanism
-
-
-def _keys(contacts: Contacts, sel: np.ndarray) -> set:
-    return set(contacts.key[sel].tolist())
 
 
 def _lock_at_strength(stepper, contacts: Contacts, vertex_xy: np.ndarray) -> np.ndarray:

@@ -26,7 +26,7 @@ def test_a_stack_released_in_doubt_steps_at_a_resolved_time_step_and_rocks_away(
     """4-4-4 squares at 23.25°, 0.05 s: the stage releases 11 of the 12 blocks in doubt (one
     with certainty); every step is at most τ/80 = 1.23 ms (τ = 0.098 s, the squares' rocking
     time constant) where the default would grow to 10 ms, and at 0.05 s a vertex has moved
-    more than 1.2 mm (1.56–1.69 mm with Δt ≤ 0.5–2 ms, and 1.55 mm with this rule; 0.81 mm with
+    more than 1.2 mm (1.56–1.69 mm with Δt ≤ 0.5–2 ms, and 1.66 mm with this rule; 0.81 mm with
     the default 10 ms, on the way to standing). ~1 s idle."""
     res = dd.simulate(scene(CASES["squares 4-4-4"][0], 23.25), duration=0.05)
     start = res.start[0]
