@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 import ddatai as dd
 from ddatai import in_doubt
@@ -33,3 +34,38 @@ def test_a_stack_released_in_doubt_steps_at_a_resolved_time_step_and_rocks_away(
     assert start["released"] == 12 and start["in_doubt"] == 11 and start["held"] == 0
     assert float(res.steps["dt"].max()) <= TAU_SQUARE / in_doubt.RESOLVE * (1 + 1e-9)
     assert float(np.abs(res.vertices[-1] - res.vertices[0]).max()) > 1.2e-3
+
+
+def _square_on_plate():
+    """A 0.1 m square (τ = 0.098 s) on a fixed plate, its state with the square watched."""
+    sc = dd.Scene(gravity=9.81)
+    rock = dd.Material(density=2600.0, young=350e6, poisson=0.25)
+    sc.add_block([(-1.0, -0.1), (1.0, -0.1), (1.0, 0.0), (-1.0, 0.0)], material=rock, fixed=True)
+    sc.add_block([(0.0, 0.0), (0.1, 0.0), (0.1, 0.1), (0.0, 0.1)], material=rock)
+    model = dd.build_model(sc)
+    state = model.initial_state()
+    return model, state.replace(in_doubt=in_doubt.watched(model, np.array([False, True])))
+
+
+def test_the_watch_resolves_the_rocking_time_constant_and_ends_at_rest_or_when_moved_away():
+    """`ddatai.in_doubt` on one square: Δt ≤ τ/80 while watched (the automatic Δt otherwise 10
+    ms); watched before one τ even at rest; at rest (vertex speed < 1e-6·g·τ ≈ 1 µm/s) after τ
+    the watch ends; moving at 1 mm/s after τ it goes on; moved 0.11 m (more than its size,
+    0.1 m) the square leaves it; after 20 τ it ends whatever moves."""
+    from ddatai.time_step import choose_time_step
+
+    model, state = _square_on_plate()
+    geom = model.block_geometry(state.vertex_xy)
+    assert in_doubt.time_step(model, state, geom) == pytest.approx(TAU_SQUARE / 80.0, rel=1e-12)
+    assert choose_time_step(model, state, geom) <= TAU_SQUARE / 80.0 * (1 + 1e-12)
+    assert choose_time_step(model, state.replace(in_doubt=np.zeros(0, bool)), geom) > 5 * TAU_SQUARE / 80.0
+    early = state.replace(time=0.5 * TAU_SQUARE)
+    assert in_doubt.follow(model, state, early).any()
+    rest = state.replace(time=1.5 * TAU_SQUARE)
+    assert not in_doubt.follow(model, state, rest).any()
+    moving = rest.replace(block_velocity=np.array([[0.0] * 6, [1e-3, 0, 0, 0, 0, 0]]))
+    assert in_doubt.follow(model, state, moving).any()
+    assert not in_doubt.follow(model, state, moving.replace(time=20.5 * TAU_SQUARE)).any()
+    away = moving.replace(vertex_xy=state.vertex_xy + np.where(model.vertex_block[:, None] == 1, 0.11, 0.0),
+                          geometry=None)
+    assert not in_doubt.follow(model, state, away).any()

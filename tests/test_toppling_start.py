@@ -354,14 +354,16 @@ def test_stacks_released_in_doubt_topple_from_the_start_with_a_resolved_time_ste
 
 @pytest.mark.slow
 def test_a_stack_released_in_doubt_that_settles_ends_its_watch_at_rest():
-    """The 4-4-4 squares at 22.6°: the stage releases 12 blocks, 10 in doubt; their first steps
-    at Δt ≤ 1.23 ms settle them (a vertex moves ~2 mm, less than 5 mm), the watch ends at rest
-    (`State.in_doubt` empty by 0.5 s, ~320 steps) and the run goes on at the default time step
-    (a released block but stable stays put). ~10 s idle."""
+    """The 4-4-4 squares at 22.6°: the stage releases 12 blocks, 10 in doubt; at Δt ≤ 1.23 ms
+    the sudden gravity sets them leaning — a vertex moves 1.5 mm in 0.05 s, 6.8 mm in 0.2 s and
+    8.1 mm by 0.38 s (~1.2° at the top of a 0.4 m column, 40 % of the toppling criterion's 20 mm) —
+    and they lock there: not a µm more from 0.5 to 1 s. The watch ends at rest at 0.40 s (~330 steps),
+    and the run goes on at the default time step (10 ms). ~10 s idle."""
     case = CASES["squares 4-4-4"][0]
     res = dd.simulate(scene(case, 22.6), duration=1.0)
     assert (res.start["released"][0], res.start["in_doubt"][0]) == (12, 10)
-    moved = float(np.abs(res.vertices[-1] - res.vertices[0]).max())
-    assert moved < 5e-3, moved
+    moved = np.abs(res.vertices - res.vertices[0]).max(axis=(1, 2))
+    assert float(moved[-1]) < 1e-2, moved[-1]
+    assert float(moved[-1] - moved[int(np.searchsorted(res.time, 0.5))]) < 1e-6
     late = res.time[1:] > 0.5
     assert float(res.steps["dt"][late].max()) > 5e-3  # the watch has ended: default steps again
