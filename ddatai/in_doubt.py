@@ -21,7 +21,8 @@ every block leaves it once, after at least one τ, they rest (largest vertex spe
 REST × g·τ) or after MAX_TIMES × τ (a block creeping for ever does not keep the short steps).
 The held blocks and models without such releases step as before. The cost is the resolved
 steps of that window: ~RESOLVE a τ (`tests/test_in_doubt.py`, the closing table of
-docs/guide/equilibrium_start.md). The fused engine (`ddatai.fused`) does not apply it.
+docs/guide/equilibrium_start.md). The fused engine (`ddatai.fused`) does not apply it: a run or a
+kgm member with blocks released in doubt runs on today's path (`ddatai.run`, `kgm.judges.fused`).
 """
 
 from __future__ import annotations

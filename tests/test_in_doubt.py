@@ -69,3 +69,35 @@ def test_the_watch_resolves_the_rocking_time_constant_and_ends_at_rest_or_when_m
     away = moving.replace(vertex_xy=state.vertex_xy + np.where(model.vertex_block[:, None] == 1, 0.11, 0.0),
                           geometry=None)
     assert not in_doubt.follow(model, state, away).any()
+
+
+def test_runs_with_blocks_released_in_doubt_leave_the_fused_engine_for_today_s_path(monkeypatch):
+    """The fused engine has no resolved Δt for blocks released in doubt: `dd.simulate` asked for
+    it (``Params(kernels="fused")``) runs the 4-4-4 stack at 23.25° on today's path and says
+    why, and a kgm batch prepared for it (`kgm.judges.fused.run_prepared`) runs such a member on
+    today's path from its settled start; the engine is never called with it (it is not loaded
+    here: the stand-in below fails if it is). ~1 s idle."""
+    from types import SimpleNamespace
+
+    from ddatai.fused import engine
+    from ddatai.fused.pack import Member
+    from kgm.judges.fused import Prepared, run_prepared
+
+    sc = scene(CASES["squares 4-4-4"][0], 23.25)
+    res = dd.simulate(sc, dd.Params(kernels="fused"), steps=2)
+    assert res.meta["engine"]["name"] == "numpy" and "in doubt" in res.meta["engine"]["why"]
+    assert float(res.steps["dt"].max()) <= TAU_SQUARE / in_doubt.RESOLVE * (1 + 1e-9)
+
+    from ddatai.start import settle
+    from ddatai.step import Stepper
+
+    model = dd.build_model(sc)
+    state, _ = settle(Stepper(model), model.initial_state())
+    assert state.in_doubt.sum() == 11
+    monkeypatch.setattr(engine, "run", lambda runs, arch="cpu": pytest.fail("the fused engine was called"))
+    free = tuple(int(b) for b in np.flatnonzero(~model.block_fixed))
+    run = Member(model=model, state=state, t_end=0.01, stop_at=0.05, rest_limit=-1.0, rest_steps=10, group=free)
+    plan = SimpleNamespace(duration=0.01, delta=0.0125, params=dd.Params())
+    [judgement] = run_prepared(Prepared(runs=[run], plans=[plan], fields=[dict(friction=38.0, reduction=1.0, model_blocks=model.n_blocks, moving_blocks=len(free), scene_blocks=model.n_blocks)], seconds=0.0))
+    # today's path from the start: the whole 0.01 s at the resolved Δt (≥ 0.01 / 1.23 ms steps)
+    assert judgement.simulated == pytest.approx(0.01) and judgement.steps >= 8
