@@ -19,7 +19,7 @@ from ddatai.layout import VE, VV
 from ddatai.model import build_model
 from ddatai.step import Stepper
 from test_vectorized import SHIFTS, _moved, _passed_corners
-from toppling_cases import CASES, scene
+from toppling_cases import CASES, ramp_handovers, scene
 
 
 def _keys(model, cint):
@@ -182,3 +182,17 @@ def test_the_push_block_on_the_kernel_path_takes_ntdda_s_500_steps():
     (load,) = case.points
     assert len(res.steps) == 500 and res.time[-1] == pytest.approx(5.0, abs=1e-9)
     assert res.measured[-1, load.index, 0] == pytest.approx(17.5 + 0.5 * (5000.0 / 450.0) * 5.0 ** 2, rel=3e-4)
+
+
+@pytest.mark.slow
+def test_the_kernel_path_keeps_the_4_5_6_7_stack_s_hand_overs_as_the_numpy_path():
+    """The 4-5-6-7 squares under the turned 20-constant ramp at 18° on the Taichi kernels
+    (`toppling_cases.ramp_handovers`; the NumPy path's check is
+    tests/test_toppling_start.py::test_the_persistent_corner_hand_over_on_the_4_5_6_7_slow_load):
+    measured 6 hand-overs in 6 of 652 steps, the largest kick 0.06 g·Δt, the stack stands, as on
+    the NumPy path (read afresh each step: 2,018 hand-overs, and the kicks toppled it). ~25 s
+    loaded."""
+    out = ramp_handovers(CASES["squares 4-5-6-7"][0], 18.0, "turned", 20.0, kernels="taichi")
+    assert not out["toppled"]
+    assert out["handovers"] <= 10 and out["steps_with"] <= 10, out
+    assert out["kick"] < 1.0, out
