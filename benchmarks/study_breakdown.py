@@ -9,7 +9,8 @@ it, each phase timed on its own: the screen (the scene built, prepared and judge
 limit equilibrium), the sub-model (``sub_scene`` and ``build_model``), each member's
 equilibrium stage (``ddatai.start.settle``: held or released, its solves), the packing of a
 launch and the fused kernel's runs (``ddatai.fused.engine.run``, batches of ``--batch``
-members: each member's steps and how its run ended). Threads are pinned (BLAS and Taichi one
+members: each member's steps and how its run ended). Where the stages run side by side
+(`ddatai.side_by_side`), a member's stage time is its share of its batch's. Threads are pinned (BLAS and Taichi one
 thread each); the fused kernel is loaded (from Taichi's offline cache) before anything is
 timed, by default in this process's CPU seconds (``--clock wall``: wall time). Prints a table
 and, with ``--json``, every member's figures. ``--root``: the checkout whose
@@ -32,6 +33,7 @@ for _k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "TI_CPU
 
 import statistics  # noqa: E402
 from contextlib import nullcontext  # noqa: E402
+from functools import partial  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -81,6 +83,10 @@ def main() -> None:
     blocks = frozenset({0, 1})
     rows, runs, subs = [], [], []
     try:
+        from ddatai import side_by_side, stage_batch  # noqa: F401  (registers the stage's operations)
+    except ImportError:  # before the stages ran side by side
+        side_by_side = None
+    try:
         from ddatai.limit_batch import screened_ahead
     except ImportError:  # before the programs were solved side by side
         screened_ahead = None
@@ -110,11 +116,20 @@ def main() -> None:
         context = screened_ahead(steppers, states) if screened_ahead is not None else nullcontext()
         with context:
             ahead += clock() - t0
-            for k, ((model, plan, ids), st, s0) in enumerate(zip(part, steppers, states)):
+            if side_by_side is not None:
+                # the batch's stages side by side (`ddatai.side_by_side`): a member's stage time is
+                # its share of the batch's
                 t4 = clock()
-                state, record = settle(st, s0)
-                t5 = clock()
-                rows[b0 + k].update(stage=t5 - t4, stage_solves=int(record.solves), held=int(record.held),
+                settled = side_by_side.run([partial(settle, st, s0) for st, s0 in zip(steppers, states)])
+                share = (clock() - t4) / len(part)
+            for k, ((model, plan, ids), st, s0) in enumerate(zip(part, steppers, states)):
+                if side_by_side is None:
+                    t4 = clock()
+                    state, record = settle(st, s0)
+                    share = clock() - t4
+                else:
+                    state, record = settled[k]
+                rows[b0 + k].update(stage=share, stage_solves=int(record.solves), held=int(record.held),
                                     released=int(record.released))
                 runs.append((Run(model=model, state=state, t_end=plan.duration, stop_at=plan.stop_at,
                                  rest_limit=-1.0 if plan.rest_speed is None else plan.rest_speed,

@@ -20,7 +20,7 @@ from typing import Optional
 
 import numpy as np
 
-from . import vectorized
+from . import side_by_side, vectorized
 from .contact_law import friction_terms
 from .contacts import Contacts
 from .geometry import displacement_matrix, mass_matrix
@@ -210,6 +210,7 @@ def assemble_blocks(model: Model, state: State, geom: dict, pattern: BlockPatter
     return data, rhs
 
 
+@side_by_side.operation("assemble_contacts")
 def assemble_contacts(model: Model, contacts: Contacts, pattern: BlockPattern, vec: np.ndarray,
                       sca: np.ndarray, data: np.ndarray, rhs: np.ndarray, serial_scatter: bool) -> None:
     """Add springs of closed contacts and friction loads of sliding ones, in place (§2.8)."""

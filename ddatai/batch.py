@@ -185,7 +185,15 @@ def combined_state(batch: Batch, model: Model, members: Sequence[Model], states:
         load_xy=np.concatenate([moved(k, s.load_xy) for k, s in enumerate(states)]).reshape(-1, 2),
         measured_xy=np.concatenate([moved(k, s.measured_xy) for k, s in enumerate(states)]).reshape(-1, 2),
         dt=max(s.dt for s in states), accel=max(s.accel for s in states),
-        memory=ContactMemory(key=key[order], **joined), energy=energy, **extra)
+        memory=ContactMemory(key=key[order], **joined), energy=energy, in_doubt=_in_doubt(members, states), **extra)
+
+
+def _in_doubt(members: Sequence[Model], states: Sequence[State]) -> np.ndarray:
+    """The batch's `State.in_doubt`: the members' blocks released in doubt (empty: none)."""
+    if not any(s.in_doubt.any() for s in states):
+        return np.zeros(0, bool)
+    return np.concatenate([s.in_doubt if s.in_doubt.any() else np.zeros(m.n_blocks, bool)
+                           for m, s in zip(members, states)])
 
 
 def member_states(batch: Batch, model: Model, members: Sequence[Model], state: State,
@@ -237,5 +245,6 @@ def member_states(batch: Batch, model: Model, members: Sequence[Model], state: S
             fixed_point_xy=part("fixed_point_xy", "fixed_point_block") - back,
             load_xy=part("load_xy", "load_block") - back,
             measured_xy=part("measured_xy", "measured_block") - back,
-            dt=state.dt, accel=state.accel, memory=memory, energy=None, **extra))
+            dt=state.dt, accel=state.accel, memory=memory, energy=None,
+            in_doubt=state.in_doubt[b0:b1].copy() if state.in_doubt.any() else np.zeros(0, bool), **extra))
     return out

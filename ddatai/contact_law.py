@@ -21,6 +21,7 @@ from typing import Optional
 
 import numpy as np
 
+from . import side_by_side
 from .contacts import Contacts, barton_tan
 from .layout import KIND, LOCK, OPEN, S_E0, S_E1, S_ES, S_G0, S_G1, S_GS, SLIDE, VV
 from .model import Model
@@ -172,6 +173,7 @@ def _law_core(m: Model, contacts: Contacts, vec: np.ndarray, sca: np.ndarray, di
     return dn, ds, line, closed, strength, dn_now, tan_phi, vv, ve, allowance
 
 
+@side_by_side.operation("contact_law_numpy")
 def contact_law_numpy(model: Model, contacts: Contacts, vec: np.ndarray, sca: np.ndarray,
                       disp: np.ndarray, shift: Optional[np.ndarray] = None) -> ContactLaw:
     """The contact law at the displacements ``disp`` (§2.8, §4.3), without changing
@@ -187,6 +189,16 @@ def contact_law_numpy(model: Model, contacts: Contacts, vec: np.ndarray, sca: np
     m = model
     dn, ds, line, closed, strength, dn_now, tan_phi, vv, ve, allowance = _law_core(m, contacts, vec, sca, disp,
                                                                                   shift)
+    fields, normal_energy, huber = _law_terms(m, contacts, dn, ds, closed, strength, dn_now, vv, ve, allowance)
+    energy = float(np.sum(normal_energy) + np.sum(huber[closed & ve]))
+    return ContactLaw(dn=dn, ds=ds, line=line, closed=closed, strength=strength, dn_now=dn_now, energy=energy,
+                      tan_phi=tan_phi if len(m.joint_barton) else None, **fields)
+
+
+def _law_terms(m, contacts, dn, ds, closed, strength, dn_now, vv, ve, allowance):
+    """The rest of `contact_law_numpy` from `_law_core`'s terms: ({state, direction, fn, ft,
+    fn_now, ft_now, friction_now}, each contact's normal spring energy, its shear (Huber)
+    energy), element-wise (`ddatai.stage_batch` evaluates it for many members at once)."""
     # the friction the next solve can apply: N of the last one (or of this one, coupled)
     used = np.where(contacts.coupled, strength, friction_force(contacts))
     trial = m.shear_penalty * ds
@@ -198,18 +210,16 @@ def contact_law_numpy(model: Model, contacts: Contacts, vec: np.ndarray, sca: np
     normal_energy = 0.5 * m.penalty * np.where(dn <= allowance, dn * dn, allowance * allowance)
     limit = used / m.shear_penalty
     huber = np.where(np.abs(ds) <= limit, 0.5 * m.shear_penalty * ds * ds, used * (np.abs(ds) - 0.5 * limit))
-    energy = float(np.sum(normal_energy) + np.sum(huber[closed & ve]))
     # the forces of the current states at this D
     now = contacts.state
     fn_now = np.where(now == OPEN, 0.0, -m.penalty * dn_now)
     friction_now = friction_used(m, contacts, dn_now)
     ft_now = np.where(now == LOCK, trial, np.where(now == SLIDE, contacts.shear_dir * friction_now, 0.0))
     ft_now[vv] = 0.0
-    return ContactLaw(dn=dn, ds=ds, line=line, closed=closed, state=state,
-                      direction=np.where(ds >= 0, 1, -1).astype(np.int8), fn=np.where(closed, -m.penalty * dn, 0.0),
-                      ft=ft, strength=strength, dn_now=dn_now, fn_now=fn_now, ft_now=ft_now,
-                      friction_now=friction_now, energy=energy,
-                      tan_phi=tan_phi if len(m.joint_barton) else None)
+    fields = dict(state=state, direction=np.where(ds >= 0, 1, -1).astype(np.int8),
+                  fn=np.where(closed, -m.penalty * dn, 0.0), ft=ft, fn_now=fn_now, ft_now=ft_now,
+                  friction_now=friction_now)
+    return fields, normal_energy, huber
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -227,6 +237,7 @@ class StageLaw:
     tan_phi: Optional[np.ndarray] = None
 
 
+@side_by_side.operation("stage_law")
 def stage_law(model: Model, contacts: Contacts, vec: np.ndarray, sca: np.ndarray, disp: np.ndarray):
     """`contact_law` of the equilibrium stage's return mapping (its contacts coupled: the
     strength of this solve's N): on the NumPy path only the fields it reads (`StageLaw`: its

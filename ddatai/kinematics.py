@@ -10,6 +10,7 @@ from typing import Optional
 
 import numpy as np
 
+from . import side_by_side
 from .contacts import Contacts
 from .model import Model, State
 from .params import Params
@@ -63,6 +64,7 @@ def vertex_displacement(model: Model, vertex_xy: np.ndarray, geom: dict, disp: n
     return np.hypot(moved[:, 0], moved[:, 1])
 
 
+@side_by_side.operation("block_displacement")
 def block_displacement(model: Model, vertex_xy: np.ndarray, geom: dict, disp: np.ndarray) -> np.ndarray:
     """(B,) largest vertex displacement of each block [m]."""
     return np.maximum.reduceat(vertex_displacement(model, vertex_xy, geom, disp), model.vertex_offset[:-1])

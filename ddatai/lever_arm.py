@@ -73,6 +73,22 @@ def midstep_lever_arms(model: Model, contacts: Contacts, vertex_xy: np.ndarray, 
     return columns, shift
 
 
+def lever_shift(contacts: Contacts, columns: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+    """(m, 3) the shift of the constant parts (dn line 0, dn line 1, ds) that keeps the distances
+    exact at ``rotation`` r̄ (each block's rotation in the latest iterate) with the lever-arm
+    ``columns`` of `midstep_lever_arms` taken at another rotation (``Params.lever_arm_rotation
+    = "predicted"``): −column·r̄ of the contact vertex's block, as `midstep_lever_arms` gives it
+    with columns and r̄ of the same rotation."""
+    shift = np.zeros((contacts.n, 3))
+    if contacts.n == 0:
+        return shift
+    rot_a, rot_b = rotation[contacts.block_a], rotation[contacts.block_b]
+    shift[:, 0] = -columns[:, S_E0] * rot_a
+    shift[:, 1] = np.where(contacts.cint[:, KIND] == VV, -columns[:, S_E1] * rot_b, 0.0)
+    shift[:, 2] = -columns[:, S_ES] * rot_a
+    return shift
+
+
 def with_lever_arms(vec: np.ndarray, columns: np.ndarray) -> np.ndarray:
     """The contact vectors ``vec`` (m, N_SLOTS, 6) with ``columns`` added to their rotation
     column (a copy; ``vec`` itself where nothing changes)."""

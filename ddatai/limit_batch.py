@@ -15,7 +15,8 @@ program costs a fraction of a millisecond where alone it costs tens of them.
 
 from __future__ import annotations
 
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
+from functools import partial
 
 import numpy as np
 
@@ -28,14 +29,24 @@ SIDE_BY_SIDE = 2
 def settle_many(models, states=None) -> list:
     """Each model settled by its own equilibrium stage (`ddatai.start.settle`, from its initial
     state or ``states[k]``), the first programs of their screens solved side by side first
-    (`screened_ahead`): the settled states, as each stage alone gives them."""
+    (`screened_ahead`), then the stages side by side (`ddatai.side_by_side`: each runs its own
+    code, the contact assembly, contact law and block displacements of the members waiting at
+    them evaluated at once, `ddatai.stage_batch`): the settled states, as each stage alone gives
+    them, to the bit."""
+    from . import side_by_side, stage_batch  # noqa: F401  (stage_batch: the stage's operations side by side)
     from .start import settle
     from .step import Stepper
+    from .threads import one_blas_thread
 
     steppers = [Stepper(m) for m in models]
     states = [m.initial_state() for m in models] if states is None else list(states)
-    with screened_ahead(steppers, states):
-        return [settle(st, s)[0] for st, s in zip(steppers, states)]
+    # one BLAS-thread limit around the whole batch: a member's stage opens its own, and side by
+    # side the first to finish would give the threads back while the others still solve
+    threads = one_blas_thread() if all(st.solver.backend == "dense" for st in steppers) else nullcontext()
+    with screened_ahead(steppers, states), threads:
+        # side by side: each member's stage as alone, their contact assembly and law evaluated
+        # for all the members waiting at them at once (`ddatai.side_by_side`)
+        return [out[0] for out in side_by_side.run([partial(settle, st, s) for st, s in zip(steppers, states)])]
 
 
 @contextmanager

@@ -171,24 +171,25 @@ def _moved_by(point: np.ndarray, centroid: np.ndarray, disp: np.ndarray) -> np.n
 
 
 def loaded_away(stepper, state: State, geom: dict, frame, contacts: Contacts, outcome, guess,
-                out: np.ndarray, size: np.ndarray, converged_only: bool = False) -> tuple[np.ndarray, int]:
+                out: np.ndarray, size: np.ndarray, converged_only: bool = False) -> tuple[np.ndarray, int, bool]:
     """The blocks out of balance where the return mapping stopped (`out_of_balance`) that move
     away in the open-close test (`test_unbalanced`) as their loads drive them (`driven`):
     mechanisms. ``converged_only``: where that iteration does not converge, every out-of-balance
     block (an unconverged iterate throws blocks that a converged one holds, but nothing then
-    proves them held: in doubt, release). Returns (mechanism, solves)."""
+    proves them held: in doubt, release). Returns (mechanism, solves, whether it was released in
+    doubt: the run's first steps then resolve its rocking, `ddatai.in_doubt`)."""
     unbalanced = out_of_balance(stepper.model, contacts, outcome)
     tested, solves = test_unbalanced(stepper, state, geom, frame, contacts, outcome, guess, unbalanced)
     if tested is None:
-        return np.zeros(stepper.model.n_blocks, bool), solves
+        return np.zeros(stepper.model.n_blocks, bool), solves, False
     if converged_only and not tested[2]:
         # the test did not converge: nothing proves these blocks held, and a stage handing them
         # over held would start a toppling stack at rest (forces that non-associated friction
         # cannot reach exist for it). In doubt, they are released: a block released but stable
         # stays where it is in the first steps (docs/guide/equilibrium_start.md)
-        return unbalanced & ~out, solves
+        return unbalanced & ~out, solves, True
     moving = unbalanced & mechanisms(stepper, state.vertex_xy, geom, tested[1], tested[0], out, size)
-    return driven(stepper, state, geom, tested[1], tested[0], moving), solves
+    return driven(stepper, state, geom, tested[1], tested[0], moving), solves, False
 
 
 def sunk_into_released(stepper, state: State, released: np.ndarray, fraction: float) -> np.ndarray:

@@ -282,6 +282,9 @@ class State:
     """(nb,) time at the end of that step [s] (NaN while intact)."""
     bolt_broken_force: np.ndarray = field(default_factory=lambda: np.zeros(0))
     """(nb,) tension that broke it [N/m] (NaN while intact)."""
+    in_doubt: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    """(B,) the blocks that the equilibrium stage released in doubt and whose first steps the
+    automatic Δt resolves, until they rest or move away (`ddatai.in_doubt`); empty: none."""
 
     def replace(self, **changes) -> "State":
         return replace(self, **changes)

@@ -10,7 +10,11 @@ its outcome as an ``OpenClose`` value.
 
 The later solves of the iteration differ from the last factorised K by the contacts that
 changed state: they are tried by GMRES preconditioned by that factor (`ddatai.solver`,
-``krylov``) while few blocks' rows changed.
+``krylov``) while few blocks' rows changed. With the contact vertices' lever arms at each
+iterate's rotation (`ddatai.lever_arm`, the default) every turning contact's rotation column
+moves as well; ``Params.lever_arm_rotation = "predicted"`` keeps the step's predicted rotation
+for them through all its solves (one array of contact vectors), so that only the contacts whose
+state changed move K (docs/method/dda.md §5.3).
 
 Friction (``Params.oc_friction``): "coupled" (the default) takes a sliding contact's friction
 from the normal force of the same solve (a non-symmetric term in K, an LU); "lagged" solves with each sliding contact's friction from
@@ -35,7 +39,7 @@ import numpy as np
 from scipy.sparse import csr_matrix
 
 from .assembly import BlockPattern, assemble_contacts, second_order
-from .lever_arm import midstep_lever_arms, with_lever_arms
+from .lever_arm import lever_shift, midstep_lever_arms, with_lever_arms
 from .contact_law import ContactLaw, contact_law, internal_force, judge, violations
 from .contacts import Contacts
 from .layout import KIND, LOCK, OPEN, SLIDE, VV
@@ -127,14 +131,24 @@ def open_close(stepper, state: State, geom: dict, contacts: Contacts, pattern: B
     history = [contacts.state.copy()]
     held = np.zeros(contacts.n, bool)
     start_vec = vec  # the contact vectors at the step's start; each solve's have its lever arms
+    frozen = None    # the lever arms at the predicted rotation, for all solves (`Params.lever_arm_rotation`)
     for it in range(1, max_iterations + 1):
         t0 = _time.perf_counter()
         data, rhs = data0.copy(), rhs0.copy()
         shift = second_order(model, contacts, state, geom, rotation, rhs)
         if stepper.params.midstep_lever_arms:  # the contacts' lever arms at mid-step (`ddatai.lever_arm`, §5.3)
-            columns, lever_shift = midstep_lever_arms(model, contacts, state.vertex_xy, geom["centroid"], rotation)
-            vec = with_lever_arms(start_vec, columns)
-            shift += lever_shift
+            if stepper.params.lever_arm_rotation == "iterate":
+                columns, moved = midstep_lever_arms(model, contacts, state.vertex_xy, geom["centroid"], rotation)
+                vec = with_lever_arms(start_vec, columns)
+            else:
+                # at the predicted rotation, once: K then changes between the solves only where
+                # contacts change state (one ``vec`` array: `ddatai.updates.Springs.same_terms`)
+                if frozen is None:
+                    columns, _ = midstep_lever_arms(model, contacts, state.vertex_xy, geom["centroid"], rotation)
+                    frozen = (columns, with_lever_arms(start_vec, columns))
+                columns, vec = frozen
+                moved = lever_shift(contacts, columns, rotation)
+            shift += moved
         block_rhs = rhs.copy()
         assemble_contacts(model, contacts, pattern, vec, sca + shift, data, rhs, stepper.serial_scatter)
         t0 = timer.add("assembly", t0)

@@ -166,6 +166,9 @@ class Params:
     """Impacts: closing past this × the penetration limit (``ddatai.impacts``; None: off) [-]."""
     midstep_lever_arms: bool = True
     """Contact vertices' lever arms at mid-step (docs/method/dda.md §5.3; False: the step start's)."""
+    lever_arm_rotation: Literal["iterate", "predicted"] = "iterate"
+    """Rotation of the mid-step lever arms: each solve's iterate, or the one "predicted" by the
+    step's carried motion for all its solves (K changes only where states do; docs/method/dda.md §5.3)."""
     dt_min_ratio: float = 1e-4
     """Smallest time step, as a fraction of ``dt`` (or ``dt_max``) [-]. A step that cannot be
     made to converge above it stops the run with a `SimulationError`."""
@@ -250,13 +253,10 @@ class Params:
     contact's own (N·tanφ + c·L, T·L): the strict test of earlier versions, with 1e-6
     (`STRICT_CONVERGENCE`)."""
     oc_friction: Literal["coupled", "lagged"] = "coupled"
-    """Friction of sliding contacts within a step: "coupled", N = −p·dn of the same solve (a
-    non-symmetric K, an LU); "lagged", N of the last solve as a load (K symmetric, Cholesky,
-    falling back to coupled where it stalls). Both accept the same law; lagged took 1.5–2× the
-    solves on the benchmark models, more than its cheaper factor saves (`ddatai.open_close`)."""
+    """Sliding friction: "coupled", N of the same solve (an LU); "lagged", N of the last solve as a load (a
+    Cholesky; coupled where it stalls): 1.4–6× the solves on the failing slope (docs/guide/performance.md)."""
     factor_updates: bool = False
-    """Update the last Cholesky factor where contacts change state, in the stage and the lagged
-    iteration (`ddatai.updates`, the ``[cholmod]`` extra); off: no time saved (measured)."""
+    """CHOLMOD rank updates where states change (stage, lagged; `ddatai.updates`); off: no time saved."""
     oc_state_tolerance: float = 1e-3
     """Open-close convergence, state and motion [-]: a contact's state may differ from what its
     motion calls for (open but overlapping, sliding where it would stick) while the force that
@@ -323,10 +323,10 @@ class Params:
         _require(self.oc_force_tolerance < 0.1,
                  f"Params.oc_force_tolerance must be < 0.1 (a fraction of a contact's load or strength), "
                  f"got {self.oc_force_tolerance!r}")
-        _require(self.oc_friction in ("lagged", "coupled"),
-                 f"Params.oc_friction must be 'lagged' or 'coupled', got {self.oc_friction!r}")
-        _require(self.oc_force_reference in ("load", "strength"),
-                 f"Params.oc_force_reference must be 'load' or 'strength', got {self.oc_force_reference!r}")
+        for name, allowed in (("oc_friction", ("lagged", "coupled")), ("lever_arm_rotation", ("iterate", "predicted")),
+                              ("oc_force_reference", ("load", "strength"))):
+            value = getattr(self, name)
+            _require(value in allowed, f"Params.{name} must be {' or '.join(map(repr, allowed))}, got {value!r}")
         _require(self.dt_min_ratio < 1.0, f"Params.dt_min_ratio must be < 1, got {self.dt_min_ratio!r}")
         _require(self.solver in ("auto", "scipy", "pardiso", "dense"),
                  f"Params.solver must be 'auto', 'scipy', 'pardiso' or 'dense', got {self.solver!r}")

@@ -134,7 +134,7 @@ class Outcome:
 
 def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: float,
                     released: np.ndarray, size: np.ndarray, frame: "Optional[Frame]" = None,
-                    doubt: Optional[np.ndarray] = None):
+                    doubt: Optional[np.ndarray] = None, in_doubt: Optional[np.ndarray] = None):
     """One pseudo-step (module docstring, 1.–3.): the return-mapping iteration (`_iterate`);
     blocks that move away in it, or that it leaves out of balance and that limit equilibrium
     then lets move (`limit_equilibrium.unsupported_blocks`; where that does not apply, those
@@ -143,7 +143,8 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
     iteration has stalled, the pseudo-step ends there (*stalled*: its contacts handed over at
     most at their strength). ``doubt`` (where the stage can settle it by a slow turn-on,
     `ddatai.turn_on`): the blocks that the open-close test would release where limit equilibrium
-    holds every block are marked in it, in place, instead, and the pseudo-step ends stalled.
+    holds every block are marked in it, in place, instead, and the pseudo-step ends stalled; else
+    ``in_doubt`` marks those released as that test did not converge (`ddatai.in_doubt`).
     Returns (D, or None when no equilibrium was found; solves; the newly released blocks; the
     contacts as handed over, `_hand_over`; whether it stalled)."""
     out = released.copy()
@@ -198,8 +199,8 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
                 # converged iteration only where limit equilibrium applies; where nothing moves
                 # the pseudo-step ends here, its forces out of balance by a fraction of the
                 # load, which the first steps settle (docs/method/dda.md §8.12)
-                mechanism, n = loaded_away(stepper, state, geom, frame, contacts, outcome, guess, out, size,
-                                           converged_only=unsupported is not None)
+                mechanism, n, doubtful = loaded_away(stepper, state, geom, frame, contacts, outcome, guess, out,
+                                                     size, converged_only=unsupported is not None)
                 solves += n
                 if doubt is not None and unsupported is not None and mechanism.any():
                     # neither a converged test nor an unconverged one proves these blocks moved
@@ -210,6 +211,8 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
                     stalled = True
                 else:
                     stalled = unsupported is not None and not mechanism.any()
+                    if doubtful and in_doubt is not None:
+                        in_doubt |= mechanism
         if not mechanism.any():
             if not outcome.converged and not stalled:
                 return None, solves, out & ~released, contacts, False

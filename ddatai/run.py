@@ -124,6 +124,13 @@ def simulate(scene: Scene, params: Optional[Params] = None, duration: Optional[f
             state, start = settle(stepper, state)
             recorder.start.append(dataclasses.astuple(start))
         recorder.frame(state, model.block_geometry(state.vertex_xy)["centroid"])
+    if engine == "fused" and state.in_doubt.any():
+        # the first steps of blocks the stage released in doubt take the resolved Δt of
+        # `ddatai.in_doubt`, which the fused engine does not apply: today's path runs them
+        engine = "numpy" if model.numpy_path else "taichi"
+        why = (f"{int(state.in_doubt.sum())} blocks released in doubt by the equilibrium stage: their "
+               f"first steps take the resolved time step of today's path (the fused engine has none)")
+        recorder.metadata = run_metadata(scene, model, engine=engine, why=why)
 
     def finished(s: State) -> bool:
         return (duration is not None and s.time >= duration * (1 - 1e-12)) or \

@@ -101,7 +101,8 @@ def resolve(name: str, unknowns: Optional[int] = None) -> str:
 
 from .pardiso import PardisoError, _locate_mkl, _Pardiso  # noqa: F401 (PardisoError: public)
 from .iterative import (KRYLOV_ACCEPT, KRYLOV_BLOCKS, KRYLOV_ITERATIONS, REFINE_ABOVE, REFINE_PASSES,
-                        REUSE_PASSES, REUSE_RATE, REUSE_RESIDUAL, _refinement, gmres, refine_to_roundoff)
+                        REUSE_PASSES, REUSE_RATE, REUSE_RESIDUAL, _refinement, changed_blocks, gmres,
+                        refine_to_roundoff)
 
 
 class SparseSolver:
@@ -293,11 +294,8 @@ class SparseSolver:
                 len(self._factored_data) != len(data):
             return None
         budget = KRYLOV_BLOCKS[bool(factor_symmetric)]
-        changed = np.flatnonzero(data != self._factored_data)
-        if len(changed):
-            rows = np.searchsorted(indptr, changed, side="right") - 1
-            if len(np.unique(rows // 6)) > budget:
-                return None  # about one iteration per changed block: factorise instead
+        if changed_blocks(data, self._factored_data, indptr) > budget:
+            return None  # about one iteration per changed block: factorise instead
         from scipy.sparse import csr_matrix
 
         b = np.ascontiguousarray(rhs, dtype=np.float64)

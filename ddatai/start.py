@@ -119,6 +119,7 @@ from .mechanisms import FALL_IN_SIZES, mechanisms, restore, sunk_into_released, 
 from .return_mapping import STAGE_BETA, Frame, coupled, return_mapping, subset_contacts
 from .threads import dense_solves
 from .turn_on import feasible, turn_on
+from .in_doubt import watched
 #: at most this many pseudo-steps (each re-solves the increment at the settled geometry; the
 #: second is ~strain × the first, the third round-off)
 MAX_PSEUDO_STEPS = 8
@@ -168,6 +169,9 @@ class StartRecord:
     turn_on_steps: int = 0
     """Steps of the slow gravity turn-on that settled the stage's doubt (`ddatai.turn_on`; 0:
     none ran) [-]."""
+    in_doubt: int = 0
+    """Released blocks that no converged test moved or held (in doubt): their first steps are
+    resolved (`ddatai.in_doubt`) [-]."""
 
 
 #: the record of a model with nothing to settle
@@ -219,11 +223,11 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
     free = ~model.block_fixed
     initial = state
     released = unsupported_at_start(stepper, state) if screen and not welded else np.zeros(model.n_blocks, bool)
-    solves = 0
+    in_doubt, solves = np.zeros(model.n_blocks, bool), 0  # in_doubt: released as no converged test decided
     while True:
         doubt = np.zeros(model.n_blocks, bool) if slow else None
         state, last, memory, n, stalled, unsettled, failed = _pseudo_steps(stepper, initial, state, released, size,
-                                                                           dt, welded, doubt)
+                                                                           dt, welded, doubt, in_doubt)
         solves += n
         if doubt is not None and doubt.any() and not failed:
             slow_end = turn_on(stepper, initial, released, SUNK_FRACTION)
@@ -260,7 +264,7 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
         # contacts sliding at their strength are handed over locked at it (force-continuous):
         # the stage ends in an equilibrium of springs, and they keep their bonds
         sliding = _lock_at_strength(stepper, last, state.vertex_xy)
-        at_strength |= _keys(last, sliding)
+        at_strength |= set(last.key[sliding].tolist())
         memory = last.memory(stepper.params.bond_breaks_on_slip)
     held = free & ~released
     moved = np.hypot(*(state.vertex_xy - initial.vertex_xy).T)
@@ -269,15 +273,15 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
                          released=int(np.count_nonzero(free & released)), settlement=settlement,
                          at_strength=len(at_strength & set(memory.key.tolist())),
                          wall_time=_time.perf_counter() - t0, welded=welded, stalled=stalled,
-                         unsettled=unsettled)
-    return state.replace(memory=memory), record, True
+                         unsettled=unsettled, in_doubt=int(np.count_nonzero(in_doubt)))
+    return state.replace(memory=memory, in_doubt=watched(model, in_doubt)), record, True
 
 
 def _pseudo_steps(stepper, initial: State, state: State, released: np.ndarray, size: np.ndarray, dt: float,
-                  welded: bool, doubt: "np.ndarray | None" = None):
-    """The pseudo-steps of `_stage` from ``state`` with the ``released`` blocks out (updated in
-    place with the blocks it releases; ``doubt``: with those in doubt, `return_mapping`). Returns (state, the last pseudo-step's contacts, their
-    memory, solves, stalled, unsettled, whether a pseudo-step found no equilibrium)."""
+                  welded: bool, doubt: "np.ndarray | None" = None, in_doubt: "np.ndarray | None" = None):
+    """The pseudo-steps of `_stage` from ``state`` with the ``released`` blocks out (updated in place with
+    the blocks it releases; ``doubt``, ``in_doubt``: `return_mapping`'s). Returns (state, the last
+    pseudo-step's contacts, their memory, solves, stalled, unsettled, whether a pseudo-step found no equilibrium)."""
     model = stepper.model
     free = ~model.block_fixed
     memory = ContactMemory.empty()
@@ -302,7 +306,7 @@ def _pseudo_steps(stepper, initial: State, state: State, released: np.ndarray, s
                 # pseudo-step first, which takes the first one's linearisation error out)
                 break
             disp, n, found, contacts, stalled = return_mapping(stepper, state, geom, contacts, dt, released,
-                                                                size, frame, doubt)
+                                                                size, frame, doubt, in_doubt)
         solves += n
         if disp is None:  # no equilibrium found
             return state, last, memory, solves, stalled, unsettled, True
@@ -443,10 +447,6 @@ def _welded_step(stepper, state: State, geom: dict, contacts: Contacts, dt: floa
         if not mechanism.any():
             return disp, solves, out & ~released, contacts
         out |= mechanism
-
-
-def _keys(contacts: Contacts, sel: np.ndarray) -> set:
-    return set(contacts.key[sel].tolist())
 
 
 def _lock_at_strength(stepper, contacts: Contacts, vertex_xy: np.ndarray) -> np.ndarray:

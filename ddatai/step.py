@@ -17,6 +17,7 @@
         until no contact has to change   else: dt *= 0.3, restart
         accept unless displacement > 3·g2·w0, penetration too deep, or not finite: shorter dt
     update vertices (exact rotation), stresses, velocities, points     (§5)   ddatai.kinematics
+    the watch of blocks the stage released in doubt (Δt resolves them)        ddatai.in_doubt
     energy and work of the step                                              ddatai.energy
 
 Each phase is timed under its own name into the step's `StepRecord`
@@ -37,7 +38,7 @@ from typing import Optional
 
 import numpy as np
 
-from . import backend, vectorized
+from . import backend, in_doubt, vectorized
 from .assembly import BlockPattern, assemble_blocks, contact_vectors, load_forces
 from .contact_law import accumulate_slip
 from .contacts import Contacts, _Buffers, detect_contacts
@@ -193,6 +194,7 @@ class Stepper:
         if self.softening:
             accumulate_slip(model, attempt.contacts, attempt.vec, attempt.displacement)
         new_state = update(model, start, geom, attempt.displacement, attempt.contacts, dt, attempt.vertex_xy)
+        new_state = new_state.replace(in_doubt=in_doubt.follow(model, state, new_state))
         t0 = timer.add("update", t0)
         new_state, energy, work = self.energy_balance(state, new_state, geom, contacts, attempt, dt)
         timer.add("energy", t0)

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 
+from . import in_doubt
 from .assembly import load_forces
 from .kinematics import block_radius
 from .model import Model, State
@@ -14,7 +15,9 @@ from .model import Model, State
 def choose_time_step(model: Model, state: State, geom: dict) -> float:
     """Automatic Δt (docs/method/dda.md §4.6): the step whose predicted largest vertex
     displacement, ½·a·Δt² + v·Δt, equals g2·w0; at most ``dt_max`` and at most
-    ``dt_growth`` × the previous step. A fixed ``Params.dt`` is used as given, growing back
+    ``dt_growth`` × the previous step, and while blocks released in doubt by the equilibrium
+    stage are watched (`State.in_doubt`) at most what resolves their rocking
+    (`ddatai.in_doubt.time_step`). A fixed ``Params.dt`` is used as given, growing back
     by ``dt_growth`` per step after a cut."""
     p = model.params
     free = ~model.block_fixed
@@ -47,6 +50,8 @@ def choose_time_step(model: Model, state: State, geom: dict) -> float:
         else:
             dt = limit
         limit = min(limit, dt)
+        if state.in_doubt.any():
+            limit = min(limit, in_doubt.time_step(model, state, geom))
     if state.dt > 0:
         limit = min(limit, p.dt_growth * state.dt)
     return limit

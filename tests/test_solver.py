@@ -320,3 +320,29 @@ def test_one_blas_thread_nests():
                 assert counts() == [1] * len(before)
             assert counts() == [1] * len(before)
         assert counts() == before
+
+
+def test_changed_blocks_matches_its_sorting_twin():
+    """The count of blocks (6 rows each) whose rows of K changed since the factor, which decides
+    whether a later solve tries GMRES (`ddatai.iterative.changed_blocks`: one pass and a
+    reduction per row), equals its NumPy twin's that sorts the changed entries' rows, on random
+    structures with empty rows (at the start, inside, at the end), none or all or a few entries
+    changed."""
+    from scipy.sparse import random as sparse_random
+
+    from ddatai.iterative import changed_blocks, changed_blocks_reference
+
+    rng = np.random.default_rng(7)
+    for trial in range(40):
+        n = 6 * int(rng.integers(1, 30))
+        k = sparse_random(n, n, density=float(rng.uniform(0.01, 0.3)), format="csr", random_state=trial)
+        if trial % 3 == 0 and n > 12:  # empty rows: the first, one inside, the last
+            keep = np.ones(n, bool)
+            keep[[0, n // 2, n - 1]] = False
+            k = (k.multiply(keep[:, None])).tocsr()
+        data, indptr = k.data.copy(), k.indptr
+        new = data.copy()
+        if len(new):
+            which = rng.random(len(new)) < [0.0, 1.0, 0.02, 0.2][trial % 4]
+            new[which] += 1.0
+        assert changed_blocks(new, data, indptr) == changed_blocks_reference(new, data, indptr), trial

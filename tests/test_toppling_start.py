@@ -107,9 +107,9 @@ def test_the_start_fails_the_goodman_bray_slope_wherever_a_slow_load_does_and_wi
 
 #: cases where the default start topples the stack well below the slow load (measured, bisection
 #: to 0.2°): its stage releases the blocks in doubt, and they start under sudden gravity. Safe,
-#: not within the band (docs/guide/equilibrium_start.md). The 3-4-5 stack left them with the
-#: corner rule (its start topples it at 24.25°, stands at 24.475°, `START_POINTS`); the bisections here
-#: were not rerun since
+#: not within the band (docs/guide/equilibrium_start.md). The bisections here were not rerun
+#: since the corner rules and the resolved first steps of releases in doubt (`START_POINTS`: the
+#: start now topples 3-4-5 from 22.0° and 4-4-4 from 22.75°)
 CONSERVATIVE = {"squares 4-5-6-7": (15.6, 19.0), "squares 4-4-4": (22.07, 24.5)}
 
 
@@ -121,9 +121,11 @@ CONSERVATIVE = {"squares 4-5-6-7": (15.6, 19.0), "squares 4-4-4": (22.07, 24.5)}
 #: 4-4-4 start 23.33° against the ramp's 22.72–22.75°, S above R), which the point tests
 #: (`START_POINTS`, `SLOW_POINTS`) take instead
 FAMILY_KNOWN = {"stair 0.25": "the start's bisection bracket (15–27°) ends below its threshold (27.0–27.5°)",
-                "squares 3-4-5": "not monotone in the tilt: the bisections land in the scatter (S 22.96 vs R 25.03°)",
-                "squares 4-4-4": "not monotone: the bisections give S 23.33° above R 22.72° (the start holds it at "
-                                 "23.25° where the 20-constant ramps topple it: the open start part)"}
+                "squares 3-4-5": "the start topples it from 22.0° (stands at 21.5°), 2° below the slow load's "
+                                 "24.25° (safe, not within 0.5°); the ramp's bisection lands in its scatter",
+                "squares 4-4-4": "the slow load is not monotone in the tilt (40-constant ramps topple it at 22.3° "
+                                 "and 22.6°, hold it at 23.25°): the start, toppling it from 22.75°, holds it at "
+                                 "22.3–22.6° where they topple it (measured 2026-11-28, `SLOW_POINTS`)"}
 
 
 @pytest.mark.slow
@@ -150,32 +152,28 @@ def test_toppling_family_start_against_slow_load(name):
 
 #: the default start on the stacks of squares: tilt [degrees] -> whether it topples the stack
 #: within the slow load's whole run (`toppling_cases.start_duration`), measured on the code
-#: since the persistent corner hand-over (the same as with the corner rule before it,
-#: docs/method/dda.md §3.4; the table of
-#: docs/guide/equilibrium_start.md before it had the start's thresholds at 20.0–20.2°,
-#: 15.6–15.8° and 22.04–22.07°). Not monotone in the tilt on 3-4-5 and 4-4-4: it topples them
-#: at 24.25° and 22.07° and stands again at 24.475° and 22.09°. At 22.07° and 23.25° the stage
-#: releases all 12 blocks of the 4-4-4 stack in doubt, at 22.04° and 22.09° it holds them all;
-#: released, they topple at 22.07° but stand at 23.25° (2 mm in 0.17 s, then nothing to 4.7 s),
-#: where the 20-constant ramps topple them at the default time step (`SLOW_POINTS`) and hold
-#: them with a resolved one (`RESOLVED_POINTS`)
-START_POINTS = {"squares 3-4-5": {24.25: True, 24.475: False, 24.55: True},
+#: since the first steps of blocks released in doubt resolve their rocking (`ddatai.in_doubt`,
+#: docs/method/dda.md §8.12). Before that rule the start held the 4-4-4 stack at 23.25° and the
+#: 3-4-5 stack at 24.475°, where slow loads topple them, and toppled 4-4-4 at 22.07° and 22.2°
+#: but not at 22.3° or 22.6° (the default 10 ms step decided the releases in doubt). Now: at
+#: 22.04° and 22.09° the stage holds all 12 blocks of the 4-4-4 stack; from 22.07° to 23.25°
+#: it releases 10–12 in doubt, and they settle (2 mm) to 22.6° and topple from 22.75°
+START_POINTS = {"squares 3-4-5": {21.5: False, 22.0: True, 24.25: True, 24.475: True, 24.55: True},
                 "squares 4-5-6-7": {15.5: False, 15.6: True},
-                "squares 4-4-4": {22.04: False, 22.0703: True, 22.0859: False, 23.25: False}}
+                "squares 4-4-4": {22.04: False, 22.0859: False, 22.6: False, 22.75: True, 23.25: True}}
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name", list(START_POINTS))
 def test_the_default_start_on_the_square_stacks_at_the_measured_tilts(name):
     """The default start topples each stack of squares exactly where the table says (each start
-    releases the blocks in doubt under sudden gravity; 15–60 s a run on a loaded 2-core
-    machine, each watched for the slow load's whole run). Against the slow load
-    (`test_the_slow_load_on_the_square_stacks_at_the_measured_tilts`): no loading of the scan
-    topples the 3-4-5 stack at 24.0°, where the start holds it; the lowest slow-load toppling
-    found is 16.0° on 4-5-6-7 (every loading holds it at 15.5°, where the start does) and 23.25°
-    on 4-4-4 at the default time step, where the start holds the 4-4-4 stack (it topples it at
-    22.07° and from 24.0°) and the resolved slow load holds it too
-    (`test_the_resolved_slow_load_holds_the_square_stacks_where_the_default_time_step_topples_them`)."""
+    releases the blocks in doubt under sudden gravity, their first steps resolved; 3–60 s a
+    run on a loaded 2-core machine, each watched for the slow load's whole run). Against the
+    slow load (`test_the_slow_load_on_the_square_stacks_at_the_measured_tilts`): the start
+    topples the 3-4-5 stack from 22.0° (R 24.25°: safe, 2° below); every loading holds the
+    4-5-6-7 stack at 15.5°, where the start does (R 16.0°); the 40-constant ramps topple the
+    4-4-4 stack at 22.3° and 22.6° (at 22.6° with Δt ≤ 2 and 1.2 ms too), where the start
+    holds it: there it is still above the lowest slow-load toppling, by up to 0.45°."""
     case = CASES[name][0]
     for theta, topples in START_POINTS[name].items():
         assert start_topples(case, theta) == topples, (name, theta)
@@ -194,7 +192,12 @@ SLOW_POINTS = {"squares 3-4-5": {(24.0, "turned", 20.0): False, (24.0, "tilted",
                "squares 4-5-6-7": {**{(theta, frame, ramp): False for theta in (15.5, 15.75)
                                       for frame in ("turned", "tilted") for ramp in (10.0, 20.0, 40.0)},
                                    (16.0, "turned", 40.0): True, (16.0, "tilted", 40.0): True},
-               "squares 4-4-4": {(23.25, "turned", 20.0): True, (23.25, "tilted", 20.0): True,
+               "squares 4-4-4": {(22.0, "turned", 40.0): False, (22.0, "tilted", 40.0): False,
+                                 (22.3, "turned", 40.0): True, (22.3, "tilted", 40.0): True,
+                                 (22.6, "turned", 40.0): True, (22.6, "tilted", 40.0): True,
+                                 (22.6, "turned", 20.0): False, (22.6, "tilted", 20.0): False,
+                                 (22.6, "turned", 10.0): False, (22.6, "tilted", 10.0): False,
+                                 (23.25, "turned", 20.0): True, (23.25, "tilted", 20.0): True,
                                  (23.25, "turned", 10.0): False, (23.25, "tilted", 10.0): False,
                                  (23.25, "turned", 40.0): False, (23.25, "tilted", 40.0): False}}
 
@@ -210,10 +213,11 @@ def test_the_slow_load_on_the_square_stacks_at_the_measured_tilts(name):
     topples it (with Δt ≤ 2 ms too, `RESOLVED_POINTS`): a start above a slow load there; every loading holds the
     4-5-6-7 stack at 15.5°, where the start holds it, and at 15.75°, and the 40-constant ramps
     topple it at 16.0° (both frames; they hold it from 16.5° to 18.5°): its R is 16.0°, 0.4°
-    above the start's 15.6°; the 20-constant ramps (both frames) topple
-    the 4-4-4 stack at 23.25°, which the start topples from 22.07°, and the 10- and 40-constant
-    ramps hold it there. 3–20 s a run idle (4-4-4 ~1 min, 4-5-6-7 ~2 min, 3-4-5 ~80 s), 30–350 s
-    loaded."""
+    above the start's 15.6°; the 40-constant ramps (both frames) hold the 4-4-4 stack at 22.0°
+    and topple it at 22.3° and 22.6° (the 10- and 20-constant ones hold it at 22.6°), and the
+    20-constant ramps (both frames) topple it at 23.25°, where the 10- and 40-constant ramps
+    hold it: the slow load itself is not monotone in the tilt there. 3–20 s a run idle (4-4-4
+    ~2 min, 4-5-6-7 ~2 min, 3-4-5 ~80 s), 30–350 s loaded."""
     case = CASES[name][0]
     for (theta, frame, ramp), topples in SLOW_POINTS[name].items():
         assert ramp_topples(case, theta, frame, ramp) == topples, (name, theta, frame, ramp)
@@ -225,13 +229,13 @@ def test_the_4_4_4_stack_no_longer_stands_from_the_start_where_a_slow_load_toppl
     stack, the slow ramp (20 rocking time constants) toppled it by corner kicks; with diagonal
     corners that slid past each other taken as vertex-edge contacts (docs/method/dda.md §3.4) it
     stands there, and to 24.0° in both frames, and topples at 24.5°. The default start topples
-    the stack at 24.0° and 24.5° (and at 22.0703°, its bisection's threshold: it is still not
-    monotone, holding it at 22.0859°). ~75 s on a loaded 2-core machine, 10 runs."""
+    the stack at 24.0° and 24.5° (and from 22.75°, since its releases in doubt are resolved:
+    `ddatai.in_doubt`). ~75 s on a loaded 2-core machine, 10 runs."""
     case = CASES["squares 4-4-4"][0]
     assert not ramp_topples(case, 22.0859) and not start_topples(case, 22.0859)
     for frame in ("turned", "tilted"):
         assert not ramp_topples(case, 24.0, frame) and ramp_topples(case, 24.5, frame), frame
-    assert start_topples(case, 24.0) and start_topples(case, 24.5) and start_topples(case, 22.0703)
+    assert start_topples(case, 24.0) and start_topples(case, 24.5) and start_topples(case, 22.75)
 
 
 def _turn_on_of(theta: float, b: float = 0.05, h: float = 0.2):
@@ -295,7 +299,8 @@ def test_the_persistent_corner_hand_over_on_the_4_5_6_7_slow_load():
 
 #: the slow load of the stacks of squares with a time step that resolves it (`RESOLVED_DT`,
 #: 2 ms): (tilt [degrees], frame, ramp length [rocking time constants]) -> whether it topples
-RESOLVED_POINTS = {"squares 4-4-4": {(23.25, "turned", 20.0): False, (23.25, "tilted", 20.0): False,
+RESOLVED_POINTS = {"squares 4-4-4": {(22.6, "turned", 40.0): True, (22.6, "tilted", 40.0): True,
+                                     (23.25, "turned", 20.0): False, (23.25, "tilted", 20.0): False,
                                      (23.25, "turned", 10.0): False, (23.25, "turned", 40.0): False,
                                      (24.0, "turned", 20.0): False, (24.5, "turned", 20.0): True},
                    "squares 4-5-6-7": {(16.0, "turned", 40.0): False},
@@ -316,28 +321,49 @@ def test_the_resolved_slow_load_holds_the_square_stacks_where_the_default_time_s
     with Δt ≤ 2 ms, and the tilted 20 holds the 3-4-5 squares at 24.25° (default Δt: holds too); but
     the tilted 40 topples the 3-4-5 squares at 24.475° with Δt ≤ 2 ms too, where the start
     holds them (`test_stacks_released_in_doubt_topple_from_the_start_with_a_resolved_time_step`).
-    ~3 min (4-4-4), ~1 min (4-5-6-7, 3-4-5) idle, 2–3 × that loaded."""
+    The 40-constant ramps topple the 4-4-4 squares at 22.6° with Δt ≤ 2 ms too (as at 10 ms),
+    and hold them at 23.25°: resolved, the slow load is still not monotone in the tilt.
+    ~4 min (4-4-4), ~1 min (4-5-6-7, 3-4-5) idle, 2–3 × that loaded."""
     case = CASES[name][0]
     for (theta, frame, ramp), topples in RESOLVED_POINTS[name].items():
         assert ramp_topples(case, theta, frame, ramp, RESOLVED_DT) == topples, (theta, frame, ramp)
 
 
-#: (case, tilt [degrees]) where the stage releases every block of a stack of squares in doubt and
-#: the default start holds it (`START_POINTS`) while a slow load topples it (`SLOW_POINTS`)
-IN_DOUBT = (("squares 4-4-4", 23.25), ("squares 3-4-5", 24.475))
+#: (case, tilt [degrees]) where the stage releases the blocks of a stack of squares in doubt and
+#: the default start held it before their first steps were resolved, while a slow load topples
+#: it (`SLOW_POINTS`): (released, of them in doubt)
+IN_DOUBT = {("squares 4-4-4", 23.25): (12, 11), ("squares 3-4-5", 24.475): (12, 11)}
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name,theta", IN_DOUBT)
+@pytest.mark.parametrize("name,theta", list(IN_DOUBT))
 def test_stacks_released_in_doubt_topple_from_the_start_with_a_resolved_time_step(name, theta):
-    """The start's unsafe points are its release in doubt at the default time step: the stage
-    releases all twelve blocks, and under sudden gravity at Δt ≤ 10 ms they move 2 mm and stop
-    (they topple with Δt ≤ 2 and 5 ms and stand with 3 ms, 4-4-4 at 23.25°); the default start
-    with Δt ≤ 2 ms (`RESOLVED_DT`) topples both stacks there. The automatic time step of a run
-    whose stage released blocks in doubt resolving their rocking time constant (τ/80) is the
-    measured lead, not built. ~5 s a case idle."""
+    """The start's unsafe points were its releases in doubt at the default time step: the stage
+    releases the twelve blocks (11 of them in doubt), and under sudden gravity at Δt ≤ 10 ms
+    they moved 2 mm and stopped (they topple with Δt ≤ 0.5, 1, 2 and 5 ms and stand with 3 ms,
+    4-4-4 at 23.25°). With the watch of `ddatai.in_doubt` (Δt ≤ τ/80 = 1.23 ms while they
+    move) the default start topples both stacks there, as with Δt ≤ 2 ms throughout: 4-4-4 at
+    0.34 s (284 steps), 3-4-5 at 0.22 s (177 steps). ~10 s a case idle."""
     case = CASES[name][0]
     res = dd.simulate(scene(case, theta), steps=1)
-    assert res.start["held"][0] == 0 and res.start["released"][0] == 12
-    assert not start_topples(case, theta)
+    assert (res.start["released"][0], res.start["in_doubt"][0]) == IN_DOUBT[name, theta]
+    assert res.start["held"][0] == 0
+    assert start_topples(case, theta)
     assert start_topples(case, theta, dd.Params(dt_max=RESOLVED_DT))
+
+
+@pytest.mark.slow
+def test_a_stack_released_in_doubt_that_settles_ends_its_watch_at_rest():
+    """The 4-4-4 squares at 22.6°: the stage releases 12 blocks, 10 in doubt; at Δt ≤ 1.23 ms
+    the sudden gravity sets them leaning — a vertex moves 1.5 mm in 0.05 s, 6.8 mm in 0.2 s and
+    8.1 mm by 0.38 s (~1.2° at the top of a 0.4 m column, 40 % of the toppling criterion's 20 mm) —
+    and they lock there: not a µm more from 0.5 to 1 s. The watch ends at rest at 0.40 s (~330 steps),
+    and the run goes on at the default time step (10 ms). ~10 s idle."""
+    case = CASES["squares 4-4-4"][0]
+    res = dd.simulate(scene(case, 22.6), duration=1.0)
+    assert (res.start["released"][0], res.start["in_doubt"][0]) == (12, 10)
+    moved = np.abs(res.vertices - res.vertices[0]).max(axis=(1, 2))
+    assert float(moved[-1]) < 1e-2, moved[-1]
+    assert float(moved[-1] - moved[int(np.searchsorted(res.time, 0.5))]) < 1e-6
+    late = res.time[1:] > 0.5
+    assert float(res.steps["dt"][late].max()) > 5e-3  # the watch has ended: default steps again

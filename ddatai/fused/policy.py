@@ -89,7 +89,7 @@ def choose(model, *, steps: Optional[int], duration: Optional[float], batch: boo
     today = "numpy" if model.numpy_path else "taichi"
     if p.kernels in ("numpy", "taichi"):
         return today, f"Params(kernels={p.kernels!r})"
-    why_not = covers(model)
+    why_not = covers(model) or _params_not_covered(p)
     if why_not is None and p.arch not in ("cpu", "cuda", "gpu"):
         why_not = f"the fused engine runs on the CPU or CUDA, not arch={p.arch!r}"
     if why_not is None and (record_contacts or checkpoint or resume):
@@ -115,6 +115,15 @@ def choose(model, *, steps: Optional[int], duration: Optional[float], batch: boo
     return today, f"a small model, but its {expected:.0f} steps do not pay {what}"
 
 
+def _params_not_covered(params):
+    """Why the fused engine does not run under ``params`` (a sentence), or None: it takes each
+    iterate's lever arms, not ``lever_arm_rotation="predicted"`` (docs/method/dda.md §5.3)."""
+    if params.lever_arm_rotation != "iterate":
+        return (f"Params(lever_arm_rotation={params.lever_arm_rotation!r}): the fused engine takes each "
+                f"iterate's lever arms")
+    return None
+
+
 def choose_batch(params, *, member_steps: float) -> tuple[str, str]:
     """("fused" or "today", why) for a batch of judgements (kgm's bisection rounds and studies)
     of about ``member_steps`` steps in all, under ``params`` (``Params.kernels``): "fused" always
@@ -126,6 +135,8 @@ def choose_batch(params, *, member_steps: float) -> tuple[str, str]:
         return "today", f"Params(kernels={params.kernels!r})"
     if params.arch not in ("cpu", "cuda", "gpu"):
         return "today", f"the fused engine runs on the CPU or CUDA, not arch={params.arch!r}"
+    if _params_not_covered(params) is not None:
+        return "today", _params_not_covered(params)
     if params.kernels == "fused":
         return "fused", "Params(kernels='fused')"
     if _loaded():

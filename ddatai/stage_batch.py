@@ -1,0 +1,204 @@
+"""The equilibrium stage's regular NumPy work evaluated for many members at once
+(`ddatai.side_by_side`; docs/method/dda.md §8.12, docs/guide/performance.md, "Batched studies").
+
+Each operation here takes the calls of several members — small models on the NumPy path
+(`Model.numpy_path`) with the same constants (penalty, shear penalty, penetration limit) — and
+evaluates them as one call of the same NumPy code over their arrays concatenated with a member
+axis: contacts one member after the other, their vertex, block, CSR-row and CSR-slot indices
+moved by the members before them. The terms are element-wise per contact, and the scatters
+(``np.add.at``) add their entries one after another in order, so every entry of a member gets
+its own terms in its own order: each member's result is, to the bit, the one its own call gives
+(tests/test_stage_batch.py). Then each member's slice is handed back to it.
+
+- ``assemble_contacts`` (`ddatai.assembly.assemble_contacts`): the contact springs and friction
+  loads added into each member's K and F, in place;
+- ``stage_law`` (``ddatai.contact_law.stage_law``): the return mapping's contact law;
+- ``contact_law_numpy`` (``ddatai.contact_law.contact_law_numpy``): the whole law (the
+  open-close iteration of the stage's finish and tests, the balance check).
+"""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+
+from . import side_by_side
+from .assembly import contact_terms_numpy
+from .contact_law import ContactLaw, StageLaw, _law_core, _law_terms, friction_terms
+from .kinematics import vertex_displacement
+
+def _offsets(sizes) -> np.ndarray:
+    """Where each member's entries start in the concatenation of arrays of ``sizes``."""
+    out = np.zeros(len(sizes), np.int64)
+    np.cumsum(sizes[:-1], out=out[1:])
+    return out
+
+
+def _cat(arrays) -> np.ndarray:
+    return np.concatenate(arrays)
+
+
+def _shifted(arrays, by, counts) -> np.ndarray:
+    """The index arrays concatenated, member k's moved by ``by[k]`` where ≥ 0 (−1: none)."""
+    a = _cat(arrays)
+    return np.where(a >= 0, a + np.repeat(by, counts).reshape((-1,) + (1,) * (a.ndim - 1)), a)
+
+
+def _split(a: np.ndarray, starts: np.ndarray, counts) -> list:
+    return [a[s:s + n] for s, n in zip(starts.tolist(), counts)]
+
+
+#: the contact fields that each operation reads besides ``cint``
+_ASSEMBLY_FIELDS = ("state", "line", "shear_dir", "coupled", "cohesion", "length", "bond", "normal_force", "tan_phi")
+_STAGE_LAW_FIELDS = ("line", "bond", "tensile", "length", "tan_phi", "cohesion")
+_LAW_FIELDS = _STAGE_LAW_FIELDS + ("coupled", "normal_force", "state", "shear_dir")
+
+
+def _contacts(models, contacts, counts, fields, blocks: bool):
+    """The members' contacts concatenated (``fields``, ``cint`` with its vertices moved by the
+    members' before them, and with ``blocks`` their blocks so moved)."""
+    n_vertices = np.array([len(m.vertex_block) for m in models])
+    cint = _cat([c.cint for c in contacts])
+    vertex_at = np.repeat(_offsets(n_vertices), counts)[:, None]
+    cint = np.concatenate([cint[:, :1], np.where(cint[:, 1:] >= 0, cint[:, 1:] + vertex_at, cint[:, 1:])], axis=1)
+    out = SimpleNamespace(cint=cint, n=int(sum(counts)), **{k: _cat([getattr(c, k) for c in contacts]) for k in fields})
+    if blocks:
+        block_at = np.repeat(_offsets(np.array([m.n_blocks for m in models])), counts)
+        out.block_a = _cat([c.block_a for c in contacts]) + block_at
+        out.block_b = _cat([c.block_b for c in contacts]) + block_at
+    return out
+
+
+# ------------------------------------------------------------------ the contact assembly
+def _assembly_group(*args, **kwargs):
+    model, contacts = _bound(args, kwargs, _ASSEMBLY_ARGS)[:2]
+    if not model.numpy_path or contacts.n == 0:
+        return None
+    return ("assembly", float(model.penalty), float(model.shear_penalty))
+
+
+def assemble_contacts_many(requests) -> list:
+    """``assemble_contacts`` of each request, one `contact_terms_numpy` over all (module
+    docstring): each member's K data and F get its own contacts' terms, in place."""
+    args = [_bound(a, kw, _ASSEMBLY_ARGS) for a, kw in requests]
+    models = [a[0] for a in args]
+    contacts = [a[1] for a in args]
+    patterns = [a[2] for a in args]
+    datas, rhss = [a[5] for a in args], [a[6] for a in args]
+    counts = [c.n for c in contacts]
+    m0 = models[0]
+    c = _contacts(models, contacts, counts, _ASSEMBLY_FIELDS, blocks=False)
+    const, slope = friction_terms(m0, c)
+    data_at = _offsets(np.array([len(d) for d in datas]))
+    rows = np.array([len(m.block_dof) for m in models])
+    rhs_len = np.array([len(r) for r in rhss])
+    row_at = _offsets(rhs_len // 6)
+    n_rows = [len(p.diag_slot) for p in patterns]
+    pattern = SimpleNamespace(slot_ab=_shifted([p.slot_ab for p in patterns], data_at, counts),
+                              slot_ba=_shifted([p.slot_ba for p in patterns], data_at, counts),
+                              diag_slot=_shifted([p.diag_slot for p in patterns], data_at, n_rows),
+                              stride=_cat([p.stride for p in patterns]))
+    vblock = _cat([m.vertex_block for m in models]) + np.repeat(_offsets(np.array([m.n_blocks for m in models])),
+                                                               [len(m.vertex_block) for m in models])
+    dof = _shifted([m.block_dof for m in models], row_at, rows)
+    data, rhs = _cat(datas), _cat(rhss)
+    contact_terms_numpy(c.cint, c.state, c.line, vblock, dof, _cat([a[3] for a in args]), _cat([a[4] for a in args]),
+                        const, slope, c.shear_dir, pattern, m0.penalty, m0.shear_penalty, data, rhs)
+    for d, part in zip(datas, _split(data, data_at, [len(d) for d in datas])):
+        d[:] = part
+    for r, part in zip(rhss, _split(rhs, _offsets(rhs_len), rhs_len.tolist())):
+        r[:] = part
+    return [None] * len(requests)
+
+
+# ------------------------------------------------------------------ the contact law
+def _law_group(*args, **kwargs):
+    model, contacts = _bound(args, kwargs, _LAW_ARGS)[:2]
+    if contacts.n == 0 or len(model.joint_barton) or not model.numpy_path:
+        return None
+    return ("law", float(model.penalty), float(model.shear_penalty), float(model.penetration_limit),
+            float(model.force_roundoff))
+
+
+_LAW_ARGS = ("model", "contacts", "vec", "sca", "disp", "shift")
+_ASSEMBLY_ARGS = ("model", "contacts", "pattern", "vec", "sca", "data", "rhs", "serial_scatter")
+
+
+def _bound(args, kwargs, names) -> list:
+    """A call's arguments in the order of ``names`` (None where left out)."""
+    out = list(args) + [None] * (len(names) - len(args))
+    for k, v in kwargs.items():
+        out[names.index(k)] = v
+    return out
+
+
+def _law_inputs(requests, fields):
+    args = [_bound(a, kw, _LAW_ARGS) for a, kw in requests]
+    models = [a[0] for a in args]
+    contacts = [a[1] for a in args]
+    counts = [c.n for c in contacts]
+    c = _contacts(models, contacts, counts, fields, blocks=True)
+    sca = _cat([a[3] for a in args])
+    shifts = [a[5] for a in args]
+    shift = None if all(s is None for s in shifts) else \
+        _cat([np.zeros_like(a[3]) if s is None else s for a, s in zip(args, shifts)])
+    m = SimpleNamespace(penalty=models[0].penalty, shear_penalty=models[0].shear_penalty,
+                        penetration_limit=models[0].penetration_limit, joint_barton=models[0].joint_barton)
+    return c, counts, m, _cat([a[2] for a in args]), sca, _cat([a[4] for a in args]), shift
+
+
+def stage_law_many(requests) -> list:
+    """`contact_law.stage_law` of each request (a NumPy-path model), one `_law_core` over all."""
+    c, counts, m, vec, sca, disp, _ = _law_inputs(requests, _STAGE_LAW_FIELDS)
+    dn, ds, line, closed, strength, dn_now, _, _, _, _ = _law_core(m, c, vec, sca, disp, None)
+    fn = np.where(closed, -m.penalty * dn, 0.0)
+    at = _offsets(np.array(counts))
+    parts = [_split(x, at, counts) for x in (dn, ds, line, closed, fn, strength, dn_now)]
+    return [StageLaw(dn=p[0], ds=p[1], line=p[2], closed=p[3], fn=p[4], strength=p[5], dn_now=p[6])
+            for p in zip(*parts)]
+
+
+def contact_law_many(requests) -> list:
+    """`contact_law.contact_law_numpy` of each request, the law's terms over all at once; each
+    member's energy summed over its own contacts, as alone."""
+    c, counts, m, vec, sca, disp, shift = _law_inputs(requests, _LAW_FIELDS)
+    dn, ds, line, closed, strength, dn_now, _, vv, ve, allowance = _law_core(m, c, vec, sca, disp, shift)
+    terms, normal_energy, huber = _law_terms(m, c, dn, ds, closed, strength, dn_now, vv, ve, allowance)
+    at = _offsets(np.array(counts))
+    fields = dict(dn=dn, ds=ds, line=line, closed=closed, strength=strength, dn_now=dn_now, **terms)
+    parts = {k: _split(x, at, counts) for k, x in fields.items()}
+    out = []
+    for k, (s, n) in enumerate(zip(at.tolist(), counts)):
+        shear = closed[s:s + n] & ve[s:s + n]
+        energy = float(np.sum(normal_energy[s:s + n]) + np.sum(huber[s:s + n][shear]))
+        out.append(ContactLaw(energy=energy, tan_phi=None, **{name: part[k] for name, part in parts.items()}))
+    return out
+
+
+# ------------------------------------------------------------------ how far blocks move
+def block_displacement_many(requests) -> list:
+    """`kinematics.block_displacement` of each request (each vertex moved by its block's D with
+    the exact rotation, the largest of each block's), one evaluation over all."""
+    args = [_bound(a, kw, ("model", "vertex_xy", "geom", "disp")) for a, kw in requests]
+    models = [a[0] for a in args]
+    n_blocks = [m.n_blocks for m in models]
+    n_vertices = [len(m.vertex_block) for m in models]
+    block = _cat([m.vertex_block for m in models]) + np.repeat(_offsets(np.array(n_blocks)), n_vertices)
+    start = _cat([m.vertex_offset[:-1] for m in models]) + np.repeat(_offsets(np.array(n_vertices)), n_blocks)
+    xy = _cat([a[1] for a in args])
+    model = SimpleNamespace(vertex_block=block)
+    moved = vertex_displacement(model, xy, {"centroid": _cat([a[2]["centroid"] for a in args])},
+                                _cat([a[3] for a in args]))
+    return _split(np.maximum.reduceat(moved, start), _offsets(np.array(n_blocks)), n_blocks)
+
+
+def _displacement_group(*args, **kwargs):
+    model = args[0] if args else kwargs["model"]
+    return ("displacement",) if len(model.vertex_block) else None
+
+
+side_by_side.register("block_displacement", _displacement_group, block_displacement_many)
+side_by_side.register("assemble_contacts", _assembly_group, assemble_contacts_many)
+side_by_side.register("stage_law", _law_group, stage_law_many)
+side_by_side.register("contact_law_numpy", _law_group, contact_law_many)
