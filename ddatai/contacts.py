@@ -73,6 +73,7 @@ class _Buffers:
         self.clen = np.zeros(256)
         self.count = np.zeros(1, np.int32)
         self.pair_list = PairList()
+        self.no_memory = np.zeros((1, 3), np.int32)  # a kernel takes no empty array
 
 
 def broad_phase(model: Model, vertex_xy: np.ndarray, margin: float, buffers: _Buffers) -> np.ndarray:
@@ -119,19 +120,37 @@ def broad_phase(model: Model, vertex_xy: np.ndarray, margin: float, buffers: _Bu
     return pairs[order].copy()
 
 
-def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray, buffers: _Buffers
-                 ) -> tuple[np.ndarray, np.ndarray]:
-    """Contacts of the candidate pairs: (cint (m, 5) int32, length (m,)), sorted."""
+def memory_rows(last_keys: np.ndarray, n_vertices: int) -> np.ndarray:
+    """The vertex-edge contacts among the sorted keys of the last step's contacts
+    (`contact_keys`, ``ContactMemory.key``) as rows (kind 0, vertex, edge) in the same order:
+    the memory the narrow-phase kernel searches (``kernels.common.MEM_KIND`` …), as the fused
+    engine's members search theirs."""
+    n = np.int64(n_vertices)
+    keys = last_keys[:np.searchsorted(last_keys, n * n)]  # the vertex-edge keys come first
+    rows = np.zeros((len(keys), 3), np.int32)
+    rows[:, 1], rows[:, 2] = keys // n, keys % n
+    return rows
+
+
+def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray, buffers: _Buffers,
+                 last_keys: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Contacts of the candidate pairs: (cint (m, 5) int32, length (m,)), sorted. ``last_keys``:
+    the sorted keys of the last step's contacts, which keep a corner pair's hand-over to the
+    vertex-edge rules (docs/method/dda.md §3.4; ``ddatai.narrow.narrow_phase``)."""
     from . import kernels as K
 
     p = model.params
     if len(pairs) == 0:
         return np.zeros((0, 5), np.int32), np.zeros(0)
+    mem = memory_rows(np.asarray(last_keys), model.n_vertices) if last_keys is not None else buffers.no_memory[:0]
+    n_mem = len(mem)
+    if not n_mem:
+        mem = buffers.no_memory
     while True:
         buffers.count[0] = 0
         K.narrow_phase(pairs, vertex_xy, model.vertex_offset, model.vertex_next, model.vertex_prev,
                        model.search_distance, model.max_penetration, np.radians(p.angle_tolerance),
-                       buffers.cint, buffers.clen, buffers.count)
+                       mem, n_mem, buffers.cint, buffers.clen, buffers.count)
         n = int(buffers.count[0])
         if n <= len(buffers.cint):
             break
@@ -146,12 +165,14 @@ def sort_contacts(cint: np.ndarray, length: np.ndarray) -> tuple[np.ndarray, np.
     return cint[order], length[order]
 
 
-def detect_contacts(model: Model, vertex_xy: np.ndarray, buffers: _Buffers | None = None
-                    ) -> tuple[np.ndarray, np.ndarray]:
-    """Broad + narrow phase on the Taichi backend. Returns (cint, length) in canonical order."""
+def detect_contacts(model: Model, vertex_xy: np.ndarray, buffers: _Buffers | None = None,
+                    last_keys: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Broad + narrow phase on the Taichi backend. Returns (cint, length) in canonical order.
+    ``last_keys``: the sorted keys of the last step's contacts (``ContactMemory.key``), as
+    ``ddatai.vectorized.detect_contacts``."""
     buffers = buffers or _Buffers()
     pairs = buffers.pair_list.pairs(model, vertex_xy, lambda m, xy, margin: broad_phase(m, xy, margin, buffers))
-    return narrow_phase(model, vertex_xy, pairs, buffers)
+    return narrow_phase(model, vertex_xy, pairs, buffers, last_keys)
 
 
 def contact_keys(cint: np.ndarray, n_vertices: int) -> np.ndarray:

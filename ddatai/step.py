@@ -274,13 +274,13 @@ class Stepper:
     def detect(self, vertex_xy: np.ndarray, memory=None) -> tuple[np.ndarray, np.ndarray]:
         """The contacts at ``vertex_xy`` (cint, length), canonical order: the Taichi kernels
         (`contacts.detect_contacts`) or, for a small model, their NumPy twin
-        (`vectorized.detect_contacts`), which reads the last step's contacts (``memory``) to
+        (`vectorized.detect_contacts`); both read the last step's contacts (``memory``) to
         keep a corner pair's hand-over to the vertex-edge rules (docs/method/dda.md §3.4)."""
+        keys = memory.key if memory is not None and len(memory.key) else None
         if self.model.numpy_path:
             # the equilibrium stage detects at one geometry up to three times in a row (its
             # screen, its first pseudo-step, the release test), about half its detections: the
             # last answer is kept (a copy each way, so that no caller's edit reaches it)
-            keys = memory.key if memory is not None and len(memory.key) else None
             last = self._detected
             if last is not None and last[0] is self.model and np.array_equal(last[1], vertex_xy) and \
                     _same(last[4], keys):
@@ -289,7 +289,7 @@ class Stepper:
             self._detected = (self.model, np.array(vertex_xy), cint.copy(), length.copy(),
                               None if keys is None else keys.copy())
             return cint, length
-        return detect_contacts(self.model, vertex_xy, self.buffers)
+        return detect_contacts(self.model, vertex_xy, self.buffers, keys)
 
     def adopt_detection(self, other: "Stepper") -> None:
         """This stepper's NumPy detection caches (its last detection, its candidate pairs and

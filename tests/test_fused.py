@@ -58,8 +58,18 @@ def _fused_run(model, state, steps):
     return out
 
 
+def stack_444():
+    """The stack of 4-4-4 squares (tests/toppling_cases.py) on a plate tilted 20°, under sudden
+    gravity: its corner pairs keep their hand-over to the vertex-edge rules from step 21 on
+    (docs/method/dda.md §3.4; tests/test_handover_twins.py)."""
+    from toppling_cases import CASES as TOPPLING, scene
+
+    return scene(TOPPLING["squares 4-4-4"][0], 20.0), dd.Params(initial_equilibrium=False)
+
+
 CASES = {
     "example_1_held": (lambda: example_1.build(friction=14.0), True),
+    "stack_444_hand_overs": (stack_444, False),
     "example_1_sliding": (lambda: example_1.build(friction=8.0), True),
     "dropped_grid": (dropped_grid, False),
     # released at half its critical tilt: rocking on a corner through impacts within the 60 steps
@@ -97,6 +107,27 @@ def test_fused_steps_follow_the_numpy_path(case, step):
     np.testing.assert_allclose(out.records["dt"], [r.dt for r in records], rtol=1e-6)
     solves = np.array([r.oc_total for r in records])
     assert np.count_nonzero(out.records["oc_total"] != solves) <= 2
+
+
+@pytest.mark.slow
+def test_the_fused_engine_keeps_the_corner_hand_overs_of_the_numpy_path():
+    """The tilted stack of squares, 60 steps: each member keeps its last step's contacts
+    (its memory region) and its detection keeps a corner pair's hand-over as the NumPy path's
+    does (docs/method/dda.md §3.4), so the run ends with the same contacts, and at the end the
+    hand-over decides the detection (read without the last step's contacts it differs)."""
+    from ddatai import vectorized
+
+    scene, params = stack_444()
+    model = build_model(scene, dataclasses.replace(params, kernels="numpy", solver="dense"))
+    state = model.initial_state()
+    ref, _ = _numpy_run(model, state, 60)
+    out = _fused_run(model, state, 60)
+    assert out.status == "done"
+    xy = ref.vertex_xy
+    assert not np.array_equal(vectorized.detect_contacts(model, xy, None, ref.memory.key)[0],
+                              vectorized.detect_contacts(model, xy)[0])
+    np.testing.assert_array_equal(out.state.memory.key, ref.memory.key)
+    np.testing.assert_array_equal(out.state.memory.state, ref.memory.state)
 
 
 @pytest.mark.slow
@@ -221,8 +252,9 @@ def test_auto_takes_the_fused_engine_where_it_pays(monkeypatch):
 @pytest.mark.gpu
 def test_fused_engine_on_cuda_follows_the_numpy_path():
     """The fused engine on a CUDA GPU (one thread a member there too): the NumPy path's run of
-    Example I at 8° and of the dropped grid, within the module's tolerance (a subprocess: the
-    test session's Taichi runs on the CPU)."""
+    Example I at 8°, of the dropped grid and of the tilted stack of squares through its corner
+    hand-overs, within the module's tolerance (a subprocess: the test session's Taichi runs on
+    the CPU)."""
     import shutil
     import subprocess
     import sys
@@ -242,8 +274,8 @@ from ddatai.step import Stepper
 from ddatai.fused import engine
 from ddatai.fused.pack import Member
 from scenes import example_1
-from test_fused import dropped_grid, _numpy_run, SAME_STEP
-for build, stage in ((lambda: example_1.build(friction=8.0), True), (dropped_grid, False)):
+from test_fused import dropped_grid, stack_444, _numpy_run, SAME_STEP
+for build, stage in ((lambda: example_1.build(friction=8.0), True), (dropped_grid, False), (stack_444, False)):
     scene, params = build()
     model = build_model(scene, dataclasses.replace(params or dd.Params(), kernels="numpy", solver="dense", **SAME_STEP))
     state = model.initial_state()

@@ -172,6 +172,10 @@ def test_kernels_share_the_contact_layout():
     assert [values[k] for k in ("E0", "G0", "E1", "G1", "ES", "GS")] == [layout.S_E0, layout.S_G0, layout.S_E1,
                                                                       layout.S_G1, layout.S_ES, layout.S_GS]
     assert values["N_SLOTS"] == layout.N_SLOTS
+    # the memory rows that the narrow phase searches: the kernel path's and the fused engine's
+    from ddatai.fused import layout as fused
+
+    assert (values["MEM_KIND"], values["MEM_V0"], values["MEM_K2"]) == (fused.MEMI_KIND, fused.MEMI_V0, fused.MEMI_K2)
 
 
 def _core_files():

@@ -205,13 +205,15 @@ def _corner_pairs(model, memory) -> tuple[set, set]:
     return pairs, ends
 
 
-def ramp_handovers(case: ToppleCase, theta: float, frame: str = "turned", ramp_times: float = RAMP_TIMES) -> dict:
+def ramp_handovers(case: ToppleCase, theta: float, frame: str = "turned", ramp_times: float = RAMP_TIMES,
+                   kernels: str = "auto") -> dict:
     """`ramp_topples`'s run step by step, counting the corner hand-overs: the vertex pairs (P, Q)
     that change representation between steps, a vertex-vertex contact one step and a
     vertex-edge contact of P on an edge at Q (or of Q on an edge at P) the next, or back
     (docs/method/dda.md §3.4); and the kicks, each step's largest change of a free block's
     velocity |Δv| / (g·Δt). Returns steps, hand-overs, steps with one, the largest kick and
-    whether the case toppled."""
+    whether the case toppled. ``kernels``: `Params.kernels` (a small model: the NumPy path, or
+    "taichi", the kernel path)."""
     from ddatai.step import Stepper
 
     tau = rocking_time(case)
@@ -219,7 +221,7 @@ def ramp_handovers(case: ToppleCase, theta: float, frame: str = "turned", ramp_t
     th = math.radians(theta) if frame == "turned" else 0.0
     sc = scene(case, 0.0 if frame == "turned" else theta)
     sc.set_ground_acceleration(_turning_gravity(lambda t: th, lambda t: _smoothstep(t, ramp)))
-    model = dd.build_model(sc, dd.Params(initial_equilibrium=False))
+    model = dd.build_model(sc, dd.Params(initial_equilibrium=False, kernels=kernels))
     stepper = Stepper(model)
     state = model.initial_state()
     free = ~model.block_fixed

@@ -35,7 +35,9 @@ def _store_row(vec: ti.template(), c, slot, v):
 @ti.func
 def detect(E: ti.template(), m):
     """The contacts of member m at ``vxy`` into its region, in the canonical order; returns
-    their number (more than the region holds: the member is re-launched with a larger one)."""
+    their number (more than the region holds: the member is re-launched with a larger one).
+    Reads the last step's contacts (``memi``, ``MI_NM`` rows of the region) as the kernel path
+    reads ``ContactMemory.key``."""
     b0 = E.mi[m, MI_B0]
     b1 = E.mi[m, MI_B1]
     base = E.mi[m, MI_C0]
@@ -45,6 +47,9 @@ def detect(E: ti.template(), m):
     h1 = E.mf[m, MF_H1]
     sin_h1 = ti.sin(h1)
     half = 0.5 * d0
+    # the last step's contacts (`hand_over`, sorted), which keep a corner pair's hand-over to
+    # the vertex-edge rules (docs/method/dda.md §3.4)
+    mend = base + E.mi[m, MI_NM]
     E.ccount[m] = 0
     for A in range(b0, b1):
         alo = ti.Vector([1e300, 1e300])
@@ -64,7 +69,7 @@ def detect(E: ti.template(), m):
                         alo[1] - half <= bhi[1] + half and blo[1] - half <= ahi[1] + half:
                     pair_contacts(E.vxy, E.vnext, E.vprev, E.bint[A, BI_V0], E.bint[A, BI_V1],
                                   E.bint[B, BI_V0], E.bint[B, BI_V1], d0, d9, sin_h1, h1,
-                                  E.cint, E.clen, E.ccount, m, base, cap)
+                                  E.memi, base, mend, E.cint, E.clen, E.ccount, m, base, cap)
     n = E.ccount[m]
     if n <= cap:
         _sort(E, base, n)

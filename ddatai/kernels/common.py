@@ -58,6 +58,12 @@ SLACK = 1e-9
 #: push-out in one step throws a block (36 µm threw a square at 30 g·Δt)
 PASSED_DEPTH = 1e-6
 
+#: columns of a row of the last step's contact memory that the narrow phase reads (kind, vertex0,
+#: edge0 or vertex1: a contact's identity, ``ddatai.contacts.contact_keys``), rows sorted by them:
+#: the kernel path's (`ddatai.contacts.memory_rows`) and the fused engine's ``memi``
+#: (`ddatai.fused.layout`, whose first columns these are)
+MEM_KIND, MEM_V0, MEM_K2 = 0, 1, 2
+
 # columns of the contact-law kernel's outputs (`ddatai.contact_law.ContactLaw` fields)
 LAW_DN, LAW_DS, LAW_FN, LAW_FT, LAW_STRENGTH, LAW_DN_NOW, LAW_FN_NOW, LAW_FT_NOW, LAW_FRICTION_NOW, \
     LAW_ENERGY = range(10)

@@ -4,8 +4,8 @@
 
 import taichi as ti
 
-from .common import (EDGE_FLOOR, EDGE_FLOOR2, I32_1, I32_2, F64_1, F64_2, KIND_VE, KIND_VV, PASSED_DEPTH, SLACK, TIE, TWO_PI,
-                     _cross, _dot2, _norm2, _pt, _wrap)
+from .common import (EDGE_FLOOR, EDGE_FLOOR2, I32_1, I32_2, F64_1, F64_2, KIND_VE, KIND_VV, MEM_K2, MEM_KIND, MEM_V0,
+                     PASSED_DEPTH, SLACK, TIE, TWO_PI, _cross, _dot2, _norm2, _pt, _wrap)
 
 
 @ti.func
@@ -100,13 +100,15 @@ def _edge_edge_exit(xy: ti.template(), vnext: ti.template(), vprev: ti.template(
 
 
 @ti.func
-def _past_corner(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), p, w, d9, sin_h1):
+def _past_corner(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), p, w, d9, sin_h1, persist):
     """Whether vertex p, of a vertex-vertex pair (p, w), has passed w's corner along an edge at
-    w: it projects onto that edge beyond round-off from w and lies deeper than ``PASSED_DEPTH``
-    × d9 behind its line, but within the angle tolerance h1 of it seen from w (it slid past the
-    corner along the edge, where a corner that entered head on lies as far behind as along;
-    `narrow._past_corner`, docs/method/dda.md §3.4). Its contact is then that edge's, not a
-    corner's."""
+    w: it projects onto that edge beyond round-off from w (``TIE``) and lies deeper than
+    ``PASSED_DEPTH`` × d9 behind its line, but within the angle tolerance h1 of it seen from w
+    (it slid past the corner along the edge, where a corner that entered head on lies as far
+    behind as along; `narrow._past_corner`, docs/method/dda.md §3.4). Its contact is then that
+    edge's, not a corner's. ``persist`` (a pair handed over last step, `_handed_over`): whether
+    p still lies past w at all, projecting onto the edge beyond ``SLACK`` from w and on or
+    behind its line, within h1 of it, at any depth (a vertex clear of the line ends it)."""
     P = _pt(xy, p)
     t = ti.Vector([0.0, 0.0])
     dn = ti.Vector([0.0, 0.0])
@@ -121,14 +123,63 @@ def _past_corner(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), 
         t[k] = _dot2(P - q0, d) / (l[k] * l[k])
         dn[k] = _dot2(P - q0, ti.Vector([d[1], -d[0]]) / l[k])
     deep = -PASSED_DEPTH * d9
+    beyond = TIE
+    if persist != 0:
+        beyond = SLACK
     out = 0
     along0 = t[0] * l[0]           # along the edge (w, next w), w at t = 0
     along1 = (1.0 - t[1]) * l[1]   # along the edge (prev w, w), w at t = 1
-    if t[0] > TIE and t[0] <= 1.0 and dn[0] < deep and -dn[0] < sin_h1 * along0:
+    # deeper than PASSED_DEPTH × d9 behind the line; on or behind it, where persisting
+    behind0 = dn[0] < deep or (persist != 0 and dn[0] <= 0.0)
+    behind1 = dn[1] < deep or (persist != 0 and dn[1] <= 0.0)
+    if t[0] > beyond and t[0] <= 1.0 and behind0 and -dn[0] < sin_h1 * along0:
         out = 1
-    if 1.0 - t[1] > TIE and t[1] >= 0.0 and dn[1] < deep and -dn[1] < sin_h1 * along1:
+    if 1.0 - t[1] > beyond and t[1] >= 0.0 and behind1 and -dn[1] < sin_h1 * along1:
         out = 1
     return out
+
+
+@ti.func
+def _remembered(mem: ti.template(), lo, hi, v, e):
+    """Whether rows ``lo:hi`` of the last step's contact memory (sorted by identity: kind,
+    vertex0, edge0 or vertex1; columns ``MEM_*``) hold the vertex-edge contact of vertex v on
+    edge e: a binary search (the vertex-edge rows come first, kind 0)."""
+    a = lo
+    b = hi
+    while a < b:
+        mid = a + (b - a) // 2
+        below = 0
+        if mem[mid, MEM_KIND] == KIND_VE:
+            if mem[mid, MEM_V0] < v or (mem[mid, MEM_V0] == v and mem[mid, MEM_K2] < e):
+                below = 1
+        if below == 1:
+            a = mid + 1
+        else:
+            b = mid
+    found = 0
+    if a < hi:
+        if mem[a, MEM_KIND] == KIND_VE and mem[a, MEM_V0] == v and mem[a, MEM_K2] == e:
+            found = 1
+    return found
+
+
+@ti.func
+def _handed_over(vprev: ti.template(), mem: ti.template(), lo, hi, ia, ib):
+    """Whether the vertex pair (ia, ib) was handed to the vertex-edge rules last step: a vertex
+    was in a vertex-edge contact on an edge at its partner, (w, next w) or (prev w, w) — the
+    keys ia·n + ib, ia·n + prev ib, ib·n + ia, ib·n + prev ia of `narrow._VertexPairs`."""
+    found = 0
+    for k in range(4):
+        v, e = ia, ib
+        if k == 1:
+            e = vprev[ib]
+        elif k == 2:
+            v, e = ib, ia
+        elif k == 3:
+            v, e = ib, vprev[ia]
+        if found == 0:
+            found = _remembered(mem, lo, hi, v, e)
+    return found
 
 
 @ti.func
@@ -212,9 +263,10 @@ def _nearest(xy: ti.template(), P, lo, hi, limit):
 
 @ti.func
 def _vertex_vertex(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), ia, ib,
-                   d0, d9, sin_h1, h1, out_int: ti.template(), out_len: ti.template(),
-                   count: ti.template(), slot, base, cap):
+                   d0, d9, sin_h1, h1, mem: ti.template(), mlo, mhi, out_int: ti.template(),
+                   out_len: ti.template(), count: ti.template(), slot, base, cap):
     """Vertices ia (block A) and ib (block B) are mutual nearest within d0 (§3.3 case 1, §3.4).
+    ``mem[mlo:mhi]``: the last step's contacts (`_handed_over`).
 
     Where the rules fall back on the vertex-edge tests of a vertex against both edges meeting at
     its partner, those tests run in one loop at the end over the (vertex, partner) pairs that
@@ -287,9 +339,19 @@ def _vertex_vertex(xy: ti.template(), vnext: ti.template(), vprev: ti.template()
                     exits += _edge_edge_exit(xy, vnext, vprev, p, e, w, d9)
                 # a vertex that has passed its partner's corner along one of its edges (the
                 # corners of diagonal blocks where four squares meet, after the rows slid): the
-                # vertex-edge tests give both vertices' contacts, one line could hold only one
-                exits += _past_corner(xy, vnext, vprev, ia, ib, d9, sin_h1) + \
-                    _past_corner(xy, vnext, vprev, ib, ia, d9, sin_h1)
+                # vertex-edge tests give both vertices' contacts, one line could hold only one;
+                # and a pair handed over last step stays handed over while either vertex lies
+                # past its partner at all, on or behind the edge's line (docs/method/dda.md
+                # §3.4, `narrow._VertexPairs`): tests k = 0, 1 as found, k = 2, 3 persisting.
+                # One loop: one copy of `_past_corner` in the compiled kernel
+                for k in range(4):
+                    if k == 2:
+                        if exits != 0 or _handed_over(vprev, mem, mlo, mhi, ia, ib) == 0:
+                            break
+                    p, w = ia, ib
+                    if k % 2 == 1:
+                        p, w = ib, ia
+                    exits += _past_corner(xy, vnext, vprev, p, w, d9, sin_h1, k // 2)
                 if exits == 0:
                     _emit(out_int, out_len, count, slot, base, cap, KIND_VV, ia, eA, ib, eB, 0.0)
                 else:
@@ -314,18 +376,20 @@ def _vertex_vertex(xy: ti.template(), vnext: ti.template(), vprev: ti.template()
 
 @ti.func
 def pair_contacts(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), a0, a1, b0, b1,
-                  d0, d9, sin_h1, h1, out_int: ti.template(), out_len: ti.template(),
-                  count: ti.template(), slot, base, cap):
+                  d0, d9, sin_h1, h1, mem: ti.template(), mlo, mhi, out_int: ti.template(),
+                  out_len: ti.template(), count: ti.template(), slot, base, cap):
     """The contacts of the block pair whose vertices are ``a0:a1`` (A) and ``b0:b1`` (B), by
-    Shi's rules (docs/method/dda.md §3.3–3.6), appended to an output region (``_emit``)."""
+    Shi's rules (docs/method/dda.md §3.3–3.6), appended to an output region (``_emit``).
+    ``mem[mlo:mhi]``: the last step's contacts, sorted by identity (columns ``MEM_*``), which
+    keep a corner pair's hand-over to the vertex-edge rules (`_handed_over`; none: mlo = mhi)."""
     # 1. vertex pairs closer than d0 (mutual nearest): vertex-vertex rules
     for ia in range(a0, a1):
         P = _pt(xy, ia)
         ib = _nearest(xy, P, b0, b1, d0)
         if ib >= 0:
             if _nearest(xy, _pt(xy, ib), a0, a1, d0) == ia:
-                _vertex_vertex(xy, vnext, vprev, ia, ib, d0, d9, sin_h1, h1, out_int, out_len, count,
-                               slot, base, cap)
+                _vertex_vertex(xy, vnext, vprev, ia, ib, d0, d9, sin_h1, h1, mem, mlo, mhi, out_int, out_len,
+                               count, slot, base, cap)
     # 2. vertices of A against edges of B, and 3. vertices of B against edges of A,
     # skipping a vertex whose mutual-nearest partner is an end of the edge (that pair was
     # handled above). A vertex near an edge's end that is not that end's mutual nearest
@@ -351,14 +415,17 @@ def pair_contacts(xy: ti.template(), vnext: ti.template(), vprev: ti.template(),
 
 @ti.kernel
 def narrow_phase(pairs: I32_2, xy: F64_2, voff: I32_1, vnext: I32_1, vprev: I32_1,
-                 d0: ti.f64, d9: ti.f64, h1: ti.f64, out_int: I32_2, out_len: F64_1, count: I32_1):
+                 d0: ti.f64, d9: ti.f64, h1: ti.f64, mem: I32_2, n_mem: ti.i32, out_int: I32_2, out_len: F64_1,
+                 count: I32_1):
     """Shi's narrow phase for each candidate block pair (A < B) (docs/method/dda.md §3.3–3.6).
 
-    out_int rows: (kind, vertex0, edge0, vertex1, edge1); out_len: contact length.
+    mem[:n_mem]: the last step's contacts (kind, vertex0, edge0 or vertex1), sorted
+    (`ddatai.contacts.memory_rows`). out_int rows: (kind, vertex0, edge0, vertex1, edge1);
+    out_len: contact length.
     """
     sin_h1 = ti.sin(h1)
     for p in range(pairs.shape[0]):
         A = pairs[p, 0]
         B = pairs[p, 1]
         pair_contacts(xy, vnext, vprev, voff[A], voff[A + 1], voff[B], voff[B + 1], d0, d9, sin_h1, h1,
-                      out_int, out_len, count, 0, 0, out_int.shape[0])
+                      mem, 0, n_mem, out_int, out_len, count, 0, 0, out_int.shape[0])
