@@ -3,7 +3,7 @@
 
 Where limit equilibrium admits forces for a block but the return mapping stalls and the
 open-close test from there does not converge, nothing proves the block held or moving: the
-stage releases it *in doubt* (`ddatai.mechanisms.loaded_away`), and it starts at t = 0 from
+stage releases it *in doubt* (``ddatai.mechanisms.loaded_away``), and it starts at t = 0 from
 where it was, under sudden gravity. Whether such a block — typically every block of a stack of
 columns near its toppling tilt — then rocks away or settles is decided in its first rocking
 time constants, and the step's own damping decides it where Δt does not resolve the rocking:
@@ -20,7 +20,7 @@ has moved more than its size √A from where it started (it has failed: no Δt u
 every block leaves it once, after at least one τ, they rest (largest vertex speed below
 REST × g·τ) or after MAX_TIMES × τ (a block creeping for ever does not keep the short steps).
 The held blocks and models without such releases step as before. The cost is the resolved
-steps of that window: ~RESOLVE a τ (`tests/test_in_doubt.py`, the closing table of
+steps of that window: ~RESOLVE a τ (``tests/test_in_doubt.py``, the closing table of
 docs/guide/equilibrium_start.md). The fused engine (`ddatai.fused`) does not apply it: a run or a
 kgm member with blocks released in doubt runs on today's path (`ddatai.run`, `kgm.judges.fused`).
 """

@@ -60,7 +60,7 @@ PASSED_DEPTH = 1e-6
 
 #: columns of a row of the last step's contact memory that the narrow phase reads (kind, vertex0,
 #: edge0 or vertex1: a contact's identity, ``ddatai.contacts.contact_keys``), rows sorted by them:
-#: the kernel path's (`ddatai.contacts.memory_rows`) and the fused engine's ``memi``
+#: the kernel path's (``ddatai.contacts.memory_rows``) and the fused engine's ``memi``
 #: (`ddatai.fused.layout`, whose first columns these are)
 MEM_KIND, MEM_V0, MEM_K2 = 0, 1, 2
 

@@ -106,7 +106,7 @@ def _past_corner(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), 
     ``PASSED_DEPTH`` × d9 behind its line, but within the angle tolerance h1 of it seen from w
     (it slid past the corner along the edge, where a corner that entered head on lies as far
     behind as along; `narrow._past_corner`, docs/method/dda.md §3.4). Its contact is then that
-    edge's, not a corner's. ``persist`` (a pair handed over last step, `_handed_over`): whether
+    edge's, not a corner's. ``persist`` (a pair handed over last step, ``_handed_over``): whether
     p still lies past w at all, projecting onto the edge beyond ``SLACK`` from w and on or
     behind its line, within h1 of it, at any depth (a vertex clear of the line ends it)."""
     P = _pt(xy, p)
@@ -266,7 +266,7 @@ def _vertex_vertex(xy: ti.template(), vnext: ti.template(), vprev: ti.template()
                    d0, d9, sin_h1, h1, mem: ti.template(), mlo, mhi, out_int: ti.template(),
                    out_len: ti.template(), count: ti.template(), slot, base, cap):
     """Vertices ia (block A) and ib (block B) are mutual nearest within d0 (§3.3 case 1, §3.4).
-    ``mem[mlo:mhi]``: the last step's contacts (`_handed_over`).
+    ``mem[mlo:mhi]``: the last step's contacts (``_handed_over``).
 
     Where the rules fall back on the vertex-edge tests of a vertex against both edges meeting at
     its partner, those tests run in one loop at the end over the (vertex, partner) pairs that
@@ -381,7 +381,7 @@ def pair_contacts(xy: ti.template(), vnext: ti.template(), vprev: ti.template(),
     """The contacts of the block pair whose vertices are ``a0:a1`` (A) and ``b0:b1`` (B), by
     Shi's rules (docs/method/dda.md §3.3–3.6), appended to an output region (``_emit``).
     ``mem[mlo:mhi]``: the last step's contacts, sorted by identity (columns ``MEM_*``), which
-    keep a corner pair's hand-over to the vertex-edge rules (`_handed_over`; none: mlo = mhi)."""
+    keep a corner pair's hand-over to the vertex-edge rules (``_handed_over``; none: mlo = mhi)."""
     # 1. vertex pairs closer than d0 (mutual nearest): vertex-vertex rules
     for ia in range(a0, a1):
         P = _pt(xy, ia)
@@ -420,7 +420,7 @@ def narrow_phase(pairs: I32_2, xy: F64_2, voff: I32_1, vnext: I32_1, vprev: I32_
     """Shi's narrow phase for each candidate block pair (A < B) (docs/method/dda.md §3.3–3.6).
 
     mem[:n_mem]: the last step's contacts (kind, vertex0, edge0 or vertex1), sorted
-    (`ddatai.contacts.memory_rows`). out_int rows: (kind, vertex0, edge0, vertex1, edge1);
+    (``ddatai.contacts.memory_rows``). out_int rows: (kind, vertex0, edge0, vertex1, edge1);
     out_len: contact length.
     """
     sin_h1 = ti.sin(h1)
