@@ -105,10 +105,12 @@ def main() -> None:
              for k, r in roots.items()}
 
     def answer(k):
-        line = procs[k].stdout.readline()
-        if not line:
-            raise SystemExit(f"the worker of {roots[k]} ended")
-        return json.loads(line)
+        while True:  # Taichi's banner goes to stdout too
+            line = procs[k].stdout.readline()
+            if not line:
+                raise SystemExit(f"the worker of {roots[k]} ended")
+            if line.startswith("{"):
+                return json.loads(line)
 
     for k in procs:
         answer(k)

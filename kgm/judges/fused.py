@@ -67,7 +67,13 @@ def prepare_fused(members, blocks: frozenset, *, settings: DdaSettings, params: 
 
     if not members:
         return Prepared(runs=[], plans=[], fields=[], seconds=0.0)
-    plans = [RunPlan.of(m.system, blocks, settings, params) for m in members]
+    # one plan for the members that share a block system (the probes of a bisection round)
+    by_system: dict = {}
+    plans = []
+    for m in members:
+        if id(m.system) not in by_system:
+            by_system[id(m.system)] = RunPlan.of(m.system, blocks, settings, params)
+        plans.append(by_system[id(m.system)])
     prm = plans[0].params
     steps = sum(p.duration / (prm.dt if prm.dt is not None else prm.dt_max) for p in plans)
     if choose_batch(prm, member_steps=steps)[0] != "fused":
