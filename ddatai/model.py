@@ -175,6 +175,18 @@ class Model:
                        fixed_point_penalty=p.fixed_point_ratio * float(penalty),
                        force_roundoff=p.open_tolerance * self.w0 * float(penalty))
 
+    def with_joints(self, joints) -> "Model":
+        """This model with the joint table ``joints`` (as many `ddatai.Joint` as it has): what
+        `build_model` gives for its scene with those joints, without building the blocks again
+        (a kgm batch's members share one geometry and differ only in their joints' strengths)."""
+        if len(joints) != len(self.joint_friction):
+            raise ValueError(f"with_joints: the model has {len(self.joint_friction)} joints, got {len(joints)}")
+        friction = np.array([j.friction for j in joints], dtype=float)
+        return replace(self, joint_tan_phi=np.tan(np.radians(friction)), joint_friction=friction,
+                       joint_cohesion=np.array([j.cohesion for j in joints], dtype=float),
+                       joint_tensile=np.array([j.tensile for j in joints], dtype=float),
+                       joint_barton=_barton_arrays(joints).get("joint_barton", np.zeros((0, 6))))
+
     def initial_state(self) -> "State":
         """State at t = 0."""
         return State(

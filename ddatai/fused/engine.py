@@ -125,10 +125,13 @@ class Session:
         mi[:, L.MI_FN] = 0
         t0 = time.perf_counter()
         if self.launches == 0:
+            # one argument pack a session: it refers to the arrays, which keep their identity
+            # between launches (the members' state is updated in them in place)
+            self._args = self._pack(**self.arrays)
             with _short_source_positions():
-                self._kernel(self._pack(**self.arrays), len(self.members))
+                self._kernel(self._args, len(self.members))
         else:
-            self._kernel(self._pack(**self.arrays), len(self.members))
+            self._kernel(self._args, len(self.members))
         wall = time.perf_counter() - t0
         if self.launches == 0:
             global LAUNCHED

@@ -47,18 +47,25 @@ def cache_dir() -> Path:
     return Path(path) if path else Path.home() / ".cache" / "taichi" / "ticache"
 
 
-def _marker(arch: str) -> Path:
-    root = Path(__file__).resolve().parents[2]
-    digest = hashlib.sha1(arch.encode())
-    for name in _SOURCES:
-        digest.update((root / name).read_bytes())
-    try:
-        from importlib.metadata import version
+#: arch -> the marker's digest, taken once a process: reading the kernel's sources and Taichi's
+#: package metadata cost ~5 ms, which every launch of a kgm bisection round paid again
+_DIGESTS: dict = {}
 
-        digest.update(version("taichi").encode())
-    except Exception:  # noqa: BLE001 - no metadata: the sources alone key the marker
-        pass
-    return cache_dir() / f"ddatai-fused-{digest.hexdigest()[:16]}"
+
+def _marker(arch: str) -> Path:
+    if arch not in _DIGESTS:
+        root = Path(__file__).resolve().parents[2]
+        digest = hashlib.sha1(arch.encode())
+        for name in _SOURCES:
+            digest.update((root / name).read_bytes())
+        try:
+            from importlib.metadata import version
+
+            digest.update(version("taichi").encode())
+        except Exception:  # noqa: BLE001 - no metadata: the sources alone key the marker
+            pass
+        _DIGESTS[arch] = digest.hexdigest()[:16]
+    return cache_dir() / f"ddatai-fused-{_DIGESTS[arch]}"
 
 
 def kernel_cached(arch: str = "cpu") -> bool:

@@ -67,17 +67,26 @@ def prepare_fused(members, blocks: frozenset, *, settings: DdaSettings, params: 
 
     if not members:
         return Prepared(runs=[], plans=[], fields=[], seconds=0.0)
-    plans = [RunPlan.of(m.system, blocks, settings, params) for m in members]
+    # one plan for the members that share a block system (the probes of a bisection round)
+    by_system: dict = {}
+    plans = []
+    for m in members:
+        if id(m.system) not in by_system:
+            by_system[id(m.system)] = RunPlan.of(m.system, blocks, settings, params)
+        plans.append(by_system[id(m.system)])
     prm = plans[0].params
     steps = sum(p.duration / (prm.dt if prm.dt is not None else prm.dt_max) for p in plans)
     if choose_batch(prm, member_steps=steps)[0] != "fused":
         return None
     start = time.perf_counter()
-    built = []
+    built, shared = [], {}
     for m, plan in zip(members, plans):
         sub, ids = sub_scene(m.scene, m.system, blocks, removed=removed, free_neighbours=plan.free_neighbours,
                              friction=m.friction, reduction=m.reduction)
-        model = build_model(sub, prm)
+        # the members of one scene share the sub-model's blocks: built once, each member with
+        # its own joints (`ddatai.model.Model.with_joints`)
+        key = (id(m.scene), id(m.system), plan.free_neighbours, tuple(ids))
+        model = shared[key].with_joints(sub.joints) if key in shared else shared.setdefault(key, build_model(sub, prm))
         if covers(model) is not None:
             return None
         built.append((sub, ids, model))
