@@ -86,3 +86,16 @@ def tilt_peaks(b: float, h: float, fraction: float, n: int, params=None) -> tupl
     cuts = np.nonzero(sign[1:] * sign[:-1] < 0)[0] + 1
     halves = np.split(np.abs(tilt), cuts)
     return np.array([x.max() for x in halves[1:n + 1]]), res
+
+
+def free_swing(params, b: float = 0.5, h: float = 2.0, fraction: float = 0.5) -> tuple[int, float]:
+    """The swing from the release to the first impact: (its steps, its energy gain over it as a
+    fraction of the rocking energy m·g·R·(cos(α − θ0) − cos α)). The impact is the first step
+    whose energy falls by more than 5 % of the rocking energy (r²'s share)."""
+    _, res = tilt_peaks(b, h, fraction, 1, params=params)
+    s = res.steps
+    alpha = math.atan(b / h)
+    rocking = ROCK.density * b * h * G * 0.5 * math.hypot(b, h) * (math.cos(alpha - fraction * alpha) - math.cos(alpha))
+    energy = s["kinetic"] + s["gravitational"] + s["strain"] + s["contact"]
+    drop = int(np.flatnonzero(np.diff(energy) < -0.05 * rocking)[0])
+    return drop, float((energy[drop] - energy[0]) / rocking)
