@@ -72,8 +72,7 @@ def follow(model, before, after) -> np.ndarray:
     if not blocks.any():
         return blocks
     geom = after.geometry if after.geometry is not None else model.block_geometry(after.vertex_xy)
-    moved = np.zeros(model.n_blocks)
-    np.maximum.at(moved, model.vertex_block, np.hypot(*(after.vertex_xy - model.vertex_xy0).T))
+    moved = np.maximum.reduceat(np.hypot(*(after.vertex_xy - model.vertex_xy0).T), model.vertex_offset[:-1])
     blocks = blocks & (moved <= np.sqrt(geom["area"]))
     if not blocks.any():
         return np.zeros(0, bool)
