@@ -7,9 +7,9 @@ row i of block-row r holds entries from column 6·env[r] on, env[r] being the fi
 coupled to r by a contact of the step (the rows are the free blocks in a bandwidth-reducing
 order chosen when the member is packed). The lower triangle and the diagonal lie row by row,
 the upper triangle column by column (`at`), so that both sides of every inner product of the
-factorisation and the triangular solves lie contiguous in memory (a row of L against a column
-of U: each strided by n before, ~2× the factorisation's time at 64 blocks,
-benchmarks/fused_phases.py). The factorisation is Doolittle's LU without pivoting on that
+factorisation and the triangular solves lie contiguous in memory (with the columns of U strided
+by n, the factorisation was ~80 % of a 64-block step;
+benchmarks/results/small_models_fused_factor.md). The factorisation is Doolittle's LU without pivoting on that
 profile (a skyline solver, as Shi's block LDLᵀ), six rows of a block-row at a time: where K is symmetric (no sliding contact takes
 its friction from the same solve) the upper factor is D·Lᵀ and the second inner product is
 skipped (the cost of a Cholesky). Its work is n·w² for an envelope w wide instead of n³/3 (a
