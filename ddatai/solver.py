@@ -387,7 +387,11 @@ class SparseSolver:
         else:
             a_ptr = np.ascontiguousarray(indptr, dtype=np.int32)
             a_idx = np.ascontiguousarray(indices, dtype=np.int32)
-            a_data = np.ascontiguousarray(data, dtype=np.float64)
+            a_data = self._factored_data
+            if a_data is None or a_data.shape != data.shape or not np.array_equal(a_data, data):
+                a_data = np.ascontiguousarray(data, dtype=np.float64)
+            # else the solver's own copy of K (the same values): the solves with the factor
+            # then hold no caller's array, which the next iterate's K would be made beside
         b = np.ascontiguousarray(rhs, dtype=np.float64)
         try:
             if fresh:
