@@ -1,6 +1,6 @@
 """Does a held member's equilibrium stage follow a path that its joints' strength does not change?
 
-    python benchmarks/stage_friction_path.py [--n 200] [--json out.json]
+    python benchmarks/stage_friction_path.py [--n 200] [--sweep 24,30,40,50,60,70] [--json out.json]
 
 The question behind sharing one member's stage with the others of a study: the members of
 Example II's DDA-judged study (``benchmarks/probabilistic.py``: friction N(22°, 2°), cohesion
@@ -79,6 +79,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=200)
     ap.add_argument("--json", default="")
+    ap.add_argument("--sweep", default="", help="frictions [°] (comma-separated) at which one member of "
+                    "cohesion 20 kPa is also settled and watched, e.g. 24,30,40,50,60,70")
     a = ap.parse_args()
     sys.path.insert(0, str(ROOT))
 
@@ -141,6 +143,12 @@ def main() -> None:
             print(f"first held member (φ {friction:.4f}°, c {cohesion:.1f} Pa), {label}: held {again.held}, "
                   f"solves {again.solves} (was {start.solves}), settled vertices move by up to "
                   f"{float(np.abs(other.vertex_xy - state.vertex_xy).max()):.3g} m")
+    for friction in (float(f) for f in a.sweep.split(",") if f):
+        _, start, record = member(friction, 20e3)
+        need = f"{np.degrees(np.arctan(record[0][0])):.2f}°" if record else "-"
+        print(f"friction {friction:g}°, cohesion 20 kPa: held {start.held}, solves {start.solves}, law evaluations "
+              f"sliding a contact {sum(s for _, s in record)} of {len(record)}, at strength {start.at_strength}, "
+              f"first iterate needs {need}")
     if a.json:
         Path(a.json).write_text(json.dumps(rows))
 
