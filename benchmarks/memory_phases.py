@@ -165,7 +165,7 @@ def instrument() -> None:
                 _PARDISO.append(dict(phase=phase, mtype=self.mtype, n=len(indptr) - 1, nnz_upper=int(len(indices)),
                                      peak_symbolic_kb=int(ip[14]), permanent_kb=int(ip[15]),
                                      factor_solve_kb=int(ip[16]), factor_nnz=int(ip[17]), mflops=int(ip[18]),
-                                     wall_s=dt))
+                                     wall_s=dt, cpu_s=time.process_time() - c0))
 
     pardiso._Pardiso.call = pardiso_call
 
