@@ -295,17 +295,18 @@ def slow_tilt_angle(case: ToppleCase, theta0: float, rate: float, theta_max: flo
 
 
 def ramp_toppling_share(case: ToppleCase, theta: float, frame: str = "turned",
-                        ramp_times: float = RAMP_TIMES) -> float | None:
+                        ramp_times: float = RAMP_TIMES, **params) -> float | None:
     """`ramp_topples`'s run: the share of the weight s(t) (the smoothstep of the ramp) on the
     case when it has toppled (a vertex moved more than TOPPLED × the tallest column), or None
     where it stands. The ramps that topple the stacks of squares at the lowest tilts do so at
-    17–19 % of their weight (docs/guide/equilibrium_start.md)."""
+    17–19 % of their weight (docs/guide/equilibrium_start.md). ``params``: `Params` fields other
+    than the default (``initial_equilibrium`` is False)."""
     tau = rocking_time(case)
     ramp, hold = ramp_times * tau, HOLD_TIMES * tau
     th = math.radians(theta) if frame == "turned" else 0.0
     sc = scene(case, 0.0 if frame == "turned" else theta)
     sc.set_ground_acceleration(_turning_gravity(lambda t: th, lambda t: _smoothstep(t, ramp)))
-    params = dd.Params(initial_equilibrium=False)
+    params = dd.Params(initial_equilibrium=False, **params)
     model = dd.build_model(sc, params)
     when = []
 
@@ -445,7 +446,7 @@ CASES = {
     "column 0.4": (column(0.4, 1.0), 20.5, 23.5),
     "column 0.5": (column(0.5, 1.0), 25.0, 28.0),
     "row 3 x 0.25": (ToppleCase("row 3 x 0.25", (0.25,) * 3, ((1.0,),) * 3, 38.0), 15.0, 27.0),
-    "stair 0.25": (ToppleCase("stair 0.25", (0.25,) * 4, ((0.6,), (0.8,), (1.0,), (1.2,)), 38.0), 15.0, 27.0),
+    "stair 0.25": (ToppleCase("stair 0.25", (0.25,) * 4, ((0.6,), (0.8,), (1.0,), (1.2,)), 38.0), 15.0, 28.0),
     "squares 3-4-5": (_squares((3, 4, 5)), 12.0, 26.0),
     "squares 4-5-6-7": (_squares((4, 5, 6, 7)), 10.0, 20.0),
     "squares 4-4-4": (_squares((4, 4, 4)), 10.0, 25.0),
