@@ -9,9 +9,12 @@ columns near its toppling tilt — then rocks away or settles is decided in its 
 time constants, and the step's own damping decides it where Δt does not resolve the rocking:
 DDA's implicit step damps a motion of frequency ω by ~ω·Δt a step and the plastic impacts of
 corners that close within a long step take their approach away (`ddatai.impacts`). Measured on
-the 4-4-4 stack of 0.1 m squares at 23.25° (τ = 0.098 s a square): with Δt ≤ 0.5, 1 and 2 ms
+the 4-4-4 stack of 0.1 m squares (τ = 0.098 s a square): at 23.25° with Δt ≤ 0.5, 1 and 2 ms
 it topples at 0.31–0.35 s, with the default 10 ms (τ/10) and with 3 ms it moves 2 mm and stops,
-while a slow load topples it there; the outcome at τ/80 and below no longer depends on Δt.
+while a slow load topples it there; nearer its threshold τ/80 is not enough: at 22.6° it leans
+8 mm and stops with Δt ≤ τ/80 (1.23 ms) or 1 ms and topples with 0.7 and 0.5 ms, and with
+τ/160 and τ/320 alike (at 0.503 s both). With τ/160 and τ/320 the outcome is the same on a
+0.05° grid (it stands at 22.35° and 22.4°, leaning 8.6–10.3 mm, and topples from 22.45°).
 
 So while blocks released in doubt move, the automatic Δt resolves their rocking: at most
 τ/RESOLVE, τ = √(4R/(3g)) the rocking time constant about a corner (Housner 1963) of the
@@ -32,8 +35,9 @@ import numpy as np
 from .kinematics import block_radius
 
 #: the automatic Δt of the watched blocks is at most τ/RESOLVE (τ the rocking time constant):
-#: 0.5, 1 and 2 ms topple the 4-4-4 squares alike (τ/200–τ/50), 3 ms (τ/33) does not
-RESOLVE = 80.0
+#: the 4-4-4 squares' outcome is the same with τ/160 and τ/320 from 22.35° to 23.25°, while
+#: τ/80 holds them at 22.45–22.6°, where the finer steps topple them (module docstring)
+RESOLVE = 160.0
 #: at rest: the watched blocks' largest vertex speed below this × g·τ (1 µm/s for τ = 0.1 s)
 REST = 1e-6
 #: the watch ends after at most this many rocking time constants (the slow load's ramp and hold

@@ -134,6 +134,7 @@ def open_close(stepper, state: State, geom: dict, contacts: Contacts, pattern: B
     frozen = None    # the lever arms at the predicted rotation, for all solves (`Params.lever_arm_rotation`)
     for it in range(1, max_iterations + 1):
         t0 = _time.perf_counter()
+        data = rhs = None  # the last iterate's K goes before the next one is made (0.26 GB at 102,400 blocks)
         data, rhs = data0.copy(), rhs0.copy()
         shift = second_order(model, contacts, state, geom, rotation, rhs)
         if stepper.params.midstep_lever_arms:  # the contacts' lever arms at mid-step (`ddatai.lever_arm`, §5.3)

@@ -76,6 +76,7 @@ class _Pardiso:
         self.perm = np.zeros(0, dtype=np.int32)
         self.key = None  # (indptr, indices) the current analysis belongs to
         self.n = 0
+        self.factored = False  # whether the handle holds a numerical factor
 
     def call(self, phase: int, data: np.ndarray, indptr: np.ndarray, indices: np.ndarray,
              rhs: np.ndarray) -> np.ndarray:
@@ -93,6 +94,8 @@ class _Pardiso:
                   rhs.ctypes.data_as(f64), x.ctypes.data_as(f64), ctypes.byref(err))
         if err.value != 0:
             raise PardisoError(f"MKL PARDISO error {err.value} in phase {phase}")
+        if phase in (12, 13, 22, 23):
+            self.factored = True
         return x
 
     def release(self) -> None:
@@ -103,6 +106,16 @@ class _Pardiso:
             except PardisoError:
                 pass
             self.key = None
+            self.factored = False
+
+    def release_factor(self) -> None:
+        """Free the numerical factor (MKL's phase 0) and keep the analysis: the next
+        factorisation of the same structure (phase 23) needs no new ordering and gives the same
+        factor, bit for bit."""
+        if self.key is not None and self.factored:
+            dummy = np.zeros(1)
+            self.call(0, dummy, np.zeros(self.n + 1, np.int32), np.zeros(1, np.int32), np.zeros(self.n))
+            self.factored = False
 
     @property
     def perturbed_pivots(self) -> int:

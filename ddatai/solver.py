@@ -47,6 +47,13 @@ rows of at most ``KRYLOV_BLOCKS`` blocks (half a factorisation's cost in iterati
 factor's type; fixed numbers, not timings, so that a run takes the same path every time), and
 stops after twice as many iterations; where it does not converge the matrix is factorised, and
 that factor preconditions the next solves.
+
+**One factor at a time.** PARDISO keeps one handle per matrix type (Cholesky and LU), each with
+its analysis; a factorisation of one type frees the other's factor (MKL's phase 0, the analysis
+kept), which no solve uses again before it is factorised anew, and the last factor with the
+matrix its solves hold goes before a new one is made. At 102,400 blocks the two factors were
+2.0 and 4.0 GB held at once, and the step's peak memory fell from 9.1–9.2 to 7.4–7.6 GB with the same
+solutions to the bit (`benchmarks/memory_phases.py`, docs/guide/performance.md).
 """
 
 from __future__ import annotations
@@ -184,6 +191,9 @@ class SparseSolver:
                 return x
         self.factorisations += 1
         self.lu_factorisations += not symmetric
+        # the last factor and its matrix are replaced now: let them go before the new ones are
+        # made (the solve with the old factor holds its matrix, 0.26 GB at 102,400 blocks)
+        self._factor = self._factored_data = None
         # the matrix of the factor, against which a Krylov solve measures its change
         self._factored_data = np.array(data, dtype=np.float64)
         self._exact = True  # unless PARDISO perturbs a pivot (`_solve_pardiso`)
@@ -370,23 +380,25 @@ class SparseSolver:
 
     def _solve_pardiso(self, data, indices, indptr, rhs, n, symmetric) -> np.ndarray:
         h = self._handle(2 if symmetric else 11)
+        for other in self._handles.values():
+            if other is not h:
+                other.release_factor()  # no solve uses it again before it is factorised anew
         fresh = not self._same(h.key, indptr, indices)
         if symmetric:
             # PARDISO reads the upper triangle: which CSR entries those are, once per structure
             if self._upper is None or not self._same(self._upper[0], indptr, indices):
-                rows = np.repeat(np.arange(n), np.diff(indptr))
-                mask = indices >= rows
-                counts = np.bincount(rows[mask], minlength=n)
-                upper_indptr = np.concatenate([[0], np.cumsum(counts)]).astype(np.int32)
-                # positions, not a boolean mask: a take is ~10x faster than boolean indexing
-                self._upper = ((indptr, indices), np.flatnonzero(mask), upper_indptr,
-                               np.ascontiguousarray(indices[mask], dtype=np.int32))
+                self._upper = None  # the last structure's arrays go before the new ones are made
+                self._upper = _upper_triangle(indptr, indices, n)
             _, pos, a_ptr, a_idx = self._upper
             a_data = data.take(pos)
         else:
             a_ptr = np.ascontiguousarray(indptr, dtype=np.int32)
             a_idx = np.ascontiguousarray(indices, dtype=np.int32)
-            a_data = np.ascontiguousarray(data, dtype=np.float64)
+            a_data = self._factored_data
+            if a_data is None or a_data.shape != data.shape or not np.array_equal(a_data, data):
+                a_data = np.ascontiguousarray(data, dtype=np.float64)
+            # else the solver's own copy of K (the same values): the solves with the factor
+            # then hold no caller's array, which the next iterate's K would be made beside
         b = np.ascontiguousarray(rhs, dtype=np.float64)
         try:
             if fresh:
@@ -418,3 +430,22 @@ class SparseSolver:
         x, self.last_residual, _ = _refinement(k, b, x, lambda r: h.call(33, a_data, a_ptr, a_idx, r),
                                                REFINE_ABOVE, REFINE_PASSES)
         return x
+
+
+def _upper_triangle(indptr: np.ndarray, indices: np.ndarray, n: int) -> tuple:
+    """((indptr, indices), positions of the upper triangle's entries in the CSR data, its
+    indptr, its indices): what PARDISO reads of a symmetric K. In a function of its own so that
+    its temporaries (the row of every entry) are gone before the factorisation; rows and
+    positions as int32 where they fit (0.26 GB each as int64 at 102,400 blocks; a take with
+    int32 positions gives the same values)."""
+    small = len(indices) < 2**31
+    rows = np.repeat(np.arange(n, dtype=np.int32 if small else np.int64), np.diff(indptr))
+    mask = indices >= rows
+    counts = np.bincount(rows[mask], minlength=n)
+    del rows
+    upper_indptr = np.concatenate([[0], np.cumsum(counts)]).astype(np.int32)
+    # positions, not a boolean mask: a take is ~10x faster than boolean indexing
+    pos = np.flatnonzero(mask)
+    if small:
+        pos = pos.astype(np.int32)
+    return (indptr, indices), pos, upper_indptr, np.ascontiguousarray(indices[mask], dtype=np.int32)

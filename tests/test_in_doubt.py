@@ -25,7 +25,7 @@ TAU_SQUARE = math.sqrt(4.0 * 0.1 / math.sqrt(2.0) / (3.0 * 9.81))
 
 def test_a_stack_released_in_doubt_steps_at_a_resolved_time_step_and_rocks_away():
     """4-4-4 squares at 23.25°, 0.05 s: the stage releases 11 of the 12 blocks in doubt (one
-    with certainty); every step is at most τ/80 = 1.23 ms (τ = 0.098 s, the squares' rocking
+    with certainty); every step is at most τ/160 = 0.61 ms (τ = 0.098 s, the squares' rocking
     time constant) where the default would grow to 10 ms, and at 0.05 s a vertex has moved
     more than 1.2 mm (1.56–1.69 mm with Δt ≤ 0.5–2 ms, and 1.66 mm with this rule; 0.81 mm with
     the default 10 ms, on the way to standing). ~1 s idle."""
@@ -48,7 +48,7 @@ def _square_on_plate():
 
 
 def test_the_watch_resolves_the_rocking_time_constant_and_ends_at_rest_or_when_moved_away():
-    """`ddatai.in_doubt` on one square: Δt ≤ τ/80 while watched (the automatic Δt otherwise 10
+    """`ddatai.in_doubt` on one square: Δt ≤ τ/160 while watched (the automatic Δt otherwise 10
     ms); watched before one τ even at rest; at rest (vertex speed < 1e-6·g·τ ≈ 1 µm/s) after τ
     the watch ends; moving at 1 mm/s after τ it goes on; moved 0.11 m (more than its size,
     0.1 m) the square leaves it; after 20 τ it ends whatever moves."""
@@ -56,9 +56,10 @@ def test_the_watch_resolves_the_rocking_time_constant_and_ends_at_rest_or_when_m
 
     model, state = _square_on_plate()
     geom = model.block_geometry(state.vertex_xy)
-    assert in_doubt.time_step(model, state, geom) == pytest.approx(TAU_SQUARE / 80.0, rel=1e-12)
-    assert choose_time_step(model, state, geom) <= TAU_SQUARE / 80.0 * (1 + 1e-12)
-    assert choose_time_step(model, state.replace(in_doubt=np.zeros(0, bool)), geom) > 5 * TAU_SQUARE / 80.0
+    assert in_doubt.RESOLVE == 160.0
+    assert in_doubt.time_step(model, state, geom) == pytest.approx(TAU_SQUARE / 160.0, rel=1e-12)
+    assert choose_time_step(model, state, geom) <= TAU_SQUARE / 160.0 * (1 + 1e-12)
+    assert choose_time_step(model, state.replace(in_doubt=np.zeros(0, bool)), geom) > 10 * TAU_SQUARE / 160.0
     early = state.replace(time=0.5 * TAU_SQUARE)
     assert in_doubt.follow(model, state, early).any()
     rest = state.replace(time=1.5 * TAU_SQUARE)
@@ -99,5 +100,5 @@ def test_runs_with_blocks_released_in_doubt_leave_the_fused_engine_for_today_s_p
     run = Member(model=model, state=state, t_end=0.01, stop_at=0.05, rest_limit=-1.0, rest_steps=10, group=free)
     plan = SimpleNamespace(duration=0.01, delta=0.0125, params=dd.Params())
     [judgement] = run_prepared(Prepared(runs=[run], plans=[plan], fields=[dict(friction=38.0, reduction=1.0, model_blocks=model.n_blocks, moving_blocks=len(free), scene_blocks=model.n_blocks)], seconds=0.0))
-    # today's path from the start: the whole 0.01 s at the resolved Δt (≥ 0.01 / 1.23 ms steps)
-    assert judgement.simulated == pytest.approx(0.01) and judgement.steps >= 8
+    # today's path from the start: the whole 0.01 s at the resolved Δt (≥ 0.01 / 0.61 ms steps)
+    assert judgement.simulated == pytest.approx(0.01) and judgement.steps >= 16

@@ -94,6 +94,30 @@ def test_pardiso_reuses_analysis_only_for_the_same_structure():
     assert np.abs(K2 @ y - rhs2).max() < 1e-10 * np.abs(rhs2).max()
 
 
+@pytest.mark.skipif(not HAS_PARDISO, reason="pypardiso is not installed (optional accelerator)")
+def test_pardiso_frees_the_other_types_factor_and_keeps_its_analysis():
+    """A factorisation of one matrix type frees the factor the other type's handle holds (no
+    solve uses it before it is factorised anew): at 102,400 blocks a Cholesky factor of 2 GB
+    and an LU factor of 4 GB were held at once. The analysis stays, and the next factorisation
+    of that type gives the solution of a fresh solver's, bit for bit."""
+    pattern, data, rhs = _system(0)
+    _, lu_data, _ = _non_symmetric(0)
+    solver = SparseSolver("pardiso")
+    args = (pattern.indices, pattern.indptr, rhs)
+    x1 = solver.solve(data, *args, pattern=pattern)
+    chol = solver._handles[2]
+    assert chol.factored
+    y1 = solver.solve(lu_data, *args, pattern=pattern, symmetric=False)
+    lu = solver._handles[11]
+    assert lu.factored and not chol.factored and chol.key is not None  # factor freed, analysis kept
+    x2 = solver.solve(data, *args, pattern=pattern)
+    assert chol.factored and not lu.factored and lu.key is not None
+    y2 = solver.solve(lu_data, *args, pattern=pattern, symmetric=False)
+    assert np.array_equal(x1, x2) and np.array_equal(y1, y2)
+    assert np.array_equal(x2, SparseSolver("pardiso").solve(data, *args, pattern=pattern))
+    assert np.array_equal(y2, SparseSolver("pardiso").solve(lu_data, *args, pattern=pattern, symmetric=False))
+
+
 def _non_symmetric(seed):
     """The system with implicit friction on every closed contact: K is not symmetric."""
     pattern, data, rhs = _system(seed)

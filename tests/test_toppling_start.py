@@ -109,23 +109,22 @@ def test_the_start_fails_the_goodman_bray_slope_wherever_a_slow_load_does_and_wi
 #: to 0.2°): its stage releases the blocks in doubt, and they start under sudden gravity. Safe,
 #: not within the band (docs/guide/equilibrium_start.md). The bisections here were not rerun
 #: since the corner rules and the resolved first steps of releases in doubt (`START_POINTS`: the
-#: start now topples 3-4-5 from 22.0° and 4-4-4 from 22.75°)
+#: start now topples 3-4-5 from 22.0° and 4-4-4 from 22.45°)
 CONSERVATIVE = {"squares 4-5-6-7": (15.6, 19.0), "squares 4-4-4": (22.07, 24.5)}
 
 
 #: family cases whose bisections fail today, on main before the persistent corner hand-over too
-#: (measured 2026-11-28): the stair's start stands at its upper bracket 27.0° (its start
-#: threshold is 27.0–27.5°, docs/guide/equilibrium_start.md: the bracket is to be re-measured);
+#: (measured 2026-11-28; the stair's passes since its start bracket reaches 28°, 126 s idle);
 #: the stacks of squares' outcomes are not monotone in the tilt (a bisection lands anywhere in
 #: their scatter: 3-4-5 start 22.96° against the ramp's 25.03°, or the ramp standing at 26.0°;
 #: 4-4-4 start 23.33° against the ramp's 22.72–22.75°, S above R), which the point tests
 #: (`START_POINTS`, `SLOW_POINTS`) take instead
-FAMILY_KNOWN = {"stair 0.25": "the start's bisection bracket (15–27°) ends below its threshold (27.0–27.5°)",
-                "squares 3-4-5": "the start topples it from 22.0° (stands at 21.5°), 2° below the slow load's "
+FAMILY_KNOWN = {"squares 3-4-5": "the start topples it from 22.0° (stands at 21.5°), 2° below the slow load's "
                                  "24.25° (safe, not within 0.5°); the ramp's bisection lands in its scatter",
-                "squares 4-4-4": "the slow load is not monotone in the tilt (40-constant ramps topple it at 22.3° "
-                                 "and 22.6°, hold it at 23.25°): the start, toppling it from 22.75°, holds it at "
-                                 "22.3–22.6° where they topple it (measured 2026-11-28, `SLOW_POINTS`)"}
+                "squares 4-4-4": "the slow load is not monotone in the tilt (the tilted 40-constant ramp topples it "
+                                 "at 22.1°, both at 22.3°, neither at 22.2° or 23.25°; they topple it at 17 % of its "
+                                 "weight, tests/test_toppling_paths.py): the start, toppling it from 22.45°, holds it "
+                                 "at 22.1–22.4° where they topple it (`SLOW_POINTS`, `START_POINTS`)"}
 
 
 @pytest.mark.slow
@@ -155,12 +154,14 @@ def test_toppling_family_start_against_slow_load(name):
 #: since the first steps of blocks released in doubt resolve their rocking (`ddatai.in_doubt`,
 #: docs/method/dda.md §8.12). Before that rule the start held the 4-4-4 stack at 23.25° and the
 #: 3-4-5 stack at 24.475°, where slow loads topple them, and toppled 4-4-4 at 22.07° and 22.2°
-#: but not at 22.3° or 22.6° (the default 10 ms step decided the releases in doubt). Now: at
-#: 22.04° and 22.09° the stage holds all 12 blocks of the 4-4-4 stack; from 22.07° to 23.25°
-#: it releases 10–12 in doubt, and they settle (2 mm) to 22.6° and topple from 22.75°
+#: but not at 22.3° or 22.6° (the default 10 ms step decided the releases in doubt). With the
+#: watch at τ/80 it settled to 22.6° and toppled from 22.75°; at τ/160 (and τ/320 alike) it
+#: settles, leaning 7.5–9.5 mm, to 22.4° and topples from 22.45°. At 22.04° and 22.09° the
+#: stage holds all 12 blocks of the 4-4-4 stack; from 22.07° on it releases 10–12 in doubt
 START_POINTS = {"squares 3-4-5": {21.5: False, 22.0: True, 24.25: True, 24.475: True, 24.55: True},
                 "squares 4-5-6-7": {15.5: False, 15.6: True},
-                "squares 4-4-4": {22.04: False, 22.0859: False, 22.6: False, 22.75: True, 23.25: True}}
+                "squares 4-4-4": {22.04: False, 22.0859: False, 22.3: False, 22.4: False, 22.45: True,
+                                  22.6: True, 22.75: True, 23.25: True}}
 
 
 @pytest.mark.slow
@@ -171,9 +172,10 @@ def test_the_default_start_on_the_square_stacks_at_the_measured_tilts(name):
     run on a loaded 2-core machine, each watched for the slow load's whole run). Against the
     slow load (`test_the_slow_load_on_the_square_stacks_at_the_measured_tilts`): the start
     topples the 3-4-5 stack from 22.0° (R 24.25°: safe, 2° below); every loading holds the
-    4-5-6-7 stack at 15.5°, where the start does (R 16.0°); the 40-constant ramps topple the
-    4-4-4 stack at 22.3° and 22.6° (at 22.6° with Δt ≤ 2 and 1.2 ms too), where the start
-    holds it: there it is still above the lowest slow-load toppling, by up to 0.45°."""
+    4-5-6-7 stack at 15.5°, where the start does (R 16.0°); the tilted 40-constant ramp topples
+    the 4-4-4 stack at 22.1° and both 40-constant ramps at 22.3°, where the start holds it
+    (leaning 7.5 mm at 22.3°; it topples from 22.45°): there it is still above the lowest
+    slow-load toppling, by 0.35–0.45°."""
     case = CASES[name][0]
     for theta, topples in START_POINTS[name].items():
         assert start_topples(case, theta) == topples, (name, theta)
@@ -193,6 +195,8 @@ SLOW_POINTS = {"squares 3-4-5": {(24.0, "turned", 20.0): False, (24.0, "tilted",
                                       for frame in ("turned", "tilted") for ramp in (10.0, 20.0, 40.0)},
                                    (16.0, "turned", 40.0): True, (16.0, "tilted", 40.0): True},
                "squares 4-4-4": {(22.0, "turned", 40.0): False, (22.0, "tilted", 40.0): False,
+                                 (22.1, "turned", 40.0): False, (22.1, "tilted", 40.0): True,
+                                 (22.2, "turned", 40.0): False, (22.2, "tilted", 40.0): False,
                                  (22.3, "turned", 40.0): True, (22.3, "tilted", 40.0): True,
                                  (22.6, "turned", 40.0): True, (22.6, "tilted", 40.0): True,
                                  (22.6, "turned", 20.0): False, (22.6, "tilted", 20.0): False,
@@ -214,7 +218,8 @@ def test_the_slow_load_on_the_square_stacks_at_the_measured_tilts(name):
     4-5-6-7 stack at 15.5°, where the start holds it, and at 15.75°, and the 40-constant ramps
     topple it at 16.0° (both frames; they hold it from 16.5° to 18.5°): its R is 16.0°, 0.4°
     above the start's 15.6°; the 40-constant ramps (both frames) hold the 4-4-4 stack at 22.0°
-    and topple it at 22.3° and 22.6° (the 10- and 20-constant ones hold it at 22.6°), and the
+    and 22.2° and topple it at 22.3° and 22.6°, the tilted one at 22.1° too (its R: 22.0–22.1°;
+    the 10- and 20-constant ones hold it at 22.6°), and the
     20-constant ramps (both frames) topple it at 23.25°, where the 10- and 40-constant ramps
     hold it: the slow load itself is not monotone in the tilt there. 3–20 s a run idle (4-4-4
     ~2 min, 4-5-6-7 ~2 min, 3-4-5 ~80 s), 30–350 s loaded."""
@@ -229,7 +234,7 @@ def test_the_4_4_4_stack_no_longer_stands_from_the_start_where_a_slow_load_toppl
     stack, the slow ramp (20 rocking time constants) toppled it by corner kicks; with diagonal
     corners that slid past each other taken as vertex-edge contacts (docs/method/dda.md §3.4) it
     stands there, and to 24.0° in both frames, and topples at 24.5°. The default start topples
-    the stack at 24.0° and 24.5° (and from 22.75°, since its releases in doubt are resolved:
+    the stack at 24.0° and 24.5° (and from 22.45°, since its releases in doubt are resolved:
     `ddatai.in_doubt`). ~75 s on a loaded 2-core machine, 10 runs."""
     case = CASES["squares 4-4-4"][0]
     assert not ramp_topples(case, 22.0859) and not start_topples(case, 22.0859)
@@ -341,9 +346,9 @@ def test_stacks_released_in_doubt_topple_from_the_start_with_a_resolved_time_ste
     """The start's unsafe points were its releases in doubt at the default time step: the stage
     releases the twelve blocks (11 of them in doubt), and under sudden gravity at Δt ≤ 10 ms
     they moved 2 mm and stopped (they topple with Δt ≤ 0.5, 1, 2 and 5 ms and stand with 3 ms,
-    4-4-4 at 23.25°). With the watch of `ddatai.in_doubt` (Δt ≤ τ/80 = 1.23 ms while they
+    4-4-4 at 23.25°). With the watch of `ddatai.in_doubt` (Δt ≤ τ/160 = 0.61 ms while they
     move) the default start topples both stacks there, as with Δt ≤ 2 ms throughout: 4-4-4 at
-    0.34 s (284 steps), 3-4-5 at 0.22 s (177 steps). ~10 s a case idle."""
+    0.31 s (523 steps; 0.34 s, 284 steps at τ/80), 3-4-5 at 0.21 s (346 steps). ~10 s a case idle."""
     case = CASES[name][0]
     res = dd.simulate(scene(case, theta), steps=1)
     assert (res.start["released"][0], res.start["in_doubt"][0]) == IN_DOUBT[name, theta]
@@ -354,14 +359,15 @@ def test_stacks_released_in_doubt_topple_from_the_start_with_a_resolved_time_ste
 
 @pytest.mark.slow
 def test_a_stack_released_in_doubt_that_settles_ends_its_watch_at_rest():
-    """The 4-4-4 squares at 22.6°: the stage releases 12 blocks, 10 in doubt; at Δt ≤ 1.23 ms
-    the sudden gravity sets them leaning — a vertex moves 1.5 mm in 0.05 s, 6.8 mm in 0.2 s and
-    8.1 mm by 0.38 s (~1.2° at the top of a 0.4 m column, 40 % of the toppling criterion's 20 mm) —
-    and they lock there: not a µm more from 0.5 to 1 s. The watch ends at rest at 0.40 s (~330 steps),
-    and the run goes on at the default time step (10 ms). ~10 s idle."""
+    """The 4-4-4 squares at 22.3°: the stage releases 12 blocks, 11 in doubt; at Δt ≤ 0.61 ms
+    the sudden gravity sets them leaning — a vertex moves 2.7 mm in 0.08 s, 6.9 mm in 0.23 s and
+    7.5 mm by 0.31 s (~1.1° at the top of a 0.4 m column, 38 % of the toppling criterion's 20 mm) —
+    and they lock there: not a µm more from 0.5 to 1 s. The watch ends at rest at 0.34 s, and the
+    run goes on at the default time step (10 ms). (At 22.6° they leaned 8.1 mm and locked with
+    the watch at τ/80; at τ/160 they topple there.) ~10 s idle."""
     case = CASES["squares 4-4-4"][0]
-    res = dd.simulate(scene(case, 22.6), duration=1.0)
-    assert (res.start["released"][0], res.start["in_doubt"][0]) == (12, 10)
+    res = dd.simulate(scene(case, 22.3), duration=1.0)
+    assert (res.start["released"][0], res.start["in_doubt"][0]) == (12, 11)
     moved = np.abs(res.vertices - res.vertices[0]).max(axis=(1, 2))
     assert float(moved[-1]) < 1e-2, moved[-1]
     assert float(moved[-1] - moved[int(np.searchsorted(res.time, 0.5))]) < 1e-6
