@@ -10,9 +10,10 @@ import taichi as ti
 
 from ..kernels.common import _trow
 from .layout import (BG_AREA, BG_CX, BG_CY, BG_S1, BG_S2, BG_S3, BI_ROW, BI_V0, BI_V1, BM_C, BM_CINV,
-                     BM_RHO, BS_ACC, BS_STRESS, BS_VEL, MF_CARRY, MF_FIXED_PEN, MF_GX, MF_GY, MI_K0, MI_NF,
+                     BM_RHO, BS_ACC, BS_STRESS, BS_VEL, MF_CARRY, MF_FIXED_PEN, MF_GX, MF_GY, MI_NF,
                      MI_P0, MI_P1, MI_R0, MI_X0, PF_FX, PF_FY, PF_X, PF_X0, PF_Y, PF_Y0, PI_BLOCK, PI_KIND,
                      POINT_FIXED, POINT_LOAD, XS_F0)
+from .system import at
 
 
 @ti.func
@@ -109,9 +110,8 @@ def moved(E: ti.template(), b, x, y, col):
 
 @ti.func
 def kidx(E: ti.template(), m, i, j):
-    """Position of entry (i, j) of member m's matrix K (row-major n × n; K0 follows it)."""
-    n = 6 * E.mi[m, MI_NF]
-    return E.mi[m, MI_K0] + i * n + j
+    """Position of entry (i, j) of member m's matrix K (`ddatai.fused.system.at`; K0 follows it)."""
+    return at(E, m, i, j)
 
 
 @ti.func

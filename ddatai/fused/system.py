@@ -2,17 +2,21 @@
 and friction of the assumed states (``ddatai.kernels.assembly.assemble_contacts``, §2.8), and a
 factorisation that follows the system's block structure.
 
-K is stored dense (6n × 6n, row-major, in the member's slab) but only its *envelope* is touched:
+K is stored in a dense n × n slab (n = 6 × the free blocks) but only its *envelope* is touched:
 row i of block-row r holds entries from column 6·env[r] on, env[r] being the first block-row
 coupled to r by a contact of the step (the rows are the free blocks in a bandwidth-reducing
-order chosen when the member is packed). The factorisation is Doolittle's LU without pivoting
-on that profile (a skyline solver, as Shi's block LDLᵀ): where K is symmetric (no sliding
-contact takes its friction from the same solve) the upper factor is D·Lᵀ and the second inner
-product is skipped (the cost of a Cholesky). Its work is n·w² for an envelope w wide instead
-of n³/3 (a 16-block grid: w ≈ 30 unknowns of 96). K is symmetric positive definite in the
-symmetric case and a small non-symmetric perturbation of one otherwise (the friction slope
-μ·p beside the inertia and the penalty springs), so no pivoting is needed; a zero or
-non-finite pivot makes the solution non-finite, and the step is cut as for a singular K on
+order chosen when the member is packed). The lower triangle and the diagonal lie row by row,
+the upper triangle column by column (`at`), so that both sides of every inner product of the
+factorisation and the triangular solves lie contiguous in memory (with the columns of U strided
+by n, the factorisation was ~80 % of a 64-block step;
+benchmarks/results/small_models_fused_factor.md). The factorisation is Doolittle's LU without pivoting on that
+profile (a skyline solver, as Shi's block LDLᵀ), six rows of a block-row at a time: where K is symmetric (no sliding contact takes
+its friction from the same solve) the upper factor is D·Lᵀ and the second inner product is
+skipped (the cost of a Cholesky). Its work is n·w² for an envelope w wide instead of n³/3 (a
+16-block grid: w ≈ 30 unknowns of 96). K is symmetric positive definite in the symmetric case
+and a small non-symmetric perturbation of one otherwise (the friction slope μ·p beside the
+inertia and the penalty springs), so no pivoting is needed; a zero or non-finite pivot makes
+the solution non-finite, and the step is cut as for a singular K on
 today's path.
 """
 
@@ -37,8 +41,27 @@ def first(E: ti.template(), m, i):
 
 
 @ti.func
+def row_at(E: ti.template(), m, i):
+    """Where row i of the lower triangle starts in member m's slab: entry (i, q), q ≤ i, is at
+    ``row_at(i) + q``."""
+    return E.mi[m, MI_K0] + i * 6 * E.mi[m, MI_NF]
+
+
+@ti.func
+def column_at(E: ti.template(), m, j):
+    """Where column j of the upper triangle starts: entry (q, j), q < j, is at
+    ``column_at(j) + q`` (in the upper part of row n − 1 − j, from column n − j)."""
+    n = 6 * E.mi[m, MI_NF]
+    return E.mi[m, MI_K0] + (n - 1 - j) * n + n - j
+
+
+@ti.func
 def at(E: ti.template(), m, i, j):
-    return E.mi[m, MI_K0] + i * 6 * E.mi[m, MI_NF] + j
+    """Position of K's entry (i, j) in member m's slab (K0's: n² further on)."""
+    out = row_at(E, m, i) + j
+    if i < j:
+        out = column_at(E, m, j) + i
+    return out
 
 
 @ti.func
@@ -47,9 +70,12 @@ def clear_block_terms(E: ti.template(), m):
     n = 6 * E.mi[m, MI_NF]
     k0 = n * n
     for i in range(n):
-        for j in range(first(E, m, i), i + 1):
-            E.kmat[at(E, m, i, j) + k0] = 0.0
-            E.kmat[at(E, m, j, i) + k0] = 0.0
+        row = row_at(E, m, i) + k0
+        column = column_at(E, m, i) + k0
+        for j in range(first(E, m, i), i):
+            E.kmat[row + j] = 0.0
+            E.kmat[column + j] = 0.0
+        E.kmat[row + i] = 0.0
         E.xvec[E.mi[m, MI_X0] + XS_F0 * n + i] = 0.0
 
 
@@ -59,24 +85,39 @@ def load_block_terms(E: ti.template(), m):
     n = 6 * E.mi[m, MI_NF]
     k0 = n * n
     for i in range(n):
-        for j in range(first(E, m, i), i + 1):
-            E.kmat[at(E, m, i, j)] = E.kmat[at(E, m, i, j) + k0]
-            E.kmat[at(E, m, j, i)] = E.kmat[at(E, m, j, i) + k0]
+        row = row_at(E, m, i)
+        column = column_at(E, m, i)
+        for j in range(first(E, m, i), i):
+            E.kmat[row + j] = E.kmat[row + j + k0]
+            E.kmat[column + j] = E.kmat[column + j + k0]
+        E.kmat[row + i] = E.kmat[row + i + k0]
         E.xvec[E.mi[m, MI_X0] + XS_RHS * n + i] = E.xvec[E.mi[m, MI_X0] + XS_F0 * n + i]
 
 
 @ti.func
 def _outer_rows(E: ti.template(), m, c, s, t_own, t_other, k, r, r_other):
     """k·vec[c, s]·vec[c, t_own]ᵀ into block (r, r) and k·vec[c, s]·vec[c, t_other]ᵀ into
-    block (r, r_other) if both blocks are free (`kernels.assembly._outer_rows`)."""
+    block (r, r_other) if both blocks are free (`kernels.assembly._outer_rows`); each entry's
+    place in the slab (`at`) worked out once a block, not once an entry."""
     if r >= 0:
-        for a in range(6):
+        n = 6 * E.mi[m, MI_NF]
+        row = row_at(E, m, 6 * r)          # row 6r + a of the lower triangle at row + a·n
+        column = column_at(E, m, 6 * r)    # column 6r + b of the upper one at column − b·(n + 1)
+        other_column = column_at(E, m, 6 * r_other)
+        for a in ti.static(range(6)):
             va = k * E.cvec[c, 6 * s + a]
-            for b in range(6):
-                E.kmat[at(E, m, 6 * r + a, 6 * r + b)] += va * E.cvec[c, 6 * t_own + b]
+            for b in ti.static(range(6)):
+                if ti.static(a < b):
+                    E.kmat[column - b * (n + 1) + 6 * r + a] += va * E.cvec[c, 6 * t_own + b]
+                else:
+                    E.kmat[row + a * n + 6 * r + b] += va * E.cvec[c, 6 * t_own + b]
             if r_other >= 0:
-                for b in range(6):
-                    E.kmat[at(E, m, 6 * r + a, 6 * r_other + b)] += va * E.cvec[c, 6 * t_other + b]
+                if r_other < r:
+                    for b in ti.static(range(6)):
+                        E.kmat[row + a * n + 6 * r_other + b] += va * E.cvec[c, 6 * t_other + b]
+                else:
+                    for b in ti.static(range(6)):
+                        E.kmat[other_column - b * (n + 1) + 6 * r + a] += va * E.cvec[c, 6 * t_other + b]
 
 
 @ti.func
@@ -168,31 +209,64 @@ def contact_terms(E: ti.template(), m):
 
 @ti.func
 def factor(E: ti.template(), m, symmetric):
-    """Doolittle LU of K in place on its envelope (module docstring). Returns 1, or 0 where a
-    pivot is zero or not finite."""
+    """Doolittle LU of K in place on its envelope (module docstring), a block-row of six rows at
+    a time: left of its diagonal block, each column j of the six rows of L (against column j of
+    U) and, where K is not symmetric, of the six columns of U (against row j of L) in one pass
+    over the inner products' range (the six rows share their envelope), then the diagonal block
+    row by row. Returns 1, or 0 where a pivot is zero or not finite."""
     n = 6 * E.mi[m, MI_NF]
     ok = 1
-    for k in range(n):
-        fk = first(E, m, k)
-        for j in range(fk, k):
+    for R in range(n // 6):
+        i0 = 6 * R
+        fk = first(E, m, i0)
+        r0 = row_at(E, m, i0)        # row i0 + a of L at r0 + a·n
+        c0 = column_at(E, m, i0)     # column i0 + a of U at c0 − a·(n + 1)
+        for j in range(fk, i0):
             lo = ti.max(fk, first(E, m, j))
-            sl = E.kmat[at(E, m, k, j)]
+            column_j = column_at(E, m, j)
+            sl = ti.Vector([E.kmat[r0 + a * n + j] for a in ti.static(range(6))])
             for q in range(lo, j):
-                sl -= E.kmat[at(E, m, k, q)] * E.kmat[at(E, m, q, j)]
+                u = E.kmat[column_j + q]
+                for a in ti.static(range(6)):
+                    sl[a] -= E.kmat[r0 + a * n + q] * u
+            row_j = row_at(E, m, j)
             if symmetric:
-                E.kmat[at(E, m, j, k)] = sl
+                for a in ti.static(range(6)):
+                    E.kmat[c0 - a * (n + 1) + j] = sl[a]
             else:
-                su = E.kmat[at(E, m, j, k)]
+                su = ti.Vector([E.kmat[c0 - a * (n + 1) + j] for a in ti.static(range(6))])
                 for q in range(lo, j):
-                    su -= E.kmat[at(E, m, j, q)] * E.kmat[at(E, m, q, k)]
-                E.kmat[at(E, m, j, k)] = su
-            E.kmat[at(E, m, k, j)] = sl / E.kmat[at(E, m, j, j)]
-        d = E.kmat[at(E, m, k, k)]
-        for q in range(fk, k):
-            d -= E.kmat[at(E, m, k, q)] * E.kmat[at(E, m, q, k)]
-        E.kmat[at(E, m, k, k)] = d
-        if not (d != 0.0 and ti.abs(d) < 1e300):
-            ok = 0
+                    v = E.kmat[row_j + q]
+                    for a in ti.static(range(6)):
+                        su[a] -= v * E.kmat[c0 - a * (n + 1) + q]
+                for a in ti.static(range(6)):
+                    E.kmat[c0 - a * (n + 1) + j] = su[a]
+            pivot = E.kmat[row_j + j]
+            for a in ti.static(range(6)):
+                E.kmat[r0 + a * n + j] = sl[a] / pivot
+        for k in range(i0, i0 + 6):
+            row_k = row_at(E, m, k)
+            column_k = column_at(E, m, k)
+            for j in range(i0, k):
+                row_j = row_at(E, m, j)
+                sl = E.kmat[row_k + j]
+                column_j = column_at(E, m, j)
+                for q in range(fk, j):
+                    sl -= E.kmat[row_k + q] * E.kmat[column_j + q]
+                if symmetric:
+                    E.kmat[column_k + j] = sl
+                else:
+                    su = E.kmat[column_k + j]
+                    for q in range(fk, j):
+                        su -= E.kmat[row_j + q] * E.kmat[column_k + q]
+                    E.kmat[column_k + j] = su
+                E.kmat[row_k + j] = sl / E.kmat[row_j + j]
+            d = E.kmat[row_k + k]
+            for q in range(fk, k):
+                d -= E.kmat[row_k + q] * E.kmat[column_k + q]
+            E.kmat[row_k + k] = d
+            if not (d != 0.0 and ti.abs(d) < 1e300):
+                ok = 0
     return ok
 
 
@@ -206,15 +280,17 @@ def solve(E: ti.template(), m):
     y = E.mi[m, MI_X0] + XS_Y * n
     for i in range(n):
         s = E.xvec[rhs + i]
+        row = row_at(E, m, i)
         for q in range(first(E, m, i), i):
-            s -= E.kmat[at(E, m, i, q)] * E.xvec[y + q]
+            s -= E.kmat[row + q] * E.xvec[y + q]
         E.xvec[y + i] = s
     for jj in range(n):
         j = n - 1 - jj
-        xj = E.xvec[y + j] / E.kmat[at(E, m, j, j)]
+        xj = E.xvec[y + j] / E.kmat[row_at(E, m, j) + j]
         E.xvec[y + j] = xj
+        column = column_at(E, m, j)
         for q in range(first(E, m, j), j):
-            E.xvec[y + q] -= E.kmat[at(E, m, q, j)] * xj
+            E.xvec[y + q] -= E.kmat[column + q] * xj
     finite = 1
     for b in range(E.mi[m, MI_B0], E.mi[m, MI_B1]):
         r = E.bint[b, BI_ROW]
@@ -241,9 +317,10 @@ def block_energy(E: ti.template(), m, col, brhs):
     for i in range(n):
         xi = E.bwork[E.rblock[r0 + i // 6], col + i % 6]
         row = 0.0
+        at_i = row_at(E, m, i) + k0
         for j in range(first(E, m, i), i):
-            row += E.kmat[at(E, m, i, j) + k0] * E.bwork[E.rblock[r0 + j // 6], col + j % 6]
-        quad += xi * (2.0 * row + E.kmat[at(E, m, i, i) + k0] * xi)
+            row += E.kmat[at_i + j] * E.bwork[E.rblock[r0 + j // 6], col + j % 6]
+        quad += xi * (2.0 * row + E.kmat[at_i + i] * xi)
         lin += E.xvec[brhs + i] * xi
     return 0.5 * quad - lin
 
@@ -259,8 +336,9 @@ def block_gradient(E: ti.template(), m, col, brhs, out):
         E.xvec[out + i] = -E.xvec[brhs + i]
     for i in range(n):
         xi = E.bwork[E.rblock[r0 + i // 6], col + i % 6]
+        at_i = row_at(E, m, i) + k0
         for j in range(first(E, m, i), i + 1):
-            kij = E.kmat[at(E, m, i, j) + k0]
+            kij = E.kmat[at_i + j]
             E.xvec[out + i] += kij * E.bwork[E.rblock[r0 + j // 6], col + j % 6]
             if j < i:
                 E.xvec[out + j] += kij * xi
