@@ -10,13 +10,13 @@ import taichi as ti
 
 from ..kernels.common import E0, E1, ES, G0, GS, _cross, _dot2, _norm2, _pt, _trow
 from ..kernels.detection import pair_contacts
-from .layout import (BG_CX, BG_CY, BI_ROW, BI_V0, BI_V1, BW_ROT, BW_TRIG, CF_ARM, CF_COH, CF_DN, CF_DN0, CF_DS,
-                     CF_DS0, CF_LEN, CF_NF, CF_NF0, CF_OMEGA, CF_SCA, CF_SHIFT, CF_TAN, CF_TEN, CI_A, CI_B,
-                     CI_BOND, CI_BOND0, CI_COUPLED, CI_COUPLED0, CI_DIR, CI_DIR0, CI_E0, CI_E1, CI_JOINT,
-                     CI_KIND, CI_LINE, CI_LINE0, CI_STATE, CI_STATE0, CI_V0, CI_V1, FLAG_BOND_SLIP, JF_COH,
-                     JF_TAN, JF_TEN, MEMF_DN, MEMF_NF, MEMF_OMEGA, MEMI_BOND, MEMI_DIR, MEMI_K2, MEMI_KIND,
-                     MEMI_LINE, MEMI_STATE, MEMI_V0, MF_D0, MF_D9, MF_H1, MF_OPEN_TOL, MF_PENALTY, MF_SHEAR,
-                     MI_B0, MI_B1, MI_C0, MI_CCAP, MI_FLAGS, MI_NC, MI_NF, MI_NM, MI_Q0, MI_Q1, MI_R0, MI_STEP)
+from .layout import (BG_CX, BG_CY, BI_ROW, BI_V0, BI_V1, BW_ROT, CF_ARM, CF_COH, CF_DN, CF_DN0, CF_DS, CF_DS0,
+                     CF_LEN, CF_NF, CF_NF0, CF_OMEGA, CF_SCA, CF_SHIFT, CF_TAN, CF_TEN, CI_A, CI_B, CI_BOND,
+                     CI_BOND0, CI_COUPLED, CI_COUPLED0, CI_DIR, CI_DIR0, CI_E0, CI_E1, CI_JOINT, CI_KIND,
+                     CI_LINE, CI_LINE0, CI_STATE, CI_STATE0, CI_V0, CI_V1, FLAG_BOND_SLIP, JF_COH, JF_TAN,
+                     JF_TEN, MEMF_DN, MEMF_NF, MEMF_OMEGA, MEMI_BOND, MEMI_DIR, MEMI_K2, MEMI_KIND, MEMI_LINE,
+                     MEMI_STATE, MEMI_V0, MF_D0, MF_D9, MF_H1, MF_OPEN_TOL, MF_PENALTY, MF_SHEAR, MI_B0, MI_B1,
+                     MI_C0, MI_CCAP, MI_FLAGS, MI_NC, MI_NF, MI_NM, MI_Q0, MI_Q1, MI_R0, MI_STEP)
 
 VE = 0
 VV = 1
@@ -291,12 +291,13 @@ def restore(E: ti.template(), m):
 @ti.func
 def _q(E: ti.template(), v):
     """Exact-minus-linear displacement of vertex v for its block's rotation r (§5.3):
-    (cos r − 1)X + (sin r − r)·JX (the block's terms in ``BW_TRIG``)."""
+    (cos r − 1)X + (sin r − r)·JX."""
     b = E.vblock[v]
     X = E.vxy[v, 0] - E.bgeo[b, BG_CX]
     Y = E.vxy[v, 1] - E.bgeo[b, BG_CY]
-    c1 = E.bwork[b, BW_TRIG]
-    sr = E.bwork[b, BW_TRIG + 1]
+    r = E.bwork[b, BW_ROT]
+    c1 = ti.cos(r) - 1.0
+    sr = ti.sin(r) - r
     return ti.Vector([c1 * X + sr * -Y, c1 * Y + sr * X])
 
 
@@ -335,12 +336,13 @@ def second_order_shift(E: ti.template(), m, any_rotation):
 @ti.func
 def _dq(E: ti.template(), v):
     """q'(φ)X = J(R(φ) − I)X of vertex v at half its block's rotation φ = r̄/2 (the lever arm's
-    change at mid-step, ``ddatai.lever_arm``; the block's terms in ``BW_TRIG``)."""
+    change at mid-step, ``ddatai.lever_arm``)."""
     b = E.vblock[v]
     X = E.vxy[v, 0] - E.bgeo[b, BG_CX]
     Y = E.vxy[v, 1] - E.bgeo[b, BG_CY]
-    c1 = E.bwork[b, BW_TRIG + 2]
-    s = E.bwork[b, BW_TRIG + 3]
+    half = 0.5 * E.bwork[b, BW_ROT]
+    c1 = ti.cos(half) - 1.0
+    s = ti.sin(half)
     return ti.Vector([-s * X - c1 * Y, c1 * X - s * Y])
 
 

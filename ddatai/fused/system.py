@@ -97,27 +97,15 @@ def load_block_terms(E: ti.template(), m):
 @ti.func
 def _outer_rows(E: ti.template(), m, c, s, t_own, t_other, k, r, r_other):
     """k·vec[c, s]·vec[c, t_own]ᵀ into block (r, r) and k·vec[c, s]·vec[c, t_other]ᵀ into
-    block (r, r_other) if both blocks are free (`kernels.assembly._outer_rows`); each entry's
-    place in the slab (`at`) worked out once a block, not once an entry."""
+    block (r, r_other) if both blocks are free (`kernels.assembly._outer_rows`)."""
     if r >= 0:
-        n = 6 * E.mi[m, MI_NF]
-        row = row_at(E, m, 6 * r)          # row 6r + a of the lower triangle at row + a·n
-        column = column_at(E, m, 6 * r)    # column 6r + b of the upper one at column − b·(n + 1)
-        other_column = column_at(E, m, 6 * r_other)
-        for a in ti.static(range(6)):
+        for a in range(6):
             va = k * E.cvec[c, 6 * s + a]
-            for b in ti.static(range(6)):
-                if ti.static(a < b):
-                    E.kmat[column - b * (n + 1) + 6 * r + a] += va * E.cvec[c, 6 * t_own + b]
-                else:
-                    E.kmat[row + a * n + 6 * r + b] += va * E.cvec[c, 6 * t_own + b]
+            for b in range(6):
+                E.kmat[at(E, m, 6 * r + a, 6 * r + b)] += va * E.cvec[c, 6 * t_own + b]
             if r_other >= 0:
-                if r_other < r:
-                    for b in ti.static(range(6)):
-                        E.kmat[row + a * n + 6 * r_other + b] += va * E.cvec[c, 6 * t_other + b]
-                else:
-                    for b in ti.static(range(6)):
-                        E.kmat[other_column - b * (n + 1) + 6 * r + a] += va * E.cvec[c, 6 * t_other + b]
+                for b in range(6):
+                    E.kmat[at(E, m, 6 * r + a, 6 * r_other + b)] += va * E.cvec[c, 6 * t_other + b]
 
 
 @ti.func
