@@ -71,6 +71,19 @@ def top_lines(limit: int = 15) -> list:
              s.count) for s in stats[:limit]]
 
 
+def _close(label: str, parent: str, t0: float, c0: float, hwm0: int) -> float:
+    """Leave phase ``label``: its wall and CPU time (taken from its parent's), calls and rise
+    of the high-water mark; returns its wall time."""
+    _STACK.pop()
+    dt = time.perf_counter() - t0
+    _TIME[label] += dt
+    _TIME[parent] -= dt
+    _CPU[label] += time.process_time() - c0
+    _CALLS[label] += 1
+    _HWM_RISE[label] += status()["VmHWM"] - hwm0
+    return dt
+
+
 def wrap(owner, name: str, label: str, snapshot: bool = False) -> None:
     fn = getattr(owner, name)
     if getattr(fn, "_wrapped", False):
@@ -90,14 +103,7 @@ def wrap(owner, name: str, label: str, snapshot: bool = False) -> None:
         try:
             return fn(*args, **kwargs)
         finally:
-            _STACK.pop()
-            dt = time.perf_counter() - t0
-            _TIME[label] += dt
-            _TIME[parent] -= dt
-            _CPU[label] += time.process_time() - c0
-            _CALLS[label] += 1
-            hwm1 = status()["VmHWM"]
-            _HWM_RISE[label] += hwm1 - hwm0
+            _close(label, parent, t0, c0, hwm0)
             if tracemalloc.is_tracing():
                 _, peak = tracemalloc.get_traced_memory()
                 _TRACED_PEAK[label] = max(_TRACED_PEAK[label], peak)
@@ -153,13 +159,7 @@ def instrument() -> None:
         try:
             return call(self, phase, data, indptr, indices, rhs)
         finally:
-            _STACK.pop()
-            dt = time.perf_counter() - t0
-            _TIME[label] += dt
-            _TIME[parent] -= dt
-            _CPU[label] += time.process_time() - c0
-            _CALLS[label] += 1
-            _HWM_RISE[label] += status()["VmHWM"] - hwm0
+            dt = _close(label, parent, t0, c0, hwm0)
             if phase in (11, 12, 13, 22, 23):
                 ip = self.iparm
                 _PARDISO.append(dict(phase=phase, mtype=self.mtype, n=len(indptr) - 1, nnz_upper=int(len(indices)),

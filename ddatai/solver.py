@@ -53,7 +53,7 @@ its analysis; a factorisation of one type frees the other's factor (MKL's phase 
 kept), which no solve uses again before it is factorised anew, and the last factor with the
 matrix its solves hold goes before a new one is made. At 102,400 blocks the two factors were
 2.0 and 4.0 GB held at once, and the step's peak memory fell from 9.1–9.2 to 7.4–7.6 GB with the same
-solutions to the bit (`benchmarks/memory_phases.py`, docs/guide/performance.md).
+solutions to the bit (``benchmarks/memory_phases.py``, docs/guide/performance.md).
 """
 
 from __future__ import annotations

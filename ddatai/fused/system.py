@@ -6,7 +6,7 @@ K is stored in a dense n × n slab (n = 6 × the free blocks) but only its *enve
 row i of block-row r holds entries from column 6·env[r] on, env[r] being the first block-row
 coupled to r by a contact of the step (the rows are the free blocks in a bandwidth-reducing
 order chosen when the member is packed). The lower triangle and the diagonal lie row by row,
-the upper triangle column by column (`at`), so that both sides of every inner product of the
+the upper triangle column by column (``at``), so that both sides of every inner product of the
 factorisation and the triangular solves lie contiguous in memory (with the columns of U strided
 by n, the factorisation was ~80 % of a 64-block step;
 benchmarks/results/small_models_fused_factor.md). The factorisation is Doolittle's LU without pivoting on that
