@@ -197,7 +197,7 @@ class SparseSolver:
         # the matrix of the factor, against which a Krylov solve measures its change
         self._factored_data = np.array(data, dtype=np.float64)
         self._exact = True  # unless PARDISO perturbs a pivot (`_solve_pardiso`)
-        return self._factorise(data, indices, indptr, rhs, n, symmetric)
+        return self._factorise(self._factored_data, indices, indptr, rhs, n, symmetric)
 
     def _solve_updating(self, data, indices, indptr, rhs, n, springs, reuse) -> np.ndarray:
         """The symmetric solve with springs (`solve`): by updates of the factor in hand, each
@@ -232,7 +232,7 @@ class SparseSolver:
             self._factor = (True, (indptr, indices), u.factor.solve_A)
             return u.solve(b)
         self.lu_factorisations += 1  # not positive definite: LU
-        return self._factorise(data, indices, indptr, rhs, n, False)
+        return self._factorise(self._factored_data, indices, indptr, rhs, n, False)
 
     def factor_solve(self, rhs: np.ndarray) -> "np.ndarray | None":
         """K⁻¹·rhs with the last factor (the matrix last factorised); None without one."""
@@ -241,6 +241,7 @@ class SparseSolver:
         return self._factor[2](np.ascontiguousarray(rhs, dtype=np.float64))
 
     def _factorise(self, data, indices, indptr, rhs, n, symmetric) -> np.ndarray:
+        """Factorise K (``data``: the solver's copy, ``_factored_data``) and solve."""
         if self.backend == "pardiso":
             return self._solve_pardiso(data, indices, indptr, rhs, n, symmetric)
         if self.backend == "dense":
@@ -394,11 +395,9 @@ class SparseSolver:
         else:
             a_ptr = np.ascontiguousarray(indptr, dtype=np.int32)
             a_idx = np.ascontiguousarray(indices, dtype=np.int32)
-            a_data = self._factored_data
-            if a_data is None or a_data.shape != data.shape or not np.array_equal(a_data, data):
-                a_data = np.ascontiguousarray(data, dtype=np.float64)
-            # else the solver's own copy of K (the same values): the solves with the factor
-            # then hold no caller's array, which the next iterate's K would be made beside
+            # ``data`` is the solver's own copy of K (``_factored_data``, passed by `solve`): the
+            # solves with the factor hold no caller's array, beside which the next iterate's K is made
+            a_data = np.ascontiguousarray(data, dtype=np.float64)
         b = np.ascontiguousarray(rhs, dtype=np.float64)
         try:
             if fresh:
