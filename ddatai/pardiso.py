@@ -48,10 +48,23 @@ class PardisoError(RuntimeError):
 class _Pardiso:
     """One MKL PARDISO handle for one matrix type, called directly through ctypes.
 
-    ``mtype`` 2 (real SPD, upper triangle) or 11 (real non-symmetric, full storage). Every
+    ``mtype`` 2 (real SPD, upper triangle), 1 (real, structurally symmetric: full storage of a
+    non-symmetric matrix whose pattern is symmetric, LU on that pattern with diagonal pivots)
+    or 11 (real non-symmetric, full storage, with scaling and weighted matching). Every
     parameter is set explicitly with ``iparm[0] = 1``: with ``iparm[0] = 0`` MKL replaces them
     all by its defaults, two steps of iterative refinement on every solve among them (3× the
     cost of the solve at 1,600 blocks, and not bit-reproducible between runs).
+
+    The coupled K of DDA (friction tied to the normal force of the same solve) is 1: a contact
+    couples its two blocks both ways, so the pattern is symmetric, and the matrix is the
+    symmetric positive definite K plus the small friction terms, so diagonal pivots serve.
+    Measured on the project's matrices (``benchmarks/pardiso_levers.py``,
+    docs/guide/performance.md): against 11, the numerical factorisation 0.92–0.94× (the same
+    fill, no scaling), the analysis 0.43–0.64× (no matching on the values), its memory 0.86–0.89×,
+    no pivot perturbed on the slopes and grids, the residual the same. The other levers measured
+    there did not pay: MKL's block formats (the analysis 6–15× faster, the factorisation
+    0.9–1.14×), the two-level factorisation, parallel METIS (which gives up reproducibility),
+    METIS's ``10·L + 2`` optimisation levels and the solve's parallel modes.
     """
 
     def __init__(self, mtype: int):
@@ -64,9 +77,9 @@ class _Pardiso:
         ip[0] = 1        # use the values below, not MKL's defaults
         ip[1] = 2        # fill-reducing ordering: METIS nested dissection
         ip[7] = 0        # no iterative refinement (a residual check below asks for it)
-        ip[9] = 13 if mtype == 11 else 8  # pivot perturbation 1e-13 / 1e-8
-        ip[10] = 1 if mtype == 11 else 0  # scaling (non-symmetric only)
-        ip[12] = 1 if mtype == 11 else 0  # weighted matching (non-symmetric only)
+        ip[9] = 8 if mtype == 2 else 13  # pivot perturbation 1e-8 / 1e-13 (MKL's defaults)
+        ip[10] = 1 if mtype == 11 else 0  # scaling (the general non-symmetric solver only)
+        ip[12] = 1 if mtype == 11 else 0  # weighted matching (the general non-symmetric solver only)
         ip[34] = 1       # zero-based ia/ja
         # conditional numerical reproducibility: the same factor, bit for bit, on every run with
         # this many threads (MKL's threads otherwise sum in varying order: two runs of a
