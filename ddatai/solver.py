@@ -106,7 +106,8 @@ def resolve(name: str, unknowns: Optional[int] = None) -> str:
     return name
 
 
-from .pardiso import PardisoError, _locate_mkl, _Pardiso  # noqa: F401 (PardisoError: public)
+from .pardiso import (PardisoError, _locate_mkl, _Pardiso, _upper_triangle,  # noqa: F401 (PardisoError: public)
+                      symmetric_pattern)
 from .iterative import (KRYLOV_ACCEPT, KRYLOV_BLOCKS, KRYLOV_ITERATIONS, REFINE_ABOVE, REFINE_PASSES,
                         REUSE_PASSES, REUSE_RATE, REUSE_RESIDUAL, _refinement, changed_blocks, gmres,
                         refine_to_roundoff)
@@ -396,10 +397,7 @@ class SparseSolver:
         if getattr(pattern, "structurally_symmetric", False):
             return True
         if self._structure is None or not self._same(self._structure[0], indptr, indices):
-            from scipy.sparse import csr_matrix
-
-            k = csr_matrix((np.ones(len(indices)), indices, indptr), shape=(n, n))
-            self._structure = ((indptr, indices), (k != k.T).nnz == 0)
+            self._structure = ((indptr, indices), symmetric_pattern(indptr, indices, n))
         return self._structure[1]
 
     def _solve_pardiso(self, data, indices, indptr, rhs, n, mtype) -> "np.ndarray | None":
@@ -464,22 +462,3 @@ class SparseSolver:
         x, self.last_residual, done = _refinement(k, b, x, lambda r: h.call(33, a_data, a_ptr, a_idx, r),
                                                   REFINE_ABOVE, REFINE_PASSES)
         return x, done
-
-
-def _upper_triangle(indptr: np.ndarray, indices: np.ndarray, n: int) -> tuple:
-    """((indptr, indices), positions of the upper triangle's entries in the CSR data, its
-    indptr, its indices): what PARDISO reads of a symmetric K. In a function of its own so that
-    its temporaries (the row of every entry) are gone before the factorisation; rows and
-    positions as int32 where they fit (0.26 GB each as int64 at 102,400 blocks; a take with
-    int32 positions gives the same values)."""
-    small = len(indices) < 2**31
-    rows = np.repeat(np.arange(n, dtype=np.int32 if small else np.int64), np.diff(indptr))
-    mask = indices >= rows
-    counts = np.bincount(rows[mask], minlength=n)
-    del rows
-    upper_indptr = np.concatenate([[0], np.cumsum(counts)]).astype(np.int32)
-    # positions, not a boolean mask: a take is ~10x faster than boolean indexing
-    pos = np.flatnonzero(mask)
-    if small:
-        pos = pos.astype(np.int32)
-    return (indptr, indices), pos, upper_indptr, np.ascontiguousarray(indices[mask], dtype=np.int32)
