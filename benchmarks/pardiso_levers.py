@@ -47,13 +47,17 @@ CACHE = Path("/tmp/pardiso_levers")
 #: (zero-based index: value)); "base" is today's `_Pardiso` parameters
 VARIANTS = {
     "base": (("spd", "lu"), None, {}),
+    # main's parameters before this measurement: the general LU (scaling, weighted matching) for
+    # the coupled K
+    "before": (("spd", "lu"), None, {}),
+    "mtype11": (("lu",), 11, {10: 1, 12: 1}),
     # the coupled K as structurally symmetric: LU on the symmetric pattern, diagonal pivots
-    # with perturbation, no scaling or weighted matching
+    # with perturbation, no scaling or weighted matching (today's "base" for the LU)
     "mtype1": (("lu",), 1, {10: 0, 12: 0}),
-    # the non-symmetric solver without scaling and matching (the half of mtype 1 that is not the
-    # symmetric structure)
-    "nomatch": (("lu",), None, {10: 0, 12: 0}),
-    "noscale": (("lu",), None, {10: 0}),
+    # the general non-symmetric solver without scaling and matching (the half of mtype 1 that is
+    # not the symmetric structure), and without scaling only
+    "nomatch": (("lu",), 11, {10: 0, 12: 0}),
+    "noscale": (("lu",), 11, {10: 0, 12: 1}),
     # MKL converts the CSR to variable-block rows (VBSR) itself: iparm(37) < 0
     "vbsr": (("spd", "lu"), None, {36: -80}),
     "mtype1_vbsr": (("lu",), 1, {10: 0, 12: 0, 36: -80}),
@@ -68,7 +72,7 @@ VARIANTS = {
     "mindeg": (("spd", "lu"), None, {1: 0}),
     # two-level factorisation; improved two-level (non-symmetric only)
     "twolevel": (("spd", "lu"), None, {23: 1}),
-    "twolevel10": (("lu",), None, {23: 10}),
+    "twolevel10": (("lu",), 11, {10: 1, 12: 1, 23: 10}),
     "mtype1_twolevel": (("lu",), 1, {10: 0, 12: 0, 23: 1}),
     # without conditional numerical reproducibility (what it costs; not a candidate)
     "nocnr": (("spd", "lu"), None, {33: 0}),
@@ -147,12 +151,12 @@ class Variant:
         from ddatai.solver import _upper_triangle
 
         _, mtype, over = VARIANTS[name]
-        base_mtype = 2 if kind == "spd" else 11
-        self.h = _Pardiso(base_mtype)
+        if name == "before" and kind == "lu":
+            mtype, over = VARIANTS["mtype11"][1:]
+        # today's handle of each kind (`SparseSolver`): Cholesky, LU on the symmetric pattern
+        self.h = _Pardiso(2 if kind == "spd" else 1)
         if mtype is not None:
             self.h.mtype = mtype
-            if mtype == 1:
-                self.h.iparm[9] = 13  # MKL's default perturbation for mtype 1 (1e-13)
         self.h.iparm[33] = threads  # conditional numerical reproducibility for this many threads
         for i, v in over.items():
             self.h.iparm[i] = v
@@ -364,6 +368,79 @@ def time_all(a) -> None:
     print(text)
 
 
+def calls(a) -> None:
+    """One run of a scene in this process (``import ddatai`` from ``PYTHONPATH``: this checkout or
+    ``--baseline``'s) with every PARDISO call timed by (matrix type, phase): prints a JSON line
+    with the run's CPU seconds (stage and steps), PARDISO's by type and phase, and a hash of the
+    final vertices and velocities."""
+    import dataclasses
+    import hashlib
+
+    import ddatai as dd
+    from ddatai import pardiso as pm
+    from ddatai.step import Stepper
+
+    spent: dict = {}
+    original = pm._Pardiso.call
+
+    def call(self, phase, *args):
+        c = time.process_time()
+        try:
+            return original(self, phase, *args)
+        finally:
+            key = f"{self.mtype}/{phase}"
+            got = spent.setdefault(key, [0, 0.0])
+            got[0] += 1
+            got[1] += time.process_time() - c
+
+    pm._Pardiso.call = call
+    scene, params = SCENES[a.family](a.size)
+    model = dd.build_model(scene, dataclasses.replace(params, solver="pardiso"))
+    stepper = Stepper(model)
+    state = model.initial_state()
+    cpu = time.process_time()
+    if a.protocol == "settled":
+        from ddatai.start import settle
+
+        state, _ = settle(stepper, state)
+    stage = time.process_time() - cpu
+    for _ in range(a.steps):
+        state, _ = stepper.step(state)
+    total = time.process_time() - cpu
+    digest = hashlib.sha1(np.ascontiguousarray(state.vertex_xy).tobytes()
+                          + np.ascontiguousarray(state.block_velocity).tobytes()).hexdigest()[:12]
+    print(json.dumps(dict(stage_cpu=stage, steps_cpu=total - stage, pardiso=spent,
+                          pardiso_cpu=sum(v[1] for v in spent.values()),
+                          lu_cpu=sum(v[1] for k, v in spent.items() if k.split("/")[0] in ("1", "11")),
+                          factorisations=stepper.solver.factorisations, state=digest)))
+
+
+def paired_calls(a) -> None:
+    """`calls` in fresh processes, ``--baseline``'s code then this checkout's, ``--repeat`` pairs."""
+    rows = {"B": [], "A": []}
+    for _ in range(a.repeat):
+        for label, tree in (("B", a.baseline), ("A", ROOT)):
+            cmd = [sys.executable, str(Path(__file__).resolve()), "calls", "--family", a.family, "--size", str(a.size),
+                   "--steps", str(a.steps), "--protocol", a.protocol]
+            proc = subprocess.run(cmd, capture_output=True, text=True, cwd=tree,
+                                  env={**os.environ, "PYTHONPATH": str(tree)})
+            if proc.returncode:
+                print(proc.stderr[-2000:], file=sys.stderr)
+                continue
+            row = json.loads(proc.stdout.strip().splitlines()[-1])
+            rows[label].append(row)
+            print(label, json.dumps({k: v for k, v in row.items() if k != "pardiso"}), flush=True)
+    lines = [f"| {a.family} {a.size} ({a.protocol}, {a.steps} steps) | B | A | A/B |", "|---|---|---|---|"]
+    for key in ("stage_cpu", "steps_cpu", "pardiso_cpu", "lu_cpu", "factorisations"):
+        b = [r[key] for r in rows["B"]]
+        v = [r[key] for r in rows["A"]]
+        ratio = statistics.median(x / y for x, y in zip(v, b) if y) if b and v else float("nan")
+        lines.append(f"| {key} | {statistics.median(b):.2f} | {statistics.median(v):.2f} | {ratio:.2f} |")
+    lines.append(f"| final state | {', '.join(sorted({r['state'] for r in rows['B']}))} | "
+                 f"{', '.join(sorted({r['state'] for r in rows['A']}))} | |")
+    print("\n".join(lines))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -384,6 +461,14 @@ def main() -> None:
     t.add_argument("--fresh", action="store_true", help="each matrix in a fresh process")
     t.add_argument("--cache", type=Path, default=CACHE)
     t.add_argument("--out", type=Path, default=None)
+    for name in ("calls", "paired"):
+        r = sub.add_parser(name)
+        r.add_argument("--family", default="slope", choices=tuple(SCENES))
+        r.add_argument("--size", type=int, default=391)
+        r.add_argument("--steps", type=int, default=10)
+        r.add_argument("--protocol", default="settled", choices=("settled", "ntdda"))
+        r.add_argument("--baseline", type=Path, default=None, help="paired: the other checkout (B)")
+        r.add_argument("--repeat", type=int, default=3)
     o = sub.add_parser("time1")
     o.add_argument("path", type=Path)
     o.add_argument("names")
@@ -394,6 +479,10 @@ def main() -> None:
         capture(a)
     elif a.cmd == "time":
         time_all(a)
+    elif a.cmd == "calls":
+        calls(a)
+    elif a.cmd == "paired":
+        paired_calls(a)
     else:
         print(json.dumps(time_case(a.path, a.names.split(","), a.threads, a.repeat)))
 

@@ -59,12 +59,14 @@ class _Pardiso:
     couples its two blocks both ways, so the pattern is symmetric, and the matrix is the
     symmetric positive definite K plus the small friction terms, so diagonal pivots serve.
     Measured on the project's matrices (``benchmarks/pardiso_levers.py``,
-    docs/guide/performance.md): against 11, the numerical factorisation 0.92–0.94× (the same
-    fill, no scaling), the analysis 0.43–0.64× (no matching on the values), its memory 0.86–0.89×,
-    no pivot perturbed on the slopes and grids, the residual the same. The other levers measured
-    there did not pay: MKL's block formats (the analysis 6–15× faster, the factorisation
-    0.9–1.14×), the two-level factorisation, parallel METIS (which gives up reproducibility),
-    METIS's ``10·L + 2`` optimisation levels and the solve's parallel modes.
+    benchmarks/results/pardiso_levers.md): against 11, the same fill; the analysis 0.43–0.84×
+    (no matching on the values), MKL's memory 0.85–0.89×, the numerical factorisation
+    0.89–0.98× (no scaling; at 38,400 unknowns and more within the ±7 % noise of the shared
+    machine), no pivot perturbed on the slopes and grids, the residual the same. The other
+    levers measured there did not pay: MKL's block formats (the analysis 6–15× faster, the
+    factorisation 0.9–1.14×), the two-level factorisation (0.84–1.07×: noise), parallel METIS
+    (which gives up reproducibility), METIS's ``10·L + 2`` optimisation levels and the solve's
+    parallel modes.
     """
 
     def __init__(self, mtype: int):
