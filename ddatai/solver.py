@@ -3,7 +3,9 @@
 K is symmetric positive definite while every closed contact is locked or carries a friction
 load that does not depend on the solution. A sliding contact whose friction is taken
 implicitly (the friction force μ·p·(−dn) follows the normal penetration of the same solve,
-``ddatai.contact_law``) adds a non-symmetric term, and the solve then uses an LU factorisation.
+``ddatai.contact_law``) adds a non-symmetric term, and the solve then uses an LU factorisation
+(PARDISO's on the symmetric pattern, with the general LU where its diagonal pivots fail:
+`ddatai.pardiso._Pardiso`).
 
 Two backends behind one class:
 
@@ -393,10 +395,12 @@ class SparseSolver:
 
     def _symmetric_structure(self, pattern, indptr, indices, n) -> bool:
         """Whether K's pattern is symmetric: a `BlockPattern` is by construction (each coupled
-        block pair stores both 6×6 blocks); another structure is checked once."""
-        if getattr(pattern, "structurally_symmetric", False):
+        block pair stores both 6×6 blocks); another structure is checked once. A structure
+        whose LU of type 1 once failed (`_solve_pardiso`) goes to type 11 from then on."""
+        known = self._structure is not None and self._same(self._structure[0], indptr, indices)
+        if not known and getattr(pattern, "structurally_symmetric", False):
             return True
-        if self._structure is None or not self._same(self._structure[0], indptr, indices):
+        if not known:
             self._structure = ((indptr, indices), symmetric_pattern(indptr, indices, n))
         return self._structure[1]
 
@@ -440,11 +444,13 @@ class SparseSolver:
                     self.perturbed_fallbacks += 1
                     h.release_factor()
                     self._factor = None
+                    self._structure = ((indptr, indices), False)  # type 11 for this structure
                     return None
         except PardisoError:  # a failed factorisation is a non-finite solution
             h.key = None
             self._factor = None
             if mtype == 1:
+                self._structure = ((indptr, indices), False)
                 return None
             return np.full(n, np.nan)
         # the factor stays in the handle until its next factorisation: solves with it for

@@ -205,6 +205,10 @@ def test_structurally_symmetric_lu_falls_back_to_matching_where_its_pivots_fail(
     assert solver._handles[1].perturbed_pivots > 0 and solver.perturbed_fallbacks == 1
     assert solver._handles[11].factored and not solver._handles[1].factored
     assert np.abs(k @ x - b).max() < 1e-12 * np.abs(b).max()
+    # the same structure again: straight to the general LU
+    y = solver.solve(1.5 * k.data, k.indices, k.indptr, b, symmetric=False)
+    assert solver.perturbed_fallbacks == 1 and solver._handles[11].factored
+    assert np.abs(1.5 * (k @ y) - b).max() < 1e-12 * np.abs(b).max()
 
 
 BACKENDS = ["scipy", pytest.param("pardiso", marks=pytest.mark.skipif(
