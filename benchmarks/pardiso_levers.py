@@ -3,6 +3,8 @@
     python benchmarks/pardiso_levers.py capture --family slope --size 391 [--steps 6]
     python benchmarks/pardiso_levers.py time --cases slope:391,slope:1537 [--variants base,mtype1]
                                              [--threads 1,2] [--repeat 5] [--kind lu|spd|both]
+    python benchmarks/pardiso_levers.py paired --baseline <other checkout> --family slope --size 391
+                                               [--steps 20] [--protocol settled|ntdda] [--repeat 3]
 
 ``capture`` runs a scaling scene (`benchmarks/scaling_scenes.py`, ntdda's protocol: from rest
 under sudden gravity) for a few steps with the solver's factorisation hooked, and saves the
@@ -22,6 +24,10 @@ pivots (iparm(14)), peak memory (iparm(15)–(17)), the relative residual of the
 factorisations give the same solution to the bit (the conditional numerical reproducibility the
 solver keeps). MKL's threads are set with ``mkl_set_num_threads`` and iparm(34) follows them.
 Writes ``--out`` (a markdown table per thread count), and prints it.
+
+``paired`` runs a scene end to end in fresh processes, the other checkout's code then this
+one's, with every PARDISO call timed by matrix type and phase (``calls``): CPU of the stage and
+the steps, PARDISO's and the LU's share, the factorisations, a hash of the final state.
 """
 
 from __future__ import annotations
@@ -178,13 +184,9 @@ class Variant:
         self.b = np.ascontiguousarray(m["rhs"], np.float64)
         self.stats = {}
 
-    def _call(self, phase: int) -> np.ndarray:
-        data, ptr, idx = self.a
-        return self.h.call(phase, data, ptr, idx, self.b)
-
     def call_n(self, phase: int):
-        """As `_Pardiso.call` but with n = the matrix's order (BSR: block rows are passed by
-        ptr, the order is still n)."""
+        """PARDISO's ``phase`` on this variant's matrix (`_Pardiso.call`; with a block format,
+        the library called here with the number of block rows as its order)."""
         data, ptr, idx = self.a
         if not self.bsr:
             return self.h.call(phase, data, ptr, idx, self.b)
