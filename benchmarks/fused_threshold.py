@@ -111,16 +111,16 @@ def steps_for(size: int, spec: str) -> int:
 
 def table(rows: list) -> str:
     """The Markdown table of paired rows (JSON lines of `main`)."""
-    import numpy as np  # noqa: F401
-
     cases = {}
     for r in rows:
         cases.setdefault((r["family"], r["size"], r["settled"], r.get("today_solver", "auto")), []).append(r)
     out = ["| family | start | free blocks | steps | fused ms/step (CPU) | today's ms/step (CPU) | today's engine "
            "| today/fused CPU, each pair | today/fused wall, each pair | solves/step (fused, today) "
-           "| first 10 steps s (fused, today) | peak RSS MB (fused, today) | fused slab MB | relaunches, handed over |",
-           "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
-    for (family, size, settled, solver), rs in cases.items():
+           "| first 10 steps s (fused, today) | peak RSS MB (fused, today) | fused slab MB | relaunches, handed over "
+           "| final vertices apart [m] |",
+           "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for (family, size, settled, solver), rs in sorted(cases.items(), key=lambda kv: (kv[0][3], kv[0][2], kv[0][0],
+                                                                                     kv[1][0]["blocks"])):
         f = [r for r in rs if r["path"] == "fused"]
         t = [r for r in rs if r["path"] == "today"]
         n = min(len(f), len(t))
@@ -133,10 +133,12 @@ def table(rows: list) -> str:
         out.append(
             f"| {family} | {'settled' if settled else 'sudden'} | {f[0]['blocks']} | {f[0]['steps']} "
             f"| {med(f, 'ms'):.2f} ({med(f, 'cpu_ms'):.2f}) | {med(t, 'ms'):.2f} ({med(t, 'cpu_ms'):.2f}) "
-            f"| {t[0]['engine']}{'' if solver == 'auto' else ', solver ' + solver} | {', '.join(f'{x:.2f}' for x in cpu)} | {', '.join(f'{x:.2f}' for x in wall)} "
+            f"| {t[0]['engine']}{'' if solver == 'auto' else ', solver ' + solver} "
+            f"| {', '.join(f'{x:.2f}' for x in cpu)} | {', '.join(f'{x:.2f}' for x in wall)} "
             f"| {med(f, 'solves'):.2f}, {med(t, 'solves'):.2f} | {med(f, 'first_s'):.1f}, {med(t, 'first_s'):.1f} "
             f"| {med(f, 'peak_mb'):.0f}, {med(t, 'peak_mb'):.0f} | {f[0]['slab_mb']:.1f} "
-            f"| {sum(x['grown'] for x in f)}, {sum(x['handed'] for x in f)} |")
+            f"| {sum(x['grown'] for x in f)}, {sum(x['handed'] for x in f)} "
+            f"| {max(x.get('gap_m', 0.0) for x in f):.1e} |")
     return "\n".join(out)
 
 
@@ -169,8 +171,8 @@ def main() -> None:
             gap = float(np.max(np.hypot(*(np.load(npy["fused"]) - np.load(npy["today"])).T)))
             with a.out.open("a") as fh:
                 for path, row in rows.items():
-                    fh.write(json.dumps({**row, "gap_m": gap, "load": os.getloadavg()[0], "today_solver": a.today_solver})
-                         + "\n")
+                    extra = {"gap_m": gap, "load": os.getloadavg()[0], "today_solver": a.today_solver}
+                    fh.write(json.dumps({**row, **extra}) + "\n")
             f, t = rows["fused"], rows["today"]
             print(f"{family} {f['blocks']} ({'settled' if a.protocol == 'settled' else 'sudden'}) pair {k}: fused "
                   f"{f['ms']:.2f} ms ({f['cpu_ms']:.2f} CPU), {f['solves']:.2f} solves; today [{t['engine']}] "

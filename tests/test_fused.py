@@ -114,7 +114,8 @@ def test_the_largest_model_auto_runs_fused_follows_the_numpy_path():
     """The largest square dropped grid "auto" runs fused alone (``FUSED_BLOCKS``: 14 × 14 blocks),
     under ``Params(kernels="auto")`` as a user runs it: `dd.simulate`, 60 steps through its
     impacts and slips, picks the fused engine (the kernel in the process) and gives the NumPy
-    path's frames and Δt within the module's tolerance, its solves differing at most at two steps
+    path's frames and Δt within the module's tolerance (``SAME_STEP``, as the frames are compared
+    above: with impacts resolved Δt follows the gaps), its solves differing at most at two steps
     (the NumPy path with SciPy's sparse LU: a dense one of 1,176 unknowns costs ~0.2 s a solve).
     ~10 s with the kernel loaded."""
     import math
@@ -128,8 +129,8 @@ def test_the_largest_model_auto_runs_fused_follows_the_numpy_path():
         _fused_run(tiny, tiny.initial_state(), 1)
     runs = {}
     for kernels in ("auto", "numpy"):
-        runs[kernels] = dd.simulate(scene, dataclasses.replace(params, kernels=kernels, solver="scipy"), steps=60,
-                                    record_every=10)
+        runs[kernels] = dd.simulate(scene, dataclasses.replace(params, kernels=kernels, solver="scipy", **SAME_STEP),
+                                    steps=60, record_every=10)
     a, b = runs["auto"], runs["numpy"]
     assert b.meta["engine"]["name"] == "numpy" and len(b.vertex_offset) - 1 == n * n + 1
     assert a.meta["engine"]["name"] == "fused", a.meta["engine"]

@@ -60,7 +60,8 @@ def test_auto_runs_a_single_model_fused_up_to_its_measured_size(monkeypatch):
     assert name == "taichi" and f"{policy.FUSED_BLOCKS + 1} free blocks" in why and str(policy.FUSED_BLOCKS) in why
     # asked for, or a batch: the fused engine at any size
     assert policy.choose(above, steps=10, duration=None, batch=True)[0] == "fused"
-    assert policy.choose(_grid(policy.FUSED_BLOCKS + 1, dd.Params(kernels="fused")), steps=10, duration=None)[0] == "fused"
+    asked = _grid(policy.FUSED_BLOCKS + 1, dd.Params(kernels="fused"))
+    assert policy.choose(asked, steps=10, duration=None)[0] == "fused"
     # a model of the size loaded from the offline cache: a run pays the load only where it is long
     monkeypatch.setattr(policy, "_loaded", lambda: False)
     monkeypatch.setattr(policy, "kernel_cached", lambda arch="cpu": True)
