@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import copy
 from dataclasses import dataclass
-from typing import Optional
+from typing import ClassVar, Optional
 
 import numpy as np
 
@@ -55,6 +55,11 @@ class BlockPattern:
     """(6×6 blocks,) sorted keys row·n_rows + col of every stored 6×6 block."""
     block_slot: np.ndarray
     """(6×6 blocks,) slot of each stored block, in the order of ``block_key``."""
+
+    #: every coupled block pair stores both of its 6×6 blocks, so the pattern is symmetric even
+    #: where friction makes the values not (the solver's LU then works on the symmetric
+    #: structure: `ddatai.pardiso._Pardiso`)
+    structurally_symmetric: ClassVar[bool] = True
 
     @property
     def nnz(self) -> int:

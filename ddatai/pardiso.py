@@ -48,10 +48,26 @@ class PardisoError(RuntimeError):
 class _Pardiso:
     """One MKL PARDISO handle for one matrix type, called directly through ctypes.
 
-    ``mtype`` 2 (real SPD, upper triangle) or 11 (real non-symmetric, full storage). Every
+    ``mtype`` 2 (real SPD, upper triangle), 1 (real, structurally symmetric: full storage of a
+    non-symmetric matrix whose pattern is symmetric, LU on that pattern with diagonal pivots)
+    or 11 (real non-symmetric, full storage, with scaling and weighted matching). Every
     parameter is set explicitly with ``iparm[0] = 1``: with ``iparm[0] = 0`` MKL replaces them
     all by its defaults, two steps of iterative refinement on every solve among them (3× the
     cost of the solve at 1,600 blocks, and not bit-reproducible between runs).
+
+    The coupled K of DDA (friction tied to the normal force of the same solve) is 1: a contact
+    couples its two blocks both ways, so the pattern is symmetric, and the matrix is the
+    symmetric positive definite K plus the small friction terms, so diagonal pivots serve.
+    Measured on the project's matrices (``benchmarks/pardiso_levers.py``,
+    benchmarks/results/pardiso_levers.md): against 11, the same fill; the analysis 0.43–0.84×
+    (no matching on the values), MKL's memory 0.85–0.89×, the numerical factorisation
+    0.89–0.98× (no scaling; at 38,400 unknowns and more within the ±7 % noise of the shared
+    machine), no pivot perturbed on the slopes and grids, the residual the same; at 102,400
+    blocks the LU with its analysis 26.3 → 20.0 s CPU and the step's peak 7.18 → 6.93 GB. The other
+    levers measured there did not pay: MKL's block formats (the analysis 6–15× faster, the
+    factorisation 0.9–1.14×), the two-level factorisation (0.84–1.07×: noise), parallel METIS
+    (which gives up reproducibility), METIS's ``10·L + 2`` optimisation levels and the solve's
+    parallel modes.
     """
 
     def __init__(self, mtype: int):
@@ -64,9 +80,9 @@ class _Pardiso:
         ip[0] = 1        # use the values below, not MKL's defaults
         ip[1] = 2        # fill-reducing ordering: METIS nested dissection
         ip[7] = 0        # no iterative refinement (a residual check below asks for it)
-        ip[9] = 13 if mtype == 11 else 8  # pivot perturbation 1e-13 / 1e-8
-        ip[10] = 1 if mtype == 11 else 0  # scaling (non-symmetric only)
-        ip[12] = 1 if mtype == 11 else 0  # weighted matching (non-symmetric only)
+        ip[9] = 8 if mtype == 2 else 13  # pivot perturbation 1e-8 / 1e-13 (MKL's defaults)
+        ip[10] = 1 if mtype == 11 else 0  # scaling (the general non-symmetric solver only)
+        ip[12] = 1 if mtype == 11 else 0  # weighted matching (the general non-symmetric solver only)
         ip[34] = 1       # zero-based ia/ja
         # conditional numerical reproducibility: the same factor, bit for bit, on every run with
         # this many threads (MKL's threads otherwise sum in varying order: two runs of a
@@ -126,3 +142,30 @@ class _Pardiso:
     def refinement_steps(self) -> int:
         """Iterative refinement steps MKL performed in the last solve (MKL's iparm(7))."""
         return int(self.iparm[6])
+
+
+def _upper_triangle(indptr: np.ndarray, indices: np.ndarray, n: int) -> tuple:
+    """((indptr, indices), positions of the upper triangle's entries in the CSR data, its
+    indptr, its indices): what PARDISO reads of a symmetric K. In a function of its own so that
+    its temporaries (the row of every entry) are gone before the factorisation; rows and
+    positions as int32 where they fit (0.26 GB each as int64 at 102,400 blocks; a take with
+    int32 positions gives the same values)."""
+    small = len(indices) < 2**31
+    rows = np.repeat(np.arange(n, dtype=np.int32 if small else np.int64), np.diff(indptr))
+    mask = indices >= rows
+    counts = np.bincount(rows[mask], minlength=n)
+    del rows
+    upper_indptr = np.concatenate([[0], np.cumsum(counts)]).astype(np.int32)
+    # positions, not a boolean mask: a take is ~10x faster than boolean indexing
+    pos = np.flatnonzero(mask)
+    if small:
+        pos = pos.astype(np.int32)
+    return (indptr, indices), pos, upper_indptr, np.ascontiguousarray(indices[mask], dtype=np.int32)
+
+
+def symmetric_pattern(indptr: np.ndarray, indices: np.ndarray, n: int) -> bool:
+    """Whether the CSR pattern is symmetric (what PARDISO's matrix type 1 needs)."""
+    from scipy.sparse import csr_matrix
+
+    k = csr_matrix((np.ones(len(indices)), indices, indptr), shape=(n, n))
+    return (k != k.T).nnz == 0

@@ -3,7 +3,9 @@
 K is symmetric positive definite while every closed contact is locked or carries a friction
 load that does not depend on the solution. A sliding contact whose friction is taken
 implicitly (the friction force μ·p·(−dn) follows the normal penetration of the same solve,
-``ddatai.contact_law``) adds a non-symmetric term, and the solve then uses an LU factorisation.
+``ddatai.contact_law``) adds a non-symmetric term, and the solve then uses an LU factorisation
+(PARDISO's on the symmetric pattern, with the general LU where its diagonal pivots fail:
+`ddatai.pardiso._Pardiso`).
 
 Two backends behind one class:
 
@@ -106,7 +108,8 @@ def resolve(name: str, unknowns: Optional[int] = None) -> str:
     return name
 
 
-from .pardiso import PardisoError, _locate_mkl, _Pardiso  # noqa: F401 (PardisoError: public)
+from .pardiso import (PardisoError, _locate_mkl, _Pardiso, _upper_triangle,  # noqa: F401 (PardisoError: public)
+                      symmetric_pattern)
 from .iterative import (KRYLOV_ACCEPT, KRYLOV_BLOCKS, KRYLOV_ITERATIONS, REFINE_ABOVE, REFINE_PASSES,
                         REUSE_PASSES, REUSE_RATE, REUSE_RESIDUAL, _refinement, changed_blocks, gmres,
                         refine_to_roundoff)
@@ -128,6 +131,8 @@ class SparseSolver:
         self._dense_rows = None  # (structure key, row of each CSR entry) of the dense backend
         self._handles: dict[int, _Pardiso] = {}
         self._upper = None       # (structure key, positions of the upper triangle, indptr, indices)
+        self._structure = None   # (structure key, whether it is symmetric) of the last non-symmetric K
+        self.perturbed_fallbacks = 0  # LU of the symmetric pattern redone with matching (`_factorise`)
         self.last_residual = 0.0  # relative residual of the last PARDISO solve, when it was checked
         # the last factorisation: (symmetric, (indptr, indices), solve(r) with its factor)
         self._factor = None
@@ -174,7 +179,7 @@ class SparseSolver:
         the next solves can update it)."""
         n = len(indptr) - 1
         if springs is not None and symmetric and self._updating is not None:
-            return self._solve_updating(data, indices, indptr, rhs, n, springs, reuse)
+            return self._solve_updating(data, indices, indptr, rhs, n, springs, reuse, pattern)
         if self._updating is not None:
             self._updating.forget()  # another K: its factor no longer follows the springs
         if self.backend == "dense" and n <= DENSE_KRYLOV_UNKNOWNS:
@@ -197,9 +202,9 @@ class SparseSolver:
         # the matrix of the factor, against which a Krylov solve measures its change
         self._factored_data = np.array(data, dtype=np.float64)
         self._exact = True  # unless PARDISO perturbs a pivot (`_solve_pardiso`)
-        return self._factorise(self._factored_data, indices, indptr, rhs, n, symmetric)
+        return self._factorise(self._factored_data, indices, indptr, rhs, n, symmetric, pattern)
 
-    def _solve_updating(self, data, indices, indptr, rhs, n, springs, reuse) -> np.ndarray:
+    def _solve_updating(self, data, indices, indptr, rhs, n, springs, reuse, pattern=None) -> np.ndarray:
         """The symmetric solve with springs (`solve`): by updates of the factor in hand, each
         checked by its residual against K and refined as a reused factor is (`_refinement`);
         a step's first solve (``reuse``, another step's vectors) by refinement with the last
@@ -232,7 +237,7 @@ class SparseSolver:
             self._factor = (True, (indptr, indices), u.factor.solve_A)
             return u.solve(b)
         self.lu_factorisations += 1  # not positive definite: LU
-        return self._factorise(self._factored_data, indices, indptr, rhs, n, False)
+        return self._factorise(self._factored_data, indices, indptr, rhs, n, False, pattern)
 
     def factor_solve(self, rhs: np.ndarray) -> "np.ndarray | None":
         """K⁻¹·rhs with the last factor (the matrix last factorised); None without one."""
@@ -240,10 +245,19 @@ class SparseSolver:
             return None
         return self._factor[2](np.ascontiguousarray(rhs, dtype=np.float64))
 
-    def _factorise(self, data, indices, indptr, rhs, n, symmetric) -> np.ndarray:
+    def _factorise(self, data, indices, indptr, rhs, n, symmetric, pattern=None) -> np.ndarray:
         """Factorise K (``data``: the solver's copy, ``_factored_data``) and solve."""
         if self.backend == "pardiso":
-            return self._solve_pardiso(data, indices, indptr, rhs, n, symmetric)
+            if symmetric:
+                return self._solve_pardiso(data, indices, indptr, rhs, n, 2)
+            if self._symmetric_structure(pattern, indptr, indices, n):
+                # LU on the symmetric pattern with diagonal pivots (`ddatai.pardiso._Pardiso`);
+                # where a pivot had to be perturbed and refinement does not repair the solve,
+                # the general solver with its weighted matching
+                x = self._solve_pardiso(data, indices, indptr, rhs, n, 1)
+                if x is not None:
+                    return x
+            return self._solve_pardiso(data, indices, indptr, rhs, n, 11)
         if self.backend == "dense":
             return self._solve_dense(data, indices, indptr, rhs, n, symmetric)
         from scipy.sparse import csc_matrix, csr_matrix
@@ -379,8 +393,24 @@ class SparseSolver:
             len(old_indptr) == len(indptr) and len(old_indices) == len(indices)
             and np.array_equal(old_indptr, indptr) and np.array_equal(old_indices, indices))
 
-    def _solve_pardiso(self, data, indices, indptr, rhs, n, symmetric) -> np.ndarray:
-        h = self._handle(2 if symmetric else 11)
+    def _symmetric_structure(self, pattern, indptr, indices, n) -> bool:
+        """Whether K's pattern is symmetric: a `BlockPattern` is by construction (each coupled
+        block pair stores both 6×6 blocks); another structure is checked once. A structure
+        whose LU of type 1 once failed (`_solve_pardiso`) goes to type 11 from then on."""
+        known = self._structure is not None and self._same(self._structure[0], indptr, indices)
+        if not known and getattr(pattern, "structurally_symmetric", False):
+            return True
+        if not known:
+            self._structure = ((indptr, indices), symmetric_pattern(indptr, indices, n))
+        return self._structure[1]
+
+    def _solve_pardiso(self, data, indices, indptr, rhs, n, mtype) -> "np.ndarray | None":
+        """Factorise with the handle of matrix type ``mtype`` (2: Cholesky of the upper
+        triangle; 1 or 11: LU of the full matrix) and solve. None where type 1 perturbed a
+        pivot and refinement did not bring the residual below `REFINE_ABOVE` (the caller then
+        factorises with type 11)."""
+        symmetric = mtype == 2
+        h = self._handle(mtype)
         for other in self._handles.values():
             if other is not h:
                 other.release_factor()  # no solve uses it again before it is factorised anew
@@ -409,10 +439,19 @@ class SparseSolver:
                 h.key, h.n = (indptr, indices), n
             if h.perturbed_pivots:
                 self._exact = False
-                x = self._refine(h, data, indices, indptr, a_data, a_ptr, a_idx, b, x, n)
+                x, done = self._refine(h, data, indices, indptr, a_data, a_ptr, a_idx, b, x, n)
+                if not done and mtype == 1:
+                    self.perturbed_fallbacks += 1
+                    h.release_factor()
+                    self._factor = None
+                    self._structure = ((indptr, indices), False)  # type 11 for this structure
+                    return None
         except PardisoError:  # a failed factorisation is a non-finite solution
             h.key = None
             self._factor = None
+            if mtype == 1:
+                self._structure = ((indptr, indices), False)
+                return None
             return np.full(n, np.nan)
         # the factor stays in the handle until its next factorisation: solves with it for
         # ``reuse`` (a perturbed pivot makes it inexact: refinement checks every solve anyway)
@@ -420,31 +459,12 @@ class SparseSolver:
                         lambda r: h.call(33, a_data, a_ptr, a_idx, r))
         return x
 
-    def _refine(self, h, data, indices, indptr, a_data, a_ptr, a_idx, b, x, n) -> np.ndarray:
+    def _refine(self, h, data, indices, indptr, a_data, a_ptr, a_idx, b, x, n) -> tuple:
         """Iterative refinement where MKL perturbed a pivot: a few solves with the same factor,
-        while the relative residual is above `REFINE_ABOVE`."""
+        while the relative residual is above `REFINE_ABOVE`. Returns (x, whether it got there)."""
         from scipy.sparse import csr_matrix
 
         k = csr_matrix((data, indices, indptr), shape=(n, n))
-        x, self.last_residual, _ = _refinement(k, b, x, lambda r: h.call(33, a_data, a_ptr, a_idx, r),
-                                               REFINE_ABOVE, REFINE_PASSES)
-        return x
-
-
-def _upper_triangle(indptr: np.ndarray, indices: np.ndarray, n: int) -> tuple:
-    """((indptr, indices), positions of the upper triangle's entries in the CSR data, its
-    indptr, its indices): what PARDISO reads of a symmetric K. In a function of its own so that
-    its temporaries (the row of every entry) are gone before the factorisation; rows and
-    positions as int32 where they fit (0.26 GB each as int64 at 102,400 blocks; a take with
-    int32 positions gives the same values)."""
-    small = len(indices) < 2**31
-    rows = np.repeat(np.arange(n, dtype=np.int32 if small else np.int64), np.diff(indptr))
-    mask = indices >= rows
-    counts = np.bincount(rows[mask], minlength=n)
-    del rows
-    upper_indptr = np.concatenate([[0], np.cumsum(counts)]).astype(np.int32)
-    # positions, not a boolean mask: a take is ~10x faster than boolean indexing
-    pos = np.flatnonzero(mask)
-    if small:
-        pos = pos.astype(np.int32)
-    return (indptr, indices), pos, upper_indptr, np.ascontiguousarray(indices[mask], dtype=np.int32)
+        x, self.last_residual, done = _refinement(k, b, x, lambda r: h.call(33, a_data, a_ptr, a_idx, r),
+                                                  REFINE_ABOVE, REFINE_PASSES)
+        return x, done

@@ -108,7 +108,7 @@ def test_pardiso_frees_the_other_types_factor_and_keeps_its_analysis():
     chol = solver._handles[2]
     assert chol.factored
     y1 = solver.solve(lu_data, *args, pattern=pattern, symmetric=False)
-    lu = solver._handles[11]
+    lu = solver._handles[1]  # the coupled K: LU on its symmetric pattern
     assert lu.factored and not chol.factored and chol.key is not None  # factor freed, analysis kept
     x2 = solver.solve(data, *args, pattern=pattern)
     assert chol.factored and not lu.factored and lu.key is not None
@@ -153,8 +153,62 @@ def test_pardiso_takes_its_parameters():
     assert solver._handles[2].refinement_steps == 0
     pattern, data, rhs = _non_symmetric(1)
     solver.solve(data, pattern.indices, pattern.indptr, rhs, symmetric=False)
-    h = solver._handles[11]
+    h = solver._handles[1]
     assert h.iparm[0] == 1 and h.iparm[7] == 0 and h.refinement_steps == 0
+
+
+@pytest.mark.skipif(not HAS_PARDISO, reason="pypardiso is not installed (optional accelerator)")
+def test_coupled_k_is_factorised_on_its_symmetric_pattern():
+    """The coupled K (friction tied to the same solve's normal force) is not symmetric, but its
+    pattern is (a contact couples its blocks both ways): PARDISO's structurally symmetric LU
+    (matrix type 1, no scaling or matching: its analysis 0.43–0.84 and its memory 0.85–0.89 of
+    the general LU's on the project's matrices) solves it, with no pivot perturbed, to the residual of the general
+    solver's solve and to SuperLU's solution; a pattern that is not symmetric goes to the
+    general solver."""
+    pattern, data, rhs = _non_symmetric(4)
+    n = len(rhs)
+    k = csr_matrix((data, pattern.indices, pattern.indptr), shape=(n, n))
+    solver = SparseSolver("pardiso")
+    x = solver.solve(data, pattern.indices, pattern.indptr, rhs, pattern=pattern, symmetric=False)
+    h = solver._handles[1]
+    assert sorted(solver._handles) == [1] and h.mtype == 1 and h.perturbed_pivots == 0
+    assert h.iparm[10] == 0 and h.iparm[12] == 0  # no scaling, no matching
+    general = SparseSolver("pardiso")
+    general._structure = ((pattern.indptr, pattern.indices), False)  # as if the pattern were not symmetric
+    y = general.solve(data, pattern.indices, pattern.indptr, rhs, symmetric=False)
+    assert sorted(general._handles) == [11]
+    scale = np.abs(rhs).max()
+    assert np.abs(k @ x - rhs).max() <= max(4 * np.abs(k @ y - rhs).max(), 1e-14 * scale)
+    assert np.abs(x - SparseSolver("scipy").solve(data, pattern.indices, pattern.indptr, rhs,
+                                                  symmetric=False)).max() < 1e-10 * np.abs(x).max()
+
+
+@pytest.mark.skipif(not HAS_PARDISO, reason="pypardiso is not installed (optional accelerator)")
+def test_structurally_symmetric_lu_falls_back_to_matching_where_its_pivots_fail():
+    """Diagonal pivots cannot factorise a matrix with zeros on its diagonal: PARDISO perturbs
+    them, refinement does not reach the solver's residual, and the matrix is factorised again
+    by the general LU with weighted matching, which solves it to round-off."""
+    from scipy.sparse import eye, random as sparse_random
+
+    n = 60
+    a = sparse_random(n, n, density=0.2, random_state=1, format="csr")
+    a = (a + a.T + eye(n)).tocsr()
+    a.sort_indices()
+    rng = np.random.default_rng(0)
+    rows = np.repeat(np.arange(n), np.diff(a.indptr))
+    vals = a.data * (1 + 0.3 * rng.standard_normal(len(a.data)))
+    vals[(rows == a.indices) & (rows % 2 == 0)] = 0.0  # stored zeros on half the diagonal
+    k = csr_matrix((vals, a.indices, a.indptr), shape=(n, n))
+    b = rng.standard_normal(n)
+    solver = SparseSolver("pardiso")
+    x = solver.solve(k.data, k.indices, k.indptr, b, symmetric=False)
+    assert solver._handles[1].perturbed_pivots > 0 and solver.perturbed_fallbacks == 1
+    assert solver._handles[11].factored and not solver._handles[1].factored
+    assert np.abs(k @ x - b).max() < 1e-12 * np.abs(b).max()
+    # the same structure again: straight to the general LU
+    y = solver.solve(1.5 * k.data, k.indices, k.indptr, b, symmetric=False)
+    assert solver.perturbed_fallbacks == 1 and solver._handles[11].factored
+    assert np.abs(1.5 * (k @ y) - b).max() < 1e-12 * np.abs(b).max()
 
 
 BACKENDS = ["scipy", pytest.param("pardiso", marks=pytest.mark.skipif(
