@@ -27,7 +27,8 @@ sys.path[:0] = [str(ROOT), str(ROOT / "benchmarks")]
 PHASES = ("detect", "start+vectors+envelope", "try setup (restore, K0, F0)", "shift+lever arms",
           "load K0", "load K0+contacts", "load K0+contacts+factor", "solve", "law+block energy",
           "violations", "gradient+internal force", "restore", "restore+judge", "accept", "energies+work",
-          "time step rules", "detect without the sort")
+          "time step rules", "detect without the sort", "approach bound", "hand over",
+          "group displacement+fastest", "update (last: it moves the member)")
 
 
 def main() -> None:
@@ -51,7 +52,9 @@ def main() -> None:
     from ddatai.fused.arrays import Pack
     from ddatai.fused.engine import Session
     from ddatai.fused.pack import Member
-    from ddatai.fused.step import accept, energies, rule, time_step, work
+    from ddatai.fused.impacts import approach_bound
+    from ddatai.fused.kernel import _fastest, _group_displacement
+    from ddatai.fused.step import accept, energies, rule, time_step, update, work
 
     scene, params = grid_scene(a.blocks)
     params = dataclasses.replace(params, initial_equilibrium=False, kernels="numpy", solver="dense")
@@ -165,6 +168,14 @@ def main() -> None:
                 acc += time_step(E, 0) + rule(E, 0, 0)
             elif phase == 16:
                 acc += _unsorted(E, 0)
+            elif phase == 17:
+                acc += approach_bound(E, 0, dt, dt)
+            elif phase == 18:
+                contacts.hand_over(E, 0)
+            elif phase == 19:
+                acc += _group_displacement(E, 0) + _fastest(E, 0)
+            elif phase == 20:
+                acc += update(E, 0, dt, beta)
         return acc
 
     args = Pack(**A)

@@ -10,7 +10,7 @@ import taichi as ti
 
 from ..kernels.common import E0, E1, ES, G0, GS, _cross, _dot2, _norm2, _pt, _trow
 from ..kernels.detection import pair_contacts
-from .layout import (BG_CX, BG_CY, BI_ROW, BI_V0, BI_V1, BW_ROT, CF_ARM, CF_COH, CF_DN, CF_DN0, CF_DS, CF_DS0,
+from .layout import (BG_CX, BG_CY, BI_ROW, BI_V0, BI_V1, BW_ROT, BW_TRIG, CF_ARM, CF_COH, CF_DN, CF_DN0, CF_DS, CF_DS0,
                      CF_LEN, CF_NF, CF_NF0, CF_OMEGA, CF_SCA, CF_SHIFT, CF_TAN, CF_TEN, CI_A, CI_B, CI_BOND,
                      CI_BOND0, CI_COUPLED, CI_COUPLED0, CI_DIR, CI_DIR0, CI_E0, CI_E1, CI_JOINT, CI_KIND,
                      CI_LINE, CI_LINE0, CI_STATE, CI_STATE0, CI_V0, CI_V1, FLAG_BOND_SLIP, JF_COH, JF_TAN,
@@ -295,9 +295,8 @@ def _q(E: ti.template(), v):
     b = E.vblock[v]
     X = E.vxy[v, 0] - E.bgeo[b, BG_CX]
     Y = E.vxy[v, 1] - E.bgeo[b, BG_CY]
-    r = E.bwork[b, BW_ROT]
-    c1 = ti.cos(r) - 1.0
-    sr = ti.sin(r) - r
+    c1 = E.bwork[b, BW_TRIG]        # cos r − 1
+    sr = E.bwork[b, BW_TRIG + 1]    # sin r − r
     return ti.Vector([c1 * X + sr * -Y, c1 * Y + sr * X])
 
 
@@ -340,9 +339,8 @@ def _dq(E: ti.template(), v):
     b = E.vblock[v]
     X = E.vxy[v, 0] - E.bgeo[b, BG_CX]
     Y = E.vxy[v, 1] - E.bgeo[b, BG_CY]
-    half = 0.5 * E.bwork[b, BW_ROT]
-    c1 = ti.cos(half) - 1.0
-    s = ti.sin(half)
+    c1 = E.bwork[b, BW_TRIG + 2]    # cos(r/2) − 1
+    s = E.bwork[b, BW_TRIG + 3]     # sin(r/2)
     return ti.Vector([-s * X - c1 * Y, c1 * X - s * Y])
 
 

@@ -97,15 +97,30 @@ def load_block_terms(E: ti.template(), m):
 @ti.func
 def _outer_rows(E: ti.template(), m, c, s, t_own, t_other, k, r, r_other):
     """k·vec[c, s]·vec[c, t_own]ᵀ into block (r, r) and k·vec[c, s]·vec[c, t_other]ᵀ into
-    block (r, r_other) if both blocks are free (`kernels.assembly._outer_rows`)."""
+    block (r, r_other) if both blocks are free (`kernels.assembly._outer_rows`). The slab's
+    places of a block's row are found once (``at``, along a row of L: +1 a column; along the
+    row of U: −(n + 1) a column), not entry by entry: each entry takes the same one addition."""
     if r >= 0:
-        for a in range(6):
-            va = k * E.cvec[c, 6 * s + a]
-            for b in range(6):
-                E.kmat[at(E, m, 6 * r + a, 6 * r + b)] += va * E.cvec[c, 6 * t_own + b]
-            if r_other >= 0:
-                for b in range(6):
-                    E.kmat[at(E, m, 6 * r + a, 6 * r_other + b)] += va * E.cvec[c, 6 * t_other + b]
+        n = 6 * E.mi[m, MI_NF]
+        k_base = E.mi[m, MI_K0]
+        for side in range(2):
+            col_block = r
+            t = t_own
+            if side == 1:
+                col_block = r_other
+                t = t_other
+            if col_block >= 0:
+                j0 = 6 * col_block
+                for a in range(6):
+                    va = k * E.cvec[c, 6 * s + a]
+                    i = 6 * r + a
+                    lower = k_base + i * n + j0                        # at(i, j0 + b) = lower + b, j ≤ i
+                    upper = k_base + (n - 1 - j0) * n + n - j0 + i      # at(i, j0 + b) = upper − b(n + 1), j > i
+                    for b in range(6):
+                        place = lower + b
+                        if i < j0 + b:
+                            place = upper - b * (n + 1)
+                        E.kmat[place] += va * E.cvec[c, 6 * t + b]
 
 
 @ti.func
@@ -293,6 +308,20 @@ def solve(E: ti.template(), m):
 
 
 @ti.func
+def _gather(E: ti.template(), m, col):
+    """The iterate in ``bwork[:, col:col+6]`` in the system's row order, into the triangular
+    solves' scratch (free between solves). Returns where it starts."""
+    n = 6 * E.mi[m, MI_NF]
+    x = E.mi[m, MI_X0] + XS_Y * n
+    r0 = E.mi[m, MI_R0]
+    for r in range(n // 6):
+        b = E.rblock[r0 + r]
+        for a in range(6):
+            E.xvec[x + 6 * r + a] = E.bwork[b, col + a]
+    return x
+
+
+@ti.func
 def block_energy(E: ti.template(), m, col, brhs):
     """½·xᵀK0x − F_blocksᵀx of the iterate in ``bwork[:, col:col+6]`` (the line search's
     energy without the contact springs; K0 symmetric, its envelope that of K)."""
@@ -301,13 +330,13 @@ def block_energy(E: ti.template(), m, col, brhs):
     k0 = n * n
     quad = 0.0
     lin = 0.0
-    r0 = E.mi[m, MI_R0]
+    x = _gather(E, m, col)
     for i in range(n):
-        xi = E.bwork[E.rblock[r0 + i // 6], col + i % 6]
+        xi = E.xvec[x + i]
         row = 0.0
         at_i = row_at(E, m, i) + k0
         for j in range(first(E, m, i), i):
-            row += E.kmat[at_i + j] * E.bwork[E.rblock[r0 + j // 6], col + j % 6]
+            row += E.kmat[at_i + j] * E.xvec[x + j]
         quad += xi * (2.0 * row + E.kmat[at_i + i] * xi)
         lin += E.xvec[brhs + i] * xi
     return 0.5 * quad - lin
@@ -319,14 +348,14 @@ def block_gradient(E: ti.template(), m, col, brhs, out):
     nf = E.mi[m, MI_NF]
     n = 6 * nf
     k0 = n * n
-    r0 = E.mi[m, MI_R0]
+    x = _gather(E, m, col)
     for i in range(n):
         E.xvec[out + i] = -E.xvec[brhs + i]
     for i in range(n):
-        xi = E.bwork[E.rblock[r0 + i // 6], col + i % 6]
+        xi = E.xvec[x + i]
         at_i = row_at(E, m, i) + k0
         for j in range(first(E, m, i), i + 1):
             kij = E.kmat[at_i + j]
-            E.xvec[out + i] += kij * E.bwork[E.rblock[r0 + j // 6], col + j % 6]
+            E.xvec[out + i] += kij * E.xvec[x + j]
             if j < i:
                 E.xvec[out + j] += kij * xi
