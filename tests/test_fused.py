@@ -110,6 +110,38 @@ def test_fused_steps_follow_the_numpy_path(case, step):
 
 
 @pytest.mark.slow
+def test_the_largest_model_auto_runs_fused_follows_the_numpy_path():
+    """The largest square dropped grid "auto" runs fused alone (``FUSED_BLOCKS``: 14 × 14 blocks),
+    under ``Params(kernels="auto")`` as a user runs it: `dd.simulate`, 60 steps through its
+    impacts and slips, picks the fused engine (the kernel in the process) and gives the NumPy
+    path's frames and Δt within the module's tolerance (``SAME_STEP``, as the frames are compared
+    above: with impacts resolved Δt follows the gaps), its solves differing at most at two steps
+    (the NumPy path with SciPy's sparse LU: a dense one of 1,176 unknowns costs ~0.2 s a solve).
+    ~10 s with the kernel loaded."""
+    import math
+
+    from ddatai.fused import engine, policy
+
+    n = math.isqrt(policy.FUSED_BLOCKS)
+    scene, params = dropped_grid(n)
+    if not engine.LAUNCHED:  # the kernel in the process: "auto" takes it for a run of any length
+        tiny = build_model(*dropped_grid(1))
+        _fused_run(tiny, tiny.initial_state(), 1)
+    runs = {}
+    for kernels in ("auto", "numpy"):
+        runs[kernels] = dd.simulate(scene, dataclasses.replace(params, kernels=kernels, solver="scipy", **SAME_STEP),
+                                    steps=60, record_every=10)
+    a, b = runs["auto"], runs["numpy"]
+    assert b.meta["engine"]["name"] == "numpy" and len(b.vertex_offset) - 1 == n * n + 1
+    assert a.meta["engine"]["name"] == "fused", a.meta["engine"]
+    np.testing.assert_allclose(a.steps["dt"], b.steps["dt"], rtol=1e-6)
+    size = float(np.ptp(b.vertices[0], axis=0).max())
+    moved = float(np.abs(b.vertices[-1] - b.vertices[0]).max())
+    assert np.abs(a.vertices - b.vertices).max() <= 1e-3 * moved + 1e-9 * size
+    assert np.count_nonzero(a.steps["oc_total"] != b.steps["oc_total"]) <= 2
+
+
+@pytest.mark.slow
 def test_the_fused_engine_keeps_the_corner_hand_overs_of_the_numpy_path():
     """The tilted stack of squares, 60 steps: each member keeps its last step's contacts
     (its memory region) and its detection keeps a corner pair's hand-over as the NumPy path's

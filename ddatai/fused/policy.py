@@ -17,18 +17,24 @@ import os
 from pathlib import Path
 from typing import Optional
 
-#: "auto" runs a single simulation of at most this many free blocks on the fused engine (its
-#: skyline factorisation grows as n·w²: beyond a few dozen blocks the sparse solvers of today's
-#: path take over; benchmarks/small_models.py)
-FUSED_BLOCKS = 48
+#: "auto" runs a single simulation of at most this many free blocks on the fused engine. Its
+#: skyline factorisation grows as n·w² (the envelope w ~2√n blocks on a compact mass), today's
+#: path about as n. CPU ms a step, fused against today's (the Taichi kernels and PARDISO above 64
+#: blocks), one thread, paired in fresh processes from a sudden start
+#: (benchmarks/fused_threshold.py, benchmarks/results/fused_threshold.md): ntdda's grid 3.2 / 25
+#: at 64 blocks, 21 / 30 at 144, 28 / 29 at 196, 49 / 43 at 256; a jointed slope 15 / 29 at 146,
+#: 40 / 51 at 196, 64 / 67 at 257. The fused step stops paying at ~200 blocks on the grid (a
+#: compact mass, the widest envelope for its size), and saves at least ``STEP_SAVING`` up to here
+FUSED_BLOCKS = 196
 #: the fused kernel's first compile on this project's 2-core CI machine [s] (README, "Performance")
 COMPILE_SECONDS = 240.0
 #: what a process pays to take the compiled kernel from Taichi's offline cache [s]: Taichi turns
 #: the kernel's Python into its IR again (the cache's key) and LLVM makes machine code of the
 #: cached module (README, "Performance")
 LOAD_SECONDS = 6.0
-#: what a step saves on the fused engine against today's NumPy path for a small model [s]
-#: (benchmarks/small_models.py: ~1–3 ms a step on the NumPy path, a few µs to 0.1 ms fused)
+#: what a step of a single simulation of at most ``FUSED_BLOCKS`` free blocks saves on the fused
+#: engine against today's path, at least [s] (benchmarks/results/fused_threshold.md, CPU: 7–50 ms
+#: a step at 36–144 blocks, 1.5–10 ms at 196; benchmarks/small_models.py: ~1–3 ms at 1–16 blocks)
 STEP_SAVING = 1.0e-3
 #: what a member-step of a batch of judgements saves on the fused engine against today's
 #: side-by-side batch [s] (the batch shares a step's overhead among its members: ~36 µs a
