@@ -6,7 +6,8 @@ state by the real kernel.
 
 The grid scene of `benchmarks/small_models.py` (n × n blocks on a fixed base, ntdda's sudden
 start) runs ``--warm`` steps on the fused kernel; then a probe kernel (one thread, a serial loop)
-runs one phase ``--reps`` times on that state, and reports CPU µs a call. Phases that change what
+runs one phase ``--reps`` times on that state, and reports CPU µs a call; "nothing" is the probe's
+own cost a call (its launch, shared by the repetitions), to subtract. Phases that change what
 the next call reads run behind the ones they need (the cost is the difference). Also: the
 fused kernel's own time a step over ``--steps`` more steps, the contacts, the free blocks and
 the envelope (the factorisation's profile). Threads pinned (one Taichi thread)."""
