@@ -6,7 +6,8 @@ state by the real kernel.
 
 The grid scene of `benchmarks/small_models.py` (n × n blocks on a fixed base, ntdda's sudden
 start) runs ``--warm`` steps on the fused kernel; then a probe kernel (one thread, a serial loop)
-runs one phase ``--reps`` times on that state, and reports CPU µs a call. Phases that change what
+runs one phase ``--reps`` times on that state, and reports CPU µs a call; "nothing" is the probe's
+own cost a call (its launch, shared by the repetitions), to subtract. Phases that change what
 the next call reads run behind the ones they need (the cost is the difference). Also: the
 fused kernel's own time a step over ``--steps`` more steps, the contacts, the free blocks and
 the envelope (the factorisation's profile). Threads pinned (one Taichi thread)."""
@@ -27,7 +28,9 @@ sys.path[:0] = [str(ROOT), str(ROOT / "benchmarks")]
 PHASES = ("detect", "start+vectors+envelope", "try setup (restore, K0, F0)", "shift+lever arms",
           "load K0", "load K0+contacts", "load K0+contacts+factor", "solve", "law+block energy",
           "violations", "gradient+internal force", "restore", "restore+judge", "accept", "energies+work",
-          "time step rules", "detect without the sort")
+          "time step rules", "detect without the sort", "approach bound", "hand over",
+          "group displacement+fastest", "nothing (the probe's own cost a call)",
+          "update (last: it moves the member)")
 
 
 def main() -> None:
@@ -51,7 +54,9 @@ def main() -> None:
     from ddatai.fused.arrays import Pack
     from ddatai.fused.engine import Session
     from ddatai.fused.pack import Member
-    from ddatai.fused.step import accept, energies, rule, time_step, work
+    from ddatai.fused.impacts import approach_bound
+    from ddatai.fused.kernel import _fastest, _group_displacement
+    from ddatai.fused.step import accept, energies, rule, time_step, update, work
 
     scene, params = grid_scene(a.blocks)
     params = dataclasses.replace(params, initial_equilibrium=False, kernels="numpy", solver="dense")
@@ -165,6 +170,16 @@ def main() -> None:
                 acc += time_step(E, 0) + rule(E, 0, 0)
             elif phase == 16:
                 acc += _unsorted(E, 0)
+            elif phase == 17:
+                acc += approach_bound(E, 0, dt, dt)
+            elif phase == 18:
+                contacts.hand_over(E, 0)
+            elif phase == 19:
+                acc += _group_displacement(E, 0) + _fastest(E, 0)
+            elif phase == 20:
+                acc += 0.0
+            elif phase == 21:
+                acc += update(E, 0, dt, beta)
         return acc
 
     args = Pack(**A)

@@ -10,7 +10,8 @@ import taichi as ti
 
 from ..kernels.common import E0, E1, ES, G0, GS, _cross, _dot2, _norm2, _pt, _trow
 from ..kernels.detection import pair_contacts
-from .layout import (BG_CX, BG_CY, BI_ROW, BI_V0, BI_V1, BW_ROT, CF_ARM, CF_COH, CF_DN, CF_DN0, CF_DS, CF_DS0,
+from .layout import (BG_CX, BG_CY, BI_ROW, BI_V0, BI_V1, BW_BOX, BW_ROT, BW_TRIG, CF_ARM, CF_COH, CF_DN,
+                     CF_DN0, CF_DS, CF_DS0,
                      CF_LEN, CF_NF, CF_NF0, CF_OMEGA, CF_SCA, CF_SHIFT, CF_TAN, CF_TEN, CI_A, CI_B, CI_BOND,
                      CI_BOND0, CI_COUPLED, CI_COUPLED0, CI_DIR, CI_DIR0, CI_E0, CI_E1, CI_JOINT, CI_KIND,
                      CI_LINE, CI_LINE0, CI_STATE, CI_STATE0, CI_V0, CI_V1, FLAG_BOND_SLIP, JF_COH, JF_TAN,
@@ -51,19 +52,23 @@ def detect(E: ti.template(), m):
     # the vertex-edge rules (docs/method/dda.md §3.4)
     mend = base + E.mi[m, MI_NM]
     E.ccount[m] = 0
+    # each block's box once (not once a pair)
     for A in range(b0, b1):
         alo = ti.Vector([1e300, 1e300])
         ahi = ti.Vector([-1e300, -1e300])
         for k in range(E.bint[A, BI_V0], E.bint[A, BI_V1]):
             alo = ti.min(alo, _pt(E.vxy, k))
             ahi = ti.max(ahi, _pt(E.vxy, k))
+        for q in ti.static(range(2)):
+            E.bwork[A, BW_BOX + q] = alo[q]
+            E.bwork[A, BW_BOX + 2 + q] = ahi[q]
+    for A in range(b0, b1):
+        alo = ti.Vector([E.bwork[A, BW_BOX], E.bwork[A, BW_BOX + 1]])
+        ahi = ti.Vector([E.bwork[A, BW_BOX + 2], E.bwork[A, BW_BOX + 3]])
         for B in range(A + 1, b1):
             if E.bint[A, BI_ROW] >= 0 or E.bint[B, BI_ROW] >= 0:
-                blo = ti.Vector([1e300, 1e300])
-                bhi = ti.Vector([-1e300, -1e300])
-                for k in range(E.bint[B, BI_V0], E.bint[B, BI_V1]):
-                    blo = ti.min(blo, _pt(E.vxy, k))
-                    bhi = ti.max(bhi, _pt(E.vxy, k))
+                blo = ti.Vector([E.bwork[B, BW_BOX], E.bwork[B, BW_BOX + 1]])
+                bhi = ti.Vector([E.bwork[B, BW_BOX + 2], E.bwork[B, BW_BOX + 3]])
                 # boxes enlarged by d0/2 on every side (`contacts.box_bounds`) that overlap
                 if alo[0] - half <= bhi[0] + half and blo[0] - half <= ahi[0] + half and \
                         alo[1] - half <= bhi[1] + half and blo[1] - half <= ahi[1] + half:
@@ -295,9 +300,8 @@ def _q(E: ti.template(), v):
     b = E.vblock[v]
     X = E.vxy[v, 0] - E.bgeo[b, BG_CX]
     Y = E.vxy[v, 1] - E.bgeo[b, BG_CY]
-    r = E.bwork[b, BW_ROT]
-    c1 = ti.cos(r) - 1.0
-    sr = ti.sin(r) - r
+    c1 = E.bwork[b, BW_TRIG]        # cos r − 1
+    sr = E.bwork[b, BW_TRIG + 1]    # sin r − r
     return ti.Vector([c1 * X + sr * -Y, c1 * Y + sr * X])
 
 
@@ -340,9 +344,8 @@ def _dq(E: ti.template(), v):
     b = E.vblock[v]
     X = E.vxy[v, 0] - E.bgeo[b, BG_CX]
     Y = E.vxy[v, 1] - E.bgeo[b, BG_CY]
-    half = 0.5 * E.bwork[b, BW_ROT]
-    c1 = ti.cos(half) - 1.0
-    s = ti.sin(half)
+    c1 = E.bwork[b, BW_TRIG + 2]    # cos(r/2) − 1
+    s = E.bwork[b, BW_TRIG + 3]     # sin(r/2)
     return ti.Vector([-s * X - c1 * Y, c1 * X - s * Y])
 
 

@@ -11,7 +11,7 @@ states met again) and handed to today's path."""
 import taichi as ti
 
 from . import blocks, contacts, law, system
-from .layout import (BG_CX, BG_CY, BI_ROW, BS_ACC, BS_VEL, BW_D, BW_PREV, BW_ROT, BW_SOL, CF_TAN, CI_COUPLED,
+from .layout import (BG_CX, BG_CY, BI_ROW, BS_ACC, BS_VEL, BW_D, BW_PREV, BW_ROT, BW_SOL, BW_TRIG, CF_TAN, CI_COUPLED,
                      CI_KIND, CI_LAW, CI_STATE, FLAG_LAGGED, FLAG_MIDSTEP, LI_BAD, MF_CARRY, MF_FIXED_PEN, MI_B0,
                      MI_B1, MI_C0, MI_FLAGS, MI_NC,
                      MI_NF, MI_OC_MAX, MI_P0, MI_P1, MI_X0, PF_X, PF_Y, PI_BLOCK, PI_KIND, POINT_FIXED,
@@ -37,9 +37,8 @@ def _fixed_point_shift(E: ti.template(), m, rhs):
         if E.pint[p, PI_KIND] == POINT_FIXED and r >= 0:
             X = E.pf[p, PF_X] - E.bgeo[b, BG_CX]
             Y = E.pf[p, PF_Y] - E.bgeo[b, BG_CY]
-            rot = E.bwork[b, BW_ROT]
-            c1 = ti.cos(rot) - 1.0
-            sr = ti.sin(rot) - rot
+            c1 = E.bwork[b, BW_TRIG]
+            sr = E.bwork[b, BW_TRIG + 1]
             qx = c1 * X + sr * -Y
             qy = c1 * Y + sr * X
             # T(X, Y)ᵀ q
@@ -117,8 +116,14 @@ def open_close(E: ti.template(), m, dt, beta, last):
     while it <= E.mi[m, MI_OC_MAX]:
         any_rotation = 0
         for b in range(E.mi[m, MI_B0], E.mi[m, MI_B1]):
-            if E.bwork[b, BW_ROT] != 0.0:
+            rot = E.bwork[b, BW_ROT]
+            if rot != 0.0:
                 any_rotation = 1
+            # each block's once, not each contact vertex's (`contacts._q`, `contacts._dq`)
+            E.bwork[b, BW_TRIG] = ti.cos(rot) - 1.0
+            E.bwork[b, BW_TRIG + 1] = ti.sin(rot) - rot
+            E.bwork[b, BW_TRIG + 2] = ti.cos(0.5 * rot) - 1.0
+            E.bwork[b, BW_TRIG + 3] = ti.sin(0.5 * rot)
         contacts.second_order_shift(E, m, any_rotation)
         # the vertex's lever arms at mid-step (Params.midstep_lever_arms; else the step start's)
         contacts.lever_arms(E, m, any_rotation and (E.mi[m, MI_FLAGS] & FLAG_MIDSTEP) != 0)

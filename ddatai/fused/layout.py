@@ -57,7 +57,12 @@ BW_D, BW_SOL, BW_PREV, BW_ROT, BW_LEVEL = 0, 6, 12, 18, 19
 # an impact (``ddatai.impacts``): the block is impacted (1.0), its velocity and acceleration
 # before the plastic impact at the step's start
 BW_IMPACT, BW_V0, BW_A0 = 20, 21, 27
-N_BW = 33
+# the rotation's second-order terms, once a solve (`iterate.open_close`): cos r − 1, sin r − r,
+# cos(r/2) − 1, sin(r/2) of BW_ROT's r (§5.3)
+BW_TRIG = 33
+# the block's bounding box at the step's start (`contacts.detect`): lower x, y, upper x, y
+BW_BOX = 37
+N_BW = 41
 
 # ------------------------------------------------------------------ per contact
 # ``cint`` (int32): kind, vertex0, edge0, vertex1, edge1 (the narrow phase's five columns), then

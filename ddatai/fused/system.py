@@ -95,23 +95,37 @@ def load_block_terms(E: ti.template(), m):
 
 
 @ti.func
-def _outer_rows(E: ti.template(), m, c, s, t_own, t_other, k, r, r_other):
-    """k·vec[c, s]·vec[c, t_own]ᵀ into block (r, r) and k·vec[c, s]·vec[c, t_other]ᵀ into
-    block (r, r_other) if both blocks are free (`kernels.assembly._outer_rows`)."""
+def _outer_rows(E: ti.template(), m, c, s, t_own, t_other, k, s2, t2_own, t2_other, k2, r, r_other):
+    """k·vec[c, s]·vec[c, t_own]ᵀ, then k2·vec[c, s2]·vec[c, t2_own]ᵀ, into block (r, r), and the
+    same with t_other and t2_other into block (r, r_other) if both blocks are free
+    (`kernels.assembly._outer_rows`, a contact's two rank-one terms in one pass: each entry
+    takes the first term's addition, then the second's, as two passes would; k2 = 0 adds
+    nothing). The slab's places of a block's row are found once (``at``, along a row of L: +1
+    a column; along the row of U: −(n + 1) a column), not entry by entry."""
     if r >= 0:
-        for a in range(6):
-            va = k * E.cvec[c, 6 * s + a]
-            for b in range(6):
-                E.kmat[at(E, m, 6 * r + a, 6 * r + b)] += va * E.cvec[c, 6 * t_own + b]
-            if r_other >= 0:
-                for b in range(6):
-                    E.kmat[at(E, m, 6 * r + a, 6 * r_other + b)] += va * E.cvec[c, 6 * t_other + b]
-
-
-@ti.func
-def _outer(E: ti.template(), m, c, su, sw, tu, tw, k, ri, rj):
-    _outer_rows(E, m, c, su, tu, tw, k, ri, rj)
-    _outer_rows(E, m, c, sw, tw, tu, k, rj, ri)
+        n = 6 * E.mi[m, MI_NF]
+        k_base = E.mi[m, MI_K0]
+        for side in range(2):
+            col_block = r
+            t = t_own
+            t2 = t2_own
+            if side == 1:
+                col_block = r_other
+                t = t_other
+                t2 = t2_other
+            if col_block >= 0:
+                j0 = 6 * col_block
+                for a in range(6):
+                    va = k * E.cvec[c, 6 * s + a]
+                    va2 = k2 * E.cvec[c, 6 * s2 + a]
+                    i = 6 * r + a
+                    lower = k_base + i * n + j0                        # at(i, j0 + b) = lower + b, j ≤ i
+                    upper = k_base + (n - 1 - j0) * n + n - j0 + i      # at(i, j0 + b) = upper − b(n + 1), j > i
+                    for b in range(6):
+                        place = lower + b
+                        if i < j0 + b:
+                            place = upper - b * (n + 1)
+                        E.kmat[place] = (E.kmat[place] + va * E.cvec[c, 6 * t + b]) + va2 * E.cvec[c, 6 * t2 + b]
 
 
 @ti.func
@@ -130,8 +144,8 @@ def contact_terms(E: ti.template(), m):
     """The normal spring of every closed contact on its active line, the shear spring of a
     locked vertex-edge contact, the friction of a sliding one (with its non-symmetric term
     when coupled to this solve's normal force), §2.8, in the order of
-    `kernels.assembly.assemble_contacts`; the three terms of a contact in one loop (one place in
-    the compiled kernel). Returns whether K stays symmetric."""
+    `kernels.assembly.assemble_contacts`; a contact's springs in one pass over its blocks
+    (`_outer_rows`). Returns whether K stays symmetric."""
     p = E.mf[m, MF_PENALTY]
     ks = E.mf[m, MF_SHEAR]
     symmetric = 1
@@ -151,47 +165,41 @@ def contact_terms(E: ti.template(), m):
                 const = cohesion
                 slope = p * tan
             sgn = ti.cast(E.cint[c, CI_DIR], ti.f64)
-            for term in range(3):
-                # 0: the normal spring of the active line; 1: the shear spring of a locked
-                # vertex-edge contact, or the friction of a sliding one (internal force
-                # sgn·S(D)·∇ds with S = a − b·(dn0 + ∇dnᵀD)); 2: that friction's coupling term
-                # −sgn·b·∇ds ∇dnᵀ
-                active = 1
-                su = E0 + 2 * q
-                sw = G0 + 2 * q
-                tu = su
-                tw = sw
-                k = p
-                f = -p * (E.cf[c, CF_SCA + q] + E.cf[c, CF_SHIFT + q])
-                if term == 1:
-                    su = ES
-                    sw = GS
-                    tu = ES
-                    tw = GS
-                    if not ve:
-                        active = 0
-                    elif st == LOCK:
-                        k = ks
-                        f = -ks * (E.cf[c, CF_SCA + 2] + E.cf[c, CF_SHIFT + 2])
-                    else:
-                        k = 0.0
-                        f = -sgn * (const - slope * (E.cf[c, CF_SCA] + E.cf[c, CF_SHIFT]))
-                elif term == 2:
-                    su = ES
-                    sw = GS
-                    tu = E0
-                    tw = G0
-                    k = -sgn * slope
-                    f = 0.0
-                    if not (ve and st == SLIDE and slope != 0.0):
-                        active = 0
-                    else:
+            # the normal spring of the active line; then, of a vertex-edge contact, the shear
+            # spring of a locked one (k2 = k_s), or the friction of a sliding one (internal
+            # force sgn·S(D)·∇ds with S = a − b·(dn0 + ∇dnᵀD)) and, coupled, its term
+            # −sgn·b·∇ds ∇dnᵀ (k2, against the normal's vectors); the springs in one pass
+            su = E0 + 2 * q
+            sw = G0 + 2 * q
+            f_normal = -p * (E.cf[c, CF_SCA + q] + E.cf[c, CF_SHIFT + q])
+            t2u = ES
+            t2w = GS
+            k2 = 0.0
+            f_shear = 0.0
+            if ve:
+                if st == LOCK:
+                    k2 = ks
+                    f_shear = -ks * (E.cf[c, CF_SCA + 2] + E.cf[c, CF_SHIFT + 2])
+                else:
+                    f_shear = -sgn * (const - slope * (E.cf[c, CF_SCA] + E.cf[c, CF_SHIFT]))
+                    if st == SLIDE and slope != 0.0:
+                        t2u = E0
+                        t2w = G0
+                        k2 = -sgn * slope
                         symmetric = 0
-                if active:
-                    if k != 0.0:
-                        _outer(E, m, c, su, sw, tu, tw, k, ri, rj)
-                    if term < 2:
-                        _force(E, m, c, su, sw, f, ri, rj)
+            if p != 0.0 or k2 != 0.0:
+                _outer_rows(E, m, c, su, su, sw, p, ES, t2u, t2w, k2, ri, rj)
+                _outer_rows(E, m, c, sw, sw, su, p, GS, t2w, t2u, k2, rj, ri)
+            for term in range(2):
+                fu = su
+                fw = sw
+                f = f_normal
+                if term == 1:
+                    fu = ES
+                    fw = GS
+                    f = f_shear
+                if term == 0 or ve:
+                    _force(E, m, c, fu, fw, f, ri, rj)
     return symmetric
 
 
@@ -293,6 +301,20 @@ def solve(E: ti.template(), m):
 
 
 @ti.func
+def _gather(E: ti.template(), m, col):
+    """The iterate in ``bwork[:, col:col+6]`` in the system's row order, into the triangular
+    solves' scratch (free between solves). Returns where it starts."""
+    n = 6 * E.mi[m, MI_NF]
+    x = E.mi[m, MI_X0] + XS_Y * n
+    r0 = E.mi[m, MI_R0]
+    for r in range(n // 6):
+        b = E.rblock[r0 + r]
+        for a in range(6):
+            E.xvec[x + 6 * r + a] = E.bwork[b, col + a]
+    return x
+
+
+@ti.func
 def block_energy(E: ti.template(), m, col, brhs):
     """½·xᵀK0x − F_blocksᵀx of the iterate in ``bwork[:, col:col+6]`` (the line search's
     energy without the contact springs; K0 symmetric, its envelope that of K)."""
@@ -301,13 +323,13 @@ def block_energy(E: ti.template(), m, col, brhs):
     k0 = n * n
     quad = 0.0
     lin = 0.0
-    r0 = E.mi[m, MI_R0]
+    x = _gather(E, m, col)
     for i in range(n):
-        xi = E.bwork[E.rblock[r0 + i // 6], col + i % 6]
+        xi = E.xvec[x + i]
         row = 0.0
         at_i = row_at(E, m, i) + k0
         for j in range(first(E, m, i), i):
-            row += E.kmat[at_i + j] * E.bwork[E.rblock[r0 + j // 6], col + j % 6]
+            row += E.kmat[at_i + j] * E.xvec[x + j]
         quad += xi * (2.0 * row + E.kmat[at_i + i] * xi)
         lin += E.xvec[brhs + i] * xi
     return 0.5 * quad - lin
@@ -319,14 +341,14 @@ def block_gradient(E: ti.template(), m, col, brhs, out):
     nf = E.mi[m, MI_NF]
     n = 6 * nf
     k0 = n * n
-    r0 = E.mi[m, MI_R0]
+    x = _gather(E, m, col)
     for i in range(n):
         E.xvec[out + i] = -E.xvec[brhs + i]
     for i in range(n):
-        xi = E.bwork[E.rblock[r0 + i // 6], col + i % 6]
+        xi = E.xvec[x + i]
         at_i = row_at(E, m, i) + k0
         for j in range(first(E, m, i), i + 1):
             kij = E.kmat[at_i + j]
-            E.xvec[out + i] += kij * E.bwork[E.rblock[r0 + j // 6], col + j % 6]
+            E.xvec[out + i] += kij * E.xvec[x + j]
             if j < i:
                 E.xvec[out + j] += kij * xi

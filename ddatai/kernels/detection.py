@@ -204,30 +204,33 @@ def _ve_test(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), p, e
             ok = 0
     if dn > d0 or dn < -d9:
         ok = 0
-    if dn < -SLACK * d9 and ok == 1:
-        # behind the edge's line, but nearer the line of the edge that meets it at a convex
-        # corner (or in front of it: outside the block): the vertex entered, or lies on, that
-        # edge, not this one (§3.3, the shortest exit)
-        if _nearer_exit(xy, vnext, vprev, P, dn, vprev[e], e) or \
-                _nearer_exit(xy, vnext, vprev, P, dn, vnext[e], vnext[e]) or \
-                _outside_convex(xy, vnext, vprev, P, e, SLACK * d9):
-            ok = 0
-    r1 = _pt(xy, vnext[p]) - P
-    r2 = _pt(xy, vprev[p]) - P
-    n1 = _norm2(r1)
-    n2 = _norm2(r2)
-    # a concave vertex never contacts as a vertex; the vertex's material wedge must lie on the
-    # outer side of the edge within the angle tolerance h1
-    if _cross(r1, r2) <= 0.0:
-        ok = 0
-    if _dot2(r1, n) < -sin_h1 * n1 or _dot2(r2, n) < -sin_h1 * n2:
-        ok = 0
     length = 0.0
+    # the other criteria only ever reject: most vertex-edge pairs of a block pair fail the
+    # distance test above, and skip them (the same contacts)
     if ok == 1:
-        if ti.abs(_dot2(r1, n)) <= sin_h1 * n1:
-            length = _half_overlap(xy, vnext, e, p, vnext[p])
-        elif ti.abs(_dot2(r2, n)) <= sin_h1 * n2:
-            length = _half_overlap(xy, vnext, e, p, vprev[p])
+        if dn < -SLACK * d9:
+            # behind the edge's line, but nearer the line of the edge that meets it at a convex
+            # corner (or in front of it: outside the block): the vertex entered, or lies on, that
+            # edge, not this one (§3.3, the shortest exit)
+            if _nearer_exit(xy, vnext, vprev, P, dn, vprev[e], e) or \
+                    _nearer_exit(xy, vnext, vprev, P, dn, vnext[e], vnext[e]) or \
+                    _outside_convex(xy, vnext, vprev, P, e, SLACK * d9):
+                ok = 0
+        r1 = _pt(xy, vnext[p]) - P
+        r2 = _pt(xy, vprev[p]) - P
+        n1 = _norm2(r1)
+        n2 = _norm2(r2)
+        # a concave vertex never contacts as a vertex; the vertex's material wedge must lie on
+        # the outer side of the edge within the angle tolerance h1
+        if _cross(r1, r2) <= 0.0:
+            ok = 0
+        if _dot2(r1, n) < -sin_h1 * n1 or _dot2(r2, n) < -sin_h1 * n2:
+            ok = 0
+        if ok == 1:
+            if ti.abs(_dot2(r1, n)) <= sin_h1 * n1:
+                length = _half_overlap(xy, vnext, e, p, vnext[p])
+            elif ti.abs(_dot2(r2, n)) <= sin_h1 * n2:
+                length = _half_overlap(xy, vnext, e, p, vprev[p])
     return ok, length
 
 
@@ -375,6 +378,23 @@ def _vertex_vertex(xy: ti.template(), vnext: ti.template(), vprev: ti.template()
 
 
 @ti.func
+def _box(xy: ti.template(), lo, hi):
+    """The bounding box (lower, upper corner) of vertices ``lo:hi``."""
+    low = ti.Vector([1e300, 1e300])
+    high = ti.Vector([-1e300, -1e300])
+    for k in range(lo, hi):
+        low = ti.min(low, _pt(xy, k))
+        high = ti.max(high, _pt(xy, k))
+    return low, high
+
+
+@ti.func
+def _beyond(P, low, high, reach):
+    """Whether P lies farther than ``reach`` outside the box (low, high) along an axis."""
+    return P[0] < low[0] - reach or P[0] > high[0] + reach or P[1] < low[1] - reach or P[1] > high[1] + reach
+
+
+@ti.func
 def pair_contacts(xy: ti.template(), vnext: ti.template(), vprev: ti.template(), a0, a1, b0, b1,
                   d0, d9, sin_h1, h1, mem: ti.template(), mlo, mhi, out_int: ti.template(),
                   out_len: ti.template(), count: ti.template(), slot, base, cap):
@@ -382,14 +402,22 @@ def pair_contacts(xy: ti.template(), vnext: ti.template(), vprev: ti.template(),
     Shi's rules (docs/method/dda.md §3.3–3.6), appended to an output region (``_emit``).
     ``mem[mlo:mhi]``: the last step's contacts, sorted by identity (columns ``MEM_*``), which
     keep a corner pair's hand-over to the vertex-edge rules (``_handed_over``; none: mlo = mhi)."""
+    # A vertex farther outside the other block's box than twice the largest distance the rules
+    # accept (d0 from a vertex, max(d0, d9) from an edge onto which it projects; twice, and a
+    # relative hair, so that round-off cannot matter) has no contact with it and no mutual-
+    # nearest partner in it: it is skipped (the same contacts, found in the same order)
+    reach = 2.0 * ti.max(d0, d9)
+    box_a_lo, box_a_hi = _box(xy, a0, a1)
+    box_b_lo, box_b_hi = _box(xy, b0, b1)
     # 1. vertex pairs closer than d0 (mutual nearest): vertex-vertex rules
     for ia in range(a0, a1):
         P = _pt(xy, ia)
-        ib = _nearest(xy, P, b0, b1, d0)
-        if ib >= 0:
-            if _nearest(xy, _pt(xy, ib), a0, a1, d0) == ia:
-                _vertex_vertex(xy, vnext, vprev, ia, ib, d0, d9, sin_h1, h1, mem, mlo, mhi, out_int, out_len,
-                               count, slot, base, cap)
+        if not _beyond(P, box_b_lo, box_b_hi, reach + 1e-9 * (ti.abs(P[0]) + ti.abs(P[1]))):
+            ib = _nearest(xy, P, b0, b1, d0)
+            if ib >= 0:
+                if _nearest(xy, _pt(xy, ib), a0, a1, d0) == ia:
+                    _vertex_vertex(xy, vnext, vprev, ia, ib, d0, d9, sin_h1, h1, mem, mlo, mhi, out_int,
+                                   out_len, count, slot, base, cap)
     # 2. vertices of A against edges of B, and 3. vertices of B against edges of A,
     # skipping a vertex whose mutual-nearest partner is an end of the edge (that pair was
     # handled above). A vertex near an edge's end that is not that end's mutual nearest
@@ -398,19 +426,22 @@ def pair_contacts(xy: ti.template(), vnext: ti.template(), vprev: ti.template(),
     # corner while the tip sank into it
     for s in range(2):
         v_lo, v_hi, e_lo, e_hi = a0, a1, b0, b1
+        low, high = box_b_lo, box_b_hi
         if s == 1:
             v_lo, v_hi, e_lo, e_hi = b0, b1, a0, a1
+            low, high = box_a_lo, box_a_hi
         for iv in range(v_lo, v_hi):
             P = _pt(xy, iv)
-            partner = _nearest(xy, P, e_lo, e_hi, d0)
-            if partner >= 0:
-                if _nearest(xy, _pt(xy, partner), v_lo, v_hi, d0) != iv:
-                    partner = -1
-            for ie in range(e_lo, e_hi):
-                if partner != ie and partner != vnext[ie]:
-                    ok, length = _ve_test(xy, vnext, vprev, iv, ie, d0, d9, sin_h1, 1)
-                    if ok == 1:
-                        _emit(out_int, out_len, count, slot, base, cap, KIND_VE, iv, ie, -1, -1, length)
+            if not _beyond(P, low, high, reach + 1e-9 * (ti.abs(P[0]) + ti.abs(P[1]))):
+                partner = _nearest(xy, P, e_lo, e_hi, d0)
+                if partner >= 0:
+                    if _nearest(xy, _pt(xy, partner), v_lo, v_hi, d0) != iv:
+                        partner = -1
+                for ie in range(e_lo, e_hi):
+                    if partner != ie and partner != vnext[ie]:
+                        ok, length = _ve_test(xy, vnext, vprev, iv, ie, d0, d9, sin_h1, 1)
+                        if ok == 1:
+                            _emit(out_int, out_len, count, slot, base, cap, KIND_VE, iv, ie, -1, -1, length)
 
 
 @ti.kernel
