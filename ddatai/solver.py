@@ -5,7 +5,7 @@ load that does not depend on the solution. A sliding contact whose friction is t
 implicitly (the friction force μ·p·(−dn) follows the normal penetration of the same solve,
 ``ddatai.contact_law``) adds a non-symmetric term, and the solve then uses an LU factorisation
 (PARDISO's on the symmetric pattern, with the general LU where its diagonal pivots fail:
-`ddatai.pardiso._Pardiso`).
+``ddatai.pardiso._Pardiso``).
 
 Two backends behind one class:
 
