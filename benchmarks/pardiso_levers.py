@@ -185,30 +185,10 @@ class Variant:
         self.stats = {}
 
     def call_n(self, phase: int):
-        """PARDISO's ``phase`` on this variant's matrix (`_Pardiso.call`; with a block format,
-        the library called here with the number of block rows as its order)."""
+        """PARDISO's ``phase`` on this variant's matrix (`_Pardiso.call`; with a block format the
+        order it passes, ``len(indptr) - 1``, is the number of block rows, as MKL asks)."""
         data, ptr, idx = self.a
-        if not self.bsr:
-            return self.h.call(phase, data, ptr, idx, self.b)
-        # _Pardiso.call takes n from len(indptr) - 1: call the library directly with the scalar n
-        h = self.h
-        x = np.zeros_like(self.b)
-        err = ctypes.c_int32(0)
-        i32 = ctypes.POINTER(ctypes.c_int32)
-        f64 = ctypes.POINTER(ctypes.c_double)
-        nb = len(ptr) - 1
-        h._lib(h.pt.ctypes.data_as(ctypes.POINTER(ctypes.c_int64)), ctypes.byref(ctypes.c_int32(1)),
-               ctypes.byref(ctypes.c_int32(1)), ctypes.byref(ctypes.c_int32(h.mtype)),
-               ctypes.byref(ctypes.c_int32(phase)), ctypes.byref(ctypes.c_int32(nb)),
-               data.ctypes.data_as(f64), ptr.ctypes.data_as(i32), idx.ctypes.data_as(i32),
-               h.perm.ctypes.data_as(i32), ctypes.byref(ctypes.c_int32(1)),
-               h.iparm.ctypes.data_as(i32), ctypes.byref(ctypes.c_int32(0)),
-               self.b.ctypes.data_as(f64), x.ctypes.data_as(f64), ctypes.byref(err))
-        if err.value != 0:
-            from ddatai.pardiso import PardisoError
-
-            raise PardisoError(f"MKL PARDISO error {err.value} in phase {phase}")
-        return x
+        return self.h.call(phase, data, ptr, idx, self.b)
 
     def free(self) -> None:
         try:
