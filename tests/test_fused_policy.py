@@ -68,3 +68,21 @@ def test_auto_runs_a_single_model_fused_up_to_its_measured_size(monkeypatch):
     name, why = policy.choose(at, steps=2000, duration=None)
     assert name == "taichi" and "do not pay" in why
     assert policy.choose(at, steps=int(policy.LOAD_SECONDS / policy.STEP_SAVING), duration=None)[0] == "fused"
+
+
+def test_a_mid_sized_model_pays_the_kernel_s_load_in_fewer_steps(monkeypatch):
+    """With the kernel in Taichi's offline cache but not in the process, a single run of 36–144
+    free blocks takes the fused engine once its steps save ``LOAD_SECONDS`` at the measured
+    ``MID_STEP_SAVING`` a step (benchmarks/results/fused_threshold.md), a smaller or larger model
+    only at ``STEP_SAVING`` a step."""
+    monkeypatch.setattr(policy, "_loaded", lambda: False)
+    monkeypatch.setattr(policy, "kernel_cached", lambda arch="cpu": True)
+    params = dd.Params()
+    pays = int(round(policy.LOAD_SECONDS / policy.MID_STEP_SAVING))
+    for n in policy.MID_BLOCKS:
+        model = _grid(n, params)
+        assert policy.choose(model, steps=pays, duration=None)[0] == "fused"
+        name, why = policy.choose(model, steps=pays - 100, duration=None)
+        assert name != "fused" and "do not pay" in why
+    for n in (policy.MID_BLOCKS[0] - 1, policy.MID_BLOCKS[1] + 1):
+        assert policy.choose(_grid(n, params), steps=pays, duration=None)[0] != "fused"

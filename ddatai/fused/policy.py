@@ -36,6 +36,14 @@ LOAD_SECONDS = 6.0
 #: engine against today's path, at least [s] (benchmarks/results/fused_threshold.md, CPU: 7–50 ms
 #: a step at 36–144 blocks, 1.5–10 ms at 196; benchmarks/small_models.py: ~1–3 ms at 1–16 blocks)
 STEP_SAVING = 1.0e-3
+#: what a step of a single simulation of 36 to 144 free blocks saves at least [s]: the CPU ms a
+#: step today's path takes beyond the fused engine's there, the smallest of every measured pair
+#: (benchmarks/results/fused_threshold.md: 12.9–21.7 ms on ntdda's grid of 36–64 blocks, 48.5 at
+#: 100, 8.6 at 144; 6.7–13.9 on the jointed slope of 41–146), rounded down; outside that band
+#: (and above 144 blocks: 1.5 ms at 196) ``STEP_SAVING``. A run loading the kernel from the
+#: cache then pays from ``LOAD_SECONDS`` / 5 ms = 1,200 steps, not 6,000
+MID_STEP_SAVING = 5.0e-3
+MID_BLOCKS = (36, 144)
 #: what a member-step of a batch of judgements saves on the fused engine against today's
 #: side-by-side batch [s] (the batch shares a step's overhead among its members: ~36 µs a
 #: member-step among 128, ~0.17 ms among 16; the settling stage, in NumPy on both, not counted)
@@ -120,7 +128,8 @@ def choose(model, *, steps: Optional[int], duration: Optional[float], batch: boo
     expected = steps if steps is not None else (duration / dt if duration is not None else 0)
     if duration is not None and steps is not None:
         expected = min(steps, duration / dt)
-    if expected * STEP_SAVING >= cost:
+    saving = MID_STEP_SAVING if MID_BLOCKS[0] <= model.n_free <= MID_BLOCKS[1] else STEP_SAVING
+    if expected * saving >= cost:
         what = "in this process" if loaded else "in Taichi's offline cache" if cached else "not yet compiled"
         return "fused", f"a small model, its run of at least {expected:.0f} steps pays the fused kernel ({what})"
     what = (f"loading the compiled kernel (~{LOAD_SECONDS:.0f} s)" if cached else
