@@ -230,3 +230,68 @@ def test_a_batch_whose_step_cuts_dt_judges_its_members_again():
         assert (j.stable, j.steps, j.note) == (alone.stable, alone.steps, alone.note)
         assert j.displacement == pytest.approx(alone.displacement, rel=1e-9, abs=1e-12)
     assert [j.stable for j in many] == [False, False, True, False]
+
+
+def _k_section_on(fs_limit, phi_limit, *, fs_guess, phi_guess, all_probes=False, batch=8):
+    """`dda_evaluation`'s batched searches (`kgm.judges.dda._searches`, `_k_sections`) on a
+    synthetic monotone verdict: stable for F ≤ ``fs_limit`` and φ ≥ ``phi_limit``. Returns (FS,
+    φc, the probes of each round); ``all_probes``: each closing round cut into as many pieces as
+    it has probes (the rule before the fewest were taken)."""
+    from kgm.judges import dda
+
+    searches = dda._searches(kgm.DdaSettings(), fs_guess, phi_guess)
+    if all_probes:
+        for b in searches.values():
+            b.closing = lambda: 10 ** 9
+    rounds = []
+
+    def judge_round(probes):
+        rounds.append(list(probes))
+        return [r <= fs_limit if f is None else f >= phi_limit for f, r in probes]
+
+    dda._k_sections(searches, judge_round, batch)
+    fs = searches["fs"].limit(lambda x: math.exp(-x), below=math.inf, above=0.0)
+    phi = searches["phi"].limit(lambda x: x, below=0.0, above=90.0)
+    return fs, phi, rounds
+
+
+@pytest.mark.parametrize("fs_limit, phi_limit, fs_guess, phi_guess", [
+    (0.9994, 10.96, 0.9988, 11.025),  # Example I's limits and limit-equilibrium guesses
+    (1.21, 30.0, 1.3, 35.0), (0.62, 17.3, 0.9, 15.0), (3.7, 44.4, 2.0, 40.0), (1.0, 0.0, 1.0, 5.0)])
+def test_k_section_closes_with_the_fewest_probes_that_reach_the_tolerance(fs_limit, phi_limit, fs_guess, phi_guess):
+    """A round whose bracket is found takes only the probes that close it to the tolerance: on a
+    monotone verdict, FS and φc within the tolerances of the limits (FS to ``fs_tolerance``
+    relative, φc to ``friction_tolerance``; each the middle of its final bracket, so within half
+    of it) as with every probe of the round used, in as many rounds, with fewer probes or as
+    many; and the closing round's probes are the fewest that close it."""
+    s = kgm.DdaSettings()
+    fs, phi, rounds = _k_section_on(fs_limit, phi_limit, fs_guess=fs_guess, phi_guess=phi_guess)
+    fs_all, phi_all, rounds_all = _k_section_on(fs_limit, phi_limit, fs_guess=fs_guess, phi_guess=phi_guess,
+                                                all_probes=True)
+    half = 0.5 * math.log1p(s.fs_tolerance) + 1e-12
+    for f in (fs, fs_all):
+        assert abs(math.log(f / fs_limit)) <= half
+    for p in (phi, phi_all):
+        assert p == 0.0 if phi_limit <= 0.0 else abs(p - phi_limit) <= 0.5 * s.friction_tolerance + 1e-12
+    assert abs(math.log(fs / fs_all)) <= math.log1p(s.fs_tolerance) and abs(phi - phi_all) <= s.friction_tolerance
+    assert len(rounds) == len(rounds_all) and sum(map(len, rounds)) <= sum(map(len, rounds_all))
+    assert all(len(r) <= s.batch for r in rounds)
+    # the last round of each search: one probe fewer would have left a piece wider than the tolerance
+    phis = sorted(f for r in rounds[1:] for f, _ in r if f is not None)
+    if len(rounds) > 1 and phis and phi_limit > 0.0:
+        lo = max(f for r in rounds[:-1] for f, _ in r if f is not None and f < phi_limit)
+        hi = min(f for r in rounds[:-1] for f, _ in r if f is not None and f >= phi_limit)
+        last = [f for f, _ in rounds[-1] if f is not None]
+        if last and lo < min(last) and max(last) < hi:
+            assert (hi - lo) / (len(last) + 1) <= s.friction_tolerance < (hi - lo) / len(last)
+
+
+def test_example_1_k_section_takes_4_probes_fewer():
+    """Example I's searches (FS 0.9994 and φc 10.96° by DDA, the guesses Sarma's 0.9988 and
+    11.025°): the second round's φ bracket, 9.84–11.02°, is closed to 0.25° by 4 probes, not
+    by the round's 8; 11 probes instead of 15, in the same two rounds, and φc moves by less
+    than the tolerance (10.91° against 10.96°)."""
+    fs, phi, rounds = _k_section_on(0.9994, 10.96, fs_guess=0.9988, phi_guess=11.025)
+    fs_all, phi_all, rounds_all = _k_section_on(0.9994, 10.96, fs_guess=0.9988, phi_guess=11.025, all_probes=True)
+    assert [len(r) for r in rounds_all] == [7, 8] and [len(r) for r in rounds] == [7, 4]
+    assert fs == fs_all and phi == pytest.approx(10.906, abs=1e-3) and phi_all == pytest.approx(10.959, abs=1e-3)

@@ -145,15 +145,7 @@ def dda_evaluation(problem: Problem, blocks: frozenset, *, removed: frozenset = 
     if friction_guess is None:
         friction_guess = float(np.mean(system.contact_friction))
     if settings.batch > 1:
-        searches = {}
-        if with_fs:
-            f = _first_reduction(fs_guess)
-            # x = −ln F: the group is stable for x ≥ −ln FS
-            searches["fs"] = _Bracket(guess=-math.log(f), lower=-math.log(F_HIGH), upper=-math.log(F_LOW),
-                                      tolerance=math.log1p(settings.fs_tolerance), step=math.log(F_STEP))
-        if with_friction:
-            searches["phi"] = _Bracket(guess=_first_friction(friction_guess), lower=0.0, upper=PHI_HIGH,
-                                       tolerance=settings.friction_tolerance, step=PHI_STEP)
+        searches = _searches(settings, fs_guess if with_fs else None, friction_guess if with_friction else None)
 
         def judge_round(probes):
             todo = [p for p in dict.fromkeys(probes) if key(*p) not in cache]
@@ -181,10 +173,26 @@ def dda_evaluation(problem: Problem, blocks: frozenset, *, removed: frozenset = 
                          wall_time=time.perf_counter() - t0, timing=timing)
 
 
+def _searches(settings: DdaSettings, fs_guess: Optional[float], friction_guess: Optional[float]) -> dict:
+    """The K-section searches of `dda_evaluation` ("fs", "phi"; `_Bracket`), placed by the
+    guesses, under ``settings``' tolerances; a search whose guess is None is not made."""
+    searches = {}
+    if fs_guess is not None:
+        f = _first_reduction(fs_guess)
+        # x = −ln F: the group is stable for x ≥ −ln FS
+        searches["fs"] = _Bracket(guess=-math.log(f), lower=-math.log(F_HIGH), upper=-math.log(F_LOW),
+                                  tolerance=math.log1p(settings.fs_tolerance), step=math.log(F_STEP))
+    if friction_guess is not None:
+        searches["phi"] = _Bracket(guess=_first_friction(friction_guess), lower=0.0, upper=PHI_HIGH,
+                                   tolerance=settings.friction_tolerance, step=PHI_STEP)
+    return searches
+
+
 def _k_sections(searches: dict, judge_round, batch: int) -> None:
     """Rounds of the searches ``searches`` ("fs": x = −ln F, "phi": x = φ; `_Bracket`) until all
     are done: each round, the verdict at the scene's strength (the first) and the active
-    searches' probes, ``batch`` in all, judged together by ``judge_round`` (a list of
+    searches' probes, at most ``batch`` in all (a search whose bracket is found takes only the
+    probes that close it, `_Bracket.proposals`), judged together by ``judge_round`` (a list of
     (friction, reduction) -> a list of verdicts)."""
 
     def probe(name, x):  # (friction, reduction) of a probe
@@ -208,7 +216,8 @@ def _k_sections(searches: dict, judge_round, batch: int) -> None:
 class _Bracket:
     """A K-section search for the limit x* of a monotone verdict, stable for x ≥ x* on
     [lower, upper]: each round proposes points that cut the bracket (largest unstable x,
-    smallest stable x) into equal pieces, or, while one side is missing, points stepping away
+    smallest stable x) into equal pieces — as many as the round has probes, or the fewest that
+    leave pieces of at most ``tolerance`` where those are fewer —, or, while one side is missing, points stepping away
     from what is known (the step doubling each round); done when the bracket is at most
     ``tolerance`` wide or the limit lies outside [lower, upper]. Where DDA's verdicts are not
     monotone near the limit (a stable run below an unstable one), the bracket turns over: the
@@ -231,10 +240,22 @@ class _Bracket:
         s, u = self.stable_min, self.unstable_max
         return (s - u <= self.tolerance) or s <= self.lower or u >= self.upper
 
+    def closing(self) -> int:
+        """The fewest probes that cut the bracket into pieces of at most ``tolerance`` [-]."""
+        return max(1, math.ceil((self.stable_min - self.unstable_max) / self.tolerance) - 1)
+
     def proposals(self, n: int, share_next: int) -> list:
+        """At most ``n`` points to judge next; where the bracket is found, the fewest of them that
+        close it this round if ``n`` can (`closing`): each probe costs its member's stage and run,
+        and more would only narrow the bracket below the tolerance asked for."""
         s, u = self.stable_min, self.unstable_max
         if math.isfinite(s) and math.isfinite(u):
-            return [u + (s - u) * i / (n + 1) for i in range(1, n + 1)]
+            k = min(n, self.closing())
+            xs = [u + (s - u) * i / (k + 1) for i in range(1, k + 1)]
+            while k < n and max(np.diff([u, *xs, s])) > self.tolerance:  # a piece left over by round-off
+                k += 1
+                xs = [u + (s - u) * i / (k + 1) for i in range(1, k + 1)]
+            return xs
         # spacing such that the next round, with ``share_next`` probes, closes the bracket
         h = max(self.step if math.isfinite(s) or math.isfinite(u) else 0.0,
                 0.95 * self.tolerance * (share_next + 1))
