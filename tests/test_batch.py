@@ -232,11 +232,12 @@ def test_a_batch_whose_step_cuts_dt_judges_its_members_again():
     assert [j.stable for j in many] == [False, False, True, False]
 
 
-def _k_section_on(fs_limit, phi_limit, *, fs_guess, phi_guess, all_probes=False, batch=8):
+def _k_section_on(fs_limit, phi_limit, *, fs_guess, phi_guess, all_probes=False, batch=8, two_pass=False):
     """`dda_evaluation`'s batched searches (`kgm.judges.dda._searches`, `_k_sections`) on a
     synthetic monotone verdict: stable for F ≤ ``fs_limit`` and φ ≥ ``phi_limit``. Returns (FS,
-    φc, the probes of each round); ``all_probes``: each closing round cut into as many pieces as
-    it has probes (the rule before the fewest were taken)."""
+    φc, the probes of each round, or of each pass with ``two_pass``); ``all_probes``: each
+    closing round cut into as many pieces as it has probes (the rule before the fewest were
+    taken)."""
     from kgm.judges import dda
 
     searches = dda._searches(kgm.DdaSettings(), fs_guess, phi_guess)
@@ -249,7 +250,7 @@ def _k_section_on(fs_limit, phi_limit, *, fs_guess, phi_guess, all_probes=False,
         rounds.append(list(probes))
         return [r <= fs_limit if f is None else f >= phi_limit for f, r in probes]
 
-    dda._k_sections(searches, judge_round, batch)
+    dda._k_sections(searches, judge_round, batch, two_pass=two_pass)
     fs = searches["fs"].limit(lambda x: math.exp(-x), below=math.inf, above=0.0)
     phi = searches["phi"].limit(lambda x: x, below=0.0, above=90.0)
     return fs, phi, rounds
@@ -295,3 +296,53 @@ def test_example_1_k_section_takes_4_probes_fewer():
     fs_all, phi_all, rounds_all = _k_section_on(0.9994, 10.96, fs_guess=0.9988, phi_guess=11.025, all_probes=True)
     assert [len(r) for r in rounds_all] == [7, 8] and [len(r) for r in rounds] == [7, 4]
     assert fs == fs_all and phi == pytest.approx(10.906, abs=1e-3) and phi_all == pytest.approx(10.959, abs=1e-3)
+
+
+CASES = [(0.9994, 10.96, 0.9988, 11.025), (1.21, 30.0, 1.3, 35.0), (0.62, 17.3, 0.9, 15.0), (3.7, 44.4, 2.0, 40.0),
+         (1.0, 0.0, 1.0, 5.0), (1.05, 11.9, 0.7, 3.0), (0.015, 89.5, 1.0, 30.0), (60.0, 0.3, 10.0, 1.0)]
+
+
+@pytest.mark.parametrize("fs_limit, phi_limit, fs_guess, phi_guess", CASES)
+def test_two_pass_rounds_give_the_brackets_of_the_rounds_judged_at_once(fs_limit, phi_limit, fs_guess, phi_guess):
+    """Each round in two passes (the middle probes, then those their verdicts leave open), on a
+    monotone verdict: the same FS and φc as each round judged at once — to the bit, unless the
+    first pass already closed a search, then within its tolerance — from fewer probes or as
+    many, in at most twice as many passes as rounds."""
+    s = kgm.DdaSettings()
+    fs, phi, rounds = _k_section_on(fs_limit, phi_limit, fs_guess=fs_guess, phi_guess=phi_guess)
+    fs2, phi2, passes = _k_section_on(fs_limit, phi_limit, fs_guess=fs_guess, phi_guess=phi_guess, two_pass=True)
+    assert abs(math.log(fs2 / fs)) <= math.log1p(s.fs_tolerance) if math.isfinite(fs) and fs > 0 else fs2 == fs
+    assert abs(phi2 - phi) <= s.friction_tolerance
+    asked = {p for r in passes for p in r}  # (dda_evaluation judges a probe asked again once)
+    assert len(asked) <= len({p for r in rounds for p in r})
+    assert len(passes) <= 2 * len(rounds)
+
+
+def test_two_pass_rounds_are_the_same_to_the_bit_where_no_first_pass_closes_a_search():
+    """Example I's searches and a block's (FS 1.21, φc 30° from guesses 1.3 and 35°): each search's
+    final bracket, hence FS and φc, the same to the bit in two passes as in one."""
+    for case in (CASES[0], CASES[1]):
+        one = _k_section_on(*case[:2], fs_guess=case[2], phi_guess=case[3])
+        two = _k_section_on(*case[:2], fs_guess=case[2], phi_guess=case[3], two_pass=True)
+        assert one[:2] == two[:2]
+
+
+def test_example_1_two_pass_rounds_take_7_probes():
+    """Example I (FS 0.9994 and φc 10.96° by DDA, the guesses 0.9988 and 11.025°): the verdict
+    and the two guesses first; F = 1 unstable and F = 0.9988 stable close FS, φ = 11.02° stable
+    leaves only 9.84° of the first round open; the second round's 4 probes are judged as 10.31°,
+    then 10.55° and 10.79°: 7 probes instead of 15, FS and φc those of the rounds judged at once."""
+    fs, phi, passes = _k_section_on(0.9994, 10.96, fs_guess=0.9988, phi_guess=11.025, two_pass=True)
+    assert [len(p) for p in passes] == [3, 1, 1, 2]
+    assert (fs, phi) == _k_section_on(0.9994, 10.96, fs_guess=0.9988, phi_guess=11.025)[:2]
+
+
+def test_rounds_go_two_pass_where_the_fused_engine_judges_them_whatever_their_size():
+    """Two passes where each member pays its own stage and run (``kernels="fused"``), not on
+    today's side-by-side batch, which shares a step among a round's members."""
+    from types import SimpleNamespace
+
+    from kgm.judges.dda import _members_apart
+
+    plan = lambda kernels: SimpleNamespace(params=dd.Params(kernels=kernels), duration=1.0)  # noqa: E731
+    assert _members_apart(plan("fused")) and not _members_apart(plan("numpy"))

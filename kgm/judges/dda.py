@@ -155,7 +155,7 @@ def dda_evaluation(problem: Problem, blocks: frozenset, *, removed: frozenset = 
                 runs.append(j)
             return [cache[key(*p)].stable for p in probes]
 
-        _k_sections(searches, judge_round, settings.batch)
+        _k_sections(searches, judge_round, settings.batch, two_pass=_members_apart(plan))
         if with_fs:
             fs = searches["fs"].limit(lambda x: math.exp(-x), below=math.inf, above=0.0)
         if with_friction:
@@ -188,28 +188,58 @@ def _searches(settings: DdaSettings, fs_guess: Optional[float], friction_guess: 
     return searches
 
 
-def _k_sections(searches: dict, judge_round, batch: int) -> None:
+def _members_apart(plan: RunPlan) -> bool:
+    """Whether the rounds run on the fused engine whatever their size (``Params(kernels="fused")``,
+    or the kernel in this process: `ddatai.fused.policy.choose_batch` for one member's steps).
+    There each member pays its own stage and run, so a round pays by the member, and `_k_sections`
+    judges it in two passes; today's side-by-side batch shares a step among its members, and a
+    round judged at once pays less there."""
+    from ddatai.fused.policy import choose_batch
+
+    prm = plan.params
+    return choose_batch(prm, member_steps=plan.duration / (prm.dt if prm.dt is not None else prm.dt_max))[0] == "fused"
+
+
+def _k_sections(searches: dict, judge_round, batch: int, two_pass: bool = False) -> None:
     """Rounds of the searches ``searches`` ("fs": x = −ln F, "phi": x = φ; `_Bracket`) until all
     are done: each round, the verdict at the scene's strength (the first) and the active
     searches' probes, at most ``batch`` in all (a search whose bracket is found takes only the
     probes that close it, `_Bracket.proposals`), judged together by ``judge_round`` (a list of
-    (friction, reduction) -> a list of verdicts)."""
+    (friction, reduction) -> a list of verdicts).
+
+    ``two_pass``: a round is judged in two passes, the middle of each search's probes first
+    (with the verdict), then only the probes its verdict leaves inside the bracket: a monotone
+    verdict already says what the others would give (stable above a stable probe, unstable
+    below an unstable one), so the brackets, and every round after, are those of the round
+    judged at once, from fewer probes (`_Bracket.open`), or, where the first pass has already
+    closed a search to its tolerance, that bracket."""
 
     def probe(name, x):  # (friction, reduction) of a probe
         return (None, math.exp(-x)) if name == "fs" else (x, 1.0)
+
+    def judge(fixed, asked):
+        if not fixed and not asked:
+            return
+        stable = judge_round(fixed + [probe(n, x) for n, x in asked])
+        for (n, x), verdict in zip(asked, stable[len(fixed):]):
+            searches[n].record(x, verdict)
+        if fixed and "fs" in searches:  # the verdict is the probe F = 1
+            searches["fs"].record(0.0, stable[0])
 
     first = True
     while first or any(not b.done for b in searches.values()):
         active = [n for n, b in searches.items() if not b.done]
         fixed = [(None, 1.0)] if first else []
         share = max(1, (batch - len(fixed)) // max(len(active), 1))
-        asked = [(n, x) for n in active
-                 for x in searches[n].proposals(share, share_next=max(1, batch // max(len(active), 1)))]
-        stable = judge_round(fixed + [probe(n, x) for n, x in asked])
-        for (n, x), verdict in zip(asked, stable[len(fixed):]):
-            searches[n].record(x, verdict)
-        if first and "fs" in searches:  # the verdict is the probe F = 1
-            searches["fs"].record(0.0, stable[0])
+        proposed = {n: searches[n].proposals(share, share_next=max(1, batch // max(len(active), 1)))
+                    for n in active}
+        if two_pass:
+            middle = [(n, xs[(len(xs) - 1) // 2]) for n, xs in proposed.items() if xs]
+            judge(fixed, middle)
+            judge([], [(n, x) for n, xs in proposed.items() for x in xs
+                        if (n, x) not in middle and not searches[n].done and searches[n].open(x)])
+        else:
+            judge(fixed, [(n, x) for n, xs in proposed.items() for x in xs])
         first = False
 
 
@@ -234,6 +264,11 @@ class _Bracket:
             self.stable_min = min(self.stable_min, x)
         else:
             self.unstable_max = max(self.unstable_max, x)
+
+    def open(self, x: float) -> bool:
+        """Whether a monotone verdict at x is not already known: x lies strictly inside the
+        bracket (above every unstable x, below every stable x)."""
+        return self.unstable_max < x < self.stable_min
 
     @property
     def done(self) -> bool:
