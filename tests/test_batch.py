@@ -346,3 +346,42 @@ def test_rounds_go_two_pass_where_the_fused_engine_judges_them_whatever_their_si
 
     plan = lambda kernels: SimpleNamespace(params=dd.Params(kernels=kernels), duration=1.0)  # noqa: E731
     assert _members_apart(plan("fused")) and not _members_apart(plan("numpy"))
+
+
+def test_the_rounds_of_one_evaluation_build_their_sub_model_once(monkeypatch):
+    """`prepare_fused` with a dict of sub-models kept across the rounds of one evaluation (as
+    `dda_evaluation` keeps it): the sub-model is built once for both rounds, and every member's
+    model and settled state are those of the rounds prepared each on its own, to the bit."""
+    from dataclasses import fields
+
+    import ddatai.model
+    from kgm.judges.fused import prepare_fused
+
+    scene, _, b = kgm_cases.block_on_incline(theta=THETA, width=2.0, height=1.0, friction=35.0, cohesion=0.0)
+    system = build_block_system(scene)
+    settings, params = kgm.DdaSettings(), dd.Params(kernels="fused")
+    rounds = [[(25.0, 1.0), (40.0, 1.0), (None, 1.0)], [(None, 1.3), (33.0, 1.0)]]
+    built = []
+    build = ddatai.model.build_model
+    monkeypatch.setattr(ddatai.model, "build_model", lambda *a, **k: built.append(1) or build(*a, **k))
+
+    def prepared(submodels):
+        return [prepare_fused([Member(scene=scene, system=system, friction=f, reduction=r) for f, r in probes],
+                              frozenset([b]), settings=settings, params=params, submodels=submodels)
+                for probes in rounds]
+
+    kept = {}
+    once = prepared(kept)
+    assert len(built) == 1 and len(kept) == 1
+    alone = prepared(None)
+    assert len(built) == 3  # one a round without the dict
+
+    def same(x, y):
+        return x.tobytes() == y.tobytes() if isinstance(x, np.ndarray) else x == y or (x is None and y is None)
+
+    for a, z in zip(once, alone):
+        for ra, rz in zip(a.runs, z.runs):
+            assert all(same(getattr(ra.model, f.name), getattr(rz.model, f.name)) for f in fields(rz.model))
+            assert same(ra.state.vertex_xy, rz.state.vertex_xy) and same(ra.state.memory.key, rz.state.memory.key)
+            assert same(ra.state.memory.state, rz.state.memory.state)
+    assert not same(once[0].runs[0].model.joint_tan_phi, once[0].runs[1].model.joint_tan_phi)

@@ -147,10 +147,12 @@ def dda_evaluation(problem: Problem, blocks: frozenset, *, removed: frozenset = 
     if settings.batch > 1:
         searches = _searches(settings, fs_guess if with_fs else None, friction_guess if with_friction else None)
 
+        submodels: dict = {}  # the sub-model built once for every round (`kgm.judges.fused.prepare_fused`)
+
         def judge_round(probes):
             todo = [p for p in dict.fromkeys(probes) if key(*p) not in cache]
             for p, j in zip(todo, judge_many(scene, system, blocks, todo, settings=settings, params=params,
-                                             removed=removed, report=report)):
+                                             removed=removed, report=report, submodels=submodels)):
                 cache[key(*p)] = j
                 runs.append(j)
             return [cache[key(*p)].stable for p in probes]

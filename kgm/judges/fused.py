@@ -28,13 +28,16 @@ from .run import Report, RestCounter, RunPlan, block_displacements, block_speeds
 
 
 def judge_fused(members, blocks: frozenset, *, settings: DdaSettings, params: Optional[Params] = None,
-                removed: frozenset = frozenset(), report: Report = None) -> Optional[list]:
+                removed: frozenset = frozenset(), report: Report = None,
+                submodels: Optional[dict] = None) -> Optional[list]:
     """The judgements of ``members`` (`kgm.judges.batch.Member`: a scene, its block system, a
     friction and a strength reduction) on the fused engine, in their order; None where the
     engine does not judge them (``Params.kernels`` "numpy" or "taichi", "auto" where the batch
     does not pay the kernel, or a sub-model with what the engine leaves to today's path:
-    ``ddatai.fused.pack.covers``). ``report`` is called with each judgement."""
-    prepared = prepare_fused(members, blocks, settings=settings, params=params, removed=removed)
+    ``ddatai.fused.pack.covers``). ``report`` is called with each judgement; ``submodels``: as
+    `prepare_fused` takes it."""
+    prepared = prepare_fused(members, blocks, settings=settings, params=params, removed=removed,
+                             submodels=submodels)
     return None if prepared is None else run_prepared(prepared, report=report)
 
 
@@ -57,9 +60,12 @@ class Prepared:
 
 
 def prepare_fused(members, blocks: frozenset, *, settings: DdaSettings, params: Optional[Params] = None,
-                  removed: frozenset = frozenset()) -> Optional[Prepared]:
+                  removed: frozenset = frozenset(), submodels: Optional[dict] = None) -> Optional[Prepared]:
     """The batch of `judge_fused` up to its launch, in NumPy (no Taichi): the sub-models built
-    and settled, or None where the fused engine does not judge them (`judge_fused`)."""
+    and settled, or None where the fused engine does not judge them (`judge_fused`).
+    ``submodels``: a dict the caller keeps across the batches of one problem (a bisection's
+    rounds, whose scene and block system stay alive), in which each scene's sub-model is built
+    once; each member takes its own joints from it (`ddatai.model.Model.with_joints`)."""
     from ddatai.fused.pack import Member as Run
     from ddatai.fused.pack import covers
     from ddatai.fused.policy import choose_batch
@@ -79,13 +85,13 @@ def prepare_fused(members, blocks: frozenset, *, settings: DdaSettings, params: 
     if choose_batch(prm, member_steps=steps)[0] != "fused":
         return None
     start = time.perf_counter()
-    built, shared = [], {}
+    built, shared = [], ({} if submodels is None else submodels)
     for m, plan in zip(members, plans):
         sub, ids = sub_scene(m.scene, m.system, blocks, removed=removed, free_neighbours=plan.free_neighbours,
                              friction=m.friction, reduction=m.reduction)
         # the members of one scene share the sub-model's blocks: built once, each member with
         # its own joints (`ddatai.model.Model.with_joints`)
-        key = (id(m.scene), id(m.system), plan.free_neighbours, tuple(ids))
+        key = (id(m.scene), id(m.system), plan.free_neighbours, tuple(ids), prm)
         model = shared[key].with_joints(sub.joints) if key in shared else shared.setdefault(key, build_model(sub, prm))
         if covers(model) is not None:
             return None
