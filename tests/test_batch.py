@@ -338,14 +338,24 @@ def test_example_1_two_pass_rounds_take_7_probes():
 
 
 def test_rounds_go_two_pass_where_the_fused_engine_judges_them_whatever_their_size():
-    """Two passes where each member pays its own stage and run (``kernels="fused"``), not on
-    today's side-by-side batch, which shares a step among a round's members."""
-    from types import SimpleNamespace
+    """Two passes where each member pays its own stage and run (``kernels="fused"`` on a model
+    the fused engine runs; its sub-model then built once, for the rounds to take), not on
+    today's side-by-side batch, which shares a step among a round's members (``kernels="numpy"``,
+    or a model with water, which the fused engine leaves to today's path)."""
+    from kgm.judges.fused import judged_apart
+    from kgm.judges.run import RunPlan
 
-    from kgm.judges.dda import _members_apart
+    def apart(kernels, water=False, kept=None):
+        scene, _, b = kgm_cases.block_on_incline(theta=THETA, width=2.0, height=1.0, friction=35.0, cohesion=0.0)
+        if water:
+            scene.set_water_table([(-100.0, 0.5), (100.0, 0.5)])
+        system = build_block_system(scene)
+        plan = RunPlan.of(system, frozenset([b]), kgm.DdaSettings(), dd.Params(kernels=kernels))
+        return judged_apart(scene, system, frozenset([b]), plan, submodels=kept)
 
-    plan = lambda kernels: SimpleNamespace(params=dd.Params(kernels=kernels), duration=1.0)  # noqa: E731
-    assert _members_apart(plan("fused")) and not _members_apart(plan("numpy"))
+    kept = {}
+    assert apart("fused", kept=kept) and len(kept) == 1
+    assert not apart("numpy") and not apart("fused", water=True)
 
 
 def test_the_rounds_of_one_evaluation_build_their_sub_model_once(monkeypatch):

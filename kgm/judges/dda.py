@@ -31,6 +31,7 @@ from ..settings import DdaSettings, Settings
 from ..strength import Strength
 from ..system import BlockSystem
 from .batch import judge_many
+from .fused import judged_apart
 from .run import DdaJudgement, Report, RunPlan, run_judgement, run_params, sub_scene
 
 #: Bracket of the strength-reduction factor F of the DDA searches: a group stable at F_HIGH has
@@ -157,7 +158,11 @@ def dda_evaluation(problem: Problem, blocks: frozenset, *, removed: frozenset = 
                 runs.append(j)
             return [cache[key(*p)].stable for p in probes]
 
-        _k_sections(searches, judge_round, settings.batch, two_pass=_members_apart(plan))
+        # on the fused engine each member pays its own stage and run: a round pays by the member
+        # and is judged in two passes; today's side-by-side batch shares a step among a round's
+        # members, and a round judged at once pays less there
+        two_pass = judged_apart(scene, system, blocks, plan, removed=removed, submodels=submodels)
+        _k_sections(searches, judge_round, settings.batch, two_pass=two_pass)
         if with_fs:
             fs = searches["fs"].limit(lambda x: math.exp(-x), below=math.inf, above=0.0)
         if with_friction:
@@ -188,18 +193,6 @@ def _searches(settings: DdaSettings, fs_guess: Optional[float], friction_guess: 
         searches["phi"] = _Bracket(guess=_first_friction(friction_guess), lower=0.0, upper=PHI_HIGH,
                                    tolerance=settings.friction_tolerance, step=PHI_STEP)
     return searches
-
-
-def _members_apart(plan: RunPlan) -> bool:
-    """Whether the rounds run on the fused engine whatever their size (``Params(kernels="fused")``,
-    or the kernel in this process: `ddatai.fused.policy.choose_batch` for one member's steps).
-    There each member pays its own stage and run, so a round pays by the member, and `_k_sections`
-    judges it in two passes; today's side-by-side batch shares a step among its members, and a
-    round judged at once pays less there."""
-    from ddatai.fused.policy import choose_batch
-
-    prm = plan.params
-    return choose_batch(prm, member_steps=plan.duration / (prm.dt if prm.dt is not None else prm.dt_max))[0] == "fused"
 
 
 def _k_sections(searches: dict, judge_round, batch: int, two_pass: bool = False) -> None:
@@ -248,9 +241,9 @@ def _k_sections(searches: dict, judge_round, batch: int, two_pass: bool = False)
 class _Bracket:
     """A K-section search for the limit x* of a monotone verdict, stable for x ≥ x* on
     [lower, upper]: each round proposes points that cut the bracket (largest unstable x,
-    smallest stable x) into equal pieces — as many as the round has probes, or the fewest that
-    leave pieces of at most ``tolerance`` where those are fewer —, or, while one side is missing, points stepping away
-    from what is known (the step doubling each round); done when the bracket is at most
+    smallest stable x) into equal pieces (as many as the round has probes, or the fewest no
+    wider than ``tolerance`` where those are fewer), or, while one side is missing, points
+    stepping away from what is known (the step doubling each round); done when the bracket is at most
     ``tolerance`` wide or the limit lies outside [lower, upper]. Where DDA's verdicts are not
     monotone near the limit (a stable run below an unstable one), the bracket turns over: the
     search stops and the limit is the middle of that band (`DdaEvaluation.bracket`)."""

@@ -41,6 +41,28 @@ def judge_fused(members, blocks: frozenset, *, settings: DdaSettings, params: Op
     return None if prepared is None else run_prepared(prepared, report=report)
 
 
+def judged_apart(scene, system, blocks: frozenset, plan: RunPlan, *, removed: frozenset = frozenset(),
+                 submodels: Optional[dict] = None) -> bool:
+    """Whether the fused engine judges this group's batches whatever their size, one member too
+    (``Params(kernels="fused")``, or the kernel in this process: ``choose_batch`` for one
+    member's steps), its sub-model being one the engine runs (``ddatai.fused.pack.covers``):
+    there each member pays its own stage and run. The sub-model is built into ``submodels``
+    (`prepare_fused`'s), where the batches take it."""
+    from ddatai.fused.pack import covers
+    from ddatai.fused.policy import choose_batch
+    from ddatai.model import build_model
+
+    prm = plan.params
+    if choose_batch(prm, member_steps=plan.duration / (prm.dt if prm.dt is not None else prm.dt_max))[0] != "fused":
+        return False
+    sub, ids = sub_scene(scene, system, blocks, removed=removed, free_neighbours=plan.free_neighbours)
+    shared = {} if submodels is None else submodels
+    key = (id(scene), id(system), plan.free_neighbours, tuple(ids), prm)  # as `prepare_fused` keys it
+    if key not in shared:
+        shared[key] = build_model(sub, prm)
+    return covers(shared[key]) is None
+
+
 @dataclass(frozen=True, kw_only=True, eq=False)
 class Prepared:
     """A batch of judgements made ready for the fused engine (`prepare_fused`): each member's
@@ -91,7 +113,7 @@ def prepare_fused(members, blocks: frozenset, *, settings: DdaSettings, params: 
                              friction=m.friction, reduction=m.reduction)
         # the members of one scene share the sub-model's blocks: built once, each member with
         # its own joints (`ddatai.model.Model.with_joints`)
-        key = (id(m.scene), id(m.system), plan.free_neighbours, tuple(ids), prm)
+        key = (id(m.scene), id(m.system), plan.free_neighbours, tuple(ids), prm)  # as `judged_apart` keys it
         model = shared[key].with_joints(sub.joints) if key in shared else shared.setdefault(key, build_model(sub, prm))
         if covers(model) is not None:
             return None
