@@ -395,3 +395,25 @@ def test_the_rounds_of_one_evaluation_build_their_sub_model_once(monkeypatch):
             assert same(ra.state.vertex_xy, rz.state.vertex_xy) and same(ra.state.memory.key, rz.state.memory.key)
             assert same(ra.state.memory.state, rz.state.memory.state)
     assert not same(once[0].runs[0].model.joint_tan_phi, once[0].runs[1].model.joint_tan_phi)
+
+
+def test_a_two_pass_evaluation_finds_the_closed_form_critical_friction(monkeypatch):
+    """`dda_evaluation` with its rounds in two passes (forced here on today's side-by-side batch,
+    where the fused engine would take them): φc of one block on a plane within the tolerance plus
+    the judgement's friction resolution of θ (as `test_batched_and_sequential_bisections_agree_
+    with_the_closed_form`), its final bracket within the tolerance, each pass smaller than a
+    round of 8."""
+    import kgm.judges.dda as dda_module
+    from kgm.judges.dda import evaluate_dda
+
+    monkeypatch.setattr(dda_module, "judged_apart", lambda *a, **k: True)
+    scene, _, b = kgm_cases.block_on_incline(theta=THETA, width=2.0, height=1.0, friction=40.0, cohesion=0.0)
+    system = build_block_system(scene)
+    s = kgm.DdaSettings(acceleration_resolution=0.2)  # T halved: a coarser resolution, runs half as long
+    ev = evaluate_dda(scene, system, frozenset([b]), settings=s, friction_guess=35.0, with_fs=False)
+    tan_t = math.tan(math.radians(THETA))
+    dphi = math.degrees(math.atan(tan_t + s.acceleration_resolution / (G * math.cos(math.radians(THETA))))) - THETA
+    assert ev.critical_friction == pytest.approx(THETA, abs=s.friction_tolerance + dphi)
+    unstable, stable = ev.bracket("friction")
+    assert 0.0 < stable - unstable <= s.friction_tolerance
+    assert max(j.batch for j in ev.runs) <= 4 < s.batch
