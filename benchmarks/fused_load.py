@@ -65,6 +65,10 @@ rt = impl.get_runtime()
 rt.prog = Prog(rt.prog)
 if {gc_off}:
     import gc; gc.disable()
+if {src_cache}:  # experiment: read each ti.func's source once, not at every inlined call
+    import functools
+    kernel_impl.getsourcefile = functools.lru_cache(None)(kernel_impl.getsourcefile)
+    kernel_impl.getsourcelines = functools.lru_cache(None)(kernel_impl.getsourcelines)
 t = now(); ddatai.fused.warm.warm(); first = since(t)
 t = now(); ddatai.fused.warm.warm(); second = since(t)
 total = since(T0)
@@ -84,15 +88,16 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--init", nargs="*", default=[], help="extra ti.init options, KEY=VALUE (VALUE as JSON)")
     ap.add_argument("--gc-off", action="store_true", help="Python's garbage collector off during the first run")
+    ap.add_argument("--source-cache", action="store_true", help="read each Taichi function's source once a process")
     a = ap.parse_args()
     opts = {k: json.loads(v) for k, v in (o.split("=", 1) for o in a.init)}
     env = {**os.environ, **PINNED}
     if a.cache:
         env["TI_OFFLINE_CACHE_FILE_PATH"] = a.cache
     rows = []
-    print(f"load {os.getloadavg()[0]:.1f} at the start; cache {a.cache or '(default)'}; ti.init extra {opts}; gc off {a.gc_off}")
+    print(f"load {os.getloadavg()[0]:.1f} at the start; cache {a.cache or '(default)'}; ti.init extra {opts}; gc off {a.gc_off}; source cache {a.source_cache}")
     for _ in range(a.repeats):
-        proc = subprocess.run([sys.executable, "-c", PROBE.format(root=str(ROOT), opts=json.dumps(opts), gc_off=a.gc_off)],
+        proc = subprocess.run([sys.executable, "-c", PROBE.format(root=str(ROOT), opts=json.dumps(opts), gc_off=a.gc_off, src_cache=a.source_cache)],
                               capture_output=True, text=True, cwd=ROOT, env=env, timeout=3600)
         if proc.returncode != 0:
             raise RuntimeError(proc.stderr[-3000:])
