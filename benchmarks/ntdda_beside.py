@@ -82,18 +82,32 @@ sys.path.insert(0, {root!r})
 import numpy as np
 import ddatai as dd
 from ddatai.model import build_model
+from ddatai.fused import engine
+from ddatai.fused.pack import Member
 case = dd.read_ntdda({geo!r}, {ana!r})
 params = dataclasses.replace(case.params, kernels="fused", initial_equilibrium=False)
 model = build_model(case.scene, params)
 dd.simulate(case.scene, params, steps=10, record_every=10, model=model)  # the kernel, loaded
+def call(n):
+    c = time.process_time()
+    dd.simulate(case.scene, params, steps=n, record_every=n, model=model)
+    return time.process_time() - c
+short = min(call(10) for _ in range(3))  # a call's cost apart from its steps
 t, c = time.perf_counter(), time.process_time()
 res = dd.simulate(case.scene, params, steps={steps}, record_every={steps}, model=model)
 wall, cpu = time.perf_counter() - t, time.process_time() - c
+state = model.initial_state()  # the engine alone, as benchmarks/fused_ab.py times it
+c = time.process_time()
+out = engine.run([Member(model=model, state=state, step_end={steps}, record=True)])[0]
+kernel = time.process_time() - c
+assert out.status == "done", out.status
 steps = res.steps
 print(json.dumps(dict(ms=1e3 * wall / {steps}, cpu_ms=1e3 * cpu / {steps}, steps=int(len(steps)),
+                      marginal_cpu_ms=1e3 * (cpu - short) / ({steps} - 10), call_cpu_ms=1e3 * short,
+                      engine_cpu_ms=1e3 * kernel / {steps}, launch_ms=1e3 * float(steps["t_solve"].sum()) / {steps},
                       solves=float(steps["oc_total"].sum()) / len(steps), engine=res.meta["engine"]["name"],
-                      blocks=int(model.n_blocks), free=int(model.n_free), dt=float(np.median(steps["dt"])), penalty=float(model.penalty),
-                      centroids=np.asarray(res.centroid[-1]).tolist())))
+                      blocks=int(model.n_blocks), free=int(model.n_free), dt=float(np.median(steps["dt"])),
+                      penalty=float(model.penalty), centroids=np.asarray(res.centroid[-1]).tolist())))
 """
 
 
@@ -171,32 +185,50 @@ def measure(driver: str, cases, pairs: int, steps: int, cache: str, log=sys.stde
                 dd_ = run_ddatai(geo, ana, steps, cache)
                 rows.append(dict(load=load, ntdda=nt, ddatai=dd_, gap=centroid_gap(nt, dd_)))
                 print(f"  grid {case} pair {p}: load {load:.1f}, ntdda {nt['mean_cpu_ms']:.4f} ms CPU "
-                      f"({nt['oc_per_step']:.2f} OC), ddatai {dd_['cpu_ms']:.4f} ms CPU ({dd_['solves']:.2f} solves, "
+                      f"({nt['oc_per_step']:.2f} OC), ddatai {dd_['cpu_ms']:.4f} ms CPU (marginal "
+                      f"{dd_['marginal_cpu_ms']:.4f}, engine {dd_['engine_cpu_ms']:.4f}; {dd_['solves']:.2f} solves, "
                       f"{dd_['engine']}), ratio {dd_['cpu_ms'] / nt['mean_cpu_ms']:.2f}, centroids within "
                       f"{rows[-1]['gap']:.2e} m", file=log, flush=True)
             out[case] = rows
     return out
 
 
+def _ratios(rows, key: str) -> list[float]:
+    return [r["ddatai"][key] / r["ntdda"]["mean_cpu_ms"] for r in rows]
+
+
+def _spread(ratios: list[float]) -> str:
+    return f"**{statistics.median(ratios):.2f}×** ({min(ratios):.2f}–{max(ratios):.2f})"
+
+
 def table(results: dict) -> str:
-    """The markdown table of `measure`'s results: medians over the pairs, ratios pair by pair."""
-    head = ("| blocks | ntdda CPU ms/step | ntdda wall ms/step (median step) | ntdda OC/step | ddatai fused CPU "
-            "ms/step | ddatai solves/step | ddatai ÷ ntdda CPU, pair by pair | median ratio (range) | load | "
-            "same model (blocks, Δt, p) | final centroids apart [m] |\n|---|---|---|---|---|---|---|---|---|---|---|")
-    lines = [head]
+    """The markdown tables of `measure`'s results: medians over the pairs, ratios pair by pair."""
+    lines = ["| blocks | ntdda CPU ms/step | ntdda wall ms/step (median step) | ntdda OC/step | ddatai CPU ms/step "
+             "(`dd.simulate` ÷ steps) | solves/step | ddatai ÷ ntdda, pair by pair | median (range) | load |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for case, rows in results.items():
         nt = [r["ntdda"] for r in rows]
         dd_ = [r["ddatai"] for r in rows]
-        ratios = [d["cpu_ms"] / n["mean_cpu_ms"] for n, d in zip(nt, dd_)]
-        same = all(n["blocks"] == d["blocks"] and abs(n["dt"] - d["dt"]) < 1e-12 * n["dt"]
-                   and abs(n["penalty"] - d["penalty"]) < 1e-9 * n["penalty"] for n, d in zip(nt, dd_))
+        ratios = _ratios(rows, "cpu_ms")
         loads = [r["load"] for r in rows]
         lines.append(
             f"| {case} | {statistics.median(n['mean_cpu_ms'] for n in nt):.4f} | "
             f"{statistics.median(n['median_ms'] for n in nt):.4f} | {nt[0]['oc_per_step']:.2f} | "
             f"{statistics.median(d['cpu_ms'] for d in dd_):.4f} | {dd_[0]['solves']:.2f} | "
-            f"{', '.join(f'{r:.2f}' for r in ratios)} | **{statistics.median(ratios):.2f}×** "
-            f"({min(ratios):.2f}–{max(ratios):.2f}) | {min(loads):.1f}–{max(loads):.1f} | "
+            f"{', '.join(f'{r:.2f}' for r in ratios)} | {_spread(ratios)} | {min(loads):.1f}–{max(loads):.1f} |")
+    lines += ["", "| blocks | a `dd.simulate` call apart from its steps, CPU ms | `dd.simulate` per step, the call's "
+              "cost excluded, CPU ms | ÷ ntdda, median (range) | the fused engine alone, CPU ms/step | ÷ ntdda, "
+              "median (range) | same model (blocks, Δt, p) | final centroids apart [m] |",
+              "|---|---|---|---|---|---|---|---|"]
+    for case, rows in results.items():
+        nt = [r["ntdda"] for r in rows]
+        dd_ = [r["ddatai"] for r in rows]
+        same = all(n["blocks"] == d["blocks"] and abs(n["dt"] - d["dt"]) < 1e-12 * n["dt"]
+                   and abs(n["penalty"] - d["penalty"]) < 1e-9 * n["penalty"] for n, d in zip(nt, dd_))
+        lines.append(
+            f"| {case} | {statistics.median(d['call_cpu_ms'] for d in dd_):.1f} | "
+            f"{statistics.median(d['marginal_cpu_ms'] for d in dd_):.4f} | {_spread(_ratios(rows, 'marginal_cpu_ms'))} | "
+            f"{statistics.median(d['engine_cpu_ms'] for d in dd_):.4f} | {_spread(_ratios(rows, 'engine_cpu_ms'))} | "
             f"{'yes' if same else 'NO'} ({dd_[0]['blocks']}, {dd_[0]['dt']:g} s, {dd_[0]['penalty']:.3g} N/m) | "
             f"{max(r['gap'] for r in rows):.1e} |")
     return "\n".join(lines)
