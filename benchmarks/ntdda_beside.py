@@ -19,7 +19,11 @@ of fresh processes runs, on those very files:
   (``Params(kernels="fused")``), from ntdda's sudden start (``initial_equilibrium=False``, which
   the files already say), ``--steps`` steps; the fused kernel is loaded from Taichi's offline
   cache by a 10-step run of the same model before the timed run; the timed call records only its
-  first and last frames; wall and CPU of that call ÷ steps.
+  first and last frames; wall and CPU of that call ÷ steps. In the same process: the call's cost
+  apart from its steps (the cheapest of three 10-step calls), so also its CPU a step without it;
+  the fused engine alone on the same model (`ddatai.fused.engine.run`, as
+  `benchmarks/fused_ab.py` times it); and the engine alone on the scaling benchmarks' `grid`
+  (`scaling_scenes.grid_scene`: the same grid with its base a fixed block, one free block fewer).
 
 Threads are pinned in both (OMP/OPENBLAS/MKL_NUM_THREADS=1, one Taichi CPU thread), ntdda first in
 each pair. Reported: medians over the pairs, the ddatai ÷ ntdda CPU ratio pair by pair, the
@@ -101,10 +105,21 @@ c = time.process_time()
 out = engine.run([Member(model=model, state=state, step_end={steps}, record=True)])[0]
 kernel = time.process_time() - c
 assert out.status == "done", out.status
+sys.path.insert(0, {root!r} + "/benchmarks")  # the scaling benchmarks' grid: the same, its base a fixed block
+from scaling_scenes import grid_scene
+scene, gparams = grid_scene({blocks})
+gmodel = build_model(scene, dataclasses.replace(gparams, initial_equilibrium=False, kernels="numpy", solver="dense"))
+gstate = gmodel.initial_state()
+engine.run([Member(model=gmodel, state=gstate, step_end=10)])
+c = time.process_time()
+gout = engine.run([Member(model=gmodel, state=gstate, step_end={steps}, record=True)])[0]
+grid_cpu = time.process_time() - c
 steps = res.steps
 print(json.dumps(dict(ms=1e3 * wall / {steps}, cpu_ms=1e3 * cpu / {steps}, steps=int(len(steps)),
                       marginal_cpu_ms=1e3 * (cpu - short) / ({steps} - 10), call_cpu_ms=1e3 * short,
                       engine_cpu_ms=1e3 * kernel / {steps}, launch_ms=1e3 * float(steps["t_solve"].sum()) / {steps},
+                      grid_scene_cpu_ms=1e3 * grid_cpu / {steps},
+                      grid_scene_solves=float(gout.records["oc_total"].sum()) / {steps},
                       solves=float(steps["oc_total"].sum()) / len(steps), engine=res.meta["engine"]["name"],
                       blocks=int(model.n_blocks), free=int(model.n_free), dt=float(np.median(steps["dt"])),
                       penalty=float(model.penalty), centroids=np.asarray(res.centroid[-1]).tolist())))
@@ -156,7 +171,8 @@ def run_ddatai(geo: Path, ana: Path, steps: int, cache: str) -> dict:
     env = {**os.environ, **PINNED}
     if cache:
         env["TI_OFFLINE_CACHE_FILE_PATH"] = cache
-    code = DDATAI.format(root=str(ROOT), geo=str(geo), ana=str(ana), steps=steps)
+    blocks = int(Path(geo).stem.removeprefix("grid"))
+    code = DDATAI.format(root=str(ROOT), geo=str(geo), ana=str(ana), steps=steps, blocks=blocks)
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, env=env,
                           timeout=3600)
     if proc.returncode != 0:
@@ -218,8 +234,9 @@ def table(results: dict) -> str:
             f"{', '.join(f'{r:.2f}' for r in ratios)} | {_spread(ratios)} | {min(loads):.1f}–{max(loads):.1f} |")
     lines += ["", "| blocks | a `dd.simulate` call apart from its steps, CPU ms | `dd.simulate` per step, the call's "
               "cost excluded, CPU ms | ÷ ntdda, median (range) | the fused engine alone, CPU ms/step | ÷ ntdda, "
+              "median (range) | the engine alone on the scaling `grid` (base fixed), CPU ms/step (solves) | ÷ ntdda, "
               "median (range) | same model (blocks, Δt, p) | final centroids apart [m] |",
-              "|---|---|---|---|---|---|---|---|"]
+              "|---|---|---|---|---|---|---|---|---|---|"]
     for case, rows in results.items():
         nt = [r["ntdda"] for r in rows]
         dd_ = [r["ddatai"] for r in rows]
@@ -229,6 +246,8 @@ def table(results: dict) -> str:
             f"| {case} | {statistics.median(d['call_cpu_ms'] for d in dd_):.1f} | "
             f"{statistics.median(d['marginal_cpu_ms'] for d in dd_):.4f} | {_spread(_ratios(rows, 'marginal_cpu_ms'))} | "
             f"{statistics.median(d['engine_cpu_ms'] for d in dd_):.4f} | {_spread(_ratios(rows, 'engine_cpu_ms'))} | "
+            f"{statistics.median(d['grid_scene_cpu_ms'] for d in dd_):.4f} ({dd_[0]['grid_scene_solves']:.2f}) | "
+            f"{_spread(_ratios(rows, 'grid_scene_cpu_ms'))} | "
             f"{'yes' if same else 'NO'} ({dd_[0]['blocks']}, {dd_[0]['dt']:g} s, {dd_[0]['penalty']:.3g} N/m) | "
             f"{max(r['gap'] for r in rows):.1e} |")
     return "\n".join(lines)
