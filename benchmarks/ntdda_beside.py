@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import platform
 import statistics
@@ -210,11 +211,18 @@ def measure(driver: str, cases, pairs: int, steps: int, cache: str, log=sys.stde
 
 
 def _ratios(rows, key: str) -> list[float]:
-    return [r["ddatai"][key] / r["ntdda"]["mean_cpu_ms"] for r in rows]
+    return [r["ddatai"][key] / r["ntdda"]["mean_cpu_ms"] for r in rows if key in r["ddatai"]]
 
 
 def _spread(ratios: list[float]) -> str:
-    return f"**{statistics.median(ratios):.2f}×** ({min(ratios):.2f}–{max(ratios):.2f})"
+    if not ratios:
+        return "–"
+    return f"**{statistics.median(ratios):.2f}×** ({min(ratios):.2f}–{max(ratios):.2f}, {len(ratios)} pairs)"
+
+
+def _median(values) -> str:
+    values = list(values)
+    return f"{statistics.median(values):.4f}" if values else "–"
 
 
 def table(results: dict) -> str:
@@ -246,7 +254,8 @@ def table(results: dict) -> str:
             f"| {case} | {statistics.median(d['call_cpu_ms'] for d in dd_):.1f} | "
             f"{statistics.median(d['marginal_cpu_ms'] for d in dd_):.4f} | {_spread(_ratios(rows, 'marginal_cpu_ms'))} | "
             f"{statistics.median(d['engine_cpu_ms'] for d in dd_):.4f} | {_spread(_ratios(rows, 'engine_cpu_ms'))} | "
-            f"{statistics.median(d['grid_scene_cpu_ms'] for d in dd_):.4f} ({dd_[0]['grid_scene_solves']:.2f}) | "
+            f"{_median(d['grid_scene_cpu_ms'] for d in dd_ if 'grid_scene_cpu_ms' in d)} "
+            f"({max((d['grid_scene_solves'] for d in dd_ if 'grid_scene_solves' in d), default=math.nan):.2f}) | "
             f"{_spread(_ratios(rows, 'grid_scene_cpu_ms'))} | "
             f"{'yes' if same else 'NO'} ({dd_[0]['blocks']}, {dd_[0]['dt']:g} s, {dd_[0]['penalty']:.3g} N/m) | "
             f"{max(r['gap'] for r in rows):.1e} |")
@@ -255,14 +264,25 @@ def table(results: dict) -> str:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--driver", required=True, help="ntdda's step timer (benchmarks/ntdda_beside/build.sh)")
+    ap.add_argument("--driver", help="ntdda's step timer (benchmarks/ntdda_beside/build.sh)")
     ap.add_argument("--cases", default="1,4,16,64")
     ap.add_argument("--pairs", type=int, default=5)
     ap.add_argument("--steps", type=int, default=2000)
     ap.add_argument("--cache", default="", help="Taichi offline cache holding the fused kernel "
                     "(default: TI_OFFLINE_CACHE_FILE_PATH or Taichi's own)")
     ap.add_argument("--out", default="", help="also write every run's figures to this JSON file")
+    ap.add_argument("--tables", nargs="+", default=[], metavar="FILE.json",
+                    help="no runs: the tables of the pairs saved by earlier --out runs, pooled")
     a = ap.parse_args()
+    if a.tables:
+        pooled: dict = {}
+        for path in a.tables:
+            for case, rows in json.loads(Path(path).read_text()).items():
+                pooled.setdefault(int(case), []).extend(rows)
+        print(table(dict(sorted(pooled.items()))))
+        return
+    if not a.driver:
+        ap.error("--driver is needed (or --tables)")
     print(f"machine: {platform.machine()} {platform.processor() or ''}, {os.cpu_count()} CPUs, Python "
           f"{platform.python_version()}; load {os.getloadavg()[0]:.1f} at the start; {a.pairs} pairs of fresh "
           f"processes a size, ntdda then ddatai, {a.steps} steps from ntdda's sudden start, threads pinned\n")
