@@ -86,8 +86,10 @@ class DdaSettings:
     """Steps of the timing runs of the sub-model and the whole slope [-]."""
     batch: int = 8
     """Probes judged side by side in one run (`kgm.judges.batch.judge_many`): the verdict and the probes
-    of a round of the F and φ searches, each bracket cut into as many pieces as it has probes;
-    1: one run a probe and bisections (docs/guide/performance.md, "Batched studies") [-]."""
+    of a round of the F and φ searches, each bracket cut into as many pieces as it has probes (or
+    the fewest that reach the tolerance; on the fused engine a round in two passes, the middle
+    probes first: docs/kgm/method.md §6.4); 1: one run a probe and bisections
+    (docs/guide/performance.md, "Batched studies") [-]."""
     sample_batch: int = 128
     """Samples of a DDA-judged probabilistic study (verdicts only) judged side by side in one
     run (`kgm.judges.batch.judge_members`, exact: the table is the one of one run a sample), at most so

@@ -230,3 +230,190 @@ def test_a_batch_whose_step_cuts_dt_judges_its_members_again():
         assert (j.stable, j.steps, j.note) == (alone.stable, alone.steps, alone.note)
         assert j.displacement == pytest.approx(alone.displacement, rel=1e-9, abs=1e-12)
     assert [j.stable for j in many] == [False, False, True, False]
+
+
+def _k_section_on(fs_limit, phi_limit, *, fs_guess, phi_guess, all_probes=False, batch=8, two_pass=False):
+    """`dda_evaluation`'s batched searches (`kgm.judges.dda._searches`, `_k_sections`) on a
+    synthetic monotone verdict: stable for F ≤ ``fs_limit`` and φ ≥ ``phi_limit``. Returns (FS,
+    φc, the probes of each round, or of each pass with ``two_pass``); ``all_probes``: each
+    closing round cut into as many pieces as it has probes (the rule before the fewest were
+    taken)."""
+    from kgm.judges import dda
+
+    searches = dda._searches(kgm.DdaSettings(), fs_guess, phi_guess)
+    if all_probes:
+        for b in searches.values():
+            b.closing = lambda: 10 ** 9
+    rounds = []
+
+    def judge_round(probes):
+        rounds.append(list(probes))
+        return [r <= fs_limit if f is None else f >= phi_limit for f, r in probes]
+
+    dda._k_sections(searches, judge_round, batch, two_pass=two_pass)
+    fs = searches["fs"].limit(lambda x: math.exp(-x), below=math.inf, above=0.0)
+    phi = searches["phi"].limit(lambda x: x, below=0.0, above=90.0)
+    return fs, phi, rounds
+
+
+@pytest.mark.parametrize("fs_limit, phi_limit, fs_guess, phi_guess", [
+    (0.9994, 10.96, 0.9988, 11.025),  # Example I's limits and limit-equilibrium guesses
+    (1.21, 30.0, 1.3, 35.0), (0.62, 17.3, 0.9, 15.0), (3.7, 44.4, 2.0, 40.0), (1.0, 0.0, 1.0, 5.0)])
+def test_k_section_closes_with_the_fewest_probes_that_reach_the_tolerance(fs_limit, phi_limit, fs_guess, phi_guess):
+    """A round whose bracket is found takes only the probes that close it to the tolerance: on a
+    monotone verdict, FS and φc within the tolerances of the limits (FS to ``fs_tolerance``
+    relative, φc to ``friction_tolerance``; each the middle of its final bracket, so within half
+    of it) as with every probe of the round used, in as many rounds, with fewer probes or as
+    many; and the closing round's probes are the fewest that close it."""
+    s = kgm.DdaSettings()
+    fs, phi, rounds = _k_section_on(fs_limit, phi_limit, fs_guess=fs_guess, phi_guess=phi_guess)
+    fs_all, phi_all, rounds_all = _k_section_on(fs_limit, phi_limit, fs_guess=fs_guess, phi_guess=phi_guess,
+                                                all_probes=True)
+    half = 0.5 * math.log1p(s.fs_tolerance) + 1e-12
+    for f in (fs, fs_all):
+        assert abs(math.log(f / fs_limit)) <= half
+    for p in (phi, phi_all):
+        assert p == 0.0 if phi_limit <= 0.0 else abs(p - phi_limit) <= 0.5 * s.friction_tolerance + 1e-12
+    assert abs(math.log(fs / fs_all)) <= math.log1p(s.fs_tolerance) and abs(phi - phi_all) <= s.friction_tolerance
+    assert len(rounds) == len(rounds_all) and sum(map(len, rounds)) <= sum(map(len, rounds_all))
+    assert all(len(r) <= s.batch for r in rounds)
+    # the last round of each search: one probe fewer would have left a piece wider than the tolerance
+    phis = sorted(f for r in rounds[1:] for f, _ in r if f is not None)
+    if len(rounds) > 1 and phis and phi_limit > 0.0:
+        lo = max(f for r in rounds[:-1] for f, _ in r if f is not None and f < phi_limit)
+        hi = min(f for r in rounds[:-1] for f, _ in r if f is not None and f >= phi_limit)
+        last = [f for f, _ in rounds[-1] if f is not None]
+        if last and lo < min(last) and max(last) < hi:
+            assert (hi - lo) / (len(last) + 1) <= s.friction_tolerance < (hi - lo) / len(last)
+
+
+def test_example_1_k_section_takes_4_probes_fewer():
+    """Example I's searches (FS 0.9994 and φc 10.96° by DDA, the guesses Sarma's 0.9988 and
+    11.025°): the second round's φ bracket, 9.84–11.02°, is closed to 0.25° by 4 probes, not
+    by the round's 8; 11 probes instead of 15, in the same two rounds, and φc moves by less
+    than the tolerance (10.91° against 10.96°)."""
+    fs, phi, rounds = _k_section_on(0.9994, 10.96, fs_guess=0.9988, phi_guess=11.025)
+    fs_all, phi_all, rounds_all = _k_section_on(0.9994, 10.96, fs_guess=0.9988, phi_guess=11.025, all_probes=True)
+    assert [len(r) for r in rounds_all] == [7, 8] and [len(r) for r in rounds] == [7, 4]
+    assert fs == fs_all and phi == pytest.approx(10.906, abs=1e-3) and phi_all == pytest.approx(10.959, abs=1e-3)
+
+
+CASES = [(0.9994, 10.96, 0.9988, 11.025), (1.21, 30.0, 1.3, 35.0), (0.62, 17.3, 0.9, 15.0), (3.7, 44.4, 2.0, 40.0),
+         (1.0, 0.0, 1.0, 5.0), (1.05, 11.9, 0.7, 3.0), (0.015, 89.5, 1.0, 30.0), (60.0, 0.3, 10.0, 1.0)]
+
+
+@pytest.mark.parametrize("fs_limit, phi_limit, fs_guess, phi_guess", CASES)
+def test_two_pass_rounds_give_the_brackets_of_the_rounds_judged_at_once(fs_limit, phi_limit, fs_guess, phi_guess):
+    """Each round in two passes (the middle probes, then those their verdicts leave open), on a
+    monotone verdict: the same FS and φc as each round judged at once — to the bit, unless the
+    first pass already closed a search, then within its tolerance — from fewer probes or as
+    many, in at most twice as many passes as rounds."""
+    s = kgm.DdaSettings()
+    fs, phi, rounds = _k_section_on(fs_limit, phi_limit, fs_guess=fs_guess, phi_guess=phi_guess)
+    fs2, phi2, passes = _k_section_on(fs_limit, phi_limit, fs_guess=fs_guess, phi_guess=phi_guess, two_pass=True)
+    assert abs(math.log(fs2 / fs)) <= math.log1p(s.fs_tolerance) if math.isfinite(fs) and fs > 0 else fs2 == fs
+    assert abs(phi2 - phi) <= s.friction_tolerance
+    asked = {p for r in passes for p in r}  # (dda_evaluation judges a probe asked again once)
+    assert len(asked) <= len({p for r in rounds for p in r})
+    assert len(passes) <= 2 * len(rounds)
+
+
+def test_two_pass_rounds_are_the_same_to_the_bit_where_no_first_pass_closes_a_search():
+    """Example I's searches and a block's (FS 1.21, φc 30° from guesses 1.3 and 35°): each search's
+    final bracket, hence FS and φc, the same to the bit in two passes as in one."""
+    for case in (CASES[0], CASES[1]):
+        one = _k_section_on(*case[:2], fs_guess=case[2], phi_guess=case[3])
+        two = _k_section_on(*case[:2], fs_guess=case[2], phi_guess=case[3], two_pass=True)
+        assert one[:2] == two[:2]
+
+
+def test_example_1_two_pass_rounds_take_7_probes():
+    """Example I (FS 0.9994 and φc 10.96° by DDA, the guesses 0.9988 and 11.025°): the verdict
+    and the two guesses first; F = 1 unstable and F = 0.9988 stable close FS, φ = 11.02° stable
+    leaves only 9.84° of the first round open; the second round's 4 probes are judged as 10.31°,
+    then 10.55° and 10.79°: 7 probes instead of 15, FS and φc those of the rounds judged at once."""
+    fs, phi, passes = _k_section_on(0.9994, 10.96, fs_guess=0.9988, phi_guess=11.025, two_pass=True)
+    assert [len(p) for p in passes] == [3, 1, 1, 2]
+    assert (fs, phi) == _k_section_on(0.9994, 10.96, fs_guess=0.9988, phi_guess=11.025)[:2]
+
+
+def test_rounds_go_two_pass_where_the_fused_engine_judges_them_whatever_their_size():
+    """Two passes where each member pays its own stage and run (``kernels="fused"`` on a model
+    the fused engine runs; its sub-model then built once, for the rounds to take), not on
+    today's side-by-side batch, which shares a step among a round's members (``kernels="numpy"``,
+    or a model with water, which the fused engine leaves to today's path)."""
+    from kgm.judges.fused import judged_apart
+    from kgm.judges.run import RunPlan
+
+    def apart(kernels, water=False, kept=None):
+        scene, _, b = kgm_cases.block_on_incline(theta=THETA, width=2.0, height=1.0, friction=35.0, cohesion=0.0)
+        if water:
+            scene.set_water_table([(-100.0, 0.5), (100.0, 0.5)])
+        system = build_block_system(scene)
+        plan = RunPlan.of(system, frozenset([b]), kgm.DdaSettings(), dd.Params(kernels=kernels))
+        return judged_apart(scene, system, frozenset([b]), plan, submodels=kept)
+
+    kept = {}
+    assert apart("fused", kept=kept) and len(kept) == 1
+    assert not apart("numpy") and not apart("fused", water=True)
+
+
+def test_the_rounds_of_one_evaluation_build_their_sub_model_once(monkeypatch):
+    """`prepare_fused` with a dict of sub-models kept across the rounds of one evaluation (as
+    `dda_evaluation` keeps it): the sub-model is built once for both rounds, and every member's
+    model and settled state are those of the rounds prepared each on its own, to the bit."""
+    from dataclasses import fields
+
+    import ddatai.model
+    from kgm.judges.fused import prepare_fused
+
+    scene, _, b = kgm_cases.block_on_incline(theta=THETA, width=2.0, height=1.0, friction=35.0, cohesion=0.0)
+    system = build_block_system(scene)
+    settings, params = kgm.DdaSettings(), dd.Params(kernels="fused")
+    rounds = [[(25.0, 1.0), (40.0, 1.0), (None, 1.0)], [(None, 1.3), (33.0, 1.0)]]
+    built = []
+    build = ddatai.model.build_model
+    monkeypatch.setattr(ddatai.model, "build_model", lambda *a, **k: built.append(1) or build(*a, **k))
+
+    def prepared(submodels):
+        return [prepare_fused([Member(scene=scene, system=system, friction=f, reduction=r) for f, r in probes],
+                              frozenset([b]), settings=settings, params=params, submodels=submodels)
+                for probes in rounds]
+
+    kept = {}
+    once = prepared(kept)
+    assert len(built) == 1 and len(kept) == 1
+    alone = prepared(None)
+    assert len(built) == 3  # one a round without the dict
+
+    def same(x, y):
+        return x.tobytes() == y.tobytes() if isinstance(x, np.ndarray) else x == y or (x is None and y is None)
+
+    for a, z in zip(once, alone):
+        for ra, rz in zip(a.runs, z.runs):
+            assert all(same(getattr(ra.model, f.name), getattr(rz.model, f.name)) for f in fields(rz.model))
+            assert same(ra.state.vertex_xy, rz.state.vertex_xy) and same(ra.state.memory.key, rz.state.memory.key)
+            assert same(ra.state.memory.state, rz.state.memory.state)
+    assert not same(once[0].runs[0].model.joint_tan_phi, once[0].runs[1].model.joint_tan_phi)
+
+
+def test_a_two_pass_evaluation_finds_the_closed_form_critical_friction(monkeypatch):
+    """`dda_evaluation` with its rounds in two passes (forced here on today's side-by-side batch,
+    where the fused engine would take them): φc of one block on a plane within the tolerance plus
+    the judgement's friction resolution of θ (as `test_batched_and_sequential_bisections_agree_
+    with_the_closed_form`), its final bracket within the tolerance, each pass smaller than a
+    round of 8."""
+    import kgm.judges.dda as dda_module
+    from kgm.judges.dda import evaluate_dda
+
+    monkeypatch.setattr(dda_module, "judged_apart", lambda *a, **k: True)
+    scene, _, b = kgm_cases.block_on_incline(theta=THETA, width=2.0, height=1.0, friction=40.0, cohesion=0.0)
+    system = build_block_system(scene)
+    s = kgm.DdaSettings(acceleration_resolution=0.2)  # T halved: a coarser resolution, runs half as long
+    ev = evaluate_dda(scene, system, frozenset([b]), settings=s, friction_guess=35.0, with_fs=False)
+    tan_t = math.tan(math.radians(THETA))
+    dphi = math.degrees(math.atan(tan_t + s.acceleration_resolution / (G * math.cos(math.radians(THETA))))) - THETA
+    assert ev.critical_friction == pytest.approx(THETA, abs=s.friction_tolerance + dphi)
+    unstable, stable = ev.bracket("friction")
+    assert 0.0 < stable - unstable <= s.friction_tolerance
+    assert max(j.batch for j in ev.runs) <= 4 < s.batch

@@ -50,17 +50,20 @@ class Member:
 
 
 def judge_many(scene: Scene, system: BlockSystem, blocks: frozenset, probes, *, settings: DdaSettings,
-               params: Optional[Params] = None, removed: frozenset = frozenset(), report: Report = None) -> list:
+               params: Optional[Params] = None, removed: frozenset = frozenset(), report: Report = None,
+               submodels: Optional[dict] = None) -> list:
     """Judge the group at several strengths ``probes`` (a sequence of ``(friction, reduction)``
-    as `kgm.judge` takes them) in one run (`judge_members`). Returns the judgements in the order
-    of ``probes``."""
+    as `kgm.judge` takes them) in one run (`judge_members`; ``submodels`` as it takes it).
+    Returns the judgements in the order of ``probes``."""
     members = [Member(scene=scene, system=system, friction=None if f is None else float(f), reduction=float(r))
                for f, r in probes]
-    return judge_members(members, blocks, settings=settings, params=params, removed=removed, report=report)
+    return judge_members(members, blocks, settings=settings, params=params, removed=removed, report=report,
+                         submodels=submodels)
 
 
 def judge_members(members, blocks: frozenset, *, settings: DdaSettings, params: Optional[Params] = None,
-                  removed: frozenset = frozenset(), exact: bool = False, report: Report = None) -> list:
+                  removed: frozenset = frozenset(), exact: bool = False, report: Report = None,
+                  submodels: Optional[dict] = None) -> list:
     """Judge the same group in several members — the scene at several strengths, or the scenes
     of a probabilistic study's samples, which differ only in their joints — in one run: the
     sub-models side by side (`ddatai.batch`), each with the constants of its own model, so that
@@ -80,11 +83,14 @@ def judge_members(members, blocks: frozenset, *, settings: DdaSettings, params: 
     Falls back to one run a member (`run_judgement`) where members cannot share a run (a water
     table, shaking, sub-models whose geometry, δ or model constants differ, a single member), and
     for the members that had not failed when a batched run diverged. ``report`` is called with
-    each judgement as it is made. Returns the judgements in the order of ``members``.
+    each judgement as it is made; ``submodels``: a dict kept across the batches of one problem,
+    in which the fused engine's sub-models are built once (`kgm.judges.fused.prepare_fused`).
+    Returns the judgements in the order of ``members``.
     """
     # the fused engine (ddatai.fused) where it pays: every member in its own thread of one launch,
     # as alone (exact by construction)
-    fused = judge_fused(members, blocks, settings=settings, params=params, removed=removed, report=report)
+    fused = judge_fused(members, blocks, settings=settings, params=params, removed=removed, report=report,
+                        submodels=submodels)
     if fused is not None:
         return fused
     from ddatai.batch import batch_model, combined_state, member_constants, member_states, side_by_side

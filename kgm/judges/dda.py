@@ -31,6 +31,7 @@ from ..settings import DdaSettings, Settings
 from ..strength import Strength
 from ..system import BlockSystem
 from .batch import judge_many
+from .fused import judged_apart
 from .run import DdaJudgement, Report, RunPlan, run_judgement, run_params, sub_scene
 
 #: Bracket of the strength-reduction factor F of the DDA searches: a group stable at F_HIGH has
@@ -145,25 +146,23 @@ def dda_evaluation(problem: Problem, blocks: frozenset, *, removed: frozenset = 
     if friction_guess is None:
         friction_guess = float(np.mean(system.contact_friction))
     if settings.batch > 1:
-        searches = {}
-        if with_fs:
-            f = _first_reduction(fs_guess)
-            # x = −ln F: the group is stable for x ≥ −ln FS
-            searches["fs"] = _Bracket(guess=-math.log(f), lower=-math.log(F_HIGH), upper=-math.log(F_LOW),
-                                      tolerance=math.log1p(settings.fs_tolerance), step=math.log(F_STEP))
-        if with_friction:
-            searches["phi"] = _Bracket(guess=_first_friction(friction_guess), lower=0.0, upper=PHI_HIGH,
-                                       tolerance=settings.friction_tolerance, step=PHI_STEP)
+        searches = _searches(settings, fs_guess if with_fs else None, friction_guess if with_friction else None)
+
+        submodels: dict = {}  # the sub-model built once for every round (`kgm.judges.fused.prepare_fused`)
 
         def judge_round(probes):
             todo = [p for p in dict.fromkeys(probes) if key(*p) not in cache]
             for p, j in zip(todo, judge_many(scene, system, blocks, todo, settings=settings, params=params,
-                                             removed=removed, report=report)):
+                                             removed=removed, report=report, submodels=submodels)):
                 cache[key(*p)] = j
                 runs.append(j)
             return [cache[key(*p)].stable for p in probes]
 
-        _k_sections(searches, judge_round, settings.batch)
+        # on the fused engine each member pays its own stage and run: a round pays by the member
+        # and is judged in two passes; today's side-by-side batch shares a step among a round's
+        # members, and a round judged at once pays less there
+        two_pass = judged_apart(scene, system, blocks, plan, removed=removed, submodels=submodels)
+        _k_sections(searches, judge_round, settings.batch, two_pass=two_pass)
         if with_fs:
             fs = searches["fs"].limit(lambda x: math.exp(-x), below=math.inf, above=0.0)
         if with_friction:
@@ -181,35 +180,70 @@ def dda_evaluation(problem: Problem, blocks: frozenset, *, removed: frozenset = 
                          wall_time=time.perf_counter() - t0, timing=timing)
 
 
-def _k_sections(searches: dict, judge_round, batch: int) -> None:
+def _searches(settings: DdaSettings, fs_guess: Optional[float], friction_guess: Optional[float]) -> dict:
+    """The K-section searches of `dda_evaluation` ("fs", "phi"; `_Bracket`), placed by the
+    guesses, under ``settings``' tolerances; a search whose guess is None is not made."""
+    searches = {}
+    if fs_guess is not None:
+        f = _first_reduction(fs_guess)
+        # x = −ln F: the group is stable for x ≥ −ln FS
+        searches["fs"] = _Bracket(guess=-math.log(f), lower=-math.log(F_HIGH), upper=-math.log(F_LOW),
+                                  tolerance=math.log1p(settings.fs_tolerance), step=math.log(F_STEP))
+    if friction_guess is not None:
+        searches["phi"] = _Bracket(guess=_first_friction(friction_guess), lower=0.0, upper=PHI_HIGH,
+                                   tolerance=settings.friction_tolerance, step=PHI_STEP)
+    return searches
+
+
+def _k_sections(searches: dict, judge_round, batch: int, two_pass: bool = False) -> None:
     """Rounds of the searches ``searches`` ("fs": x = −ln F, "phi": x = φ; `_Bracket`) until all
     are done: each round, the verdict at the scene's strength (the first) and the active
-    searches' probes, ``batch`` in all, judged together by ``judge_round`` (a list of
-    (friction, reduction) -> a list of verdicts)."""
+    searches' probes, at most ``batch`` in all (a search whose bracket is found takes only the
+    probes that close it, `_Bracket.proposals`), judged together by ``judge_round`` (a list of
+    (friction, reduction) -> a list of verdicts).
+
+    ``two_pass``: a round is judged in two passes, the middle of each search's probes first
+    (with the verdict), then only the probes its verdict leaves inside the bracket: a monotone
+    verdict already says what the others would give (stable above a stable probe, unstable
+    below an unstable one), so the brackets, and every round after, are those of the round
+    judged at once, from fewer probes (`_Bracket.open`), or, where the first pass has already
+    closed a search to its tolerance, that bracket."""
 
     def probe(name, x):  # (friction, reduction) of a probe
         return (None, math.exp(-x)) if name == "fs" else (x, 1.0)
+
+    def judge(fixed, asked):
+        if not fixed and not asked:
+            return
+        stable = judge_round(fixed + [probe(n, x) for n, x in asked])
+        for (n, x), verdict in zip(asked, stable[len(fixed):]):
+            searches[n].record(x, verdict)
+        if fixed and "fs" in searches:  # the verdict is the probe F = 1
+            searches["fs"].record(0.0, stable[0])
 
     first = True
     while first or any(not b.done for b in searches.values()):
         active = [n for n, b in searches.items() if not b.done]
         fixed = [(None, 1.0)] if first else []
         share = max(1, (batch - len(fixed)) // max(len(active), 1))
-        asked = [(n, x) for n in active
-                 for x in searches[n].proposals(share, share_next=max(1, batch // max(len(active), 1)))]
-        stable = judge_round(fixed + [probe(n, x) for n, x in asked])
-        for (n, x), verdict in zip(asked, stable[len(fixed):]):
-            searches[n].record(x, verdict)
-        if first and "fs" in searches:  # the verdict is the probe F = 1
-            searches["fs"].record(0.0, stable[0])
+        proposed = {n: searches[n].proposals(share, share_next=max(1, batch // max(len(active), 1)))
+                    for n in active}
+        if two_pass:
+            middle = [(n, xs[(len(xs) - 1) // 2]) for n, xs in proposed.items() if xs]
+            judge(fixed, middle)
+            judge([], [(n, x) for n, xs in proposed.items() for x in xs
+                        if (n, x) not in middle and not searches[n].done and searches[n].open(x)])
+        else:
+            judge(fixed, [(n, x) for n, xs in proposed.items() for x in xs])
         first = False
 
 
 class _Bracket:
     """A K-section search for the limit x* of a monotone verdict, stable for x ≥ x* on
     [lower, upper]: each round proposes points that cut the bracket (largest unstable x,
-    smallest stable x) into equal pieces, or, while one side is missing, points stepping away
-    from what is known (the step doubling each round); done when the bracket is at most
+    smallest stable x) into equal pieces (as many as the round has probes, or the fewest no
+    wider than ``tolerance`` where those are fewer), or, while one side is missing, points
+    stepping away from what is known (the step doubling each round); done when the bracket is at most
     ``tolerance`` wide or the limit lies outside [lower, upper]. Where DDA's verdicts are not
     monotone near the limit (a stable run below an unstable one), the bracket turns over: the
     search stops and the limit is the middle of that band (`DdaEvaluation.bracket`)."""
@@ -226,15 +260,32 @@ class _Bracket:
         else:
             self.unstable_max = max(self.unstable_max, x)
 
+    def open(self, x: float) -> bool:
+        """Whether a monotone verdict at x is not already known: x lies strictly inside the
+        bracket (above every unstable x, below every stable x)."""
+        return self.unstable_max < x < self.stable_min
+
     @property
     def done(self) -> bool:
         s, u = self.stable_min, self.unstable_max
         return (s - u <= self.tolerance) or s <= self.lower or u >= self.upper
 
+    def closing(self) -> int:
+        """The fewest probes that cut the bracket into pieces of at most ``tolerance`` [-]."""
+        return max(1, math.ceil((self.stable_min - self.unstable_max) / self.tolerance) - 1)
+
     def proposals(self, n: int, share_next: int) -> list:
+        """At most ``n`` points to judge next; where the bracket is found, the fewest of them that
+        close it this round if ``n`` can (`closing`): each probe costs its member's stage and run,
+        and more would only narrow the bracket below the tolerance asked for."""
         s, u = self.stable_min, self.unstable_max
         if math.isfinite(s) and math.isfinite(u):
-            return [u + (s - u) * i / (n + 1) for i in range(1, n + 1)]
+            k = min(n, self.closing())
+            xs = [u + (s - u) * i / (k + 1) for i in range(1, k + 1)]
+            while k < n and max(np.diff([u, *xs, s])) > self.tolerance:  # a piece left over by round-off
+                k += 1
+                xs = [u + (s - u) * i / (k + 1) for i in range(1, k + 1)]
+            return xs
         # spacing such that the next round, with ``share_next`` probes, closes the bracket
         h = max(self.step if math.isfinite(s) or math.isfinite(u) else 0.0,
                 0.95 * self.tolerance * (share_next + 1))

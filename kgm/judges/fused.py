@@ -28,14 +28,39 @@ from .run import Report, RestCounter, RunPlan, block_displacements, block_speeds
 
 
 def judge_fused(members, blocks: frozenset, *, settings: DdaSettings, params: Optional[Params] = None,
-                removed: frozenset = frozenset(), report: Report = None) -> Optional[list]:
+                removed: frozenset = frozenset(), report: Report = None,
+                submodels: Optional[dict] = None) -> Optional[list]:
     """The judgements of ``members`` (`kgm.judges.batch.Member`: a scene, its block system, a
     friction and a strength reduction) on the fused engine, in their order; None where the
     engine does not judge them (``Params.kernels`` "numpy" or "taichi", "auto" where the batch
     does not pay the kernel, or a sub-model with what the engine leaves to today's path:
-    ``ddatai.fused.pack.covers``). ``report`` is called with each judgement."""
-    prepared = prepare_fused(members, blocks, settings=settings, params=params, removed=removed)
+    ``ddatai.fused.pack.covers``). ``report`` is called with each judgement; ``submodels``: as
+    `prepare_fused` takes it."""
+    prepared = prepare_fused(members, blocks, settings=settings, params=params, removed=removed,
+                             submodels=submodels)
     return None if prepared is None else run_prepared(prepared, report=report)
+
+
+def judged_apart(scene, system, blocks: frozenset, plan: RunPlan, *, removed: frozenset = frozenset(),
+                 submodels: Optional[dict] = None) -> bool:
+    """Whether the fused engine judges this group's batches whatever their size, one member too
+    (``Params(kernels="fused")``, or the kernel in this process: ``choose_batch`` for one
+    member's steps), its sub-model being one the engine runs (``ddatai.fused.pack.covers``):
+    there each member pays its own stage and run. The sub-model is built into ``submodels``
+    (`prepare_fused`'s), where the batches take it."""
+    from ddatai.fused.pack import covers
+    from ddatai.fused.policy import choose_batch
+    from ddatai.model import build_model
+
+    prm = plan.params
+    if choose_batch(prm, member_steps=plan.duration / (prm.dt if prm.dt is not None else prm.dt_max))[0] != "fused":
+        return False
+    sub, ids = sub_scene(scene, system, blocks, removed=removed, free_neighbours=plan.free_neighbours)
+    shared = {} if submodels is None else submodels
+    key = (id(scene), id(system), plan.free_neighbours, tuple(ids), prm)  # as `prepare_fused` keys it
+    if key not in shared:
+        shared[key] = build_model(sub, prm)
+    return covers(shared[key]) is None
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -57,9 +82,12 @@ class Prepared:
 
 
 def prepare_fused(members, blocks: frozenset, *, settings: DdaSettings, params: Optional[Params] = None,
-                  removed: frozenset = frozenset()) -> Optional[Prepared]:
+                  removed: frozenset = frozenset(), submodels: Optional[dict] = None) -> Optional[Prepared]:
     """The batch of `judge_fused` up to its launch, in NumPy (no Taichi): the sub-models built
-    and settled, or None where the fused engine does not judge them (`judge_fused`)."""
+    and settled, or None where the fused engine does not judge them (`judge_fused`).
+    ``submodels``: a dict the caller keeps across the batches of one problem (a bisection's
+    rounds, whose scene and block system stay alive), in which each scene's sub-model is built
+    once; each member takes its own joints from it (`ddatai.model.Model.with_joints`)."""
     from ddatai.fused.pack import Member as Run
     from ddatai.fused.pack import covers
     from ddatai.fused.policy import choose_batch
@@ -79,13 +107,13 @@ def prepare_fused(members, blocks: frozenset, *, settings: DdaSettings, params: 
     if choose_batch(prm, member_steps=steps)[0] != "fused":
         return None
     start = time.perf_counter()
-    built, shared = [], {}
+    built, shared = [], ({} if submodels is None else submodels)
     for m, plan in zip(members, plans):
         sub, ids = sub_scene(m.scene, m.system, blocks, removed=removed, free_neighbours=plan.free_neighbours,
                              friction=m.friction, reduction=m.reduction)
         # the members of one scene share the sub-model's blocks: built once, each member with
         # its own joints (`ddatai.model.Model.with_joints`)
-        key = (id(m.scene), id(m.system), plan.free_neighbours, tuple(ids))
+        key = (id(m.scene), id(m.system), plan.free_neighbours, tuple(ids), prm)  # as `judged_apart` keys it
         model = shared[key].with_joints(sub.joints) if key in shared else shared.setdefault(key, build_model(sub, prm))
         if covers(model) is not None:
             return None
