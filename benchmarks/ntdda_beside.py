@@ -78,7 +78,9 @@ ANALYSIS = """<Analysis type="dynamic">
     <Poissonratio>0.25</Poissonratio> <Damping>0.0</Damping>
     <Istress>0 0 0</Istress> <Ivelocity>0 0 0</Ivelocity> <Istrain>0 0 0</Istrain>
   </Blockmaterial>
-  <Jointproperties type="1"> <Friction>30.0</Friction> <Cohesion>0.0</Cohesion> <Tensile>0.0</Tensile> </Jointproperties>
+  <Jointproperties type="1">
+    <Friction>30.0</Friction> <Cohesion>0.0</Cohesion> <Tensile>0.0</Tensile>
+  </Jointproperties>
 </Analysis>"""
 
 DDATAI = """
@@ -252,7 +254,8 @@ def table(results: dict) -> str:
                    and abs(n["penalty"] - d["penalty"]) < 1e-9 * n["penalty"] for n, d in zip(nt, dd_))
         lines.append(
             f"| {case} | {statistics.median(d['call_cpu_ms'] for d in dd_):.1f} | "
-            f"{statistics.median(d['marginal_cpu_ms'] for d in dd_):.4f} | {_spread(_ratios(rows, 'marginal_cpu_ms'))} | "
+            f"{statistics.median(d['marginal_cpu_ms'] for d in dd_):.4f} | "
+            f"{_spread(_ratios(rows, 'marginal_cpu_ms'))} | "
             f"{statistics.median(d['engine_cpu_ms'] for d in dd_):.4f} | {_spread(_ratios(rows, 'engine_cpu_ms'))} | "
             f"{_median(d['grid_scene_cpu_ms'] for d in dd_ if 'grid_scene_cpu_ms' in d)} "
             f"({max((d['grid_scene_solves'] for d in dd_ if 'grid_scene_solves' in d), default=math.nan):.2f}) | "

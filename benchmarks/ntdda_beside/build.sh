@@ -21,7 +21,8 @@ cmake -S "$src" -B "$out/ntdda" -DCMAKE_BUILD_TYPE=Release -DBUILD_TESTS=OFF \
   || { tail -20 "$out.cmake.log"; exit 1; }
 cmake --build "$out/ntdda" --target dda -j "${JOBS:-2}" >"$out.build.log" 2>&1 \
   || { tail -20 "$out.build.log"; exit 1; }
-$cc -O2 -fcommon -I"$src/include" -I"$src/src/platform/stubs" $(pkg-config --cflags libxml-2.0 2>/dev/null || echo -I/usr/include/libxml2) \
+xml_cflags=$(pkg-config --cflags libxml-2.0 2>/dev/null || echo -I/usr/include/libxml2)
+$cc -O2 -fcommon -I"$src/include" -I"$src/src/platform/stubs" $xml_cflags \
     -o "$out/step_timer" "$here/step_timer.c" "$out/ntdda/src/libdda.a" \
     -Wl,--wrap=display $(pkg-config --libs libxml-2.0 2>/dev/null || echo -lxml2) -lm
 echo "$out/step_timer"
