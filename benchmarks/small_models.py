@@ -11,7 +11,10 @@ Every figure is paired: the two paths alternate in fresh processes, ``--repeats`
    its equilibrium stage. "numpy": today's small-model path (`Params(kernels="numpy")`, dense
    LAPACK solves); "fused": the fused engine (`Params(kernels="fused")`, its kernel loaded before
    the timed run). ntdda's time on the same grids from its side-by-side run on a quiet machine
-   (docs/ntdda.md: 0.014 / 0.030 / 0.173 / 1.08 ms).
+   (docs/ntdda.md: 0.014 / 0.030 / 0.173 / 1.08 ms), or with ``--ntdda-driver PATH`` (ntdda's
+   step timer, `benchmarks/ntdda_beside/build.sh`) ntdda measured beside them: in each repeat,
+   ntdda's wall ms a step on the same grid written as DDAML files (`ntdda_beside.grid_files`:
+   ntdda's own model, whose base block is held by three fixed points), median over the repeats.
 2. The equilibrium stage of those models (NumPy, both paths).
 3. `kgm.evaluate(Example I, [0, 1], "dda")`: today's path (the judgements side by side in one
    NumPy model) against the fused engine (``kernels="fused"``), each in a fresh process: the
@@ -192,6 +195,18 @@ def run(code: str, timeout: int = 3600) -> str:
     return proc.stdout.strip().splitlines()[-1]
 
 
+def ntdda_wall_ms(driver: str, blocks: int, steps: int) -> float:
+    """ntdda's wall ms a step (mean of the steps after the tenth) on its grid of ``blocks``, in a
+    fresh process (`ntdda_beside`)."""
+    import tempfile
+
+    import ntdda_beside
+
+    with tempfile.TemporaryDirectory(prefix="small_models_ntdda_") as tmp:
+        geo, ana = ntdda_beside.grid_files(blocks, Path(tmp), steps)
+        return ntdda_beside.run_ntdda(driver, geo, ana)["mean_ms"]
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=3)
@@ -202,11 +217,15 @@ def main() -> None:
     ap.add_argument("--stage-ab", action="store_true",
                     help="the study on the fused engine, the stage as before its screen against today's")
     ap.add_argument("--stage-samples", type=int, default=60)
+    ap.add_argument("--ntdda-driver", default="", help="ntdda's step timer (benchmarks/ntdda_beside/build.sh): "
+                    "ntdda measured beside the runs instead of its recorded figures")
     a = ap.parse_args()
     skip = set(filter(None, a.skip.split(",")))
     print(f"machine: {platform.machine()} {platform.processor() or ''}, {os.cpu_count()} CPUs, Python "
           f"{platform.python_version()}; load {os.getloadavg()[0]:.1f}; medians of {a.repeats} fresh processes "
           f"a path, A/B interleaved\n")
+    if a.ntdda_driver:
+        print(f"ntdda: measured beside the runs ({a.ntdda_driver}, wall ms a step on its DDAML grid files)\n")
     root = str(ROOT)
     if "steps" not in skip:
         print("| model | free blocks | ntdda ms/step | NumPy path ms/step | fused ms/step | fused / ntdda | "
@@ -214,12 +233,16 @@ def main() -> None:
         print("|---|---|---|---|---|---|---|---|---|")
         for case in a.cases.split(","):
             got = {p: [] for p in ("numpy", "fused")}
+            beside = []
             for _ in range(a.repeats):
                 for path in got:
                     got[path].append(json.loads(run(STEP.format(root=root, case=case, path=path, steps=a.steps))))
+                if a.ntdda_driver and case != "example_1":
+                    beside.append(ntdda_wall_ms(a.ntdda_driver, int(case), a.steps))
             med = {p: statistics.median(r["ms"] for r in rows) for p, rows in got.items()}
             first = got["numpy"][0]
             nt = NTDDA_MS.get(first["blocks"]) if case != "example_1" else None
+            nt = round(statistics.median(beside), 4) if beside else nt
             name = "Example I (φ 14°)" if case == "example_1" else f"grid {case} (sudden start)"
             stage = statistics.median(r["stage_s"] for r in got["numpy"])
             ratio = f"{med['fused'] / nt:.2f}×" if nt else "–"

@@ -62,7 +62,7 @@ def run(model, state, recorder, *, duration: Optional[float], steps: Optional[in
         _, rows = session.take(0)
         if len(rows):
             rows["t_solve"] = wall / len(rows)
-            recorder.steps.extend(tuple(r) for r in rows)
+            recorder.step_rows(rows)
         _frames_into(recorder, model, session.frames(0))
         mi = session.arrays["mi"][0]
         if mi[L.MI_RAISED] and not warned:
