@@ -134,7 +134,8 @@ class Outcome:
 
 def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: float,
                     released: np.ndarray, size: np.ndarray, frame: "Optional[Frame]" = None,
-                    doubt: Optional[np.ndarray] = None, in_doubt: Optional[np.ndarray] = None):
+                    doubt: Optional[np.ndarray] = None, in_doubt: Optional[np.ndarray] = None,
+                    contraction: float = np.inf):
     """One pseudo-step (module docstring, 1.–3.): the return-mapping iteration (`_iterate`);
     blocks that move away in it, or that it leaves out of balance and that limit equilibrium
     then lets move (`limit_equilibrium.unsupported_blocks`; where that does not apply, those
@@ -145,8 +146,12 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
     `ddatai.turn_on`): the blocks that the open-close test would release where limit equilibrium
     holds every block are marked in it, in place, instead, and the pseudo-step ends stalled; else
     ``in_doubt`` marks those released as that test did not converge (`ddatai.in_doubt`).
-    Returns (D, or None when no equilibrium was found; solves; the newly released blocks; the
-    contacts as handed over, `_hand_over`; whether it stalled)."""
+    ``contraction`` (a pseudo-step at a settled geometry: the last pseudo-step's increment [m]):
+    where the iteration would release blocks, or gives up, while the blocks it holds move at
+    least this far, the pseudo-step does not contract (`_contracts`) and ends there, releasing
+    nothing. Returns (D, or None when no equilibrium was found; solves; the newly released
+    blocks; the contacts as handed over, `_hand_over`; whether it stalled; whether it did not
+    contract, D then None)."""
     out = released.copy()
     solves = 0
     guess = None
@@ -168,7 +173,7 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
                                 tail=NEWTON_AFTER if newton_now else None)
         solves += outcome.solves
         if outcome.disp is None:
-            return None, solves, out & ~released, contacts, False
+            return None, solves, out & ~released, contacts, False, False
         guess = _opened(raw.copy(), outcome.law)  # the contacts as handed over
         contacts.state[:] = np.where(guess.closed, contacts.state, OPEN)
         contacts.dn[:] = outcome.law.dn_now
@@ -179,7 +184,7 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
                 done, n = _finish(stepper, state, geom, frame, contacts, outcome, guess, out, size)
                 solves += n
                 if done is not None:
-                    return done[0], solves, out & ~released, done[1], False
+                    return done[0], solves, out & ~released, done[1], False, False
             guess = raw
             continue
         if not mechanism.any() and not outcome.converged:
@@ -215,11 +220,16 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
                         in_doubt |= mechanism
         if not mechanism.any():
             if not outcome.converged and not stalled:
-                return None, solves, out & ~released, contacts, False
+                diverging = not _contracts(stepper, state.vertex_xy, geom, outcome.disp, out, contraction)
+                return None, solves, out & ~released, contacts, False, diverging
             break
+        if not _contracts(stepper, state.vertex_xy, geom, outcome.disp, out | mechanism, contraction):
+            return None, solves, out & ~released, contacts, False, True
         out |= mechanism
     else:
-        return None, solves, out & ~released, contacts, False
+        diverging = outcome.disp is not None and \
+            not _contracts(stepper, state.vertex_xy, geom, outcome.disp, out, contraction)
+        return None, solves, out & ~released, contacts, False, diverging
     law = outcome.law
     ve = contacts.cint[:, KIND] == VE
     at_strength = guess.closed & ve & \
@@ -237,9 +247,26 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
         if done is not None:
             if doubt is not None:
                 doubt[:] = False  # an equilibrium that moves nothing away: no doubt left
-            return done[0], solves, out & ~released, done[1], False
+            return done[0], solves, out & ~released, done[1], False, False
     _hand_over(stepper, state.vertex_xy, contacts, outcome.law, guess)
-    return outcome.disp, solves, out & ~released, contacts, stalled
+    return outcome.disp, solves, out & ~released, contacts, stalled, False
+
+
+def _contracts(stepper, vertex_xy: np.ndarray, geom: dict, disp: np.ndarray, out: np.ndarray,
+               contraction: float) -> bool:
+    """Whether the blocks still held (free, not ``out``) move less than ``contraction`` [m] (the
+    last pseudo-step's increment) by ``disp``: the pseudo-steps, a fixed-point iteration on the
+    geometry, still contract. Where they do not (a grid past its buckling weight: each
+    increment at the settled geometry larger than the one before), what an iterate throws away
+    is that divergence, not a block the contacts cannot hold: at 80 × 80 blocks with E and the
+    penalty scaled to the 160 × 160 grid's settlement and penetration, the second pseudo-step's
+    first iterate moved blocks 50 m after the first pseudo-step's 3.0 m, and releasing them
+    released 6,392 of 6,400 blocks (docs/guide/equilibrium_start.md)."""
+    if not np.isfinite(contraction):
+        return True
+    held = ~stepper.model.block_fixed & ~out
+    moved = block_displacement(stepper.model, vertex_xy, geom, disp)
+    return float(np.max(moved[held], initial=0.0)) < contraction
 
 
 def _finish(stepper, state: State, geom: dict, frame: Frame, contacts: Contacts, outcome: "Outcome",

@@ -305,8 +305,16 @@ def _pseudo_steps(stepper, initial: State, state: State, released: np.ndarray, s
                 # the settled geometry holds: its contact forces balance every block (a second
                 # pseudo-step first, which takes the first one's linearisation error out)
                 break
-            disp, n, found, contacts, stalled = return_mapping(stepper, state, geom, contacts, dt, released,
-                                                                size, frame, doubt, in_doubt)
+            disp, n, found, contacts, stalled, diverging = return_mapping(
+                stepper, state, geom, contacts, dt, released, size, frame, doubt, in_doubt,
+                contraction=GEOMETRY_CONTRACTION * increment)
+            if diverging:
+                # the pseudo-step does not contract, and what it would release or where it gives
+                # up is that divergence (``return_mapping._contracts``): as below, the stage ends
+                # at the last pseudo-step's equilibrium, every block it held still held
+                solves += n
+                unsettled = True
+                break
         solves += n
         if disp is None:  # no equilibrium found
             return state, last, memory, solves, stalled, unsettled, True
