@@ -19,7 +19,7 @@ from scipy.sparse import csr_matrix
 
 from .assembly import BlockPattern, assemble_blocks, contact_vectors
 from .contact_law import stage_law
-from .contacts import Contacts
+from .contacts import Contacts, subset_contacts
 from .kinematics import block_displacement
 from .layout import KIND, LOCK, OPEN, SLIDE, VE
 from .model import State
@@ -28,15 +28,12 @@ from .open_close import solve
 from .reassembly import ContactSystem
 from .return_steps import anderson, line_search
 from .updates import Springs, block_rows
-from .mechanisms import MECHANISM_SIZE, anchored, loaded_away, mechanisms, test_unbalanced
+from .mechanisms import MECHANISM_SIZE, anchored, contracting, loaded_away, mechanisms, test_unbalanced
 
 #: Newmark's β of the stage's system: that of a first step (the stage's pseudo-steps have no
 #: acceleration history; `kinematics.newmark_beta`)
 STAGE_BETA = 0.5
 
-
-def subset_contacts(contacts: Contacts, keep: np.ndarray) -> Contacts:
-    return Contacts(**{k: v[keep] for k, v in vars(contacts).items()})
 
 #: at most this many return-mapping iterations in a pseudo-step before the blocks that are
 #: still out of balance are tested as mechanisms (`unbalanced`); most pseudo-steps need
@@ -146,12 +143,9 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
     `ddatai.turn_on`): the blocks that the open-close test would release where limit equilibrium
     holds every block are marked in it, in place, instead, and the pseudo-step ends stalled; else
     ``in_doubt`` marks those released as that test did not converge (`ddatai.in_doubt`).
-    ``contraction`` (a pseudo-step at a settled geometry: the last pseudo-step's increment [m]):
-    where the iteration would release blocks, or gives up, while the blocks it holds move at
-    least this far, the pseudo-step does not contract (`_contracts`) and ends there, releasing
-    nothing. Returns (D, or None when no equilibrium was found; solves; the newly released
-    blocks; the contacts as handed over, `_hand_over`; whether it stalled; whether it did not
-    contract, D then None)."""
+    ``contraction``: the last pseudo-step's increment [m] (`mechanisms.contracting`). Returns (D,
+    or None when no equilibrium was found; solves; the newly released blocks; the contacts as
+    handed over, `_hand_over`; whether it stalled; whether it stopped contracting)."""
     out = released.copy()
     solves = 0
     guess = None
@@ -218,18 +212,17 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
                     stalled = unsupported is not None and not mechanism.any()
                     if doubtful and in_doubt is not None:
                         in_doubt |= mechanism
-        if not mechanism.any():
-            if not outcome.converged and not stalled:
-                diverging = not _contracts(stepper, state.vertex_xy, geom, outcome.disp, out, contraction)
-                return None, solves, out & ~released, contacts, False, diverging
+        if not mechanism.any() and (outcome.converged or stalled):
             break
-        if not _contracts(stepper, state.vertex_xy, geom, outcome.disp, out | mechanism, contraction):
-            return None, solves, out & ~released, contacts, False, True
+        # no equilibrium, or blocks to release: where the held ones do not contract, the
+        # pseudo-step ends, releasing nothing (`mechanisms.contracting`)
+        diverging = not contracting(stepper, state.vertex_xy, geom, outcome.disp, out | mechanism, contraction)
+        if diverging or not mechanism.any():
+            return None, solves, out & ~released, contacts, False, diverging
         out |= mechanism
     else:
-        diverging = outcome.disp is not None and \
-            not _contracts(stepper, state.vertex_xy, geom, outcome.disp, out, contraction)
-        return None, solves, out & ~released, contacts, False, diverging
+        return None, solves, out & ~released, contacts, False, \
+            not contracting(stepper, state.vertex_xy, geom, outcome.disp, out, contraction)
     law = outcome.law
     ve = contacts.cint[:, KIND] == VE
     at_strength = guess.closed & ve & \
@@ -251,22 +244,6 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
     _hand_over(stepper, state.vertex_xy, contacts, outcome.law, guess)
     return outcome.disp, solves, out & ~released, contacts, stalled, False
 
-
-def _contracts(stepper, vertex_xy: np.ndarray, geom: dict, disp: np.ndarray, out: np.ndarray,
-               contraction: float) -> bool:
-    """Whether the blocks still held (free, not ``out``) move less than ``contraction`` [m] (the
-    last pseudo-step's increment) by ``disp``: the pseudo-steps, a fixed-point iteration on the
-    geometry, still contract. Where they do not (a grid past its buckling weight: each
-    increment at the settled geometry larger than the one before), what an iterate throws away
-    is that divergence, not a block the contacts cannot hold: at 80 × 80 blocks with E and the
-    penalty scaled to the 160 × 160 grid's settlement and penetration, the second pseudo-step's
-    first iterate moved blocks 50 m after the first pseudo-step's 3.0 m, and releasing them
-    released 6,392 of 6,400 blocks (docs/guide/equilibrium_start.md)."""
-    if not np.isfinite(contraction):
-        return True
-    held = ~stepper.model.block_fixed & ~out
-    moved = block_displacement(stepper.model, vertex_xy, geom, disp)
-    return float(np.max(moved[held], initial=0.0)) < contraction
 
 
 def _finish(stepper, state: State, geom: dict, frame: Frame, contacts: Contacts, outcome: "Outcome",
@@ -454,13 +431,6 @@ def _opened(guess: Guess, law) -> Guess:
     guess.closed = guess.closed & ~(guess.gap > 0.0)
     guess.gap = np.zeros_like(guess.gap)
     return guess
-
-
-def coupled(contacts: Contacts) -> Contacts:
-    """A copy whose friction follows the normal force of the solve it is evaluated at."""
-    c = contacts.copy()
-    c.coupled[:] = True
-    return c
 
 
 def _hand_over(stepper, vertex_xy: np.ndarray, contacts: Contacts, law, guess: Guess) -> None:

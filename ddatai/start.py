@@ -73,25 +73,26 @@ solve of the model under its weight, the point loads at t = 0 and its initial st
    without the stage), and the others are solved again from where they were. A held block that
    the stage settled into a released one (deeper than SUNK_FRACTION of the penetration limit)
    leant on it: it is released too and the stage is solved again from t = 0.
-5. The held blocks move by the solution (their elastic settlement), their stresses and contact
-   springs carry the equilibrium forces, and their velocities are the scene's initial ones:
-   each contact is handed over locked, its lock point moved by its slip, and a contact at its
-   strength starts locked at it with its bond intact. The stage repeats at the settled
-   geometry until the contact forces there balance every block (``balanced``), a fixed-point
-   iteration on the geometry: where an increment is as large as the one before (a tall, soft
-   stack whose load grows with its deflection faster than its stiffness, P-delta), it does not
-   converge and going on throws held blocks away, so the stage ends at the last pseudo-step's
-   equilibrium (``StartRecord.unsettled``) and the run's dynamics takes the deflection on.
-6. If no frictional equilibrium is found (a pseudo-step out of solves, or, with bolts or water,
-   out-of-balance blocks that the test does not move), the model starts from its *welded* equilibrium: the
-   same static solve with every touching contact held as it is (normal and shear springs, no
-   open-close judgement), repeated at the settled geometry until the increment is round-off;
-   blocks that move as mechanisms even so are released. Then each contact takes the joint law
-   at t = 0: one pulled beyond its tensile strength opens, one sheared beyond its Coulomb
-   strength is handed over locked at it (`StartRecord.at_strength`). The first steps release
-   only the difference between the welded and the real joint forces instead of the whole
-   weight (sudden gravity rings a stiff grid for its whole run and doubles the solves per
-   step; docs/method/dda.md §8.12). `StartRecord.welded` says that a run started so.
+5. The held blocks move by the solution (their elastic settlement), their stresses and contact springs
+   carry the equilibrium forces, and their velocities are the scene's initial ones: each contact is handed
+   over locked, its lock point moved by its slip, and a contact at its strength starts locked at it with
+   its bond intact. The stage repeats at the settled geometry until the contact forces there balance every
+   block (``balanced``), a fixed-point iteration on the geometry: where an increment is as large as the
+   one before (a tall, soft stack whose load grows with its deflection faster than its stiffness,
+   P-delta), it does not converge and going on throws held blocks away, so the stage ends at the last
+   pseudo-step's equilibrium (``StartRecord.unsettled``) and the run's dynamics takes the deflection on;
+   so does one whose held blocks move that far where it would release blocks or give up
+   (`mechanisms.contracting`: what a diverging geometry throws is not a mechanism).
+6. If no frictional equilibrium is found (a contracting pseudo-step out of solves, or, with bolts or
+   water, out-of-balance blocks that the test does not move), the model starts from its *welded*
+   equilibrium: the same static solve with every touching contact held as it is (normal and shear springs,
+   no open-close judgement), repeated at the settled geometry until the increment is round-off; blocks
+   that move as mechanisms even so are released. Then each contact takes the joint law at t = 0: one
+   pulled beyond its tensile strength opens, one sheared beyond its Coulomb strength is handed over locked
+   at it (`StartRecord.at_strength`). The first steps release only the difference between the welded and
+   the real joint forces instead of the whole weight (sudden gravity rings a stiff grid for its whole run
+   and doubles the solves per step; docs/method/dda.md §8.12). `StartRecord.welded` says that a run
+   started so.
 
 So a model that limit equilibrium calls stable moves no more than its elastic settlement, and
 one that it calls unstable starts failing at once: its released blocks start under sudden
@@ -107,16 +108,15 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-
-from .assembly import BlockPattern, assemble_blocks, assemble_contacts, contact_vectors, load_forces
+from .assembly import BlockPattern, assemble_blocks, assemble_contacts, contact_vectors
 from .contact_law import contact_law, friction_force, internal_force
-from .contacts import Contacts
+from .contacts import Contacts, coupled, subset_contacts
 from .kinematics import block_displacement, settle_points
 from .layout import E0, KIND, LOCK, OPEN, SLIDE, VE
 from .model import ContactMemory, State
 from .open_close import solve
-from .mechanisms import FALL_IN_SIZES, mechanisms, restore, sunk_into_released, unsupported_at_start
-from .return_mapping import STAGE_BETA, Frame, coupled, return_mapping, subset_contacts
+from .mechanisms import mechanisms, pseudo_time_step, restore, sunk_into_released, unsupported_at_start
+from .return_mapping import STAGE_BETA, Frame, return_mapping
 from .threads import dense_solves
 from .turn_on import feasible, turn_on
 from .in_doubt import watched
@@ -130,8 +130,7 @@ BALANCE_ROUNDOFF = 1e-12
 #: penetration limit is released too (``mechanisms.sunk_into_released``): ~1e-5·w0, far beyond a
 #: held block's elastic settlement towards a neighbour and far below an overlap that kicks
 SUNK_FRACTION = 0.01
-#: a pseudo-step whose increment is at least this fraction of the last one's does not contract:
-#: the stage ends at the last one's equilibrium (``_stage``)
+#: a pseudo-step whose increment is at least this fraction of the last one's does not contract
 GEOMETRY_CONTRACTION = 1.0
 
 
@@ -200,7 +199,7 @@ def settle(stepper, state: State, welded: bool = False, screen: bool = True) -> 
         factorised = stepper.solver.factorisations
         geom = model.block_geometry(state.vertex_xy)
         size = np.sqrt(geom["area"])
-        dt_static = _pseudo_time_step(stepper, geom, size)
+        dt_static = pseudo_time_step(stepper, geom, size)
         settled, record, converged = _stage(stepper, state, size, dt_static, t0, welded=welded, screen=screen,
                                             slow=not welded and model.params.start_turn_on and feasible(model))
         if not converged:
@@ -305,17 +304,12 @@ def _pseudo_steps(stepper, initial: State, state: State, released: np.ndarray, s
                 # the settled geometry holds: its contact forces balance every block (a second
                 # pseudo-step first, which takes the first one's linearisation error out)
                 break
-            disp, n, found, contacts, stalled, diverging = return_mapping(
+            disp, n, found, contacts, stalled, unsettled = return_mapping(
                 stepper, state, geom, contacts, dt, released, size, frame, doubt, in_doubt,
                 contraction=GEOMETRY_CONTRACTION * increment)
-            if diverging:
-                # the pseudo-step does not contract, and what it would release or where it gives
-                # up is that divergence (``return_mapping._contracts``): as below, the stage ends
-                # at the last pseudo-step's equilibrium, every block it held still held
-                solves += n
-                unsettled = True
-                break
         solves += n
+        if unsettled:
+            break  # it would throw what its divergence moves: the last equilibrium, as below
         if disp is None:  # no equilibrium found
             return state, last, memory, solves, stalled, unsettled, True
         if found.any():
@@ -381,18 +375,6 @@ def balanced(stepper, frame: Frame, contacts: Contacts, geom: dict, size: np.nda
     return bool(np.all(residual[:, :2] <= allowed[:, None]) and
                 np.all(residual[:, 2:] <= (allowed * size[rows])[:, None]))
 
-
-def _pseudo_time_step(stepper, geom, size) -> float:
-    """Δt over which free fall covers FALL_IN_SIZES median block sizes (module docstring, 2.)."""
-    model = stepper.model
-    accel = float(np.hypot(*model.gravity))
-    if len(model.load_block):
-        loads = load_forces(stepper.model, 0.0)
-        mass = model.block_density * geom["area"]
-        accel = max(accel, float(np.max(np.hypot(loads[:, 0], loads[:, 1]) / mass[model.load_block])))
-    if accel == 0.0:  # initial stresses only: any acceleration scale will do
-        accel = 1.0
-    return float(np.sqrt(2.0 * FALL_IN_SIZES * np.median(size[~model.block_fixed]) / accel))
 
 
 def _unweld(stepper, contacts: Contacts) -> None:
