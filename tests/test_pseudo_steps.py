@@ -80,3 +80,39 @@ def test_a_grid_past_its_buckling_weight_ends_unsettled_before_its_divergence_th
     assert record.held == model.n_free and record.released == 0
     # the stage ends at the first pseudo-step's equilibrium: its settlement is that increment
     assert len(increments) == 1 and record.settlement == pytest.approx(increments[0], rel=1e-9)
+
+
+def _first_pseudo_step(model, contraction: float):
+    """`return_mapping.return_mapping` on the model as given, as the stage's pseudo-steps call
+    it, with ``contraction`` as the last pseudo-step's increment [m]."""
+    from ddatai.contacts import Contacts
+    from ddatai.mechanisms import pseudo_time_step
+    from ddatai.model import ContactMemory
+    from ddatai.return_mapping import return_mapping
+
+    stepper = Stepper(model)
+    state = model.initial_state()
+    geom = model.block_geometry(state.vertex_xy)
+    size = np.sqrt(geom["area"])
+    cint, length = stepper.detect(state.vertex_xy, ContactMemory.empty())
+    contacts = Contacts.start(model, state.vertex_xy, cint, length, ContactMemory.empty(), True)
+    return return_mapping(stepper, state, geom, contacts, pseudo_time_step(stepper, geom, size),
+                          np.zeros(model.n_blocks, bool), size, contraction=contraction)
+
+
+def test_a_pseudo_step_whose_held_blocks_do_not_contract_releases_nothing():
+    """`tests.test_start.partly_failing_scene`: block A slides down its 30° plane (φ = 25°), B and
+    C hold, settling by microns. A pseudo-step whose held blocks move less than the last
+    increment (here 1 m) releases A, as the first pseudo-step does; one whose held blocks move
+    at least as far (here 1e-12 m: the pseudo-steps do not contract, `mechanisms.contracting`)
+    releases nothing and hands no equilibrium back: the stage then ends at the last
+    pseudo-step's (``unsettled``)."""
+    from tests.test_start import partly_failing_scene
+
+    scene, a, b, c = partly_failing_scene()
+    model = build_model(scene, dd.Params(dt=1e-3))
+    disp, _, found, _, _, diverging = _first_pseudo_step(model, contraction=1.0)
+    assert disp is not None and not diverging
+    assert found[a] and not found[b] and not found[c]
+    disp, _, found, _, _, diverging = _first_pseudo_step(model, contraction=1e-12)
+    assert disp is None and diverging and not found.any()
