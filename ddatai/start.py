@@ -304,9 +304,12 @@ def _pseudo_steps(stepper, initial: State, state: State, released: np.ndarray, s
                 # the settled geometry holds: its contact forces balance every block (a second
                 # pseudo-step first, which takes the first one's linearisation error out)
                 break
+            marked = None if in_doubt is None else in_doubt.copy()
             disp, n, found, contacts, stalled, unsettled = return_mapping(
                 stepper, state, geom, contacts, dt, released, size, frame, doubt, in_doubt,
                 contraction=GEOMETRY_CONTRACTION * increment)
+            if unsettled and marked is not None:
+                in_doubt[:] = marked  # it released nothing: nothing it marked is in doubt
         solves += n
         if unsettled:
             break  # it would throw what its divergence moves: the last equilibrium, as below
