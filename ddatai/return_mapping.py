@@ -245,7 +245,6 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
     return outcome.disp, solves, out & ~released, contacts, stalled, False
 
 
-
 def _finish(stepper, state: State, geom: dict, frame: Frame, contacts: Contacts, outcome: "Outcome",
             guess: Guess, out: np.ndarray, size: np.ndarray):
     """The open-close iteration of a static step from where `_iterate` stopped (`test_unbalanced`:

@@ -73,26 +73,27 @@ solve of the model under its weight, the point loads at t = 0 and its initial st
    without the stage), and the others are solved again from where they were. A held block that
    the stage settled into a released one (deeper than SUNK_FRACTION of the penetration limit)
    leant on it: it is released too and the stage is solved again from t = 0.
-5. The held blocks move by the solution (their elastic settlement), their stresses and contact springs
-   carry the equilibrium forces, and their velocities are the scene's initial ones: each contact is handed
-   over locked, its lock point moved by its slip, and a contact at its strength starts locked at it with
-   its bond intact. The stage repeats at the settled geometry until the contact forces there balance every
-   block (``balanced``), a fixed-point iteration on the geometry: where an increment is as large as the
-   one before (a tall, soft stack whose load grows with its deflection faster than its stiffness,
-   P-delta), it does not converge and going on throws held blocks away, so the stage ends at the last
-   pseudo-step's equilibrium (``StartRecord.unsettled``) and the run's dynamics takes the deflection on;
-   so does one whose held blocks move that far where it would release blocks or give up
+5. The held blocks move by the solution (their elastic settlement), their stresses and contact
+   springs carry the equilibrium forces, and their velocities are the scene's initial ones:
+   each contact is handed over locked, its lock point moved by its slip, and a contact at its
+   strength starts locked at it with its bond intact. The stage repeats at the settled
+   geometry until the contact forces there balance every block (``balanced``), a fixed-point
+   iteration on the geometry: where an increment is as large as the one before (a tall, soft
+   stack whose load grows with its deflection faster than its stiffness, P-delta), it does not
+   converge and going on throws held blocks away, so the stage ends at the last pseudo-step's
+   equilibrium (``StartRecord.unsettled``) and the run's dynamics takes the deflection on; so
+   does one whose held blocks move that far where it would release blocks or give up
    (`mechanisms.contracting`: what a diverging geometry throws is not a mechanism).
-6. If no frictional equilibrium is found (a contracting pseudo-step out of solves, or, with bolts or
-   water, out-of-balance blocks that the test does not move), the model starts from its *welded*
-   equilibrium: the same static solve with every touching contact held as it is (normal and shear springs,
-   no open-close judgement), repeated at the settled geometry until the increment is round-off; blocks
-   that move as mechanisms even so are released. Then each contact takes the joint law at t = 0: one
-   pulled beyond its tensile strength opens, one sheared beyond its Coulomb strength is handed over locked
-   at it (`StartRecord.at_strength`). The first steps release only the difference between the welded and
-   the real joint forces instead of the whole weight (sudden gravity rings a stiff grid for its whole run
-   and doubles the solves per step; docs/method/dda.md §8.12). `StartRecord.welded` says that a run
-   started so.
+6. If no frictional equilibrium is found (a contracting pseudo-step out of solves, or, with bolts or water,
+   out-of-balance blocks that the test does not move), the model starts from its *welded* equilibrium: the
+   same static solve with every touching contact held as it is (normal and shear springs, no
+   open-close judgement), repeated at the settled geometry until the increment is round-off;
+   blocks that move as mechanisms even so are released. Then each contact takes the joint law
+   at t = 0: one pulled beyond its tensile strength opens, one sheared beyond its Coulomb
+   strength is handed over locked at it (`StartRecord.at_strength`). The first steps release
+   only the difference between the welded and the real joint forces instead of the whole
+   weight (sudden gravity rings a stiff grid for its whole run and doubles the solves per
+   step; docs/method/dda.md §8.12). `StartRecord.welded` says that a run started so.
 
 So a model that limit equilibrium calls stable moves no more than its elastic settlement, and
 one that it calls unstable starts failing at once: its released blocks start under sudden
