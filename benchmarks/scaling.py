@@ -72,7 +72,8 @@ def run_one(family: str, size: int, steps: int, warmup: int, arch: str, solver: 
         state, rec = settle(stepper, state)
         start = dict(start_s=rec.wall_time, start_cpu_s=time.process_time() - cpu, start_solves=rec.solves, start_held=rec.held,
                      start_released=rec.released, start_factorisations=rec.factorisations,
-                     start_welded=bool(rec.welded))
+                     start_welded=bool(rec.welded), start_unsettled=bool(rec.unsettled),
+                     start_stalled=bool(rec.stalled))
     records, factorised, cpu = [], [], []
     for k in range(warmup + steps):
         cpu.append(time.process_time())

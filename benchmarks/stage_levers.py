@@ -68,12 +68,12 @@ def _members(n: int) -> list:
 
 def _levers() -> dict:
     """{name: (put the old code back, put the lever back)}."""
-    from ddatai import contact_law, return_mapping, start
+    from ddatai import contact_law, contacts as contact_sets, return_mapping, start
 
     dense_solves, stage_law = start.dense_solves, return_mapping.stage_law
 
     def whole_law(model, contacts, vec, sca, disp):
-        return contact_law.contact_law(model, return_mapping.coupled(contacts), vec, sca, disp)
+        return contact_law.contact_law(model, contact_sets.coupled(contacts), vec, sca, disp)
 
     def old_blas():
         start.dense_solves = lambda solver: contextlib.nullcontext()

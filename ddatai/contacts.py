@@ -390,3 +390,15 @@ def edge_projection(xy: np.ndarray, vnext: np.ndarray, vertex: np.ndarray, edge:
     p2 = xy[vnext[edge]]
     d = xy[edge] - p2
     return ((xy[vertex] - p2) * d).sum(axis=1) / (d * d).sum(axis=1)
+
+
+def subset_contacts(contacts: Contacts, keep: np.ndarray) -> Contacts:
+    """The contacts where ``keep``."""
+    return Contacts(**{k: v[keep] for k, v in vars(contacts).items()})
+
+
+def coupled(contacts: Contacts) -> Contacts:
+    """A copy whose friction follows the normal force of the solve it is evaluated at."""
+    c = contacts.copy()
+    c.coupled[:] = True
+    return c

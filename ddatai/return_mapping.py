@@ -19,7 +19,7 @@ from scipy.sparse import csr_matrix
 
 from .assembly import BlockPattern, assemble_blocks, contact_vectors
 from .contact_law import stage_law
-from .contacts import Contacts
+from .contacts import Contacts, subset_contacts
 from .kinematics import block_displacement
 from .layout import KIND, LOCK, OPEN, SLIDE, VE
 from .model import State
@@ -28,15 +28,12 @@ from .open_close import solve
 from .reassembly import ContactSystem
 from .return_steps import anderson, line_search
 from .updates import Springs, block_rows
-from .mechanisms import MECHANISM_SIZE, anchored, loaded_away, mechanisms, test_unbalanced
+from .mechanisms import MECHANISM_SIZE, anchored, contracting, loaded_away, mechanisms, test_unbalanced
 
 #: Newmark's β of the stage's system: that of a first step (the stage's pseudo-steps have no
 #: acceleration history; `kinematics.newmark_beta`)
 STAGE_BETA = 0.5
 
-
-def subset_contacts(contacts: Contacts, keep: np.ndarray) -> Contacts:
-    return Contacts(**{k: v[keep] for k, v in vars(contacts).items()})
 
 #: at most this many return-mapping iterations in a pseudo-step before the blocks that are
 #: still out of balance are tested as mechanisms (`unbalanced`); most pseudo-steps need
@@ -134,7 +131,8 @@ class Outcome:
 
 def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: float,
                     released: np.ndarray, size: np.ndarray, frame: "Optional[Frame]" = None,
-                    doubt: Optional[np.ndarray] = None, in_doubt: Optional[np.ndarray] = None):
+                    doubt: Optional[np.ndarray] = None, in_doubt: Optional[np.ndarray] = None,
+                    contraction: float = np.inf):
     """One pseudo-step (module docstring, 1.–3.): the return-mapping iteration (`_iterate`);
     blocks that move away in it, or that it leaves out of balance and that limit equilibrium
     then lets move (`limit_equilibrium.unsupported_blocks`; where that does not apply, those
@@ -145,8 +143,9 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
     `ddatai.turn_on`): the blocks that the open-close test would release where limit equilibrium
     holds every block are marked in it, in place, instead, and the pseudo-step ends stalled; else
     ``in_doubt`` marks those released as that test did not converge (`ddatai.in_doubt`).
-    Returns (D, or None when no equilibrium was found; solves; the newly released blocks; the
-    contacts as handed over, `_hand_over`; whether it stalled)."""
+    ``contraction``: the last pseudo-step's increment [m] (`mechanisms.contracting`). Returns (D,
+    or None when no equilibrium was found; solves; the newly released blocks; the contacts as
+    handed over, `_hand_over`; whether it stalled; whether it stopped contracting)."""
     out = released.copy()
     solves = 0
     guess = None
@@ -168,7 +167,7 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
                                 tail=NEWTON_AFTER if newton_now else None)
         solves += outcome.solves
         if outcome.disp is None:
-            return None, solves, out & ~released, contacts, False
+            return None, solves, out & ~released, contacts, False, False
         guess = _opened(raw.copy(), outcome.law)  # the contacts as handed over
         contacts.state[:] = np.where(guess.closed, contacts.state, OPEN)
         contacts.dn[:] = outcome.law.dn_now
@@ -179,7 +178,7 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
                 done, n = _finish(stepper, state, geom, frame, contacts, outcome, guess, out, size)
                 solves += n
                 if done is not None:
-                    return done[0], solves, out & ~released, done[1], False
+                    return done[0], solves, out & ~released, done[1], False, False
             guess = raw
             continue
         if not mechanism.any() and not outcome.converged:
@@ -213,13 +212,17 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
                     stalled = unsupported is not None and not mechanism.any()
                     if doubtful and in_doubt is not None:
                         in_doubt |= mechanism
-        if not mechanism.any():
-            if not outcome.converged and not stalled:
-                return None, solves, out & ~released, contacts, False
+        if not mechanism.any() and (outcome.converged or stalled):
             break
+        # no equilibrium, or blocks to release: where the held ones do not contract, the
+        # pseudo-step ends, releasing nothing (`mechanisms.contracting`)
+        diverging = not contracting(stepper, state.vertex_xy, geom, outcome.disp, out | mechanism, contraction)
+        if diverging or not mechanism.any():
+            return None, solves, out & ~released, contacts, False, diverging
         out |= mechanism
     else:
-        return None, solves, out & ~released, contacts, False
+        return None, solves, out & ~released, contacts, False, \
+            not contracting(stepper, state.vertex_xy, geom, outcome.disp, out, contraction)
     law = outcome.law
     ve = contacts.cint[:, KIND] == VE
     at_strength = guess.closed & ve & \
@@ -237,9 +240,9 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
         if done is not None:
             if doubt is not None:
                 doubt[:] = False  # an equilibrium that moves nothing away: no doubt left
-            return done[0], solves, out & ~released, done[1], False
+            return done[0], solves, out & ~released, done[1], False, False
     _hand_over(stepper, state.vertex_xy, contacts, outcome.law, guess)
-    return outcome.disp, solves, out & ~released, contacts, stalled
+    return outcome.disp, solves, out & ~released, contacts, stalled, False
 
 
 def _finish(stepper, state: State, geom: dict, frame: Frame, contacts: Contacts, outcome: "Outcome",
@@ -427,13 +430,6 @@ def _opened(guess: Guess, law) -> Guess:
     guess.closed = guess.closed & ~(guess.gap > 0.0)
     guess.gap = np.zeros_like(guess.gap)
     return guess
-
-
-def coupled(contacts: Contacts) -> Contacts:
-    """A copy whose friction follows the normal force of the solve it is evaluated at."""
-    c = contacts.copy()
-    c.coupled[:] = True
-    return c
 
 
 def _hand_over(stepper, vertex_xy: np.ndarray, contacts: Contacts, law, guess: Guess) -> None:

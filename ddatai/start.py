@@ -81,8 +81,10 @@ solve of the model under its weight, the point loads at t = 0 and its initial st
    iteration on the geometry: where an increment is as large as the one before (a tall, soft
    stack whose load grows with its deflection faster than its stiffness, P-delta), it does not
    converge and going on throws held blocks away, so the stage ends at the last pseudo-step's
-   equilibrium (``StartRecord.unsettled``) and the run's dynamics takes the deflection on.
-6. If no frictional equilibrium is found (a pseudo-step out of solves, or, with bolts or water,
+   equilibrium (``StartRecord.unsettled``) and the run's dynamics takes the deflection on; so
+   does one whose held blocks move that far where it would release blocks or give up
+   (`mechanisms.contracting`: what a diverging geometry throws is not a mechanism).
+6. If no frictional equilibrium is found (a contracting pseudo-step out of solves, or, with bolts or water,
    out-of-balance blocks that the test does not move), the model starts from its *welded* equilibrium: the
    same static solve with every touching contact held as it is (normal and shear springs, no
    open-close judgement), repeated at the settled geometry until the increment is round-off;
@@ -107,16 +109,15 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-
-from .assembly import BlockPattern, assemble_blocks, assemble_contacts, contact_vectors, load_forces
+from .assembly import BlockPattern, assemble_blocks, assemble_contacts, contact_vectors
 from .contact_law import contact_law, friction_force, internal_force
-from .contacts import Contacts
+from .contacts import Contacts, coupled, subset_contacts
 from .kinematics import block_displacement, settle_points
 from .layout import E0, KIND, LOCK, OPEN, SLIDE, VE
 from .model import ContactMemory, State
 from .open_close import solve
-from .mechanisms import FALL_IN_SIZES, mechanisms, restore, sunk_into_released, unsupported_at_start
-from .return_mapping import STAGE_BETA, Frame, coupled, return_mapping, subset_contacts
+from .mechanisms import mechanisms, pseudo_time_step, restore, sunk_into_released, unsupported_at_start
+from .return_mapping import STAGE_BETA, Frame, return_mapping
 from .threads import dense_solves
 from .turn_on import feasible, turn_on
 from .in_doubt import watched
@@ -130,8 +131,7 @@ BALANCE_ROUNDOFF = 1e-12
 #: penetration limit is released too (``mechanisms.sunk_into_released``): ~1e-5·w0, far beyond a
 #: held block's elastic settlement towards a neighbour and far below an overlap that kicks
 SUNK_FRACTION = 0.01
-#: a pseudo-step whose increment is at least this fraction of the last one's does not contract:
-#: the stage ends at the last one's equilibrium (``_stage``)
+#: a pseudo-step whose increment is at least this fraction of the last one's does not contract
 GEOMETRY_CONTRACTION = 1.0
 
 
@@ -200,7 +200,7 @@ def settle(stepper, state: State, welded: bool = False, screen: bool = True) -> 
         factorised = stepper.solver.factorisations
         geom = model.block_geometry(state.vertex_xy)
         size = np.sqrt(geom["area"])
-        dt_static = _pseudo_time_step(stepper, geom, size)
+        dt_static = pseudo_time_step(stepper, geom, size)
         settled, record, converged = _stage(stepper, state, size, dt_static, t0, welded=welded, screen=screen,
                                             slow=not welded and model.params.start_turn_on and feasible(model))
         if not converged:
@@ -305,9 +305,15 @@ def _pseudo_steps(stepper, initial: State, state: State, released: np.ndarray, s
                 # the settled geometry holds: its contact forces balance every block (a second
                 # pseudo-step first, which takes the first one's linearisation error out)
                 break
-            disp, n, found, contacts, stalled = return_mapping(stepper, state, geom, contacts, dt, released,
-                                                                size, frame, doubt, in_doubt)
+            marked = None if in_doubt is None else in_doubt.copy()
+            disp, n, found, contacts, stalled, unsettled = return_mapping(
+                stepper, state, geom, contacts, dt, released, size, frame, doubt, in_doubt,
+                contraction=GEOMETRY_CONTRACTION * increment)
+            if unsettled and marked is not None:
+                in_doubt[:] = marked  # it released nothing: nothing it marked is in doubt
         solves += n
+        if unsettled:
+            break  # it would throw what its divergence moves: the last equilibrium, as below
         if disp is None:  # no equilibrium found
             return state, last, memory, solves, stalled, unsettled, True
         if found.any():
@@ -373,18 +379,6 @@ def balanced(stepper, frame: Frame, contacts: Contacts, geom: dict, size: np.nda
     return bool(np.all(residual[:, :2] <= allowed[:, None]) and
                 np.all(residual[:, 2:] <= (allowed * size[rows])[:, None]))
 
-
-def _pseudo_time_step(stepper, geom, size) -> float:
-    """Δt over which free fall covers FALL_IN_SIZES median block sizes (module docstring, 2.)."""
-    model = stepper.model
-    accel = float(np.hypot(*model.gravity))
-    if len(model.load_block):
-        loads = load_forces(stepper.model, 0.0)
-        mass = model.block_density * geom["area"]
-        accel = max(accel, float(np.max(np.hypot(loads[:, 0], loads[:, 1]) / mass[model.load_block])))
-    if accel == 0.0:  # initial stresses only: any acceleration scale will do
-        accel = 1.0
-    return float(np.sqrt(2.0 * FALL_IN_SIZES * np.median(size[~model.block_fixed]) / accel))
 
 
 def _unweld(stepper, contacts: Contacts) -> None:
