@@ -143,7 +143,7 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
     `ddatai.turn_on`): the blocks that the open-close test would release where limit equilibrium
     holds every block are marked in it, in place, instead, and the pseudo-step ends stalled; else
     ``in_doubt`` marks those released as that test did not converge (`ddatai.in_doubt`).
-    ``contraction``: the last pseudo-step's increment [m] (`mechanisms.contracting`). Returns (D,
+    ``contraction``: the last pseudo-step's increment [m] (``ddatai.mechanisms.contracting``). Returns (D,
     or None when no equilibrium was found; solves; the newly released blocks; the contacts as
     handed over, `_hand_over`; whether it stalled; whether it stopped contracting)."""
     out = released.copy()

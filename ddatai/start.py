@@ -83,7 +83,7 @@ solve of the model under its weight, the point loads at t = 0 and its initial st
    converge and going on throws held blocks away, so the stage ends at the last pseudo-step's
    equilibrium (``StartRecord.unsettled``) and the run's dynamics takes the deflection on; so
    does one whose held blocks move that far where it would release blocks or give up
-   (`mechanisms.contracting`: what a diverging geometry throws is not a mechanism).
+   (``ddatai.mechanisms.contracting``: what a diverging geometry throws is not a mechanism).
 6. If no frictional equilibrium is found (a contracting pseudo-step out of solves, or, with bolts or water,
    out-of-balance blocks that the test does not move), the model starts from its *welded* equilibrium: the
    same static solve with every touching contact held as it is (normal and shear springs, no
