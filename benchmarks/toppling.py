@@ -33,8 +33,11 @@ daylighting (stable at 0.773, unstable at 0.784; 7 runs, 9 s; with --fs-toleranc
 15 s): the bench holds the toe (docs/kgm/method.md §4.5). With the batched K-section (the default
 since, 16 probes a run; a loaded 2-core Intel Xeon): φc = 38.27° (42 s), FS 0.779 (0.773 –
 0.785, 12 s) and, with the bench, 1.024: DDA's verdicts alternate between F = 1.004 and 1.049
-there (the printed bracket turns over; docs/kgm/method.md §6.4). A benchmark, not a test: the
-DDA searches take about a minute.
+there (the printed bracket turns over; docs/kgm/method.md §6.4). Again on 2026-11-29 (main, the
+closing round's fewest probes; 2-core AMD EPYC, load ~2): FS 0.766 (0.759 – 0.773, 16 runs, 19 s)
+with the base plane daylighting, and with the bench 0.957 (stable at 1.000, unstable at 0.916:
+turned over; 8 runs, 6 s). The daylighting FS is held within 4 % of the recursion's 0.7734 by
+`tests/test_kgm_toppling.py::test_published_case_alejano_alonso_by_dda_with_the_toe_free` (slow).
 """
 
 import argparse

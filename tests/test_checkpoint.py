@@ -117,7 +117,11 @@ def test_command_line_ctrl_c_saves_and_resume_finishes(tmp_path):
     root = Path(__file__).resolve().parents[1]
     cmd = [sys.executable, "-m", "ddatai.cli", "run", "scenes/sliding_block.py", "--steps", "3000",
            "--every", "10", "--checkpoint-every", "20", "--out", str(tmp_path), "--quiet"]
-    proc = subprocess.Popen(cmd, cwd=root, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # SIGINT as a terminal sends it, even where pytest runs as a background job of a shell without
+    # job control (which starts it, and so this child, with SIGINT ignored: then Python installs
+    # no KeyboardInterrupt handler and the run would finish as if never interrupted)
+    proc = subprocess.Popen(cmd, cwd=root, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     checkpoint = tmp_path / "sliding_block.checkpoint.npz"
     deadline = time.monotonic() + 120
     while not checkpoint.exists() and proc.poll() is None and time.monotonic() < deadline:
