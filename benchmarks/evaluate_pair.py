@@ -34,26 +34,28 @@ for _k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def worker(root: str) -> None:
-    """Answer "call" lines on stdin with one JSON line each (a warm call's time and decisions)."""
-    sys.path.insert(0, root)
+def state_digest(state) -> str:
+    """A settled state's fingerprint: vertices, velocities and contact memory, to the bit."""
     import hashlib
 
     import numpy as np
 
+    h = hashlib.sha256(state.vertex_xy.tobytes())
+    h.update(state.block_velocity.tobytes())
+    for _, v in sorted(vars(state.memory).items()):
+        if isinstance(v, np.ndarray):
+            h.update(v.tobytes())
+    return h.hexdigest()[:16]
+
+
+def worker(root: str) -> None:
+    """Answer "call" lines on stdin with one JSON line each (a warm call's time and decisions)."""
+    sys.path.insert(0, root)
     import kgm
     import kgm.judges.dda as dda_module
     import ddatai.start as start
     from ddatai.fused import warm
     from scenes import example_1
-
-    def digest(state) -> str:
-        h = hashlib.sha256(state.vertex_xy.tobytes())
-        h.update(state.block_velocity.tobytes())
-        for _, v in sorted(vars(state.memory).items()):
-            if isinstance(v, np.ndarray):
-                h.update(v.tobytes())
-        return h.hexdigest()[:16]
 
     stages, probes = [], []
     settle, judge_many = start.settle, dda_module.judge_many
@@ -63,7 +65,7 @@ def worker(root: str) -> None:
         stages.append(None)
         out = settle(stepper, state, *a, **k)
         s, rec = out
-        stages[slot] = [digest(s), int(rec.held), int(rec.released), int(rec.solves)]
+        stages[slot] = [state_digest(s), int(rec.held), int(rec.released), int(rec.solves)]
         return out
 
     def judge_many_logged(scene, system, blocks, todo, **k):

@@ -27,6 +27,8 @@ for _k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "TI_CPU
     os.environ.setdefault(_k, "1")
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from evaluate_pair import state_digest  # noqa: E402
 
 
 def judged(root: str, rounds) -> dict:
@@ -34,23 +36,12 @@ def judged(root: str, rounds) -> dict:
     the evaluation and take its rounds) judged by its ``judge_many``, each probe's figures."""
     sys.path.insert(0, root)
     import dataclasses
-    import hashlib
-
-    import numpy as np
 
     import kgm
     import kgm.judges.dda as dda_module
     import ddatai.start as start
     from kgm.build import prepare
     from scenes import example_1
-
-    def digest(state) -> str:
-        h = hashlib.sha256(state.vertex_xy.tobytes())
-        h.update(state.block_velocity.tobytes())
-        for _, v in sorted(vars(state.memory).items()):
-            if isinstance(v, np.ndarray):
-                h.update(v.tobytes())
-        return h.hexdigest()[:16]
 
     stages, asked = [], []
     settle, judge_many = start.settle, dda_module.judge_many
@@ -59,7 +50,7 @@ def judged(root: str, rounds) -> dict:
         slot = len(stages)
         stages.append(None)
         s, rec = out = settle(stepper, state, *a, **k)
-        stages[slot] = [digest(s), int(rec.held), int(rec.released), int(rec.solves)]
+        stages[slot] = [state_digest(s), int(rec.held), int(rec.released), int(rec.solves)]
         return out
 
     def judge_many_logged(scene, system, blocks, todo, **k):
