@@ -22,7 +22,8 @@ DENSITY, YOUNG = 2000.0, 1e8
 CRITICAL_HEIGHT = 1.986 * (YOUNG * WIDTH ** 2 / 12.0 / (DENSITY * 9.81)) ** (1.0 / 3.0)
 
 
-def _increments(monkeypatch, height: int) -> tuple[list, object]:
+def _settled_with_increments(monkeypatch, model) -> tuple[list, object]:
+    """The stage of ``model`` and its pseudo-steps' increments (each one's largest block move) [m]."""
     increments = []
     measure = start.block_displacement
 
@@ -32,10 +33,13 @@ def _increments(monkeypatch, height: int) -> tuple[list, object]:
         return out
 
     monkeypatch.setattr(start, "block_displacement", logged)
-    scene, params = soft_stack(int(WIDTH), height)
-    model = build_model(scene, params)
     _, record = start.settle(Stepper(model), model.initial_state())
     return increments, record
+
+
+def _increments(monkeypatch, height: int) -> tuple[list, object]:
+    scene, params = soft_stack(int(WIDTH), height)
+    return _settled_with_increments(monkeypatch, build_model(scene, params))
 
 
 @pytest.mark.parametrize("height", [40, 64])
@@ -60,22 +64,13 @@ def test_a_grid_past_its_buckling_weight_ends_unsettled_before_its_divergence_th
     moves the held blocks 2.0 m and throws the two base-corner blocks, whose contacts there sink
     beyond the penetration limit, and releasing them released 1,597 of the 1,600 blocks. A
     pseudo-step that would release blocks while its held blocks move at least as far as the last
-    increment does not contract (`return_mapping._contracts`): the stage ends at the first
+    increment does not contract (``ddatai.mechanisms.contracting``): the stage ends at the first
     pseudo-step's equilibrium, every block held (``unsettled``), as where nothing is thrown.
     ~10 s (the stage: 126 solves)."""
     soft = dd.Material(density=DENSITY, young=YOUNG / 4.0, poisson=0.25)
     model = build_model(stacked_grid(40, 40, soft), dd.Params(dt=1e-3, penalty=1e9 / 16.0, plane="stress"))
-    increments = []
-    measure = start.block_displacement
-
-    def logged(model, xy, geom, disp):
-        out = measure(model, xy, geom, disp)
-        increments.append(float(out.max(initial=0.0)))
-        return out
-
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(start, "block_displacement", logged)
-        _, record = start.settle(Stepper(model), model.initial_state())
+        increments, record = _settled_with_increments(patch, model)
     assert record.unsettled and not record.welded
     assert record.held == model.n_free and record.released == 0
     # the stage ends at the first pseudo-step's equilibrium: its settlement is that increment
