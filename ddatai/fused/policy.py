@@ -29,9 +29,10 @@ FUSED_BLOCKS = 196
 #: the fused kernel's first compile on this project's 2-core CI machine [s] (README, "Performance")
 COMPILE_SECONDS = 240.0
 #: what a process pays to take the compiled kernel from Taichi's offline cache [s]: Taichi turns
-#: the kernel's Python into its IR again (the cache's key) and LLVM makes machine code of the
-#: cached module (README, "Performance")
-LOAD_SECONDS = 6.0
+#: the kernel's Python into its IR again (the cache's key, ~1.5 s) and LLVM optimises and makes
+#: machine code of the cached module (~7.4 s); 10.0–10.2 s CPU a process at load 1.5–2.5, 12–13
+#: at load 4–5 (benchmarks/fused_load.py, benchmarks/results/fused_load.md)
+LOAD_SECONDS = 10.0
 #: what a step of a single simulation of at most ``FUSED_BLOCKS`` free blocks saves on the fused
 #: engine against today's path, at least [s] (benchmarks/results/fused_threshold.md, CPU: 7–50 ms
 #: a step at 36–144 blocks, 1.5–10 ms at 196; benchmarks/small_models.py: ~1–3 ms at 1–16 blocks)
@@ -41,7 +42,7 @@ STEP_SAVING = 1.0e-3
 #: (benchmarks/results/fused_threshold.md: 12.9–21.7 ms on ntdda's grid of 36–64 blocks, 48.5 at
 #: 100, 8.6 at 144; 6.7–13.9 on the jointed slope of 41–146), rounded down; outside that band
 #: (and above 144 blocks: 1.5 ms at 196) ``STEP_SAVING``. A run loading the kernel from the
-#: cache then pays from ``LOAD_SECONDS`` / 5 ms = 1,200 steps, not 6,000
+#: cache then pays from ``LOAD_SECONDS`` / 5 ms = 2,000 steps, not 10,000
 MID_STEP_SAVING = 5.0e-3
 MID_BLOCKS = (36, 144)
 #: what a member-step of a batch of judgements saves on the fused engine against today's
