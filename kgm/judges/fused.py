@@ -50,17 +50,26 @@ def judged_apart(scene, system, blocks: frozenset, plan: RunPlan, *, removed: fr
     (`prepare_fused`'s), where the batches take it."""
     from ddatai.fused.pack import covers
     from ddatai.fused.policy import choose_batch
-    from ddatai.model import build_model
 
     prm = plan.params
     if choose_batch(prm, member_steps=plan.duration / (prm.dt if prm.dt is not None else prm.dt_max))[0] != "fused":
         return False
     sub, ids = sub_scene(scene, system, blocks, removed=removed, free_neighbours=plan.free_neighbours)
-    shared = {} if submodels is None else submodels
-    key = (id(scene), id(system), plan.free_neighbours, tuple(ids), prm)  # as `prepare_fused` keys it
-    if key not in shared:
-        shared[key] = build_model(sub, prm)
-    return covers(shared[key]) is None
+    model, _ = _submodel({} if submodels is None else submodels, scene, system, plan, sub, ids, prm)
+    return covers(model) is None
+
+
+def _submodel(shared: dict, scene, system, plan: RunPlan, sub, ids, prm) -> tuple:
+    """(the model of the sub-scene ``sub`` of ``scene``'s group under ``prm``, whether it was
+    built now): built once a problem into ``shared``, keyed by the scene, its block system, the
+    plan's free neighbours and the sub-model's blocks."""
+    from ddatai.model import build_model
+
+    key = (id(scene), id(system), plan.free_neighbours, tuple(ids), prm)
+    if key in shared:
+        return shared[key], False
+    shared[key] = build_model(sub, prm)
+    return shared[key], True
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -91,7 +100,6 @@ def prepare_fused(members, blocks: frozenset, *, settings: DdaSettings, params: 
     from ddatai.fused.pack import Member as Run
     from ddatai.fused.pack import covers
     from ddatai.fused.policy import choose_batch
-    from ddatai.model import build_model
 
     if not members:
         return Prepared(runs=[], plans=[], fields=[], seconds=0.0)
@@ -113,8 +121,8 @@ def prepare_fused(members, blocks: frozenset, *, settings: DdaSettings, params: 
                              friction=m.friction, reduction=m.reduction)
         # the members of one scene share the sub-model's blocks: built once, each member with
         # its own joints (`ddatai.model.Model.with_joints`)
-        key = (id(m.scene), id(m.system), plan.free_neighbours, tuple(ids), prm)  # as `judged_apart` keys it
-        model = shared[key].with_joints(sub.joints) if key in shared else shared.setdefault(key, build_model(sub, prm))
+        model, fresh = _submodel(shared, m.scene, m.system, plan, sub, ids, prm)
+        model = model if fresh else model.with_joints(sub.joints)
         if covers(model) is not None:
             return None
         built.append((sub, ids, model))
