@@ -13,8 +13,8 @@ linear rotation) is written as a DDAML geometry and analysis file pair (`grid_fi
 of fresh processes runs, on those very files:
 
 - ntdda: our driver (`benchmarks/ntdda_beside/step_timer.c`, linked to ntdda's own library)
-  runs ntdda's analysis for ``--steps`` steps from its sudden start (it has no equilibrium
-  stage: the files say no gravity turn-on); a step's CPU time is the mean over the steps after
+  runs ntdda's analysis for ``--steps`` steps from its sudden start, whichever ddatai's start
+  (the files leave ntdda's optional gravity turn-on off); a step's CPU time is the mean over the steps after
   the tenth (step 1 also writes K to a file), its wall time the median and the mean over the
   same steps;
 - ddatai, from each ``--start`` (`start_params`): `dd.read_ntdda` reads the files and
