@@ -103,3 +103,24 @@ def test_a_batch_shares_its_sub_model_across_samples_of_one_geometry():
         sub, _ = sub_scene(m.scene, m.system, GROUP, free_neighbours=plan.free_neighbours)
         _assert_same(model, build_model(sub, plan.params))  # each with its own joints, to the bit
     assert models[0].joint_friction[0] == 22.0 and models[1].joint_friction[0] == 19.0
+
+
+def test_a_screen_matrix_built_again_is_a_copy_of_the_same():
+    """The limit-equilibrium matrix of one geometry, kept for the next member's screen
+    (``ddatai.limit_equilibrium._kept_matrix``), is the one built afresh, handed out as a copy."""
+    from ddatai import limit_equilibrium as le
+
+    rng = np.random.default_rng(3)
+    m, nb = 6, 3
+    args = (np.arange(m), rng.integers(0, nb, m), rng.integers(0, nb, m), rng.random((m, 2)), rng.random((m, 2)),
+            rng.random((m, 2)), rng.random((nb, 2)), np.array([0, 1, -1]), 6, rng.random(6) + 0.5)
+    le._MATRICES.clear()
+    first = le._kept_matrix(*args)
+    first.data[:] = np.nan  # a caller's change does not reach the next caller
+    again = le._kept_matrix(*args)
+    fresh = le._equilibrium_matrix(*args)
+    assert len(le._MATRICES) == 1
+    for f in ("data", "indices", "indptr"):
+        assert _same(getattr(again, f), getattr(fresh, f))
+    other = le._kept_matrix(*args[:-1], args[-1] * 2.0)
+    assert len(le._MATRICES) == 2 and not _same(other.data, fresh.data)
