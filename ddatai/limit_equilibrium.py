@@ -30,6 +30,7 @@ None and the stage keeps its open-close test (``ddatai.mechanisms.test_unbalance
 
 from __future__ import annotations
 
+import threading
 from typing import Optional
 
 import numpy as np
@@ -172,18 +173,21 @@ def unsupported_programs(model, vertex_xy: np.ndarray, geom: dict, contacts: Con
 #: the same matrix (`_kept_matrix`)
 _MATRICES: dict = {}
 _MATRICES_KEPT = 8
+_MATRICES_LOCK = threading.Lock()  # a study's threaded workers
 
 
 def _kept_matrix(*args):
     """`_equilibrium_matrix`, or a copy of the one built lately from the same data (the same
     bytes in: the same matrix out)."""
     key = tuple((v.dtype.str, v.shape, v.tobytes()) if isinstance(v, np.ndarray) else v for v in args)
-    kept = _MATRICES.get(key)
+    with _MATRICES_LOCK:
+        kept = _MATRICES.get(key)
     if kept is None:
         kept = _equilibrium_matrix(*args)
-        if len(_MATRICES) >= _MATRICES_KEPT:
-            _MATRICES.pop(next(iter(_MATRICES)))
-        _MATRICES[key] = kept
+        with _MATRICES_LOCK:
+            while len(_MATRICES) >= _MATRICES_KEPT:
+                _MATRICES.pop(next(iter(_MATRICES)))
+            _MATRICES[key] = kept
     return kept.copy()
 
 
