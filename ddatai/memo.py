@@ -8,7 +8,9 @@ functions that do them are functions of the vertex coordinates alone; each keeps
 results here under the exact bytes of its input (``key``), so a repeated geometry gets the very
 result it got before, the same floats, and any other input (a coordinate one ulp away) is
 computed afresh. A result is handed out as a copy (``GeometryMemo.get``): a caller may change
-what it gets. Errors are never kept: bad input raises each time.
+what it gets. Errors are never kept: bad input raises each time. ``scene_key`` says the same of
+a whole scene but its joints' values: the work that reads a scene's geometry alone (kgm's block
+system, a batch's sub-model) is done once for the samples that share it.
 """
 
 from __future__ import annotations
