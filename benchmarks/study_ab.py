@@ -92,7 +92,7 @@ def main() -> None:
     print(f"# Example II DDA-judged study, {a.samples} samples, 2 workers; load {os.getloadavg()[0]:.1f}", flush=True)
     for rep in range(a.repeats):
         for name, root in (("A", a.a), ("B", a.b)):
-            out = f"/tmp/ddatai_study_ab_{name}.npy"
+            out = f"/tmp/ddatai_study_ab_{os.getpid()}_{name}.npy"  # other runs of this script beside
             code = STUDY.format(root=str(Path(root).resolve()), script=f"{Path(root).resolve()}/scenes/example_2.py",
                                 kernels="fused", n=a.samples, out=out)
             before = resource.getrusage(resource.RUSAGE_CHILDREN)

@@ -6,7 +6,8 @@ The study of ``benchmarks/probabilistic.py`` (friction N(22°, 2°), cohesion N(
 correlated −0.3, seed 1, group {0, 1} of ``scenes/example_2.py``, Δt 1.3 ms, p = 1·E) taken
 apart as ``kgm.studies.probabilistic._evaluate_batch`` and ``kgm.judges.fused.judge_fused`` run
 it, each phase timed on its own: the screen (the scene built, prepared and judged by Sarma
-limit equilibrium), the sub-model (``sub_scene`` and ``build_model``), each member's
+limit equilibrium), the sub-model (``sub_scene`` and ``build_model``, or, where the checkout has
+them, the sub-models a batch shares, ``kgm.judges.fused._submodel``), each member's
 equilibrium stage (``ddatai.start.settle``: held or released, its solves), the packing of a
 launch and the fused kernel's runs (``ddatai.fused.engine.run``, batches of ``--batch``
 members: each member's steps and how its run ended). Where the stages run side by side
@@ -90,6 +91,11 @@ def main() -> None:
         from ddatai.limit_batch import screened_ahead
     except ImportError:  # before the programs were solved side by side
         screened_ahead = None
+    try:
+        from kgm.judges.fused import _submodel  # the sub-models a batch builds (`prepare_fused`)
+    except ImportError:  # before the fused judgements kept their sub-models
+        _submodel = None
+    shared: dict = {}  # a batch's sub-models, as `prepare_fused` keeps them
     for i in range(a.n):
         r = {"i": i, "friction": float(samples["friction"][i]), "cohesion": float(samples["cohesion"][i])}
         t0 = clock()
@@ -101,7 +107,13 @@ def main() -> None:
         t3 = clock()
         plan = RunPlan.of(problem.system, blocks, settings.dda, problem.params)
         sub, ids = sub_scene(problem.scene, problem.system, blocks, free_neighbours=plan.free_neighbours)
-        model = build_model(sub, plan.params)
+        if _submodel is None:
+            model = build_model(sub, plan.params)
+        else:
+            if i % a.batch == 0:
+                shared.clear()
+            model, fresh = _submodel(shared, problem.scene, problem.system, plan, sub, ids, plan.params)
+            model = model if fresh else model.with_joints(sub.joints)
         t4 = clock()
         r.update(build=t1 - t0, prepare=t2 - t1, screen_le=t3 - t2, submodel=t4 - t3, sarma_fs=float(res.fs))
         rows.append(r)

@@ -30,6 +30,7 @@ None and the stage keeps its open-close test (``ddatai.mechanisms.test_unbalance
 
 from __future__ import annotations
 
+import threading
 from typing import Optional
 
 import numpy as np
@@ -148,8 +149,8 @@ def unsupported_programs(model, vertex_xy: np.ndarray, geom: dict, contacts: Con
         scale = np.repeat(weight[tested], 3) * np.tile([1.0, 1.0, 0.0], n_blocks) + \
             np.repeat(weight[tested] * size[tested], 3) * np.tile([0.0, 0.0, 1.0], n_blocks)
         unit = float(np.median(weight[tested]))
-        equilibrium = _equilibrium_matrix(sel, block_a, block_b, point, normal, tangent, centroid, row_of,
-                                          3 * n_blocks, unit / scale)
+        equilibrium = _kept_matrix(sel, block_a, block_b, point, normal, tangent, centroid, row_of,
+                                   3 * n_blocks, unit / scale)
         outcome = yield (equilibrium, load[tested].ravel() / scale, contacts.tan_phi[sel],
                          cohesion[sel] / unit, tensile[sel] / unit)
         if outcome is None:
@@ -165,6 +166,29 @@ def unsupported_programs(model, vertex_xy: np.ndarray, geom: dict, contacts: Con
             return None
         released |= moving
     return released
+
+
+#: equilibrium matrices built lately, by the bytes of their data: the members of a batch (a
+#: study's samples, a bisection's probes) are one geometry, and their screens' first programs
+#: the same matrix (`_kept_matrix`)
+_MATRICES: dict = {}
+_MATRICES_KEPT = 8
+_MATRICES_LOCK = threading.Lock()  # a study's threaded workers
+
+
+def _kept_matrix(*args):
+    """`_equilibrium_matrix`, or a copy of the one built lately from the same data (the same
+    bytes in: the same matrix out)."""
+    key = tuple((v.dtype.str, v.shape, v.tobytes()) if isinstance(v, np.ndarray) else v for v in args)
+    with _MATRICES_LOCK:
+        kept = _MATRICES.get(key)
+    if kept is None:
+        kept = _equilibrium_matrix(*args)
+        with _MATRICES_LOCK:
+            while len(_MATRICES) >= _MATRICES_KEPT:
+                _MATRICES.pop(next(iter(_MATRICES)))
+            _MATRICES[key] = kept
+    return kept.copy()
 
 
 def _equilibrium_matrix(sel, block_a, block_b, point, normal, tangent, centroid, row_of, n_rows, row_scale):

@@ -8,14 +8,18 @@ functions that do them are functions of the vertex coordinates alone; each keeps
 results here under the exact bytes of its input (``key``), so a repeated geometry gets the very
 result it got before, the same floats, and any other input (a coordinate one ulp away) is
 computed afresh. A result is handed out as a copy (``GeometryMemo.get``): a caller may change
-what it gets. Errors are never kept: bad input raises each time.
+what it gets. Errors are never kept: bad input raises each time. ``scene_key`` says the same of
+a whole scene but its joints' values: the work that reads a scene's geometry alone (kgm's block
+system, a batch's sub-model) is done once for the samples that share it.
 """
 
 from __future__ import annotations
 
+import io
+import pickle
 import threading
 from collections import OrderedDict
-from typing import Any, Callable, Hashable
+from typing import Any, Callable, Hashable, Optional
 
 import numpy as np
 
@@ -34,6 +38,47 @@ def key(*arrays) -> tuple:
         else:
             out.append(a)
     return tuple(out)
+
+
+class _Unkeyed(Exception):
+    """A scene holds something whose identity its bytes do not say (a function)."""
+
+
+class _KeyPickler(pickle.Pickler):
+    """Pickles plain data only: a function (a time-varying load, a ground acceleration) stops it,
+    since its name does not say what it computes."""
+
+    def reducer_override(self, obj):
+        # classes and NumPy's own rebuilders are how dataclasses and arrays are pickled; any
+        # other callable is the user's
+        if callable(obj) and not isinstance(obj, type) and obj not in _REBUILDERS:
+            raise _Unkeyed
+        return NotImplemented
+
+
+#: the functions with which NumPy rebuilds a pickled array
+_REBUILDERS = frozenset(np.zeros(1).__reduce_ex__(pickle.HIGHEST_PROTOCOL)[0:1] + np.zeros(1).__reduce_ex__(2)[0:1])
+
+
+def scene_key(scene, *, without: tuple = ("joints",)) -> Optional[bytes]:
+    """The exact identity of a scene's content but its joint table's strengths: the pickled
+    bytes of every attribute but ``without`` (blocks with their vertices, materials, fixed flags,
+    velocities, stresses and edge joints; joint overrides, points, loads, gravity, water, bolts,
+    and any attribute added later), with the joint table's length. Two scenes with the same key
+    differ at most in their joints' values (a study's samples built at other strengths: what
+    depends on the geometry alone is made once for them, `kgm.build`, `kgm.judges.fused`). None
+    where the scene holds a function (a load varying in time, a ground acceleration) or
+    anything that does not pickle: such a scene is never taken for another. Bytes, not a hash:
+    equal keys are equal content (a miss where equal content pickles otherwise, e.g. one
+    material object for three blocks against three equal ones)."""
+    state = {k: v for k, v in vars(scene).items() if k not in without}
+    out = io.BytesIO()
+    try:
+        _KeyPickler(out, protocol=pickle.HIGHEST_PROTOCOL).dump(
+            (type(scene), sorted(state.items()), len(getattr(scene, "joints", ()))))
+    except (_Unkeyed, pickle.PicklingError, TypeError, AttributeError):
+        return None
+    return out.getvalue()
 
 
 class GeometryMemo:

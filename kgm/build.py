@@ -15,7 +15,7 @@ from typing import Any, Optional
 import numpy as np
 
 from ddatai.geometry import MEMO_SCENE_VERTICES, check_overlaps, polygon_integrals
-from ddatai.memo import GeometryMemo, key
+from ddatai.memo import GeometryMemo, key, scene_key
 
 from .settings import Settings
 from .system import CONTACT_GAP, DISTANCE_TOL, MIN_CONTACT, BlockSystem, cross
@@ -60,15 +60,29 @@ def build_block_system(scene, *, seismic=None, contact_gap: Optional[float] = No
             raise ValueError(f"point load {k} on block {pt.block} varies with time: kgm is a static analysis "
                              f"and needs a constant (fx, fy); give the design value as a constant load")
     kh, kv = _check_seismic(seismic)
+    if contact_gap is not None and (isinstance(contact_gap, bool) or not isinstance(contact_gap, (int, float)) or
+                                    not np.isfinite(contact_gap) or contact_gap < 0):
+        raise ValueError(f"contact_gap must be a finite distance >= 0 m, got {contact_gap!r}")
+    # what depends on the scene's geometry alone is made once for the scenes that differ at most
+    # in their joints' values (a study's samples: `ddatai.memo.scene_key`); the joints' part
+    # is each scene's own
+    small = sum(len(s.vertices) for s in specs) <= MEMO_SCENE_VERTICES
+    k = scene_key(scene) if small else None
+    args = (scene, kh, kv, None if contact_gap is None else float(contact_gap))
+    part = dict(_geometry_part(*args) if k is None else _SYSTEMS.get((k, *args[1:]), lambda: _geometry_part(*args)))
+    return _with_joints(scene, part)
+
+
+def _geometry_part(scene, kh: float, kv: float, contact_gap: Optional[float]) -> tuple:
+    """`build_block_system`'s fields that do not depend on the joints' values, as (name, value)
+    pairs, with ``rows``: each contact's blocks and the joints of its two edges (ja, jb)."""
+    specs = scene.blocks
     counts = np.array([len(s.vertices) for s in specs])
     offset = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
     xy = np.concatenate([s.vertices for s in specs]).astype(float)
     scale = float(np.max(np.ptp(xy, axis=0)))
     if contact_gap is None:
         contact_gap = CONTACT_GAP * scale
-    elif isinstance(contact_gap, bool) or not isinstance(contact_gap, (int, float)) or \
-            not np.isfinite(contact_gap) or contact_gap < 0:
-        raise ValueError(f"contact_gap must be a finite distance >= 0 m, got {contact_gap!r}")
     check_overlaps(scene, what="kgm analyses blocks that touch, never overlap")
     nb = len(specs)
     integrals = polygon_integrals(xy, offset)
@@ -109,21 +123,11 @@ def build_block_system(scene, *, seismic=None, contact_gap: Optional[float] = No
         fixed[pt.block] = True
 
     contacts = _find_contacts(specs, offset, xy, scale, max(float(contact_gap), DISTANCE_TOL * scale))
-    joints = scene.joints
     rows = []
     for (a, b, ea, eb, s0, s1, sb0, sb1) in contacts:
         ja = int(specs[a].edge_joint[ea - offset[a]])
         jb = int(specs[b].edge_joint[eb - offset[b]])
-        key = (min(a, b), max(a, b))
-        if key in scene.pair_joints:
-            j = scene.pair_joints[key]
-        elif ja >= 0 and jb >= 0 and ja != jb:
-            j = ja if joints[ja].friction <= joints[jb].friction else jb
-        elif ja >= 0 or jb >= 0:
-            j = max(ja, jb)
-        else:
-            j = 0
-        rows.append((a, b, ea, eb, s0, s1, sb0, sb1, j))
+        rows.append((a, b, ea, eb, s0, s1, sb0, sb1, ja, jb))
     c = len(rows)
     cb = np.array([(r[0], r[1]) for r in rows], dtype=np.int64).reshape(c, 2)
     edge = np.array([(r[2], r[3]) for r in rows], dtype=np.int64).reshape(c, 2)
@@ -136,18 +140,40 @@ def build_block_system(scene, *, seismic=None, contact_gap: Optional[float] = No
     end = p0 + span[:, 0, 1:] * t if c else np.zeros((0, 2))
     # block a's edge runs CCW, so its interior lies to the left: the left normal points into a
     normal = np.stack([-t[:, 1], t[:, 0]], axis=1) if c else np.zeros((0, 2))
-    jidx = np.array([r[8] for r in rows], dtype=np.int64)
-    return BlockSystem(
+    return tuple(dict(
         vertex_offset=offset, vertex_xy=xy, block_area=area, block_centroid=centroid,
         block_mass=mass, block_force=force, block_moment=moment, block_fixed=fixed,
         contact_blocks=cb, contact_start=start, contact_end=end, contact_normal=normal,
         contact_length=np.linalg.norm(end - start, axis=1) if c else np.zeros(0),
+        contact_edge=edge, contact_span=span, gravity=g, scale=scale, seismic=(kh, kv),
+        rows=[(r[0], r[1], r[8], r[9]) for r in rows], **extra).items())
+
+
+def _with_joints(scene, part: dict) -> BlockSystem:
+    """The block system of ``scene`` from its `_geometry_part`: each contact's joint and its
+    strengths from the scene's joint table."""
+    joints = scene.joints
+    jidx = []
+    for (a, b, ja, jb) in part.pop("rows"):
+        key = (min(a, b), max(a, b))
+        if key in scene.pair_joints:
+            j = scene.pair_joints[key]
+        elif ja >= 0 and jb >= 0 and ja != jb:
+            j = ja if joints[ja].friction <= joints[jb].friction else jb
+        elif ja >= 0 or jb >= 0:
+            j = max(ja, jb)
+        else:
+            j = 0
+        jidx.append(j)
+    jidx = np.array(jidx, dtype=np.int64)
+    return BlockSystem(
         contact_friction=np.array([joints[j].friction for j in jidx], dtype=float),
         contact_cohesion=np.array([joints[j].cohesion for j in jidx], dtype=float),
         contact_tensile=np.array([joints[j].tensile for j in jidx], dtype=float),
-        contact_joint=jidx, contact_edge=edge, contact_span=span, gravity=g, scale=scale,
-        contact_water=_contact_water(scene, start, end, jidx, g) if "block_water" in extra else None,
-        seismic=(kh, kv), contact_barton=_barton_law(joints, jidx), **extra)
+        contact_joint=jidx,
+        contact_water=_contact_water(scene, part["contact_start"], part["contact_end"], jidx, part["gravity"])
+        if "block_water" in part else None,
+        contact_barton=_barton_law(joints, jidx), **part)
 
 
 def _barton_law(joints, jidx: np.ndarray) -> Optional[np.ndarray]:
@@ -212,6 +238,9 @@ def _contact_water(scene, start: np.ndarray, end: np.ndarray, joint: np.ndarray,
                               table.density * g)
     return np.bincount(edge, weights=w, minlength=len(start)).astype(float)
 
+
+#: the joint-free part of the block systems of the scenes met last (`build_block_system`)
+_SYSTEMS = GeometryMemo(16)
 
 #: the edge contacts of the geometries met last (a study builds its scene again at each sample's
 #: strength: the same polygons, the same contacts; `ddatai.memo`)

@@ -139,8 +139,11 @@ class BlockSystem:
         blocks themselves and removed blocks."""
         members = set(blocks)
         cb = self.contact_blocks
-        ina = np.isin(cb[:, 0], list(members))
-        inb = np.isin(cb[:, 1], list(members))
+        # membership by a mask of the blocks (np.isin costs ~20 µs a call on a few contacts);
+        # ids outside the system match no contact, as there
+        mask = np.zeros(self.n_blocks, bool)
+        mask[[b for b in members if 0 <= b < self.n_blocks]] = True
+        ina, inb = mask[cb[:, 0]], mask[cb[:, 1]]
         out = set(cb[ina & ~inb, 1].tolist()) | set(cb[inb & ~ina, 0].tolist())
         return out - set(removed)
 

@@ -50,6 +50,7 @@ def _clear():
     geometry._POLYGONS.clear()
     geometry._OVERLAP_FREE.clear()
     kgm_build._CONTACTS.clear()
+    kgm_build._SYSTEMS.clear()
 
 
 def test_a_study_scene_built_again_is_the_scene_built_afresh():
@@ -63,7 +64,7 @@ def test_a_study_scene_built_again_is_the_scene_built_afresh():
     for friction, cohesion in strengths:
         scene, params = build(friction=friction, cohesion=cohesion)
         warm.append((scene, kgm_build.build_block_system(scene), build_model(scene, params)))
-    assert kgm_build._CONTACTS.hits == 2 and geometry._OVERLAP_FREE.hits >= 2
+    assert kgm_build._SYSTEMS.hits == 2 and geometry._OVERLAP_FREE.hits >= 2
     assert geometry._POLYGONS.hits >= 2 * scene.n_blocks
     for (friction, cohesion), (scene_w, system_w, model_w) in zip(strengths, warm):
         _clear()

@@ -61,11 +61,15 @@ def judged_apart(scene, system, blocks: frozenset, plan: RunPlan, *, removed: fr
 
 def _submodel(shared: dict, scene, system, plan: RunPlan, sub, ids, prm) -> tuple:
     """(the model of the sub-scene ``sub`` of ``scene``'s group under ``prm``, whether it was
-    built now): built once a problem into ``shared``, keyed by the scene, its block system, the
-    plan's free neighbours and the sub-model's blocks."""
+    built now): built once into ``shared`` for the sub-scenes that differ at most in their
+    joints' values (`ddatai.memo.scene_key`: a study's samples, a bisection's probes), keyed
+    by that, the plan's free neighbours, the sub-model's blocks and ``prm``; a sub-scene
+    without a key (it holds a function) by its scene and block system."""
+    from ddatai.memo import scene_key
     from ddatai.model import build_model
 
-    key = (id(scene), id(system), plan.free_neighbours, tuple(ids), prm)
+    geometry = scene_key(sub)
+    key = (geometry if geometry is not None else (id(scene), id(system)), plan.free_neighbours, tuple(ids), prm)
     if key in shared:
         return shared[key], False
     shared[key] = build_model(sub, prm)
@@ -96,7 +100,9 @@ def prepare_fused(members, blocks: frozenset, *, settings: DdaSettings, params: 
     and settled, or None where the fused engine does not judge them (`judge_fused`).
     ``submodels``: a dict the caller keeps across the batches of one problem (a bisection's
     rounds, whose scene and block system stay alive), in which each scene's sub-model is built
-    once; each member takes its own joints from it (`ddatai.model.Model.with_joints`)."""
+    once; each member takes its own joints from it (`ddatai.model.Model.with_joints`). The
+    members whose sub-scenes differ at most in their joints share one sub-model within the
+    batch too (a study's samples, each its own scene)."""
     from ddatai.fused.pack import Member as Run
     from ddatai.fused.pack import covers
     from ddatai.fused.policy import choose_batch
@@ -119,8 +125,8 @@ def prepare_fused(members, blocks: frozenset, *, settings: DdaSettings, params: 
     for m, plan in zip(members, plans):
         sub, ids = sub_scene(m.scene, m.system, blocks, removed=removed, free_neighbours=plan.free_neighbours,
                              friction=m.friction, reduction=m.reduction)
-        # the members of one scene share the sub-model's blocks: built once, each member with
-        # its own joints (`ddatai.model.Model.with_joints`)
+        # the members of one geometry share the sub-model's blocks: built once, each member
+        # with its own joints (`ddatai.model.Model.with_joints`)
         model, fresh = _submodel(shared, m.scene, m.system, plan, sub, ids, prm)
         model = model if fresh else model.with_joints(sub.joints)
         if covers(model) is not None:
