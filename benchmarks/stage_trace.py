@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import time
 
 from scaling_scenes import GRID_STEP, use_checkout
@@ -68,7 +67,7 @@ def trace() -> None:
     def traced_mapping(*args, **kw):
         out = mapping(*args, **kw)
         say(f" pseudo-step: {out[1]} solves, {int(out[2].sum())} released, equilibrium {out[0] is not None}, "
-            f"stalled {out[4]}, does not contract {out[5]}, out of range {out[6]}")
+            f"stalled {out[4]}, does not contract {out[5]}, out of range {out[6] if len(out) > 6 else '-'}")
         return out
 
     st.return_mapping = traced_mapping

@@ -15,7 +15,7 @@ from .geometry import displacement_matrix
 from .assembly import contact_vectors, load_forces
 from .kinematics import block_displacement
 from .model_checks import STRAIN_LIMIT
-from .limit_equilibrium import _interior_point, answered, applicable, unsupported_blocks, unsupported_programs
+from .limit_equilibrium import _interior_point, answered, applicable, unsupported_programs
 from .layout import KIND, LOCK, OPEN, SLIDE, VE
 from .model import ContactMemory, State
 from .open_close import open_close
@@ -323,12 +323,12 @@ def out_of_range(stepper, contacts: Contacts, disp: np.ndarray, out: np.ndarray,
     block's size (a vertex a quarter of a block inside its neighbour, the measure by which the
     stage calls a block moved away). A block thrown by translation is a valid first-order
     motion, and a toppling block that the iterate turns by hundreds of radians leaves the
-    blocks it does not throw apart; on ntdda's grid at 40 × 160 and 160 × 160 blocks, the first
-    pseudo-step's return mapping, its corner contacts still opening and closing, turned two
-    blocks by 1.0–1.4 rad and drove held blocks 0.30 block sizes into one another, and releasing
-    what it threw released most of the grid (docs/guide/equilibrium_start.md). The stage then
-    finds no frictional equilibrium (`ddatai.start`, ``StartRecord.diverged``)."""
-    model = stepper.model
+    blocks it does not throw apart. On ntdda's grid, the first pseudo-step's return mapping, its
+    corner contacts still opening and closing, turned blocks by 1.34 rad while kept blocks
+    overlapped by 0.30 of a block (40 × 160 blocks), by 7.4 rad with overlaps of 7.3 blocks
+    (160 × 160), and releasing what it threw released most of the grid
+    (docs/guide/equilibrium_start.md). The stage then finds no frictional equilibrium
+    (`ddatai.start`, ``StartRecord.diverged``)."""
     if not np.any(thrown & (np.abs(disp[:, 2]) > FIRST_ORDER_ROTATION)):
         return False
     kept = ~out & ~thrown  # fixed blocks are never out
