@@ -137,7 +137,7 @@ BALANCE_ROUNDOFF = 1e-12
 SUNK_FRACTION = 0.01
 #: a pseudo-step whose increment is at least this fraction of the last one's does not contract
 GEOMETRY_CONTRACTION = 1.0
-#: `_pseudo_steps`' "no equilibrium" where the first pseudo-step left DDA's range (truthy)
+#: ``_pseudo_steps``' "no equilibrium" where the first pseudo-step left DDA's range (truthy)
 DIVERGED = "diverged"
 
 
