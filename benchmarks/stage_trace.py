@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import time
 
 from scaling_scenes import GRID_STEP, use_checkout
@@ -68,7 +67,7 @@ def trace() -> None:
     def traced_mapping(*args, **kw):
         out = mapping(*args, **kw)
         say(f" pseudo-step: {out[1]} solves, {int(out[2].sum())} released, equilibrium {out[0] is not None}, "
-            f"stalled {out[4]}, does not contract {out[5]}")
+            f"stalled {out[4]}, does not contract {out[5]}, out of range {out[6] if len(out) > 6 else '-'}")
         return out
 
     st.return_mapping = traced_mapping
@@ -82,8 +81,10 @@ def trace() -> None:
     st.block_displacement = traced_measure
 
 
-def scaled_grid(size: int, young: float, penalty: float):
-    """ntdda's grid (`scaling_scenes.grid_scene`) with E × ``young`` and p × ``penalty``."""
+def scaled_grid(size: int, young: float, penalty: float, penetration: float = 1.0, columns: int = 0):
+    """ntdda's grid (`scaling_scenes.grid_scene`) with E × ``young``, p × ``penalty`` and the
+    penetration ratio g3 (the penetration limit 2.5·g3·w0) × ``penetration``; ``columns`` > 0: that
+    many columns of size // columns rows (a tall grid keeps the square grid's column height)."""
     import dataclasses
 
     import ddatai as dd
@@ -91,14 +92,16 @@ def scaled_grid(size: int, young: float, penalty: float):
 
     scene, params = grid_scene(size)
     n = int(round(size ** 0.5))
+    width, height = (columns, size // columns) if columns else (n, n)
     rock = dd.Material(density=2000.0, young=1e8 * young, poisson=0.25)
     scaled = dd.Scene(gravity=9.81)
-    scaled.add_block([(-1, -1), (n + 1, -1), (n + 1, 0), (-1, 0)], material=rock, fixed=True)
-    for j in range(n):
-        for i in range(n):
+    scaled.add_block([(-1, -1), (width + 1, -1), (width + 1, 0), (-1, 0)], material=rock, fixed=True)
+    for j in range(height):
+        for i in range(width):
             scaled.add_block([(i, j), (i + 1, j), (i + 1, j + 1), (i, j + 1)], material=rock)
     scaled.set_joint(dd.Joint(friction=30.0))
-    return scaled, dataclasses.replace(params, penalty=params.penalty * penalty)
+    return scaled, dataclasses.replace(params, penalty=params.penalty * penalty,
+                                       penetration_ratio=params.penetration_ratio * penetration)
 
 
 def main() -> None:
@@ -106,6 +109,9 @@ def main() -> None:
     ap.add_argument("size", type=int)
     ap.add_argument("--young-factor", type=float, default=1.0)
     ap.add_argument("--penalty-factor", type=float, default=1.0)
+    ap.add_argument("--penetration-factor", type=float, default=1.0,
+                    help="g3 (Params.penetration_ratio) × this: keeps a penetration's ratio to the limit")
+    ap.add_argument("--columns", type=int, default=0, help="a grid of this many columns (SIZE // COLUMNS rows)")
     ap.add_argument("--scaling", action="store_true", help="scaling.py's settled run (unscaled grid), traced")
     a = ap.parse_args()
     trace()
@@ -118,7 +124,7 @@ def main() -> None:
     from ddatai.start import settle
     from ddatai.step import Stepper
 
-    scene, params = scaled_grid(a.size, a.young_factor, a.penalty_factor)
+    scene, params = scaled_grid(a.size, a.young_factor, a.penalty_factor, a.penetration_factor, a.columns)
     model = dd.build_model(scene, params)
     assert abs(model.max_step - GRID_STEP) < 1e-12
     cpu = time.process_time()

@@ -14,7 +14,8 @@ from .contacts import Contacts
 from .geometry import displacement_matrix
 from .assembly import contact_vectors, load_forces
 from .kinematics import block_displacement
-from .limit_equilibrium import _interior_point, answered, applicable, unsupported_blocks, unsupported_programs
+from .model_checks import STRAIN_LIMIT
+from .limit_equilibrium import _interior_point, answered, applicable, unsupported_programs
 from .layout import KIND, LOCK, OPEN, SLIDE, VE
 from .model import ContactMemory, State
 from .open_close import open_close
@@ -29,6 +30,12 @@ FALL_IN_SIZES = 1e4
 #: block moves with its neighbours, by its elastic settlement, which in a soft, tall model
 #: exceeds a block size's quarter (a 60-block column with E = 100 MPa: 37 % at its top)
 MECHANISM_SIZE = 0.25
+#: DDA's first-order rotation (docs/method/dda.md §1.1) moves a point at (X, Y) from the centroid
+#: by r0·(−Y, X): the linear map I + r0·[[0, −1], [1, 0]] turns the block by atan r0 and stretches
+#: every line by √(1 + r0²). Beyond the rotation whose stretch is the largest strain that a
+#: first-order block represents (``model_checks.STRAIN_LIMIT``, 25 %: docs/method/limits.md),
+#: √((1 + 0.25)² − 1) = 0.75 rad, an iterate's rotation is no rigid motion (`out_of_range`)
+FIRST_ORDER_ROTATION = float(np.sqrt((1.0 + STRAIN_LIMIT) ** 2 - 1.0))
 #: at most this many open-close solves in the test of the out-of-balance blocks
 MAX_TEST_SOLVES = 12
 #: the screen of a model that fails as a whole (`unsupported_at_start`) is tried on models of at
@@ -304,6 +311,30 @@ def contracting(stepper, vertex_xy: np.ndarray, geom: dict, disp: np.ndarray, ou
     held = ~stepper.model.block_fixed & ~out
     moved = block_displacement(stepper.model, vertex_xy, geom, disp)
     return float(np.max(moved[held], initial=0.0)) < contraction
+
+
+def out_of_range(stepper, contacts: Contacts, disp: np.ndarray, out: np.ndarray, thrown: np.ndarray,
+                 size: np.ndarray) -> bool:
+    """Whether the iterate ``disp`` that throws the ``thrown`` blocks (`mechanisms`) has left DDA's
+    range of validity, so that what it throws is not shown to be a mechanism: it throws a block
+    by a rotation beyond FIRST_ORDER_ROTATION (its first-order motion is no rigid motion, only
+    a direction) while the blocks it keeps — free, not ``out`` nor thrown, and the fixed ones —
+    overlap one another across an open contact by more than MECHANISM_SIZE × the smaller
+    block's size (a vertex a quarter of a block inside its neighbour, the measure by which the
+    stage calls a block moved away). A block thrown by translation is a valid first-order
+    motion, and a toppling block that the iterate turns by hundreds of radians leaves the
+    blocks it does not throw apart. On ntdda's grid, the first pseudo-step's return mapping, its
+    corner contacts still opening and closing, turned blocks by 1.34 rad while kept blocks
+    overlapped by 0.30 of a block (40 × 160 blocks), by 7.4 rad with overlaps of 7.3 blocks
+    (160 × 160), and releasing what it threw released most of the grid
+    (docs/guide/equilibrium_start.md). The stage then finds no frictional equilibrium
+    (`ddatai.start`, ``StartRecord.diverged``)."""
+    if not np.any(thrown & (np.abs(disp[:, 2]) > FIRST_ORDER_ROTATION)):
+        return False
+    kept = ~out & ~thrown  # fixed blocks are never out
+    a, b = contacts.block_a, contacts.block_b
+    both = (contacts.state == OPEN) & kept[a] & kept[b]
+    return bool(np.any(-contacts.dn[both] > MECHANISM_SIZE * np.minimum(size[a[both]], size[b[both]])))
 
 
 def pseudo_time_step(stepper, geom, size) -> float:

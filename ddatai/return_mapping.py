@@ -28,7 +28,7 @@ from .open_close import solve
 from .reassembly import ContactSystem
 from .return_steps import anderson, line_search
 from .updates import Springs, block_rows
-from .mechanisms import MECHANISM_SIZE, anchored, contracting, loaded_away, mechanisms, test_unbalanced
+from .mechanisms import MECHANISM_SIZE, anchored, contracting, loaded_away, mechanisms, out_of_range, test_unbalanced
 
 #: Newmark's β of the stage's system: that of a first step (the stage's pseudo-steps have no
 #: acceleration history; `kinematics.newmark_beta`)
@@ -145,7 +145,9 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
     ``in_doubt`` marks those released as that test did not converge (`ddatai.in_doubt`).
     ``contraction``: the last pseudo-step's increment [m] (``ddatai.mechanisms.contracting``). Returns (D,
     or None when no equilibrium was found; solves; the newly released blocks; the contacts as
-    handed over, `_hand_over`; whether it stalled; whether it stopped contracting)."""
+    handed over, `_hand_over`; whether it stalled; whether it stopped contracting; whether the
+    first pseudo-step's iterate left DDA's range before anything was released,
+    ``ddatai.mechanisms.out_of_range``)."""
     out = released.copy()
     solves = 0
     guess = None
@@ -167,18 +169,19 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
                                 tail=NEWTON_AFTER if newton_now else None)
         solves += outcome.solves
         if outcome.disp is None:
-            return None, solves, out & ~released, contacts, False, False
+            return None, solves, out & ~released, contacts, False, False, False
         guess = _opened(raw.copy(), outcome.law)  # the contacts as handed over
         contacts.state[:] = np.where(guess.closed, contacts.state, OPEN)
         contacts.dn[:] = outcome.law.dn_now
         mechanism = mechanisms(stepper, state.vertex_xy, geom, contacts, outcome.disp, out, size)
+        thrown = mechanism.any()  # thrown by the iterate (not by limit equilibrium or the test)
         if outcome.steady:  # cut short for Newton: where it does not finish, the return mapping goes on
             newton = False
             if not mechanism.any():
                 done, n = _finish(stepper, state, geom, frame, contacts, outcome, guess, out, size)
                 solves += n
                 if done is not None:
-                    return done[0], solves, out & ~released, done[1], False, False
+                    return done[0], solves, out & ~released, done[1], False, False, False
             guess = raw
             continue
         if not mechanism.any() and not outcome.converged:
@@ -218,11 +221,18 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
         # pseudo-step ends, releasing nothing (`mechanisms.contracting`)
         diverging = not contracting(stepper, state.vertex_xy, geom, outcome.disp, out | mechanism, contraction)
         if diverging or not mechanism.any():
-            return None, solves, out & ~released, contacts, False, diverging
+            return None, solves, out & ~released, contacts, False, diverging, False
+        if thrown and not np.isfinite(contraction) and not np.any(out & ~released) and \
+                out_of_range(stepper, contacts, outcome.disp, out, mechanism, size):
+            # the first pseudo-step, which has no equilibrium to end at, threw blocks from an
+            # iterate outside DDA's range before releasing anything: releasing them takes their
+            # neighbours' support and the cascade releases the model (docs/method/dda.md §8.12);
+            # no frictional equilibrium was found, and the stage starts welded
+            return None, solves, out & ~released, contacts, False, False, True
         out |= mechanism
     else:
         return None, solves, out & ~released, contacts, False, \
-            not contracting(stepper, state.vertex_xy, geom, outcome.disp, out, contraction)
+            not contracting(stepper, state.vertex_xy, geom, outcome.disp, out, contraction), False
     law = outcome.law
     ve = contacts.cint[:, KIND] == VE
     at_strength = guess.closed & ve & \
@@ -240,9 +250,9 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
         if done is not None:
             if doubt is not None:
                 doubt[:] = False  # an equilibrium that moves nothing away: no doubt left
-            return done[0], solves, out & ~released, done[1], False, False
+            return done[0], solves, out & ~released, done[1], False, False, False
     _hand_over(stepper, state.vertex_xy, contacts, outcome.law, guess)
-    return outcome.disp, solves, out & ~released, contacts, stalled, False
+    return outcome.disp, solves, out & ~released, contacts, stalled, False, False
 
 
 def _finish(stepper, state: State, geom: dict, frame: Frame, contacts: Contacts, outcome: "Outcome",

@@ -85,7 +85,11 @@ solve of the model under its weight, the point loads at t = 0 and its initial st
    does one whose held blocks move that far where it would release blocks or give up
    (``ddatai.mechanisms.contracting``: what a diverging geometry throws is not a mechanism).
 6. If no frictional equilibrium is found (a contracting pseudo-step out of solves, or, with bolts or water,
-   out-of-balance blocks that the test does not move), the model starts from its *welded* equilibrium: the
+   out-of-balance blocks that the test does not move, or a first pseudo-step whose iterate left
+   DDA's range before it released anything — a block thrown by a rotation beyond the first-order
+   one while the blocks it keeps overlap by a quarter of a block, ``ddatai.mechanisms.out_of_range``,
+   ``StartRecord.diverged``: what it throws is not shown to be a mechanism, and releasing it
+   takes its neighbours' support), the model starts from its *welded* equilibrium: the
    same static solve with every touching contact held as it is (normal and shear springs, no
    open-close judgement), repeated at the settled geometry until the increment is round-off;
    blocks that move as mechanisms even so are released. Then each contact takes the joint law
@@ -133,6 +137,8 @@ BALANCE_ROUNDOFF = 1e-12
 SUNK_FRACTION = 0.01
 #: a pseudo-step whose increment is at least this fraction of the last one's does not contract
 GEOMETRY_CONTRACTION = 1.0
+#: ``_pseudo_steps``' "no equilibrium" where the first pseudo-step left DDA's range (truthy)
+DIVERGED = "diverged"
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -172,6 +178,11 @@ class StartRecord:
     in_doubt: int = 0
     """Released blocks that no converged test moved or held (in doubt): their first steps are
     resolved (`ddatai.in_doubt`) [-]."""
+    diverged: bool = False
+    """The first pseudo-step's return mapping left DDA's range of validity before it released
+    anything (a block turned beyond the first-order rotation while the blocks it kept overlapped
+    by a quarter of a block, ``ddatai.mechanisms.out_of_range``): what it threw was no
+    mechanism, and the model started from its welded equilibrium (``welded``; module docstring, 6.)."""
 
 
 #: the record of a model with nothing to settle
@@ -206,7 +217,7 @@ def settle(stepper, state: State, welded: bool = False, screen: bool = True) -> 
         if not converged:
             # no frictional equilibrium: start from the welded one (module docstring, 6.)
             settled, again, _ = _stage(stepper, state, size, dt_static, t0, welded=True)
-            record = replace(again, solves=record.solves + again.solves)
+            record = replace(again, solves=record.solves + again.solves, diverged=record.diverged)
     return settled, replace(record, factorisations=stepper.solver.factorisations - factorised,
                             wall_time=_time.perf_counter() - t0)
 
@@ -228,6 +239,7 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
         doubt = np.zeros(model.n_blocks, bool) if slow else None
         state, last, memory, n, stalled, unsettled, failed = _pseudo_steps(stepper, initial, state, released, size,
                                                                            dt, welded, doubt, in_doubt)
+        diverged = failed == DIVERGED
         solves += n
         if doubt is not None and doubt.any() and not failed:
             slow_end = turn_on(stepper, initial, released, SUNK_FRACTION)
@@ -242,7 +254,7 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
             return again, replace(record, solves=solves + record.solves), converged
         if failed:
             return initial, StartRecord(solves=solves, held=0, released=int(np.count_nonzero(free)),
-                                        settlement=0.0, at_strength=0,
+                                        settlement=0.0, at_strength=0, diverged=diverged,
                                         wall_time=_time.perf_counter() - t0), False
         # a held block that settled into a released one would start overlapping it: the first
         # steps would throw both apart (the run's penalty raised many times over, its first
@@ -281,7 +293,8 @@ def _pseudo_steps(stepper, initial: State, state: State, released: np.ndarray, s
                   welded: bool, doubt: "np.ndarray | None" = None, in_doubt: "np.ndarray | None" = None):
     """The pseudo-steps of `_stage` from ``state`` with the ``released`` blocks out (updated in place with
     the blocks it releases; ``doubt``, ``in_doubt``: `return_mapping`'s). Returns (state, the last
-    pseudo-step's contacts, their memory, solves, stalled, unsettled, whether a pseudo-step found no equilibrium)."""
+    pseudo-step's contacts, their memory, solves, stalled, unsettled, whether a pseudo-step found no equilibrium:
+    DIVERGED where the first one left DDA's range, `return_mapping`)."""
     model = stepper.model
     free = ~model.block_fixed
     memory = ContactMemory.empty()
@@ -306,9 +319,11 @@ def _pseudo_steps(stepper, initial: State, state: State, released: np.ndarray, s
                 # pseudo-step first, which takes the first one's linearisation error out)
                 break
             marked = None if in_doubt is None else in_doubt.copy()
-            disp, n, found, contacts, stalled, unsettled = return_mapping(
+            disp, n, found, contacts, stalled, unsettled, diverged = return_mapping(
                 stepper, state, geom, contacts, dt, released, size, frame, doubt, in_doubt,
                 contraction=GEOMETRY_CONTRACTION * increment)
+            if diverged:
+                return state, last, memory, solves + n, stalled, unsettled, DIVERGED
             if unsettled and marked is not None:
                 in_doubt[:] = marked  # it released nothing: nothing it marked is in doubt
         solves += n

@@ -106,8 +106,8 @@ def test_a_pseudo_step_whose_held_blocks_do_not_contract_releases_nothing():
 
     scene, a, b, c = partly_failing_scene()
     model = build_model(scene, dd.Params(dt=1e-3))
-    disp, _, found, _, _, diverging = _first_pseudo_step(model, contraction=1.0)
+    disp, _, found, _, _, diverging, _ = _first_pseudo_step(model, contraction=1.0)
     assert disp is not None and not diverging
     assert found[a] and not found[b] and not found[c]
-    disp, _, found, _, _, diverging = _first_pseudo_step(model, contraction=1e-12)
+    disp, _, found, _, _, diverging, _ = _first_pseudo_step(model, contraction=1e-12)
     assert disp is None and diverging and not found.any()
