@@ -215,11 +215,20 @@ def _prepare_batch(job: _Job, items: tuple) -> tuple:
     return rows, work
 
 
-def _finish_batch(job: _Job, work: tuple) -> list:
+@dataclass(frozen=True)
+class _Whole:
+    """A batch that the study's runner judges whole: screened, settled and run in its process
+    (`_prepared_then_run`, when it has nothing prepared to run)."""
+
+    items: tuple
+
+
+def _finish_batch(job: _Job, work) -> list:
     """[(index, `SampleRow`)] of a `_prepare_batch` group: its samples' runs in one launch of
     the fused engine (`kgm.judges.fused.run_prepared`), in the study's process that has loaded
     the kernel. Errors name the sample (each sample then judged on its own, `_evaluate`).
-    ``work`` an architecture's name: the kernel loaded on it, ahead of the first batch (no rows)."""
+    ``work`` an architecture's name: the kernel loaded on it, ahead of the first batch (no rows);
+    a `_Whole`: its batch judged here from its start (`_evaluate_batch`)."""
     from ..judges.fused import run_prepared
 
     if isinstance(work, str):  # the kernel loaded ahead of the first batch, on this architecture
@@ -227,6 +236,8 @@ def _finish_batch(job: _Job, work: tuple) -> list:
 
         warm(work)
         return []
+    if isinstance(work, _Whole):
+        return _evaluate_batch(job, work.items)
     entries, prepared = work
     try:
         verdicts = run_prepared(prepared, report=(job.settings or Settings()).dda.progress)
@@ -237,17 +248,23 @@ def _finish_batch(job: _Job, work: tuple) -> list:
 
 
 def _prepared_then_run(job: _Job, batches: list, workers: int):
-    """(index, row) of every sample of ``batches`` on local worker processes that prepare each
-    batch in NumPy (`_prepare_batch`) and one more process, the only one that loads the fused
-    kernel, that runs what they prepared (`_finish_batch`, `ddatai.workers.Runner`): a study
-    pays the kernel's load once, not once a worker. A batch lost with the runner is recorded as
-    lost, sample by sample."""
-    from ddatai.parallel import run
-    from ddatai.workers import Runner
+    """(index, row) of every sample of ``batches`` on ``workers`` local processes: one, the
+    only one that loads the fused kernel, runs what the ``workers - 1`` others prepared in NumPy
+    (`_prepare_batch`, `_finish_batch`, `ddatai.workers.Runner`), so that a study pays the
+    kernel's load once, not once a worker, and puts one process on each CPU it is given (on 2
+    CPUs a third process made every sample dearer, docs/guide/performance.md). When the runner
+    has nothing prepared to run, it takes the last batch not yet begun and judges it whole
+    (`_Whole`). The others take the batches in order, one each a round. A batch lost with the
+    runner is recorded as lost, sample by sample."""
+    from collections import deque
+
+    from ddatai.workers import ProcessPool, Runner
 
     samples: dict = {}  # the runner's key -> the indices of its samples
     params = (job.settings or Settings()).dda.params
-    with Runner(functools.partial(_finish_batch, job)) as runner:
+    todo = deque(batches)
+    with Runner(functools.partial(_finish_batch, job)) as runner, \
+            ProcessPool(functools.partial(_prepare_batch, job), max(1, workers - 1)) as pool:
         if params is not None and params.kernels == "fused" and params.arch in ("cpu", "cuda", "gpu"):
             # the study asks for the fused engine: its one load starts now, beside the workers
             runner.submit("load", params.arch)
@@ -260,17 +277,24 @@ def _prepared_then_run(job: _Job, batches: list, workers: int):
                     samples.pop(key, None)
                     yield from rows
 
-        for index, out in run(functools.partial(_prepare_batch, job), [(b[0][0], b) for b in batches],
-                              workers=workers, chunk=1, split=_split_batch):
-            if isinstance(out, WorkerLost):
-                yield index, out
-                continue
-            rows, work = out
-            yield from rows
-            for k, part in enumerate(work):
-                samples[(index, k)] = [item[0] for item, _ in part[0]]
-                runner.submit((index, k), part)
+        while todo:
             yield from taken(runner.poll())
+            if runner.pending == 0:  # the runner idle: the last batch judged whole there
+                batch = todo.pop()
+                samples[("whole", batch[0][0])] = [item[0] for item in batch]
+                runner.submit(("whole", batch[0][0]), _Whole(batch))
+                continue
+            chunks = [[(b[0][0], b)] for b in (todo.popleft() for _ in range(min(pool.n_workers, len(todo))))]
+            for index, out in pool.run(chunks, split=_split_batch):
+                if isinstance(out, WorkerLost):
+                    yield index, out
+                    continue
+                rows, work = out
+                yield from rows
+                for k, part in enumerate(work):
+                    samples[(index, k)] = [item[0] for item, _ in part[0]]
+                    runner.submit((index, k), part)
+                yield from taken(runner.poll())
         yield from taken(runner.drain())
 
 
