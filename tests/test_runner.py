@@ -126,16 +126,21 @@ def test_a_study_runs_on_its_workers_count_and_the_idle_runner_judges_the_last_b
         def pending(self):
             return len(self.items)
 
-        def poll(self):
-            return []
+        def poll(self, timeout=0.0):  # waiting, as if each item had taken that long
+            return self.drain() if timeout > 0 else []
 
         def drain(self):
             out, self.items = [(key, self.fn(item)) for key, item in self.items], []
             return out
 
     class Eager(Busy):  # returns its items at the next poll: idle whenever asked
-        def poll(self):
+        def poll(self, timeout=0.0):
             return self.drain()
+
+    class Losing(Eager):  # dies twice with every batch it is given whole
+        def drain(self):
+            return [(key, WorkerLost(deaths=2) if isinstance(item, pr._Whole) else out)
+                    for (key, item), (_, out) in zip(self.items, super().drain())]
 
     monkeypatch.setattr(ddatai.workers, "ProcessPool", Pool)
     monkeypatch.setattr(pr, "_prepare_batch", lambda job, items: ([], [([(it, (0, 1)) for it in items], "prepared")]))
@@ -157,3 +162,8 @@ def test_a_study_runs_on_its_workers_count_and_the_idle_runner_judges_the_last_b
     rows = list(pr._prepared_then_run(job, batches, 3))
     assert Pool.sizes == [1, 2]
     assert sorted(i for i, _ in rows) == list(range(12)) and {r for _, r in rows} == {"whole"}
+
+    # a whole batch lost with the runner: its samples prepared by the others, one a batch
+    monkeypatch.setattr(ddatai.workers, "Runner", Losing)
+    rows = list(pr._prepared_then_run(job, batches, 2))
+    assert sorted(i for i, _ in rows) == list(range(12)) and {r for _, r in rows} == {"run"}

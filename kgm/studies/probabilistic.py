@@ -35,6 +35,7 @@ import inspect
 import math
 import time
 import warnings
+from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Mapping, Optional
@@ -217,27 +218,24 @@ def _prepare_batch(job: _Job, items: tuple) -> tuple:
 
 @dataclass(frozen=True)
 class _Whole:
-    """A batch that the study's runner judges whole: screened, settled and run in its process
-    (`_prepared_then_run`, when it has nothing prepared to run)."""
+    """A batch that the study's idle runner judges whole, from its screens (`_prepared_then_run`)."""
 
     items: tuple
 
 
 def _finish_batch(job: _Job, work) -> list:
-    """[(index, `SampleRow`)] of a `_prepare_batch` group: its samples' runs in one launch of
-    the fused engine (`kgm.judges.fused.run_prepared`), in the study's process that has loaded
-    the kernel. Errors name the sample (each sample then judged on its own, `_evaluate`).
-    ``work`` an architecture's name: the kernel loaded on it, ahead of the first batch (no rows);
-    a `_Whole`: its batch judged here from its start (`_evaluate_batch`)."""
+    """[(index, `SampleRow`)] of a `_prepare_batch` group run in one launch of the fused engine
+    (`kgm.judges.fused.run_prepared`; errors name the sample, each then judged alone), of a
+    `_Whole` judged here from its start; none of an architecture's name (the kernel loaded)."""
     from ..judges.fused import run_prepared
 
+    if isinstance(work, _Whole):
+        return _evaluate_batch(job, work.items)
     if isinstance(work, str):  # the kernel loaded ahead of the first batch, on this architecture
         from ddatai.fused.warm import warm
 
         warm(work)
         return []
-    if isinstance(work, _Whole):
-        return _evaluate_batch(job, work.items)
     entries, prepared = work
     try:
         verdicts = run_prepared(prepared, report=(job.settings or Settings()).dda.progress)
@@ -248,21 +246,16 @@ def _finish_batch(job: _Job, work) -> list:
 
 
 def _prepared_then_run(job: _Job, batches: list, workers: int):
-    """(index, row) of every sample of ``batches`` on ``workers`` local processes: one, the
-    only one that loads the fused kernel, runs what the ``workers - 1`` others prepared in NumPy
-    (`_prepare_batch`, `_finish_batch`, `ddatai.workers.Runner`), so that a study pays the
-    kernel's load once, not once a worker, and puts one process on each CPU it is given (on 2
-    CPUs a third process made every sample dearer, docs/guide/performance.md). When the runner
-    has nothing prepared to run, it takes the last batch not yet begun and judges it whole
-    (`_Whole`). The others take the batches in order, one each a round. A batch lost with the
-    runner is recorded as lost, sample by sample."""
-    from collections import deque
-
+    """(index, row) of every sample of ``batches`` on ``workers`` local processes, one a CPU:
+    the runner, the only one that loads the fused kernel (once a study), runs what the others
+    prepare in NumPy (`_prepare_batch`, `_finish_batch`, `ddatai.workers.Runner`), one batch
+    each a round; idle, it judges the last batch not yet begun whole (`_Whole`). A prepared batch
+    lost with the runner is recorded as lost, sample by sample (docs/kgm/probabilistic.md)."""
     from ddatai.workers import ProcessPool, Runner
 
     samples: dict = {}  # the runner's key -> the indices of its samples
     params = (job.settings or Settings()).dda.params
-    todo = deque(batches)
+    todo, alone, whole = deque(batches), deque(), {}  # alone: a `_Whole`'s samples lost with the runner
     with Runner(functools.partial(_finish_batch, job)) as runner, \
             ProcessPool(functools.partial(_prepare_batch, job), max(1, workers - 1)) as pool:
         if params is not None and params.kernels == "fused" and params.arch in ("cpu", "cuda", "gpu"):
@@ -271,21 +264,29 @@ def _prepared_then_run(job: _Job, batches: list, workers: int):
 
         def taken(results):
             for key, rows in results:
-                if isinstance(rows, WorkerLost):
-                    yield from ((index, rows) for index in samples.pop(key, ()))
+                indices, batch = samples.pop(key, ()), whole.pop(key, None)
+                if isinstance(rows, WorkerLost) and batch is not None:  # to the others, a sample a batch
+                    alone.extend((item,) for item in batch)
+                elif isinstance(rows, WorkerLost):
+                    yield from ((index, rows) for index in indices)
                 else:
-                    samples.pop(key, None)
                     yield from rows
 
-        while todo:
+        while True:
             yield from taken(runner.poll())
-            if runner.pending == 0:  # the runner idle: the last batch judged whole there
+            if not todo and not alone:
+                if not runner.pending:
+                    break
+                yield from taken(runner.poll(timeout=1.0))
+                continue
+            if todo and runner.pending == 0:  # the runner idle: the last batch judged whole there
                 batch = todo.pop()
-                samples[("whole", batch[0][0])] = [item[0] for item in batch]
+                whole[("whole", batch[0][0])] = batch
                 runner.submit(("whole", batch[0][0]), _Whole(batch))
                 continue
-            chunks = [[(b[0][0], b)] for b in (todo.popleft() for _ in range(min(pool.n_workers, len(todo))))]
-            for index, out in pool.run(chunks, split=_split_batch):
+            given = [alone.popleft() if alone else todo.popleft()
+                     for _ in range(min(pool.n_workers, len(alone) + len(todo)))]
+            for index, out in pool.run([[(b[0][0], b)] for b in given], split=_split_batch):
                 if isinstance(out, WorkerLost):
                     yield index, out
                     continue
@@ -295,7 +296,6 @@ def _prepared_then_run(job: _Job, batches: list, workers: int):
                     samples[(index, k)] = [item[0] for item, _ in part[0]]
                     runner.submit((index, k), part)
                 yield from taken(runner.poll())
-        yield from taken(runner.drain())
 
 
 def _describe(values: Mapping) -> str:
