@@ -19,8 +19,8 @@ Execution (`ddatai.parallel`): by default rigid and Sarma samples (limit equilib
 millisecond each) run in this process, where they are fastest, and DDA samples (seconds each)
 on one local worker process per CPU; ``workers=`` chooses, and ``client=`` (a
 ``dask.distributed.Client`` or a scheduler address) runs them on a Dask cluster. On local
-workers, DDA verdicts on the fused engine are prepared by the workers in NumPy and run by one
-more process, the only one that loads the fused kernel (``_prepared_then_run``). A script that
+workers, DDA verdicts on the fused engine are prepared in NumPy by all the workers but one, the
+only one that loads the fused kernel and runs them (``_prepared_then_run``). A script that
 starts a study at its top level without an ``if __name__ == "__main__":`` block still gets its
 result by default (in this process, with a warning saying what to add); asked for worker
 processes explicitly, it stops before any work with one line saying what to add. With ``out=``
@@ -394,7 +394,7 @@ def probabilistic(build, variables: Mapping, n: int, *, method: str = Method.SAR
         size = max(1, min(size, SAVED_BATCH, -(-len(items) // sharing)))
         batches = [tuple(items[i:i + size]) for i in range(0, len(items), size)]
         if client is None and workers > 1:
-            # the workers prepare each batch in NumPy and one more process runs them all on the
+            # all the workers but one prepare each batch in NumPy and that one runs them on the
             # fused kernel, loaded once a study (a batch that the fused engine does not judge is
             # judged where it was prepared)
             flat = _prepared_then_run(job, batches, workers)
