@@ -83,9 +83,10 @@ def test_a_study_batch_is_prepared_without_the_fused_kernel(monkeypatch):
 
 def test_a_study_runs_on_its_workers_count_and_the_idle_runner_judges_the_last_batch_whole(monkeypatch):
     """`_prepared_then_run` with ``workers=2``: one preparing process beside the runner (not
-    two), every sample's row once; a runner with nothing prepared to run takes the last batch
-    not yet begun and judges it whole (in-process stand-ins for the processes, the phases
-    stubbed: only the schedule is tested)."""
+    two), every sample's row once; a runner about to idle (no whole batch and at most one
+    prepared in hand) takes the last batch not yet begun and judges it whole, and the samples of
+    a whole batch lost with it are prepared by the others (in-process stand-ins for the
+    processes, the phases stubbed: only the schedule is tested)."""
     from types import SimpleNamespace
 
     import ddatai.workers
@@ -137,6 +138,14 @@ def test_a_study_runs_on_its_workers_count_and_the_idle_runner_judges_the_last_b
         def poll(self, timeout=0.0):
             return self.drain()
 
+    class Lagging(Busy):  # returns at each poll all but the item it has just been given
+        def poll(self, timeout=0.0):
+            if timeout > 0:
+                return self.drain()
+            out = [(key, self.fn(item)) for key, item in self.items[:-1]]
+            self.items = self.items[-1:]
+            return out
+
     class Losing(Eager):  # dies twice with every batch it is given whole
         def drain(self):
             return [(key, WorkerLost(deaths=2) if isinstance(item, pr._Whole) else out)
@@ -162,6 +171,11 @@ def test_a_study_runs_on_its_workers_count_and_the_idle_runner_judges_the_last_b
     rows = list(pr._prepared_then_run(job, batches, 3))
     assert Pool.sizes == [1, 2]
     assert sorted(i for i, _ in rows) == list(range(12)) and {r for _, r in rows} == {"whole"}
+
+    # a runner with one prepared batch in hand and none whole is about to idle: it takes one whole
+    monkeypatch.setattr(ddatai.workers, "Runner", Lagging)
+    rows = list(pr._prepared_then_run(job, batches, 2))
+    assert dict(rows) == {i: "whole" if i >= 6 else "run" for i in range(12)}
 
     # a whole batch lost with the runner: its samples prepared by the others, one a batch
     monkeypatch.setattr(ddatai.workers, "Runner", Losing)

@@ -249,18 +249,19 @@ def _prepared_then_run(job: _Job, batches: list, workers: int):
     """(index, row) of every sample of ``batches`` on ``workers`` local processes, one a CPU:
     the runner, the only one that loads the fused kernel (once a study), runs what the others
     prepare in NumPy (`_prepare_batch`, `_finish_batch`, `ddatai.workers.Runner`), one batch
-    each a round; idle, it judges the last batch not yet begun whole (`_Whole`). A prepared batch
-    lost with the runner is recorded as lost, sample by sample (docs/kgm/probabilistic.md)."""
+    each a round; about to idle (loaded, no whole batch and at most one prepared in hand), it
+    judges the last batch not yet begun whole (`_Whole`). A prepared batch lost with the runner
+    is recorded as lost, sample by sample (docs/kgm/probabilistic.md)."""
     from ddatai.workers import ProcessPool, Runner
 
-    samples: dict = {}  # the runner's key -> the indices of its samples
     params = (job.settings or Settings()).dda.params
-    todo, alone, whole = deque(batches), deque(), {}  # alone: a `_Whole`'s samples lost with the runner
+    samples, whole = {}, {}  # in the runner's hands by key: prepared batches' samples, whole batches, the load
+    todo, alone = deque(batches), deque()  # alone: a whole batch's samples lost with the runner
     with Runner(functools.partial(_finish_batch, job)) as runner, \
             ProcessPool(functools.partial(_prepare_batch, job), max(1, workers - 1)) as pool:
         if params is not None and params.kernels == "fused" and params.arch in ("cpu", "cuda", "gpu"):
-            # the study asks for the fused engine: its one load starts now, beside the workers
-            runner.submit("load", params.arch)
+            runner.submit("load", params.arch)  # the study asks for the fused engine: loaded now
+            whole["load"] = ()
 
         def taken(results):
             for key, rows in results:
@@ -272,14 +273,11 @@ def _prepared_then_run(job: _Job, batches: list, workers: int):
                 else:
                     yield from rows
 
-        while True:
-            yield from taken(runner.poll())
+        while todo or alone or runner.pending:
+            yield from taken(runner.poll(timeout=0.0 if todo or alone else 1.0))
             if not todo and not alone:
-                if not runner.pending:
-                    break
-                yield from taken(runner.poll(timeout=1.0))
                 continue
-            if todo and runner.pending == 0:  # the runner idle: the last batch judged whole there
+            if todo and not whole and len(samples) <= 1:  # the runner idle soon: the last batch whole there
                 batch = todo.pop()
                 whole[("whole", batch[0][0])] = batch
                 runner.submit(("whole", batch[0][0]), _Whole(batch))
