@@ -384,8 +384,8 @@ def test_a_dda_judged_study_on_the_fused_engine_has_the_numpy_path_s_table(monke
 
 @pytest.mark.slow
 def test_a_study_on_local_workers_runs_the_fused_kernel_in_one_process():
-    """Example II's DDA-judged study (12 samples) on 2 local workers: the workers settle each
-    batch in NumPy and one more process, the only one that loads the fused kernel, runs them
+    """Example II's DDA-judged study (12 samples) on 2 local workers: one settles each batch in
+    NumPy and the other, the only one that loads the fused kernel, runs them
     (`kgm.studies.probabilistic._prepared_then_run`): the same table as in this process. 54 s
     on the shared 2-core machine at a load of ~10 (the kernel loaded in two processes)."""
     from pathlib import Path

@@ -79,3 +79,105 @@ def test_a_study_batch_is_prepared_without_the_fused_kernel(monkeypatch):
     assert all(math.isfinite(p.delta) and p.delta > 0 for p in prepared.plans)
     # every member starts from its own stage's state (time 0, settled or released)
     assert all(run.state.time == 0.0 for run in prepared.runs)
+
+
+def test_a_study_runs_on_its_workers_count_and_the_idle_runner_judges_the_last_batch_whole(monkeypatch):
+    """`_prepared_then_run` with ``workers=2``: one preparing process beside the runner (not
+    two), every sample's row once; a runner about to idle (no whole batch and at most one
+    prepared in hand) takes the last batch not yet begun and judges it whole, and the samples of
+    a whole batch lost with it are prepared by the others (in-process stand-ins for the
+    processes, the phases stubbed: only the schedule is tested)."""
+    from types import SimpleNamespace
+
+    import ddatai.workers
+    from kgm.studies import probabilistic as pr
+
+    class Pool:
+        sizes = []
+
+        def __init__(self, fn, n_workers):
+            self.fn, self.n_workers = fn, n_workers
+            Pool.sizes.append(n_workers)
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            pass
+
+        def run(self, chunks, *, split=None):
+            for chunk in chunks:
+                for index, item in chunk:
+                    yield index, self.fn(item)
+
+    class Busy:  # returns its items only when drained: never idle once it has one
+        def __init__(self, fn):
+            self.fn, self.items = fn, []
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            pass
+
+        def submit(self, key, item):
+            self.items.append((key, item))
+
+        @property
+        def pending(self):
+            return len(self.items)
+
+        def poll(self, timeout=0.0):  # waiting, as if each item had taken that long
+            return self.drain() if timeout > 0 else []
+
+        def drain(self):
+            out, self.items = [(key, self.fn(item)) for key, item in self.items], []
+            return out
+
+    class Eager(Busy):  # returns its items at the next poll: idle whenever asked
+        def poll(self, timeout=0.0):
+            return self.drain()
+
+    class Lagging(Busy):  # returns at each poll all but the item it has just been given
+        def poll(self, timeout=0.0):
+            if timeout > 0:
+                return self.drain()
+            out = [(key, self.fn(item)) for key, item in self.items[:-1]]
+            self.items = self.items[-1:]
+            return out
+
+    class Losing(Eager):  # dies twice with every batch it is given whole
+        def drain(self):
+            return [(key, WorkerLost(deaths=2) if isinstance(item, pr._Whole) else out)
+                    for (key, item), (_, out) in zip(self.items, super().drain())]
+
+    monkeypatch.setattr(ddatai.workers, "ProcessPool", Pool)
+    monkeypatch.setattr(pr, "_prepare_batch", lambda job, items: ([], [([(it, (0, 1)) for it in items], "prepared")]))
+    monkeypatch.setattr(pr, "_evaluate_batch", lambda job, items: [(it[0], "whole") for it in items])
+    import kgm.judges.fused
+
+    monkeypatch.setattr(kgm.judges.fused, "run_prepared", lambda prepared, report=None: [SimpleNamespace(stable=True)] * 3)
+    monkeypatch.setattr(pr, "SampleRow", lambda **kw: "run")  # the runs' verdicts not looked at
+    job = pr._Job(build=None, method=None, settings=None, group=None, pass_seed=False)
+    batches = [tuple((3 * b + k, {}, 0) for k in range(3)) for b in range(4)]
+
+    monkeypatch.setattr(ddatai.workers, "Runner", Busy)
+    rows = list(pr._prepared_then_run(job, batches, 2))
+    assert Pool.sizes == [1]
+    assert sorted(i for i, _ in rows) == list(range(12))
+    assert dict(rows) == {i: "whole" if i >= 9 else "run" for i in range(12)}  # idle only at the start
+
+    monkeypatch.setattr(ddatai.workers, "Runner", Eager)
+    rows = list(pr._prepared_then_run(job, batches, 3))
+    assert Pool.sizes == [1, 2]
+    assert sorted(i for i, _ in rows) == list(range(12)) and {r for _, r in rows} == {"whole"}
+
+    # a runner with one prepared batch in hand and none whole is about to idle: it takes one whole
+    monkeypatch.setattr(ddatai.workers, "Runner", Lagging)
+    rows = list(pr._prepared_then_run(job, batches, 2))
+    assert dict(rows) == {i: "whole" if i >= 6 else "run" for i in range(12)}
+
+    # a whole batch lost with the runner: its samples prepared by the others, one a batch
+    monkeypatch.setattr(ddatai.workers, "Runner", Losing)
+    rows = list(pr._prepared_then_run(job, batches, 2))
+    assert sorted(i for i, _ in rows) == list(range(12)) and {r for _, r in rows} == {"run"}

@@ -19,8 +19,8 @@ Execution (`ddatai.parallel`): by default rigid and Sarma samples (limit equilib
 millisecond each) run in this process, where they are fastest, and DDA samples (seconds each)
 on one local worker process per CPU; ``workers=`` chooses, and ``client=`` (a
 ``dask.distributed.Client`` or a scheduler address) runs them on a Dask cluster. On local
-workers, DDA verdicts on the fused engine are prepared by the workers in NumPy and run by one
-more process, the only one that loads the fused kernel (``_prepared_then_run``). A script that
+workers, DDA verdicts on the fused engine are prepared in NumPy by all the workers but one, the
+only one that loads the fused kernel and runs them (``_prepared_then_run``). A script that
 starts a study at its top level without an ``if __name__ == "__main__":`` block still gets its
 result by default (in this process, with a warning saying what to add); asked for worker
 processes explicitly, it stops before any work with one line saying what to add. With ``out=``
@@ -35,6 +35,7 @@ import inspect
 import math
 import time
 import warnings
+from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Mapping, Optional
@@ -215,13 +216,21 @@ def _prepare_batch(job: _Job, items: tuple) -> tuple:
     return rows, work
 
 
-def _finish_batch(job: _Job, work: tuple) -> list:
-    """[(index, `SampleRow`)] of a `_prepare_batch` group: its samples' runs in one launch of
-    the fused engine (`kgm.judges.fused.run_prepared`), in the study's process that has loaded
-    the kernel. Errors name the sample (each sample then judged on its own, `_evaluate`).
-    ``work`` an architecture's name: the kernel loaded on it, ahead of the first batch (no rows)."""
+@dataclass(frozen=True)
+class _Whole:
+    """A batch that the study's idle runner judges whole, from its screens (`_prepared_then_run`)."""
+
+    items: tuple
+
+
+def _finish_batch(job: _Job, work) -> list:
+    """[(index, `SampleRow`)] of a `_prepare_batch` group run in one launch of the fused engine
+    (`kgm.judges.fused.run_prepared`; errors name the sample, each then judged alone), of a
+    `_Whole` judged here from its start; none of an architecture's name (the kernel loaded)."""
     from ..judges.fused import run_prepared
 
+    if isinstance(work, _Whole):
+        return _evaluate_batch(job, work.items)
     if isinstance(work, str):  # the kernel loaded ahead of the first batch, on this architecture
         from ddatai.fused.warm import warm
 
@@ -237,41 +246,54 @@ def _finish_batch(job: _Job, work: tuple) -> list:
 
 
 def _prepared_then_run(job: _Job, batches: list, workers: int):
-    """(index, row) of every sample of ``batches`` on local worker processes that prepare each
-    batch in NumPy (`_prepare_batch`) and one more process, the only one that loads the fused
-    kernel, that runs what they prepared (`_finish_batch`, `ddatai.workers.Runner`): a study
-    pays the kernel's load once, not once a worker. A batch lost with the runner is recorded as
-    lost, sample by sample."""
-    from ddatai.parallel import run
-    from ddatai.workers import Runner
+    """(index, row) of every sample of ``batches`` on ``workers`` local processes, one a CPU:
+    the runner, the only one that loads the fused kernel (once a study), runs what the others
+    prepare in NumPy (`_prepare_batch`, `_finish_batch`, `ddatai.workers.Runner`), one batch
+    each a round; about to idle (loaded, no whole batch and at most one prepared in hand), it
+    judges the last batch not yet begun whole (`_Whole`). A prepared batch lost with the runner
+    is recorded as lost, sample by sample (docs/kgm/probabilistic.md)."""
+    from ddatai.workers import ProcessPool, Runner
 
-    samples: dict = {}  # the runner's key -> the indices of its samples
     params = (job.settings or Settings()).dda.params
-    with Runner(functools.partial(_finish_batch, job)) as runner:
+    samples, whole = {}, {}  # in the runner's hands by key: prepared batches' samples, whole batches, the load
+    todo, alone = deque(batches), deque()  # alone: a whole batch's samples lost with the runner
+    with Runner(functools.partial(_finish_batch, job)) as runner, \
+            ProcessPool(functools.partial(_prepare_batch, job), max(1, workers - 1)) as pool:
         if params is not None and params.kernels == "fused" and params.arch in ("cpu", "cuda", "gpu"):
-            # the study asks for the fused engine: its one load starts now, beside the workers
-            runner.submit("load", params.arch)
+            runner.submit("load", params.arch)  # the study asks for the fused engine: loaded now
+            whole["load"] = ()
 
         def taken(results):
             for key, rows in results:
-                if isinstance(rows, WorkerLost):
-                    yield from ((index, rows) for index in samples.pop(key, ()))
+                indices, batch = samples.pop(key, ()), whole.pop(key, None)
+                if isinstance(rows, WorkerLost) and batch is not None:  # to the others, a sample a batch
+                    alone.extend((item,) for item in batch)
+                elif isinstance(rows, WorkerLost):
+                    yield from ((index, rows) for index in indices)
                 else:
-                    samples.pop(key, None)
                     yield from rows
 
-        for index, out in run(functools.partial(_prepare_batch, job), [(b[0][0], b) for b in batches],
-                              workers=workers, chunk=1, split=_split_batch):
-            if isinstance(out, WorkerLost):
-                yield index, out
+        while todo or alone or runner.pending:
+            yield from taken(runner.poll(timeout=0.0 if todo or alone else 1.0))
+            if not todo and not alone:
                 continue
-            rows, work = out
-            yield from rows
-            for k, part in enumerate(work):
-                samples[(index, k)] = [item[0] for item, _ in part[0]]
-                runner.submit((index, k), part)
-            yield from taken(runner.poll())
-        yield from taken(runner.drain())
+            if todo and not whole and len(samples) <= 1:  # the runner idle soon: the last batch whole there
+                batch = todo.pop()
+                whole[("whole", batch[0][0])] = batch
+                runner.submit(("whole", batch[0][0]), _Whole(batch))
+                continue
+            given = [alone.popleft() if alone else todo.popleft()
+                     for _ in range(min(pool.n_workers, len(alone) + len(todo)))]
+            for index, out in pool.run([[(b[0][0], b)] for b in given], split=_split_batch):
+                if isinstance(out, WorkerLost):
+                    yield index, out
+                    continue
+                rows, work = out
+                yield from rows
+                for k, part in enumerate(work):
+                    samples[(index, k)] = [item[0] for item, _ in part[0]]
+                    runner.submit((index, k), part)
+                yield from taken(runner.poll())
 
 
 def _describe(values: Mapping) -> str:
@@ -370,7 +392,7 @@ def probabilistic(build, variables: Mapping, n: int, *, method: str = Method.SAR
         size = max(1, min(size, SAVED_BATCH, -(-len(items) // sharing)))
         batches = [tuple(items[i:i + size]) for i in range(0, len(items), size)]
         if client is None and workers > 1:
-            # the workers prepare each batch in NumPy and one more process runs them all on the
+            # all the workers but one prepare each batch in NumPy and that one runs them on the
             # fused kernel, loaded once a study (a batch that the fused engine does not judge is
             # judged where it was prepared)
             flat = _prepared_then_run(job, batches, workers)
