@@ -87,6 +87,19 @@ def column(b: float, h: float, friction: float = 45.0, material=ROCK) -> ToppleC
     return ToppleCase(f"column b/h={b / h:g}", (b,), ((h,),), friction, material)
 
 
+def released_in_doubt(start, released: int) -> bool:
+    """Whether an equilibrium stage's record (a row of `Results.start`) released ``released``
+    blocks, held none, and released some of them in doubt (`ddatai.in_doubt`: the run's first
+    steps then resolve their rocking). Not how many: a block is released in doubt where the
+    stage's open-close test (`ddatai.mechanisms.MAX_TEST_SOLVES` solves) did not converge, and
+    on these stacks, at the edge of toppling, which tests converge depends on round-off — the
+    4-4-4 squares at 23.25° release 11 of 12 in doubt with OpenBLAS's AVX2 kernels and 10 with
+    its AVX-512 ones (``OPENBLAS_CORETYPE``). The run's time step reads only whether a block is
+    watched, and every released block moves."""
+    return (int(start["released"]) == released and int(start["held"]) == 0
+            and 1 <= int(start["in_doubt"]) <= released)
+
+
 def rocking_time(case: ToppleCase) -> float:
     """1/p = √(4R/(3g)) of the slenderest column, R its corner-to-centroid distance: the time
     constant of rigid rocking about a corner (Housner 1963), the time in which a column past
