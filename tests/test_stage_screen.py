@@ -46,12 +46,19 @@ def group_model(module, blocks=frozenset({0, 1}), **strength):
     return build_model(sub, plan.params)
 
 
-def compare(model) -> tuple:
+def compare(model, undecided: list | None = None) -> tuple:
     """The stage with and without the screen on ``model``: asserts the same outcome (module
-    docstring); returns (held, released, whether the screen released the model)."""
+    docstring); returns (held, released, whether the screen released the model). With
+    ``undecided`` (a list), a model that the screen releases whole while the reference holds
+    some of it after a long return mapping (one whose outcome round-off decides) is appended
+    there instead: the screen on the safe side, releasing what rigid-block limit equilibrium
+    cannot hold."""
     screened = unsupported_at_start(Stepper(model), model.initial_state()).any()
     state, record = settle(Stepper(model), model.initial_state(), screen=True)
     ref_state, ref = settle(Stepper(model), model.initial_state(), screen=False)
+    if undecided is not None and screened and record.released == model.n_free > ref.released:
+        undecided.append((ref.held, ref.released, ref.solves))
+        return record.held, record.released, True
     assert (record.held, record.released, record.welded) == (ref.held, ref.released, ref.welded)
     if screened:
         assert record.held == 0 and record.released == model.n_free and record.solves == 0
@@ -177,11 +184,16 @@ def test_a_large_mass_is_not_screened():
 @pytest.mark.slow
 def test_a_hundred_study_samples_start_as_without_the_screen():
     """Example II's study, its first 100 samples (~20 s on 2 cores); the first of them are
-    FIRST_SAMPLES."""
+    FIRST_SAMPLES. One of them the reference does not decide: sample 88 (φ 17.75°, c 23.1 kPa),
+    which limit equilibrium lets move whole, the stage without the screen releases whole after
+    a return mapping with AVX2 BLAS kernels and holds one block of after 73 solves with AVX-512
+    ones (``OPENBLAS_CORETYPE``); the screen releases it whole on both."""
     samples = study_samples(100)
     assert samples[:len(FIRST_SAMPLES)] == FIRST_SAMPLES
-    outcomes = [compare(model) for model in study_members(samples)]
+    undecided = []
+    outcomes = [compare(model, undecided) for model in study_members(samples)]
     assert sum(screened for *_, screened in outcomes) > 20
+    assert len(undecided) <= 1 and all(solves > 20 for *_, solves in undecided)
 
 
 @pytest.mark.slow
