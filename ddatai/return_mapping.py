@@ -35,15 +35,14 @@ from .mechanisms import MECHANISM_SIZE, anchored, contracting, loaded_away, mech
 STAGE_BETA = 0.5
 
 
-#: at most this many return-mapping iterations in a pseudo-step before the blocks that are
-#: still out of balance are tested as mechanisms (`unbalanced`); most pseudo-steps need
-#: 10–40, each one solve (a refinement with the last factor while no contact opens or closes)
-#: the stage's equilibrium: every contact force the law's within this fraction of the load its
-#: blocks carry (or ``Params.oc_force_tolerance`` if smaller). A step may stop at 1e-3 of it (the
-#: accuracy that a critical friction needs); a start that loose leaves forces out of balance by
-#: 1e-3 of a weight and the first steps creep (33 µm on scenes/kgm_slope.py), where the stage
-#: should hand over a model at rest to round-off
+#: the stage's equilibrium: every contact force the law's within this fraction of the load its blocks carry
+#: (or ``Params.oc_force_tolerance`` if smaller). A step may stop at 1e-3 of it (the accuracy that a
+#: critical friction needs); a start that loose leaves forces out of balance by 1e-3 of a weight and the
+#: first steps creep (33 µm on scenes/kgm_slope.py), where the stage should hand over a model at rest to round-off
 STAGE_FORCE_TOLERANCE = 1e-6
+#: at most this many return-mapping iterations in a pseudo-step before the blocks still out of balance are
+#: tested as mechanisms (`unbalanced`); most pseudo-steps need 10–40, each one solve (a refinement with the
+#: last factor while no contact opens or closes)
 MAX_ITERATIONS = 120
 #: ... and the test comes earlier once the iteration has stalled: no contact opened or closed
 #: and the largest out-of-balance force did not halve in this many iterations
@@ -58,9 +57,8 @@ MAX_STAGE_SOLVES = 1000
 #: Anderson acceleration (`return_steps.anderson`) starts again when the largest out-of-balance
 #: force has not halved in this many iterations
 ANDERSON_RESTART = 4
-#: once an iteration has stalled, it goes on from there with each vertex-edge contact that has
-#: opened or closed this many times opening by the return mapping of its normal spring
-#: (`_iterate`, ``freeze``)
+#: once an iteration has stalled, it goes on from there with each vertex-edge contact that has opened or
+#: closed this many times opening by the return mapping of its normal spring (`_iterate`, ``freeze``)
 CHATTER_FLIPS = 2
 
 
@@ -93,10 +91,9 @@ class Frame:
 
 @dataclass(kw_only=True)
 class Guess:
-    """The return-mapping iteration's contact unknowns besides D: which contacts are closed,
-    the entrance line of a vertex-vertex one, and how far each vertex-edge one has slid (its
-    lock point moved that far along the edge) [m], and how far each vertex-edge one has opened
-    by the return mapping of its normal spring (`_iterate`) [m]."""
+    """The return-mapping iteration's contact unknowns besides D: which contacts are closed, the entrance
+    line of a vertex-vertex one, how far each vertex-edge one has slid (its lock point moved that far along
+    the edge) [m], and how far each has opened by the return mapping of its normal spring (`_iterate`) [m]."""
 
     closed: np.ndarray
     line: np.ndarray
@@ -146,8 +143,7 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
     ``contraction``: the last pseudo-step's increment [m] (``ddatai.mechanisms.contracting``). Returns (D,
     or None when no equilibrium was found; solves; the newly released blocks; the contacts as
     handed over, `_hand_over`; whether it stalled; whether it stopped contracting; whether the
-    first pseudo-step's iterate left DDA's range before anything was released,
-    ``ddatai.mechanisms.out_of_range``)."""
+    first pseudo-step left DDA's range, ``ddatai.mechanisms.out_of_range``)."""
     out = released.copy()
     solves = 0
     guess = None
@@ -224,10 +220,8 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
             return None, solves, out & ~released, contacts, False, diverging, False
         if thrown and not np.isfinite(contraction) and not np.any(out & ~released) and \
                 out_of_range(stepper, contacts, outcome.disp, out, mechanism, size):
-            # the first pseudo-step, which has no equilibrium to end at, threw blocks from an
-            # iterate outside DDA's range before releasing anything: releasing them takes their
-            # neighbours' support and the cascade releases the model (docs/method/dda.md §8.12);
-            # no frictional equilibrium was found, and the stage starts welded
+            # the first pseudo-step threw blocks from an iterate outside DDA's range: releasing them
+            # cascades through the model (docs/method/dda.md §8.12); the stage starts welded
             return None, solves, out & ~released, contacts, False, False, True
         out |= mechanism
     else:

@@ -16,35 +16,31 @@ solve of the model under its weight, the point loads at t = 0 and its initial st
    inertia of a very long pseudo time step, over which free fall would cover 1e4 block sizes:
    it keeps K regular for a block that nothing holds and does not change a held block's
    displacement measurably.
-3. The equilibrium is found by *return mapping* (``_iterate``): every closed contact stays a
-   spring — normal, and for a vertex-edge contact shear from its lock point, moved by how far
-   the contact has slid —, the slip of a contact whose spring carries more than its Coulomb
-   strength grows by the excess (the return mapping of elastic, perfectly plastic friction,
-   Anderson-accelerated), and a contact opens where it pulls beyond its tensile strength or
-   closes where it overlaps (K changes only then; otherwise the last factor solves the next
-   iterate, and where states change the step stops where the energy stops falling). Once no
-   state has changed for NEWTON_AFTER iterations, what is left is the slips' linear
-   convergence: the open-close iteration of a static step (semismooth Newton, the contacts at
-   their strength sliding) finishes it from there in a few solves where it converges and moves
-   no block away, once a pseudo-step (`return_mapping`); an
-   iteration that stalls goes on from there with each vertex-edge contact that has opened or
-   closed CHATTER_FLIPS times opening by the return mapping of its normal spring (tension
-   cut-off, K kept), as corner contacts of blocks cut by persistent joints otherwise do by
-   turns for the whole iteration. It ends
-   when no state changes and every contact force is the contact law's within
-   ``ddatai.return_mapping.STAGE_FORCE_TOLERANCE`` (1e-6, stricter than a step's
-   ``Params.oc_force_tolerance``) × the load its blocks carry — the law's forces then balance
+3. The equilibrium is found by *return mapping* (``_iterate``): every closed contact stays a spring —
+   normal, and for a vertex-edge contact shear from its lock point, moved by how far the contact has
+   slid —, the slip of a contact whose spring carries more than its Coulomb strength grows by the excess
+   (the return mapping of elastic, perfectly plastic friction, Anderson-accelerated), and a contact
+   opens where it pulls beyond its tensile strength or closes where it overlaps (K changes only then;
+   otherwise the last factor solves the next iterate, and where states change the step stops where the
+   energy stops falling). Once no state has changed for NEWTON_AFTER iterations, what is left is the
+   slips' linear convergence: the open-close iteration of a static step (semismooth Newton, the contacts
+   at their strength sliding) finishes it from there in a few solves where it converges and moves no
+   block away, once a pseudo-step (`return_mapping`); an iteration that stalls goes on from there with
+   each vertex-edge contact that has opened or closed CHATTER_FLIPS times opening by the return mapping
+   of its normal spring (tension cut-off, K kept), as corner contacts of blocks cut by persistent joints
+   otherwise do by turns for the whole iteration. It ends when no state changes and every contact force
+   is the contact law's within ``ddatai.return_mapping.STAGE_FORCE_TOLERANCE`` (1e-6, stricter than a
+   step's ``Params.oc_force_tolerance``) × the load its blocks carry — the law's forces then balance
    every block within that much —, or, where the iteration stalls before, within
-   ``Params.oc_state_tolerance``; in that case, and where a bonded contact ends at its strength
-   (the run's first step would break its bond, Shi's rule, for the least excess), the
-   open-close iteration of a static step finishes from there — its contacts at their strength
-   sliding without springs, where a wedge slides until bolts or a wedging joint take its load —
-   and its equilibrium is taken where it converges and moves nothing away. A contact without
-   friction and cohesion has no shear spring. Semismooth Newton on the same law (the open-close
-   iteration of a step) does not converge here from the all-locked start: a block whose contacts are
-   sliding or open in an iterate has no stiffness but the pseudo inertia and is thrown ~1e4
-   sizes, which scrambles its neighbours' states, and in a fitted mass of stiff blocks groups
-   of corner contacts flip together for ever (docs/method/dda.md §8.12).
+   ``Params.oc_state_tolerance``; in that case, and where a bonded contact ends at its strength (the
+   run's first step would break its bond, Shi's rule, for the least excess), the open-close iteration of
+   a static step finishes from there — its contacts at their strength sliding without springs, where a
+   wedge slides until bolts or a wedging joint take its load — and its equilibrium is taken where it
+   converges and moves nothing away. A contact without friction and cohesion has no shear spring.
+   Semismooth Newton on the same law (the open-close iteration of a step) does not converge here from
+   the all-locked start: a block whose contacts are sliding or open in an iterate has no stiffness but
+   the pseudo inertia and is thrown ~1e4 sizes, which scrambles its neighbours' states, and in a fitted
+   mass of stiff blocks groups of corner contacts flip together for ever (docs/method/dda.md §8.12).
 4. A block that moves more than a quarter of its size away from what holds it, or whose
    contacts sink deeper than the penetration limit, is a mechanism that the contacts cannot
    hold: a free block, one balanced on a corner, a column that topples. "Away from what holds
@@ -86,10 +82,7 @@ solve of the model under its weight, the point loads at t = 0 and its initial st
    (``ddatai.mechanisms.contracting``: what a diverging geometry throws is not a mechanism).
 6. If no frictional equilibrium is found (a contracting pseudo-step out of solves, or, with bolts or water,
    out-of-balance blocks that the test does not move, or a first pseudo-step whose iterate left
-   DDA's range before it released anything — a block thrown by a rotation beyond the first-order
-   one while the blocks it keeps overlap by a quarter of a block, ``ddatai.mechanisms.out_of_range``,
-   ``StartRecord.diverged``: what it throws is not shown to be a mechanism, and releasing it
-   takes its neighbours' support), the model starts from its *welded* equilibrium: the
+   DDA's range, ``mechanisms.out_of_range``, ``StartRecord.diverged``), the model starts from its *welded* equilibrium: the
    same static solve with every touching contact held as it is (normal and shear springs, no
    open-close judgement), repeated at the settled geometry until the increment is round-off;
    blocks that move as mechanisms even so are released. Then each contact takes the joint law
@@ -179,10 +172,8 @@ class StartRecord:
     """Released blocks that no converged test moved or held (in doubt): their first steps are
     resolved (`ddatai.in_doubt`) [-]."""
     diverged: bool = False
-    """The first pseudo-step's return mapping left DDA's range of validity before it released
-    anything (a block turned beyond the first-order rotation while the blocks it kept overlapped
-    by a quarter of a block, ``ddatai.mechanisms.out_of_range``): what it threw was no
-    mechanism, and the model started from its welded equilibrium (``welded``; module docstring, 6.)."""
+    """The first pseudo-step's iterate left DDA's range before it released anything
+    (``ddatai.mechanisms.out_of_range``): the model started welded (module docstring, 6.)."""
 
 
 #: the record of a model with nothing to settle
