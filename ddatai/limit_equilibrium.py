@@ -30,11 +30,12 @@ None and the stage keeps its open-close test (``ddatai.mechanisms.test_unbalance
 
 from __future__ import annotations
 
-import threading
 from typing import Optional
 
 import numpy as np
 
+from .memo import GeometryMemo
+from .memo import key as data_key
 from .contacts import Contacts
 from .layout import E0, V0
 
@@ -171,24 +172,13 @@ def unsupported_programs(model, vertex_xy: np.ndarray, geom: dict, contacts: Con
 #: equilibrium matrices built lately, by the bytes of their data: the members of a batch (a
 #: study's samples, a bisection's probes) are one geometry, and their screens' first programs
 #: the same matrix (`_kept_matrix`)
-_MATRICES: dict = {}
-_MATRICES_KEPT = 8
-_MATRICES_LOCK = threading.Lock()  # a study's threaded workers
+_MATRICES = GeometryMemo(8)
 
 
 def _kept_matrix(*args):
     """`_equilibrium_matrix`, or a copy of the one built lately from the same data (the same
     bytes in: the same matrix out)."""
-    key = tuple((v.dtype.str, v.shape, v.tobytes()) if isinstance(v, np.ndarray) else v for v in args)
-    with _MATRICES_LOCK:
-        kept = _MATRICES.get(key)
-    if kept is None:
-        kept = _equilibrium_matrix(*args)
-        with _MATRICES_LOCK:
-            while len(_MATRICES) >= _MATRICES_KEPT:
-                _MATRICES.pop(next(iter(_MATRICES)))
-            _MATRICES[key] = kept
-    return kept.copy()
+    return _MATRICES.get(data_key(*args), lambda: _equilibrium_matrix(*args))
 
 
 def _equilibrium_matrix(sel, block_a, block_b, point, normal, tangent, centroid, row_of, n_rows, row_scale):

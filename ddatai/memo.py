@@ -113,6 +113,9 @@ class GeometryMemo:
             self._kept.clear()
             self.hits = self.misses = 0
 
+    def __len__(self) -> int:
+        return len(self._kept)
+
 
 def _copy(value):
     """A copy that shares nothing mutable with ``value`` (arrays, lists of tuples of numbers)."""
@@ -124,4 +127,6 @@ def _copy(value):
         return tuple(_copy(v) for v in value)
     if value is None or isinstance(value, (bool, int, float, str, np.generic)):
         return value
-    raise TypeError(f"GeometryMemo keeps arrays, lists, tuples and numbers, not {type(value).__name__}")
+    if hasattr(value, "tocsr"):  # a SciPy sparse matrix: its arrays copied
+        return value.copy()
+    raise TypeError(f"GeometryMemo keeps arrays, sparse matrices, lists, tuples and numbers, not {type(value).__name__}")
