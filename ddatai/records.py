@@ -116,8 +116,7 @@ START_DTYPE = np.dtype([
     ("unsettled", "?"),         # its pseudo-steps stopped contracting: ended at the last equilibrium
     ("turn_on_steps", "i4"),    # steps of the slow gravity turn-on that settled its doubt (0: none)
     ("in_doubt", "i4"),         # of the released blocks, those released in doubt (first steps resolved)
-    ("diverged", "?"),          # its first pseudo-step left DDA's range: the welded equilibrium found
-    ("predicted", "?"),         # ... and the frictional stage went on from it to its equilibrium
+    ("diverged", "?"),          # its first pseudo-step left DDA's range: started welded
 ])
 
 #: a rock bolt that broke (docs/method/water_bolts.md), one record per broken bolt

@@ -172,10 +172,7 @@ class StartRecord:
     resolved (`ddatai.in_doubt`) [-]."""
     diverged: bool = False
     """The first pseudo-step's iterate left DDA's range before it released anything
-    (``ddatai.mechanisms.out_of_range``): the welded equilibrium was found (module docstring, 6.)."""
-    predicted: bool = False
-    """The frictional stage went on from that welded equilibrium, its predictor, and found its
-    equilibrium there (``welded`` False; module docstring, 6.)."""
+    (``ddatai.mechanisms.out_of_range``): the model started welded (module docstring, 6.)."""
 
 
 #: the record of a model with nothing to settle
@@ -205,48 +202,33 @@ def settle(stepper, state: State, welded: bool = False, screen: bool = True) -> 
         geom = model.block_geometry(state.vertex_xy)
         size = np.sqrt(geom["area"])
         dt_static = pseudo_time_step(stepper, geom, size)
-        settled, record, converged, _ = _stage(stepper, state, size, dt_static, t0, welded=welded, screen=screen,
-                                               slow=not welded and model.params.start_turn_on and feasible(model))
+        settled, record, converged = _stage(stepper, state, size, dt_static, t0, welded=welded, screen=screen,
+                                            slow=not welded and model.params.start_turn_on and feasible(model))
         if not converged:
             # no frictional equilibrium: start from the welded one (module docstring, 6.)
-            settled, again, _, end = _stage(stepper, state, size, dt_static, t0, welded=True)
+            settled, again, _ = _stage(stepper, state, size, dt_static, t0, welded=True)
             record = replace(again, solves=record.solves + again.solves, diverged=record.diverged)
-            if record.diverged:
-                # the first pseudo-step diverged from the unloaded geometry: the frictional stage
-                # again from the welded equilibrium, its predictor, where the contact forces are
-                # near balance and the return mapping only redistributes what exceeds the law
-                going_on, found, converged, _ = _stage(stepper, state, size, dt_static, t0, predictor=(settled, *end))
-                if converged and found.solves:
-                    settled, record = going_on, replace(found, solves=record.solves + found.solves, diverged=True,
-                                                        predicted=True)
     return settled, replace(record, factorisations=stepper.solver.factorisations - factorised,
                             wall_time=_time.perf_counter() - t0)
 
 
-def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float, welded: bool = False,
-           screen: bool = False, slow: bool = False, predictor: "tuple | None" = None):
+def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
+           welded: bool = False, screen: bool = False, slow: bool = False) -> tuple[State, StartRecord, bool]:
     """Pseudo-steps with Δt = ``dt`` (the static pseudo time step) until the increment is
     round-off, each the return-mapping iteration of `return_mapping` (``welded``: one solve
     with the touching contacts held, `welded_step`, the contacts then taking the joint law,
     `unweld`). ``slow``: blocks in doubt (`return_mapping`, ``doubt``) are settled by a slow
     turn-on of the weight (`turn_on`); where it moves a block away, the stage is done again
-    releasing them. ``predictor``: (the welded stage's state, its released blocks, its last increment
-    [m]): the pseudo-steps go on from there (module docstring, 6.). Returns (state, record, whether
-    every pseudo-step found its equilibrium, (the released blocks, the last increment [m]))."""
+    releasing them. Returns (state, record, whether every pseudo-step found its equilibrium)."""
     model = stepper.model
     free = ~model.block_fixed
     initial = state
-    if predictor is not None:
-        start, released, increment = predictor
-        state, released, memory = start, released.copy(), start.memory
-    else:
-        start, memory, increment = state, None, np.inf
-        released = unsupported_at_start(stepper, state) if screen and not welded else np.zeros(model.n_blocks, bool)
+    released = unsupported_at_start(stepper, state) if screen and not welded else np.zeros(model.n_blocks, bool)
     in_doubt, solves = np.zeros(model.n_blocks, bool), 0  # in_doubt: released as no converged test decided
     while True:
         doubt = np.zeros(model.n_blocks, bool) if slow else None
-        state, last, memory, n, stalled, unsettled, failed, end = _pseudo_steps(
-            stepper, initial, state, released, size, dt, welded, doubt, in_doubt, memory, increment)
+        state, last, memory, n, stalled, unsettled, failed = _pseudo_steps(stepper, initial, state, released, size,
+                                                                           dt, welded, doubt, in_doubt)
         diverged = failed == DIVERGED
         solves += n
         if doubt is not None and doubt.any() and not failed:
@@ -258,12 +240,12 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float, welded
                                           released=int(np.count_nonzero(free & out)), stalled=True, turn_on_steps=steps,
                                           settlement=float(np.max(moved, initial=0.0)), wall_time=_time.perf_counter() - t0,
                                           at_strength=int(np.count_nonzero(state.memory.state == SLIDE))), True
-            again, record, converged, end = _stage(stepper, initial, size, dt, t0, welded, screen)
-            return again, replace(record, solves=solves + record.solves), converged, end
+            again, record, converged = _stage(stepper, initial, size, dt, t0, welded, screen)
+            return again, replace(record, solves=solves + record.solves), converged
         if failed:
             return initial, StartRecord(solves=solves, held=0, released=int(np.count_nonzero(free)),
                                         settlement=0.0, at_strength=0, diverged=diverged,
-                                        wall_time=_time.perf_counter() - t0), False, (released, end)
+                                        wall_time=_time.perf_counter() - t0), False
         # a held block that settled into a released one would start overlapping it: the first
         # steps would throw both apart (the run's penalty raised many times over, its first
         # steps out of Coulomb's law: docs/method/dda.md §8.12). Its equilibrium leaned on the
@@ -272,12 +254,11 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float, welded
         if not sunk.any():
             break
         released |= sunk
-        state = initial if predictor is None else restore(model, start, initial, released)
-        memory = None if predictor is None else start.memory
+        state = initial
     if solves == 0:
         gone = int(np.count_nonzero(free & released))
         return initial, NOTHING if not gone else replace(NOTHING, released=gone,
-                                                         wall_time=_time.perf_counter() - t0), True, (released, end)
+                                                         wall_time=_time.perf_counter() - t0), True
     at_strength: set = set()
     if last is not None and welded:
         unweld(stepper, last)
@@ -295,26 +276,22 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float, welded
                          at_strength=len(at_strength & set(memory.key.tolist())),
                          wall_time=_time.perf_counter() - t0, welded=welded, stalled=stalled,
                          unsettled=unsettled, in_doubt=int(np.count_nonzero(in_doubt)))
-    return state.replace(memory=memory, in_doubt=watched(model, in_doubt)), record, True, (released, end)
+    return state.replace(memory=memory, in_doubt=watched(model, in_doubt)), record, True
 
 
 def _pseudo_steps(stepper, initial: State, state: State, released: np.ndarray, size: np.ndarray, dt: float,
-                  welded: bool, doubt: "np.ndarray | None" = None, in_doubt: "np.ndarray | None" = None,
-                  memory: "ContactMemory | None" = None, increment: float = np.inf):
+                  welded: bool, doubt: "np.ndarray | None" = None, in_doubt: "np.ndarray | None" = None):
     """The pseudo-steps of `_stage` from ``state`` with the ``released`` blocks out (updated in place with
-    the blocks it releases; ``doubt``, ``in_doubt``: `return_mapping`'s). ``memory``, ``increment``: the
-    contacts and the last increment [m] of the pseudo-steps it goes on from (a welded predictor's; None:
-    from t = 0). Returns (state, the last pseudo-step's contacts, their memory, solves, stalled, unsettled,
-    whether a pseudo-step found no equilibrium: DIVERGED where the first one left DDA's range,
-    `return_mapping`; the last increment)."""
+    the blocks it releases; ``doubt``, ``in_doubt``: `return_mapping`'s). Returns (state, the last
+    pseudo-step's contacts, their memory, solves, stalled, unsettled, whether a pseudo-step found no equilibrium:
+    DIVERGED where the first one left DDA's range, `return_mapping`)."""
     model = stepper.model
     free = ~model.block_fixed
-    going_on = memory is not None  # from a settled geometry: its pseudo-steps as a third one's
-    memory = ContactMemory.empty() if memory is None else memory
+    memory = ContactMemory.empty()
     last = None  # the contacts of the last pseudo-step
     solves = 0
     stalled = False  # set by a pseudo-step that stalls, which then ends the stage
-    # increment: the last pseudo-step's largest displacement [m] (inf: none yet, no limit)
+    increment = np.inf  # the last pseudo-step's largest displacement [m] (none yet: no limit)
     unsettled = False
     for pseudo_steps in range(MAX_PSEUDO_STEPS):
         geom = state.geometry if state.geometry is not None else model.block_geometry(state.vertex_xy)
@@ -327,7 +304,7 @@ def _pseudo_steps(stepper, initial: State, state: State, released: np.ndarray, s
             disp, n, found, contacts = welded_step(stepper, state, geom, contacts, dt, released, size)
         else:
             frame = Frame.build(stepper, state, geom, contacts, dt)
-            if (pseudo_steps >= 2 or going_on) and balanced(stepper, frame, contacts, geom, size):
+            if pseudo_steps >= 2 and balanced(stepper, frame, contacts, geom, size):
                 # the settled geometry holds: its contact forces balance every block (a second
                 # pseudo-step first, which takes the first one's linearisation error out)
                 break
@@ -336,14 +313,14 @@ def _pseudo_steps(stepper, initial: State, state: State, released: np.ndarray, s
                 stepper, state, geom, contacts, dt, released, size, frame, doubt, in_doubt,
                 contraction=GEOMETRY_CONTRACTION * increment)
             if diverged:
-                return state, last, memory, solves + n, stalled, unsettled, DIVERGED, increment
+                return state, last, memory, solves + n, stalled, unsettled, DIVERGED
             if unsettled and marked is not None:
                 in_doubt[:] = marked  # it released nothing: nothing it marked is in doubt
         solves += n
         if unsettled:
             break  # it would throw what its divergence moves: the last equilibrium, as below
         if disp is None:  # no equilibrium found
-            return state, last, memory, solves, stalled, unsettled, True, increment
+            return state, last, memory, solves, stalled, unsettled, True
         if found.any():
             # a released block starts from where it was at t = 0
             released |= found
@@ -374,7 +351,7 @@ def _pseudo_steps(stepper, initial: State, state: State, released: np.ndarray, s
             # the return mapping stalled where limit equilibrium holds every block: another
             # pseudo-step would stall the same way; the first steps settle what is left
             break
-    return state, last, memory, solves, stalled, unsettled, False, increment
+    return state, last, memory, solves, stalled, unsettled, False
 
 
 def balanced(stepper, frame: Frame, contacts: Contacts, geom: dict, size: np.ndarray) -> bool:
