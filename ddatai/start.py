@@ -90,7 +90,10 @@ solve of the model under its weight, the point loads at t = 0 and its initial st
    strength is handed over locked at it (`StartRecord.at_strength`). The first steps release
    only the difference between the welded and the real joint forces instead of the whole
    weight (sudden gravity rings a stiff grid for its whole run and doubles the solves per
-   step; docs/method/dda.md §8.12). `StartRecord.welded` says that a run started so.
+   step; docs/method/dda.md §8.12). `StartRecord.welded` says that a run started so
+   (``ddatai.welded``). The frictional stage going on from the welded equilibrium, where the
+   first pseudo-step left DDA's range, leaves it too (measured on ntdda's grid: the welded
+   equilibrium holds it by tension and shear across its vertical joints; §8.12).
 
 So a model that limit equilibrium calls stable moves no more than its elastic settlement, and
 one that it calls unstable starts failing at once: its released blocks start under sudden
