@@ -2,6 +2,7 @@
 where the first pseudo-step's return mapping left DDA's range (`ddatai.start`, 6.)?
 
     python benchmarks/stage_from_welded.py SIZE [--columns N] [--no-limit]
+    python benchmarks/stage_from_welded.py SIZE [--columns N] --first   # the first pseudo-step from t = 0
 
 Runs the welded stage (``settle(..., welded=True)``: the same equilibrium that the stage falls back
 on, with each contact then taking the joint law: pulled ones open, those beyond their Coulomb
@@ -12,8 +13,10 @@ out-of-range test). Prints, at the predictor, the joints' contacts by orientatio
 (closed, opened by the joint law, beyond their strength, the median normal force of those
 left closed), then every
 return-mapping iterate of the pseudo-step (the largest block move and where, the largest
-rotation, the closed and would-open contacts, those beyond strength, the vertical joints' among
-them) and what it threw. Results: benchmarks/results/stage_divergence.md.
+rotation, the closed contacts, those that would open or close and those beyond strength, the
+vertical joints' and the vertex-vertex ones among them) and what it threw. ``--first``: the same
+lines for the stage's first pseudo-step from t = 0 instead. Results:
+benchmarks/results/stage_divergence.md.
 """
 
 from __future__ import annotations
@@ -33,17 +36,14 @@ def main() -> None:
     ap.add_argument("size", type=int)
     ap.add_argument("--columns", type=int, default=0, help="a grid of this many columns (SIZE // COLUMNS rows)")
     ap.add_argument("--no-limit", action="store_true", help="no contraction test (a first pseudo-step's)")
+    ap.add_argument("--first", action="store_true", help="trace the first pseudo-step from t = 0 instead")
     a = ap.parse_args()
 
     import ddatai as dd
-    from ddatai import return_mapping as rm
     from ddatai import start as st
-    from ddatai.contacts import Contacts, subset_contacts
     from ddatai.layout import KIND, OPEN, SLIDE, VE
-    from ddatai.mechanisms import pseudo_time_step
-    from ddatai.return_mapping import Frame, return_mapping
+    from ddatai.model import ContactMemory
     from ddatai.step import Stepper
-    from ddatai.threads import dense_solves
     from stage_trace import scaled_grid
 
     width = a.columns or int(round(a.size ** 0.5))
@@ -77,6 +77,10 @@ def main() -> None:
 
     st.block_displacement, st.unweld = logged, judged
     stepper = Stepper(model)
+    if a.first:
+        trace_pseudo_step(a, model, stepper, model.initial_state().replace(memory=ContactMemory.empty()), np.inf, where,
+                          joints, t0)
+        return
     predictor, record = st.settle(stepper, model.initial_state(), welded=True)
     st.block_displacement, st.unweld = measure, unweld
     print(f"[{time.process_time() - t0:7.1f} s] welded: {record.solves} solves, increments "
@@ -92,8 +96,21 @@ def main() -> None:
                 print(f"  {name:10s} rows {lo:3d}+: closed {int(s.sum()):6d}, opened by the law {int((s & (judged_state == OPEN)).sum()):6d},"
                       f" beyond strength {int((s & ve & (judged_state == SLIDE)).sum()):6d}, median N "
                       f"{np.median(force[pressed]) if (pressed := s & ve & (judged_state != OPEN)).any() else 0.0:.3g} N/m")
+    trace_pseudo_step(a, model, stepper, predictor, np.inf if a.no_limit else st.GEOMETRY_CONTRACTION * increments[-1],
+                      where, joints, t0)
 
-    # one frictional pseudo-step from the predictor, traced iterate by iterate
+
+def trace_pseudo_step(a, model, stepper, state, limit: float, where, joints, t0: float) -> None:
+    """One frictional pseudo-step from ``state`` (its geometry and contact memory), traced iterate
+    by iterate, ``limit``: the contraction test's last increment [m]."""
+    from ddatai import return_mapping as rm
+    from ddatai import start as st
+    from ddatai.contacts import Contacts
+    from ddatai.layout import KIND, OPEN, VE
+    from ddatai.mechanisms import pseudo_time_step
+    from ddatai.return_mapping import Frame, return_mapping
+    from ddatai.threads import dense_solves
+
     free = ~model.block_fixed
     vertical = {}
     block_displacement, stage_law, mechanisms = rm.block_displacement, rm.stage_law, rm.mechanisms
@@ -115,10 +132,11 @@ def main() -> None:
             vertical["vertical"] = joints(contacts)[0]
         v = vertical["vertical"]
         beyond = closed & (contacts.cint[:, KIND] == VE) & (model.shear_penalty * np.abs(law.ds) > law.strength)
-        opens = closed & ~law.closed
+        opens, closes = closed & ~law.closed, ~closed & law.closed
         corner = contacts.cint[:, KIND] != VE
         print(f"      closed {int(closed.sum())} (vertical joints {int((closed & v).sum())}), would open "
               f"{int(opens.sum())} (vertical joints {int((opens & v).sum())}, vertex-vertex {int((opens & corner).sum())}), "
+              f"would close {int(closes.sum())} ({int((closes & v).sum())}, {int((closes & corner).sum())}), "
               f"beyond strength {int(beyond.sum())} (vertical joints {int((beyond & v).sum())})")
         return law
 
@@ -134,18 +152,16 @@ def main() -> None:
     released = np.zeros(model.n_blocks, bool)
     with dense_solves(stepper.solver):
         dt = pseudo_time_step(stepper, geom0, size)
-        state = predictor
         geom = model.block_geometry(state.vertex_xy)
         cint, length = stepper.detect(state.vertex_xy, state.memory)
         contacts = Contacts.start(model, state.vertex_xy, cint, length, state.memory, True)
-        contacts = subset_contacts(contacts, ~(released[contacts.block_a] | released[contacts.block_b]))
         frame = Frame.build(stepper, state, geom, contacts, dt)
-        print(f"  balanced at the predictor: {st.balanced(stepper, frame, contacts, geom, size)}")
-        limit = np.inf if a.no_limit else st.GEOMETRY_CONTRACTION * increments[-1]
+        if not a.first:
+            print(f"  balanced at the predictor: {st.balanced(stepper, frame, contacts, geom, size)}")
         disp, n, found, _, stalled, unsettled, diverged = return_mapping(
             stepper, state, geom, contacts, dt, released, size, frame, None, np.zeros(model.n_blocks, bool),
             contraction=limit)
-    print(f"[{time.process_time() - t0:7.1f} s] frictional pseudo-step from the predictor: {n} solves, "
+    print(f"[{time.process_time() - t0:7.1f} s] frictional pseudo-step from {'t = 0' if a.first else 'the predictor'}: {n} solves, "
           f"equilibrium {disp is not None}, released {int(found.sum())}, stalled {stalled}, "
           f"does not contract {unsettled}, out of range {diverged}")
 
