@@ -34,7 +34,7 @@ def _caller() -> str:
     f = sys._getframe(2)
     while f is not None:
         name = f.f_code.co_name
-        if name in ("_iterate", "open_close", "_welded_solve"):
+        if name in ("_iterate", "open_close", "welded_solve"):
             return name
         f = f.f_back
     return "other"

@@ -8,6 +8,7 @@ Data flows one way::
            (return mapping; at a stall, limit equilibrium)  ddatai.return_mapping, ddatai.limit_equilibrium
            (many members: the programs side by side)   ddatai.limit_batch
            (many members: one detection at t = 0)      ddatai.batch_detect
+           (no frictional equilibrium: the welded one)  ddatai.welded
       -> step, phase by phase                           ddatai.step
            Δt                                           ddatai.time_step
            contacts (detection, memory)                 ddatai.contacts, ddatai.layout

@@ -440,7 +440,7 @@ def _hand_over(stepper, vertex_xy: np.ndarray, contacts: Contacts, law, guess: G
     """The contacts as the pseudo-step leaves them, in place: each closed vertex-edge contact
     locked with its lock point moved by its slip (its shear spring carries the force that the
     iteration found, at most its strength) — marked sliding where that is its strength, to be
-    locked at it (`_lock_at_strength`) —, vertex-vertex ones closed on their line; normal
+    locked at it (`ddatai.welded.lock_at_strength`) —, vertex-vertex ones closed on their line; normal
     forces and distances of the solution."""
     model = stepper.model
     ve = contacts.cint[:, KIND] == VE

@@ -90,7 +90,10 @@ solve of the model under its weight, the point loads at t = 0 and its initial st
    strength is handed over locked at it (`StartRecord.at_strength`). The first steps release
    only the difference between the welded and the real joint forces instead of the whole
    weight (sudden gravity rings a stiff grid for its whole run and doubles the solves per
-   step; docs/method/dda.md §8.12). `StartRecord.welded` says that a run started so.
+   step; docs/method/dda.md §8.12). `StartRecord.welded` says that a run started so
+   (``ddatai.welded``). The frictional stage going on from the welded equilibrium, where the
+   first pseudo-step left DDA's range, leaves it too (measured on ntdda's grid: the welded
+   equilibrium holds it by tension and shear across its vertical joints; §8.12).
 
 So a model that limit equilibrium calls stable moves no more than its elastic settlement, and
 one that it calls unstable starts failing at once: its released blocks start under sudden
@@ -106,18 +109,17 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .assembly import BlockPattern, assemble_blocks, assemble_contacts, contact_vectors
-from .contact_law import contact_law, friction_force, internal_force
+from .contact_law import contact_law, internal_force
 from .contacts import Contacts, coupled, subset_contacts
 from .kinematics import block_displacement, settle_points
-from .layout import E0, KIND, LOCK, OPEN, SLIDE, VE
+from .layout import KIND, LOCK, OPEN, SLIDE, VE
 from .model import ContactMemory, State
-from .open_close import solve
-from .mechanisms import mechanisms, pseudo_time_step, restore, sunk_into_released, unsupported_at_start
-from .return_mapping import STAGE_BETA, Frame, return_mapping
+from .mechanisms import pseudo_time_step, restore, sunk_into_released, unsupported_at_start
+from .return_mapping import Frame, return_mapping
 from .threads import dense_solves
 from .turn_on import feasible, turn_on
 from .in_doubt import watched
+from .welded import lock_at_strength, unweld, welded_step
 #: at most this many pseudo-steps (each re-solves the increment at the settled geometry; the
 #: second is ~strain × the first, the third round-off)
 MAX_PSEUDO_STEPS = 8
@@ -217,8 +219,8 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
            welded: bool = False, screen: bool = False, slow: bool = False) -> tuple[State, StartRecord, bool]:
     """Pseudo-steps with Δt = ``dt`` (the static pseudo time step) until the increment is
     round-off, each the return-mapping iteration of `return_mapping` (``welded``: one solve
-    with the touching contacts held, `_welded_step`, the contacts then taking the joint law,
-    `_unweld`). ``slow``: blocks in doubt (`return_mapping`, ``doubt``) are settled by a slow
+    with the touching contacts held, `welded_step`, the contacts then taking the joint law,
+    `unweld`). ``slow``: blocks in doubt (`return_mapping`, ``doubt``) are settled by a slow
     turn-on of the weight (`turn_on`); where it moves a block away, the stage is done again
     releasing them. Returns (state, record, whether every pseudo-step found its equilibrium)."""
     model = stepper.model
@@ -262,11 +264,11 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
                                                          wall_time=_time.perf_counter() - t0), True
     at_strength: set = set()
     if last is not None and welded:
-        _unweld(stepper, last)
+        unweld(stepper, last)
     if last is not None:
         # contacts sliding at their strength are handed over locked at it (force-continuous):
         # the stage ends in an equilibrium of springs, and they keep their bonds
-        sliding = _lock_at_strength(stepper, last, state.vertex_xy)
+        sliding = lock_at_strength(stepper, last, state.vertex_xy)
         at_strength |= set(last.key[sliding].tolist())
         memory = last.memory(stepper.params.bond_breaks_on_slip)
     held = free & ~released
@@ -302,7 +304,7 @@ def _pseudo_steps(stepper, initial: State, state: State, released: np.ndarray, s
         if not np.any(contacts.state != OPEN):
             break  # nothing (left) touches: nothing to hold
         if welded:
-            disp, n, found, contacts = _welded_step(stepper, state, geom, contacts, dt, released, size)
+            disp, n, found, contacts = welded_step(stepper, state, geom, contacts, dt, released, size)
         else:
             frame = Frame.build(stepper, state, geom, contacts, dt)
             if pseudo_steps >= 2 and balanced(stepper, frame, contacts, geom, size):
@@ -384,87 +386,3 @@ def balanced(stepper, frame: Frame, contacts: Contacts, geom: dict, size: np.nda
     allowed = BALANCE_ROUNDOFF * level[rows]
     return bool(np.all(residual[:, :2] <= allowed[:, None]) and
                 np.all(residual[:, 2:] <= (allowed * size[rows])[:, None]))
-
-
-
-def _unweld(stepper, contacts: Contacts) -> None:
-    """The joint law at the end of a welded stage, in place: a contact pulled beyond its
-    tensile strength (T·L while bonded, else the round-off force) opens; a locked vertex-edge
-    contact whose shear spring carries more than its Coulomb strength N·tanφ + c·L is marked
-    sliding, to be handed over locked at that strength (`_lock_at_strength`)."""
-    m = stepper.model
-    closed = contacts.state != OPEN
-    tensile = np.where(contacts.bond, contacts.tensile * contacts.length, 0.0)
-    pulled = closed & (m.penalty * contacts.dn > tensile + m.force_roundoff)
-    contacts.state[pulled] = OPEN
-    contacts.normal_force[pulled] = 0.0
-    ve = contacts.cint[:, KIND] == VE
-    over = ve & (contacts.state == LOCK) & \
-        (m.shear_penalty * np.abs(contacts.ds) > friction_force(contacts) + m.force_roundoff)
-    contacts.state[over] = SLIDE
-    contacts.shear_dir[over] = np.where(contacts.ds[over] >= 0, 1, -1)
-
-
-def _welded_solve(stepper, state: State, geom: dict, contacts: Contacts, vec: np.ndarray,
-                  sca: np.ndarray, pattern: BlockPattern, dt: float):
-    """One static solve with every contact in the state it has (the touching ones locked),
-    without open-close judgement; the contacts' distances and normal forces are updated to
-    the solution in place. Returns D, or None if the solve is not finite."""
-    m = stepper.model
-    data, rhs = assemble_blocks(stepper.model, state, geom, pattern, dt, STAGE_BETA, static_start=True)
-    assemble_contacts(stepper.model, contacts, pattern, vec, sca, data, rhs, stepper.serial_scatter)
-    # K is symmetric: a welded stage changes no state, so its vertex-edge contacts stay locked
-    # (only vertex-vertex ones are "sliding", with no friction) and none is coupled
-    disp = solve(stepper, pattern, data, rhs, reuse=True)  # repeated at a settled geometry
-    if not np.all(np.isfinite(disp)):
-        return None
-    law = contact_law(stepper.model, contacts, vec, sca, disp)
-    closed = contacts.state != OPEN
-    contacts.normal_force[:] = np.where(closed, np.maximum(-m.penalty * law.dn_now, 0.0), 0.0)
-    if law.tan_phi is not None:  # Barton–Bandis: the friction of this normal stress
-        contacts.tan_phi[closed] = law.tan_phi[closed]
-    contacts.dn[:] = law.dn_now
-    contacts.ds[:] = law.ds
-    return disp
-
-
-def _welded_step(stepper, state: State, geom: dict, contacts: Contacts, dt: float,
-                 released: np.ndarray, size: np.ndarray):
-    """One welded pseudo-step (module docstring, 6.): one solve with every touching contact held
-    (`_welded_solve`); blocks that move away even so are released and the rest solved again.
-    Returns (D or None when a solve is not finite, solves, newly released blocks, contacts)."""
-    out = released.copy()
-    solves = 0
-    while True:
-        contacts = subset_contacts(contacts, ~(out[contacts.block_a] | out[contacts.block_b]))
-        vec, sca = contact_vectors(stepper.model, state.vertex_xy, geom, contacts)
-        pattern = BlockPattern.build(stepper.model, contacts)
-        disp = _welded_solve(stepper, state, geom, contacts, vec, sca, pattern, dt)
-        solves += 1
-        if disp is None:
-            return None, solves, out & ~released, contacts
-        mechanism = mechanisms(stepper, state.vertex_xy, geom, contacts, disp, out, size)
-        if not mechanism.any():
-            return disp, solves, out & ~released, contacts
-        out |= mechanism
-
-
-def _lock_at_strength(stepper, contacts: Contacts, vertex_xy: np.ndarray) -> np.ndarray:
-    """Lock the sliding vertex-edge contacts, their lock point moved so that the shear spring
-    carries their friction (force-continuous, as between steps): they keep their bonds.
-    Returns which contacts were sliding."""
-    m = stepper.model
-    sliding = (contacts.state == SLIDE) & (contacts.cint[:, KIND] == VE)
-    if sliding.any():
-        strength = friction_force(contacts)[sliding]
-        edge = contacts.cint[sliding, E0]
-        length = np.hypot(*(vertex_xy[edge] - vertex_xy[m.vertex_next[edge]]).T)
-        # ds = (P1 − P0)·t falls by l·Δω when the lock point P0 moves by Δω along the edge
-        target = contacts.shear_dir[sliding] * strength / m.shear_penalty
-        contacts.omega[sliding] += (contacts.ds[sliding] - target) / length
-        contacts.ds[sliding] = target
-        contacts.state[sliding] = LOCK
-        contacts.coupled[sliding] = False
-    return sliding
-
-

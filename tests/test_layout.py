@@ -16,7 +16,7 @@ CORE = ("assembly", "backend", "contact_law", "contacts", "cutting", "diagnosis"
         "batch_detect", "limit_batch", "limit_equilibrium", "mechanisms", "return_mapping", "return_steps",
         "reassembly", "recorder", "records",
         "kinematics", "layout", "model", "model_checks", "narrow", "open_close", "params", "reference", "results", "scene",
-        "solver", "pardiso", "updates", "start", "step", "support", "threads", "time_step", "water")
+        "solver", "pardiso", "updates", "start", "welded", "step", "support", "threads", "time_step", "water")
 #: engine modules that reach an adapter only inside one public convenience method, by design
 ALLOWED = {("results", "io.vtk")}  # Results.to_vtk
 
