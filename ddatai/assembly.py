@@ -142,6 +142,7 @@ def load_forces(model: Model, t: float) -> np.ndarray:
     return np.array([f(t) if callable(f) else f for f in model.load_force], dtype=float).reshape(-1, 2)
 
 
+@side_by_side.operation("contact_vectors")
 def contact_vectors(model: Model, vertex_xy: np.ndarray, geom: dict, contacts: Contacts
                     ) -> tuple[np.ndarray, np.ndarray]:
     """Normal/shear vectors e, g, e_s, g_s, t_j and constant parts of every contact (§2.8):

@@ -22,7 +22,7 @@ from .contact_law import stage_law
 from .contacts import Contacts, subset_contacts
 from .kinematics import block_displacement
 from .layout import KIND, LOCK, OPEN, SLIDE, VE
-from .model import State
+from .model import SMALL_MODEL_BLOCKS, State
 from .limit_equilibrium import unsupported_blocks
 from .open_close import solve
 from .reassembly import ContactSystem
@@ -52,6 +52,9 @@ MAX_FINISH_SOLVES = 8
 #: a pseudo-step's first iteration stops for Newton once no contact has changed state in this
 #: many iterations: the rest is the slips' linear convergence (`_iterate`, ``tail``)
 NEWTON_AFTER = 3
+#: ... and in a small model's later pseudo-steps (``model.SMALL_MODEL_BLOCKS`` free blocks at most), which start
+#: from the last one's equilibrium states: once an iterate after the first changes none (docs/method/dda.md §8.12)
+NEWTON_LATER = 1
 #: a pseudo-step that has not found its equilibrium in this many solves gives up (welded start)
 MAX_STAGE_SOLVES = 1000
 #: Anderson acceleration (`return_steps.anderson`) starts again when the largest out-of-balance
@@ -130,20 +133,18 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
                     released: np.ndarray, size: np.ndarray, frame: "Optional[Frame]" = None,
                     doubt: Optional[np.ndarray] = None, in_doubt: Optional[np.ndarray] = None,
                     contraction: float = np.inf):
-    """One pseudo-step (module docstring, 1.–3.): the return-mapping iteration (`_iterate`);
-    blocks that move away in it, or that it leaves out of balance and that limit equilibrium
-    then lets move (`limit_equilibrium.unsupported_blocks`; where that does not apply, those
-    that move away in the open-close test, `test_unbalanced`), are released, and the rest
-    iterated again from where they were. Where limit equilibrium holds every block left but the
-    iteration has stalled, the pseudo-step ends there (*stalled*: its contacts handed over at
-    most at their strength). ``doubt`` (where the stage can settle it by a slow turn-on,
-    `ddatai.turn_on`): the blocks that the open-close test would release where limit equilibrium
-    holds every block are marked in it, in place, instead, and the pseudo-step ends stalled; else
-    ``in_doubt`` marks those released as that test did not converge (`ddatai.in_doubt`).
-    ``contraction``: the last pseudo-step's increment [m] (``ddatai.mechanisms.contracting``). Returns (D,
-    or None when no equilibrium was found; solves; the newly released blocks; the contacts as
-    handed over, `_hand_over`; whether it stalled; whether it stopped contracting; whether the
-    first pseudo-step left DDA's range, ``ddatai.mechanisms.out_of_range``)."""
+    """One pseudo-step (module docstring, 1.–3.): the return-mapping iteration (`_iterate`); blocks that move away
+    in it, or that it leaves out of balance and that limit equilibrium then lets move
+    (`limit_equilibrium.unsupported_blocks`; where that does not apply, those that move away in the open-close test,
+    `test_unbalanced`), are released, and the rest iterated again from where they were. Where limit equilibrium
+    holds every block left but the iteration has stalled, the pseudo-step ends there (*stalled*: its contacts handed
+    over at most at their strength). ``doubt`` (where the stage can settle it by a slow turn-on, `ddatai.turn_on`):
+    the blocks that the open-close test would release where limit equilibrium holds every block are marked in it, in
+    place, instead, and the pseudo-step ends stalled; else ``in_doubt`` marks those released as that test did not
+    converge (`ddatai.in_doubt`). ``contraction``: the last pseudo-step's increment [m]
+    (``ddatai.mechanisms.contracting``). Returns (D, or None when no equilibrium was found; solves; the newly
+    released blocks; the contacts as handed over, `_hand_over`; whether it stalled; whether it stopped contracting;
+    whether the first pseudo-step left DDA's range, ``ddatai.mechanisms.out_of_range``)."""
     out = released.copy()
     solves = 0
     guess = None
@@ -158,11 +159,10 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
             touching, line0 = touching[keep], line0[keep]
             guess = guess.subset(keep) if guess is not None else None
             frame = Frame.build(stepper, state, geom, contacts, dt)
-        # Newton (``_finish``) from where the states settle, once a pseudo-step and before anything
-        # is released (a model with a mechanism keeps the path limit equilibrium checks)
-        newton_now = newton and not freeze and not np.any(out & ~released)
-        outcome, raw = _iterate(stepper, frame, contacts, geom, out, size, guess, freeze,
-                                tail=NEWTON_AFTER if newton_now else None)
+        # Newton (``_finish``) once a pseudo-step from where the states settle, before anything is released
+        later = np.isfinite(contraction) and stepper.model.n_free <= SMALL_MODEL_BLOCKS  # a small model's later one
+        tail = (NEWTON_LATER if later else NEWTON_AFTER) if newton and not freeze and not np.any(out & ~released) else None
+        outcome, raw = _iterate(stepper, frame, contacts, geom, out, size, guess, freeze, tail=tail)
         solves += outcome.solves
         if outcome.disp is None:
             return None, solves, out & ~released, contacts, False, False, False

@@ -14,7 +14,9 @@ its own terms in its own order: each member's result is, to the bit, the one its
   loads added into each member's K and F, in place;
 - ``stage_law`` (``ddatai.contact_law.stage_law``): the return mapping's contact law;
 - ``contact_law_numpy`` (``ddatai.contact_law.contact_law_numpy``): the whole law (the
-  open-close iteration of the stage's finish and tests, the balance check).
+  open-close iteration of the stage's finish and tests, the balance check);
+- ``contact_vectors`` (`ddatai.assembly.contact_vectors`): each pseudo-step's contact vectors
+  (3 % of a 200-sample study's stages, benchmarks/results/study_throughput.md).
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ from . import side_by_side
 from .assembly import contact_terms_numpy
 from .contact_law import ContactLaw, StageLaw, _law_core, _law_terms, friction_terms
 from .kinematics import vertex_displacement
+from .vectorized import contact_vectors as vectors_numpy
 
 def _offsets(sizes) -> np.ndarray:
     """Where each member's entries start in the concatenation of arrays of ``sizes``."""
@@ -198,7 +201,36 @@ def _displacement_group(*args, **kwargs):
     return ("displacement",) if len(model.vertex_block) else None
 
 
+# ------------------------------------------------------------------ the contact vectors
+_VECTOR_ARGS = ("model", "vertex_xy", "geom", "contacts")
+
+
+def contact_vectors_many(requests) -> list:
+    """`assembly.contact_vectors` of each request (a NumPy-path model): one `vectorized.contact_vectors`
+    over all, with each member's vertices, blocks and next vertices moved by the members' before it
+    (its terms are element-wise per contact line: each member's own floats)."""
+    args = [_bound(a, kw, _VECTOR_ARGS) for a, kw in requests]
+    models = [a[0] for a in args]
+    contacts = [a[3] for a in args]
+    counts = [c.n for c in contacts]
+    n_vertices = [len(m.vertex_block) for m in models]
+    vertex_at = np.repeat(_offsets(np.array(n_vertices)), n_vertices)
+    block_at = np.repeat(_offsets(np.array([m.n_blocks for m in models])), n_vertices)
+    c = _contacts(models, contacts, counts, ("omega",), blocks=False)
+    model = SimpleNamespace(vertex_next=_cat([m.vertex_next for m in models]) + vertex_at,
+                            vertex_block=_cat([m.vertex_block for m in models]) + block_at)
+    vec, sca = vectors_numpy(model, _cat([a[1] for a in args]), _cat([a[2]["centroid"] for a in args]), c.cint, c.omega)
+    at = _offsets(np.array(counts))
+    return list(zip(_split(vec, at, counts), _split(sca, at, counts)))
+
+
+def _vectors_group(*args, **kwargs):
+    model, _, _, contacts = _bound(args, kwargs, _VECTOR_ARGS)
+    return ("vectors",) if model.numpy_path and contacts.n else None
+
+
 side_by_side.register("block_displacement", _displacement_group, block_displacement_many)
+side_by_side.register("contact_vectors", _vectors_group, contact_vectors_many)
 side_by_side.register("assemble_contacts", _assembly_group, assemble_contacts_many)
 side_by_side.register("stage_law", _law_group, stage_law_many)
 side_by_side.register("contact_law_numpy", _law_group, contact_law_many)

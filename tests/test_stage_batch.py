@@ -55,7 +55,7 @@ def test_stages_side_by_side_are_each_member_s_own_to_the_bit(members):
     held = [r.held > 0 for _, r in alone]
     assert any(held) and not all(held)  # both sides of the critical strength
     done = side_by_side.EVALUATIONS - before
-    for name in ("assemble_contacts", "stage_law", "contact_law_numpy", "block_displacement"):
+    for name in ("assemble_contacts", "stage_law", "contact_law_numpy", "block_displacement", "contact_vectors"):
         assert done[name, True] > 0, name  # evaluated for several members at once
 
 
@@ -116,8 +116,8 @@ def test_an_operation_s_error_is_its_member_s_own(members):
 def test_each_operation_over_many_members_gives_each_its_own_floats(members):
     """`ddatai.stage_batch`'s operations on members with other contact counts (Example II's
     group at three strengths, its contacts at t = 0 less one or two, locked, some sliding with
-    coupled friction, a random D): every field of each member's result, and its K data and F,
-    equal its own call's to the bit."""
+    coupled friction, a random D): every field of each member's result, its K data and F, and
+    its contact vectors equal its own call's to the bit."""
     from ddatai.assembly import BlockPattern, assemble_blocks, assemble_contacts, contact_vectors
     from ddatai.contact_law import contact_law_numpy, stage_law
     from ddatai.contacts import Contacts
@@ -165,6 +165,15 @@ def test_each_operation_over_many_members_gives_each_its_own_floats(members):
     for (*_, data, rhs), (want_data, want_rhs) in zip(calls, alone):
         np.testing.assert_array_equal(data, want_data)
         np.testing.assert_array_equal(rhs, want_rhs)
+    # and Example I's group first (another geometry: every index of the others moved)
+    first = members[-1]
+    c = Contacts.start(first, first.vertex_xy0, *Stepper(first).detect(first.vertex_xy0), ContactMemory.empty(), True)
+    geom = first.block_geometry(first.vertex_xy0)
+    others = [(first, c, *contact_vectors(first, first.vertex_xy0, geom, c), None, geom)] + calls
+    vectors = stage_batch.contact_vectors_many([((m, m.vertex_xy0, geom, c), {}) for m, c, _, _, _, geom, *_ in others])
+    for (m, c, vec, sca, _, geom, *_), (got_vec, got_sca) in zip(others, vectors):
+        np.testing.assert_array_equal(got_vec, vec)
+        np.testing.assert_array_equal(got_sca, sca)
     moved = stage_batch.block_displacement_many([((m, m.vertex_xy0, geom, disp), {})
                                                  for m, _, _, _, disp, geom, *_ in calls])
     for (m, _, _, _, disp, geom, *_), got in zip(calls, moved):
