@@ -186,6 +186,16 @@ def stalled_run(n, steps):
     def stalled(stepper, state, geom, frame, contacts, outcome, guess, out, size, converged_only=False):
         mechanism, solves, doubtful = original(stepper, state, geom, frame, contacts, outcome, guess, out, size,
                                                converged_only)
+        if doubtful:
+            # how far out of balance the stalled hand-over is: the largest shear excess over the
+            # strength, against the weight of the block it acts on
+            model = stepper.model
+            weight = model.block_density * geom["area"] * float(np.hypot(*model.gravity))
+            excess = np.maximum(outcome.excess, 0.0)
+            per = np.maximum(excess / weight[contacts.block_a], excess / weight[contacts.block_b])
+            print(f"stalled hand-over: shear excess over strength, largest / block weight {per.max():.3g}, "
+                  f"median of those over the tolerance {np.median(per[outcome.excess > outcome.loose]):.3g}, "
+                  f"{int((outcome.excess > outcome.loose).sum())} contacts over the tolerance")
         return (np.zeros_like(mechanism), solves, False) if doubtful else (mechanism, solves, doubtful)
 
     rm.loaded_away = stalled
@@ -204,13 +214,29 @@ def stalled_run(n, steps):
     np.maximum.at(moved0, block, np.hypot(*(v0 - initial).T))
     held = free & (moved0 > 0.0)
     print(f"held by the stage: {int(held.sum())}; settlement (largest) {moved0.max():.3g} m")
+    model = dd.build_model(scene, params)
+    from ddatai.contacts import Contacts
+    from ddatai.model import ContactMemory
+    from ddatai.step import Stepper
+    stepper = Stepper(model)
+    cint, length = stepper.detect(model.vertex_xy0)
+    c = Contacts.start(model, model.vertex_xy0, cint, length, ContactMemory.empty(), True)
+    touching = c.state != OPEN
+    released = free & ~held
+    near = np.zeros(len(off) - 1, bool)  # held blocks touching a released one at t = 0
+    near[c.block_a[touching & released[c.block_b]]] = True
+    near[c.block_b[touching & released[c.block_a]]] = True
+    near &= held
+    print(f"held blocks touching a released one at t = 0: {int(near.sum())}")
     for f in range(1, len(r.time)):
         d = np.zeros(len(off) - 1)
         np.maximum.at(d, block, np.hypot(*(r.vertices[f] - v0).T))
         dh = d[held]
         print(f"t = {r.time[f]:.4f} s: held blocks moved from the start: max {dh.max():.3g} m, "
               f"> 1 mm: {int((dh > 1e-3).sum())}, > 10 x settlement: {int((dh > 10 * moved0.max()).sum())}, "
-              f"median {np.median(dh):.3g} m; released blocks: median {np.median(d[free & ~held]):.3g} m")
+              f"median {np.median(dh):.3g} m; released blocks: median {np.median(d[free & ~held]):.3g} m; "
+              f"> 1 mm and touching a released block: {int(((d > 1e-3) & near).sum())}; largest motion of held "
+              f"blocks not touching one {d[held & ~near].max():.3g} m")
 
 
 if __name__ == "__main__":
