@@ -5,7 +5,13 @@ IMPACT_LEAD·τ before the contact; the impact step's accepted solve finds which
 and the step is taken again (by `ddatai.fused.step`) from the impacted blocks' carried velocity
 projected onto what they admit, K⁻¹(ρM/βΔt²)·k·v with that solve's factor: Housner's plastic
 impact at the step's start. An impact taking at most IMPACT_NEGLIGIBLE of the kinetic energy is
-left to the step."""
+left to the step.
+
+Loops over a block's six displacements run at run time here, not unrolled (``ti.static``), and
+each Taichi function is called from one place: every call of a Taichi function is inlined into
+the one ``run`` kernel, and a fresh process pays LLVM's optimisation and code generation of that
+module when it loads it (benchmarks/results/fused_load.md). The arithmetic and its order are
+those of the unrolled form."""
 
 
 import taichi as ti
@@ -41,7 +47,7 @@ def _normal_rate(E: ti.template(), c, line, col):
         ba = b
         bb = a
     r = 0.0
-    for k in ti.static(range(6)):
+    for k in range(6):
         r += E.cvec[c, 6 * se + k] * E.bst[ba, col + k] + E.cvec[c, 6 * sg + k] * E.bst[bb, col + k]
     return r
 
@@ -102,24 +108,29 @@ def approach_bound(E: ti.template(), m, dt, rule_dt):
         any_now = 0
         tau_now = 0.0
         flight = 0.0
-        for c in range(base, base + nc):
-            hard, t_close, tau = _closing(E, m, c, dt, frac)
-            if hard:
-                lead = t_close - IMPACT_LEAD * tau
-                if any_hard == 0 or lead < flight:
-                    flight = lead
-                any_hard = 1
-                if t_close <= 2.0 * IMPACT_LEAD * tau:
-                    any_now = 1
-                    tau_now = ti.max(tau_now, tau)
-        if any_hard and any_now == 0:
-            out = ti.min(dt, flight)
-        elif any_now:
-            out = ti.min(rule_dt, tau_now)
+        # sweep 0: the bound; sweep 1: the contacts it is the impact step of (one call of
+        # `_closing` in the compiled kernel for both)
+        for sweep in range(2):
+            if sweep == 1 and any_now == 0:
+                break
             for c in range(base, base + nc):
                 hard, t_close, tau = _closing(E, m, c, dt, frac)
-                if hard and t_close <= out:
-                    E.cint[c, CI_CLOSING] = 1
+                if sweep == 1:
+                    if hard and t_close <= out:
+                        E.cint[c, CI_CLOSING] = 1
+                elif hard:
+                    lead = t_close - IMPACT_LEAD * tau
+                    if any_hard == 0 or lead < flight:
+                        flight = lead
+                    any_hard = 1
+                    if t_close <= 2.0 * IMPACT_LEAD * tau:
+                        any_now = 1
+                        tau_now = ti.max(tau_now, tau)
+            if sweep == 0:
+                if any_hard and any_now == 0:
+                    out = ti.min(dt, flight)
+                elif any_now:
+                    out = ti.min(rule_dt, tau_now)
     return out
 
 
@@ -153,15 +164,15 @@ def impact_projection(E: ti.template(), m, dt, beta):
     for i in range(n):
         E.xvec[rhs + i] = 0.0
     for b in range(E.mi[m, MI_B0], E.mi[m, MI_B1]):
-        for a in ti.static(range(6)):
+        for a in range(6):
             E.bwork[b, BW_PREV + a] = E.bwork[b, BW_SOL + a]
         r = E.bint[b, BI_ROW]
         if r >= 0:
             M = blocks.mass(E, b)
             rho = E.bmat[b, BM_RHO]
-            for i in ti.static(range(6)):
+            for i in range(6):
                 s = 0.0
-                for j in ti.static(range(6)):
+                for j in range(6):
                     s += M[i, j] * carry * E.bst[b, BS_VEL + j]
                 E.xvec[rhs + 6 * r + i] = rho * s / (beta * dt * dt)
     system.solve(E, m)
@@ -171,8 +182,8 @@ def impact_projection(E: ti.template(), m, dt, beta):
         if E.bwork[b, BW_IMPACT] != 0.0:
             M = blocks.mass(E, b)
             rho = E.bmat[b, BM_RHO]
-            for i in ti.static(range(6)):
-                for j in ti.static(range(6)):
+            for i in range(6):
+                for j in range(6):
                     vi = carry * E.bst[b, BS_VEL + i]
                     vj = carry * E.bst[b, BS_VEL + j]
                     ci = vi - E.bwork[b, BW_SOL + i]
@@ -187,7 +198,7 @@ def swap_start(E: ti.template(), m):
     """Exchange the blocks' velocities and accelerations with those kept in ``BW_V0``/``BW_A0``
     (the state before the plastic impact and after it)."""
     for b in range(E.mi[m, MI_B0], E.mi[m, MI_B1]):
-        for a in ti.static(range(6)):
+        for a in range(6):
             v = E.bst[b, BS_VEL + a]
             E.bst[b, BS_VEL + a] = E.bwork[b, BW_V0 + a]
             E.bwork[b, BW_V0 + a] = v
@@ -201,7 +212,7 @@ def plastic_start(E: ti.template(), m):
     """The impacted blocks moving at their projected velocity (``BW_SOL``), without acceleration
     history (`impacts.plastic_start`); the state before kept in ``BW_V0``/``BW_A0``."""
     for b in range(E.mi[m, MI_B0], E.mi[m, MI_B1]):
-        for a in ti.static(range(6)):
+        for a in range(6):
             E.bwork[b, BW_V0 + a] = E.bst[b, BS_VEL + a]
             E.bwork[b, BW_A0 + a] = E.bst[b, BS_ACC + a]
             if E.bwork[b, BW_IMPACT] != 0.0:

@@ -34,10 +34,13 @@ OK, NAN, OPEN_CLOSE, DISPLACEMENT, INVERTED, PENETRATION = range(6)
 
 
 @ti.func
-def time_step(E: ti.template(), m):
-    """Automatic Δt (§4.6, `ddatai.time_step.choose_time_step`), ending on the member's end
-    time without a sliver (`time_step.end_on`)."""
-    return end_on(E, m, rule(E, m, 1))
+def grown(E: ti.template(), m, limit):
+    """Δt ``limit`` (of `rule`) held to the growth limit over the last step's Δt
+    (`time_step.choose_time_step`)."""
+    out = limit
+    if E.mf[m, MF_DT] > 0:
+        out = ti.min(limit, E.mf[m, MF_DT_GROWTH] * E.mf[m, MF_DT])
+    return out
 
 
 @ti.func
@@ -53,8 +56,8 @@ def end_on(E: ti.template(), m, limit):
 
 
 @ti.func
-def rule(E: ti.template(), m, grow):
-    """`time_step.choose_time_step`; ``grow`` 0: without the growth limit."""
+def rule(E: ti.template(), m):
+    """`time_step.choose_time_step` without the growth limit (`grown`)."""
     dt_fixed = E.mf[m, MF_DT_FIXED]
     limit = E.mf[m, MF_DT_MAX]
     if dt_fixed > 0.0:
@@ -99,8 +102,6 @@ def rule(E: ti.template(), m, grow):
             if acc > 0 or speed > 0:
                 dt = 2.0 * u / (speed + ti.sqrt(speed * speed + 2.0 * acc * u))
             limit = ti.min(limit, dt)
-    if grow and E.mf[m, MF_DT] > 0:
-        limit = ti.min(limit, E.mf[m, MF_DT_GROWTH] * E.mf[m, MF_DT])
     return limit
 
 
@@ -226,7 +227,7 @@ def update(E: ti.template(), m, dt, beta):
             dvx = 0.0
             dvy = 0.0
             dvr = 0.0
-            for a in ti.static(range(6)):
+            for a in range(6):  # at run time: one copy of the body in the compiled kernel
                 v_old = E.bst[b, BS_VEL + a]
                 carried = carry * v_old
                 acc_new = (d[a] - carried * dt) / (beta * dt * dt) - (0.5 / beta - 1.0) * E.bst[b, BS_ACC + a]
@@ -278,7 +279,11 @@ def step(E: ti.template(), m):
     region: nothing changed) or DIVERT (a try that today's path takes over: nothing changed).
     With ``FLAG_RECORD`` the step's record goes to the next row of the member's ``rec``."""
     result = RUNNING
-    dt = time_step(E, m)
+    # automatic Δt (§4.6), ending on the member's end time without a sliver; the rule's Δt
+    # without its growth limit is the impact step's bound below (the rule is inlined once:
+    # detection changes none of its inputs)
+    rule_dt = rule(E, m)
+    dt = end_on(E, m, grown(E, m, rule_dt))
     n = contacts.detect(E, m)
     if n > E.mi[m, MI_CCAP]:
         result = GROW
@@ -293,7 +298,7 @@ def step(E: ti.template(), m):
         if E.mf[m, MF_DT_FIXED] > 0.0:
             shortest = E.mf[m, MF_DT_FIXED] * E.mf[m, MF_DT_MIN_RATIO]
         # the step before a closing ends just before it; the impact step (`ddatai.impacts`)
-        bound = approach_bound(E, m, dt, rule(E, m, 0))
+        bound = approach_bound(E, m, dt, rule_dt)
         dt = end_on(E, m, ti.max(bound, ti.min(dt, shortest)))
         static = (E.mi[m, MI_FLAGS] & FLAG_STATIC) != 0
         # 0: the tries of the step; 1: the impact step taken again from the plastic impact at
@@ -337,7 +342,7 @@ def step(E: ti.template(), m):
                     # again from their velocity projected onto what its closed contacts admit
                     if impact_projection(E, m, dt, beta):
                         for b in range(E.mi[m, MI_B0], E.mi[m, MI_B1]):
-                            for a in ti.static(range(6)):
+                            for a in range(6):
                                 E.bwork[b, BW_SOL + a] = E.bwork[b, BW_PREV + a]
                         break
                     plastic_start(E, m)
