@@ -7,11 +7,11 @@ projected onto what they admit, K⁻¹(ρM/βΔt²)·k·v with that solve's fact
 impact at the step's start. An impact taking at most IMPACT_NEGLIGIBLE of the kinetic energy is
 left to the step.
 
-Loops over a block's six displacements run at run time here, not unrolled (``ti.static``), and
-each Taichi function is called from one place: every call of a Taichi function is inlined into
-the one ``run`` kernel, and a fresh process pays LLVM's optimisation and code generation of that
-module when it loads it (benchmarks/results/fused_load.md). The arithmetic and its order are
-those of the unrolled form."""
+Copies of a block's six displacements loop at run time (not unrolled with ``ti.static``) and
+`_closing` is called from one place: every call of a Taichi function is inlined into the one
+``run`` kernel, whose LLVM optimisation and code generation a fresh process pays when it loads it
+(benchmarks/results/fused_load.md). Sums stay unrolled: LLVM orders an unrolled sum's terms
+(vectorised, fast math) otherwise than a loop's, and the floats must not change."""
 
 
 import taichi as ti
@@ -47,7 +47,7 @@ def _normal_rate(E: ti.template(), c, line, col):
         ba = b
         bb = a
     r = 0.0
-    for k in range(6):
+    for k in ti.static(range(6)):
         r += E.cvec[c, 6 * se + k] * E.bst[ba, col + k] + E.cvec[c, 6 * sg + k] * E.bst[bb, col + k]
     return r
 
@@ -170,9 +170,9 @@ def impact_projection(E: ti.template(), m, dt, beta):
         if r >= 0:
             M = blocks.mass(E, b)
             rho = E.bmat[b, BM_RHO]
-            for i in range(6):
+            for i in ti.static(range(6)):
                 s = 0.0
-                for j in range(6):
+                for j in ti.static(range(6)):
                     s += M[i, j] * carry * E.bst[b, BS_VEL + j]
                 E.xvec[rhs + 6 * r + i] = rho * s / (beta * dt * dt)
     system.solve(E, m)
@@ -182,8 +182,8 @@ def impact_projection(E: ti.template(), m, dt, beta):
         if E.bwork[b, BW_IMPACT] != 0.0:
             M = blocks.mass(E, b)
             rho = E.bmat[b, BM_RHO]
-            for i in range(6):
-                for j in range(6):
+            for i in ti.static(range(6)):
+                for j in ti.static(range(6)):
                     vi = carry * E.bst[b, BS_VEL + i]
                     vj = carry * E.bst[b, BS_VEL + j]
                     ci = vi - E.bwork[b, BW_SOL + i]

@@ -67,7 +67,7 @@ def _copy_disp(E: ti.template(), m, src, dst):
 def _trial(E: ti.template(), m, alpha):
     """The trial point D = D_last + α·(D_solution − D_last) into ``BW_D``."""
     for b in range(E.mi[m, MI_B0], E.mi[m, MI_B1]):
-        for a in range(6):
+        for a in ti.static(range(6)):
             E.bwork[b, BW_D + a] = E.bwork[b, BW_PREV + a] + alpha * (E.bwork[b, BW_SOL + a] - E.bwork[b, BW_PREV + a])
 
 

@@ -25,7 +25,7 @@ LOCK = 2
 @ti.func
 def _dot(E: ti.template(), c, slot, b, col):
     acc = 0.0
-    for a in range(6):  # at run time: _dot is inlined at eight places (fused_load.md)
+    for a in ti.static(range(6)):
         acc += E.cvec[c, 6 * slot + a] * E.bwork[b, col + a]
     return acc
 

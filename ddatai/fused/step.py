@@ -227,7 +227,7 @@ def update(E: ti.template(), m, dt, beta):
             dvx = 0.0
             dvy = 0.0
             dvr = 0.0
-            for a in range(6):  # at run time: one copy of the body in the compiled kernel
+            for a in ti.static(range(6)):
                 v_old = E.bst[b, BS_VEL + a]
                 carried = carry * v_old
                 acc_new = (d[a] - carried * dt) / (beta * dt * dt) - (0.5 / beta - 1.0) * E.bst[b, BS_ACC + a]
