@@ -5,13 +5,7 @@ IMPACT_LEAD·τ before the contact; the impact step's accepted solve finds which
 and the step is taken again (by `ddatai.fused.step`) from the impacted blocks' carried velocity
 projected onto what they admit, K⁻¹(ρM/βΔt²)·k·v with that solve's factor: Housner's plastic
 impact at the step's start. An impact taking at most IMPACT_NEGLIGIBLE of the kinetic energy is
-left to the step.
-
-Copies of a block's six displacements loop at run time (not unrolled with ``ti.static``) and
-`_closing` is called from one place: every call of a Taichi function is inlined into the one
-``run`` kernel, whose LLVM optimisation and code generation a fresh process pays when it loads it
-(benchmarks/results/fused_load.md). Sums stay unrolled: LLVM orders an unrolled sum's terms
-(vectorised, fast math) otherwise than a loop's, and the floats must not change."""
+left to the step."""
 
 
 import taichi as ti
@@ -108,29 +102,24 @@ def approach_bound(E: ti.template(), m, dt, rule_dt):
         any_now = 0
         tau_now = 0.0
         flight = 0.0
-        # sweep 0: the bound; sweep 1: the contacts it is the impact step of (one call of
-        # `_closing` in the compiled kernel for both)
-        for sweep in range(2):
-            if sweep == 1 and any_now == 0:
-                break
+        for c in range(base, base + nc):
+            hard, t_close, tau = _closing(E, m, c, dt, frac)
+            if hard:
+                lead = t_close - IMPACT_LEAD * tau
+                if any_hard == 0 or lead < flight:
+                    flight = lead
+                any_hard = 1
+                if t_close <= 2.0 * IMPACT_LEAD * tau:
+                    any_now = 1
+                    tau_now = ti.max(tau_now, tau)
+        if any_hard and any_now == 0:
+            out = ti.min(dt, flight)
+        elif any_now:
+            out = ti.min(rule_dt, tau_now)
             for c in range(base, base + nc):
                 hard, t_close, tau = _closing(E, m, c, dt, frac)
-                if sweep == 1:
-                    if hard and t_close <= out:
-                        E.cint[c, CI_CLOSING] = 1
-                elif hard:
-                    lead = t_close - IMPACT_LEAD * tau
-                    if any_hard == 0 or lead < flight:
-                        flight = lead
-                    any_hard = 1
-                    if t_close <= 2.0 * IMPACT_LEAD * tau:
-                        any_now = 1
-                        tau_now = ti.max(tau_now, tau)
-            if sweep == 0:
-                if any_hard and any_now == 0:
-                    out = ti.min(dt, flight)
-                elif any_now:
-                    out = ti.min(rule_dt, tau_now)
+                if hard and t_close <= out:
+                    E.cint[c, CI_CLOSING] = 1
     return out
 
 
@@ -164,7 +153,7 @@ def impact_projection(E: ti.template(), m, dt, beta):
     for i in range(n):
         E.xvec[rhs + i] = 0.0
     for b in range(E.mi[m, MI_B0], E.mi[m, MI_B1]):
-        for a in range(6):
+        for a in ti.static(range(6)):
             E.bwork[b, BW_PREV + a] = E.bwork[b, BW_SOL + a]
         r = E.bint[b, BI_ROW]
         if r >= 0:
@@ -198,7 +187,7 @@ def swap_start(E: ti.template(), m):
     """Exchange the blocks' velocities and accelerations with those kept in ``BW_V0``/``BW_A0``
     (the state before the plastic impact and after it)."""
     for b in range(E.mi[m, MI_B0], E.mi[m, MI_B1]):
-        for a in range(6):
+        for a in ti.static(range(6)):
             v = E.bst[b, BS_VEL + a]
             E.bst[b, BS_VEL + a] = E.bwork[b, BW_V0 + a]
             E.bwork[b, BW_V0 + a] = v
@@ -212,7 +201,7 @@ def plastic_start(E: ti.template(), m):
     """The impacted blocks moving at their projected velocity (``BW_SOL``), without acceleration
     history (`impacts.plastic_start`); the state before kept in ``BW_V0``/``BW_A0``."""
     for b in range(E.mi[m, MI_B0], E.mi[m, MI_B1]):
-        for a in range(6):
+        for a in ti.static(range(6)):
             E.bwork[b, BW_V0 + a] = E.bst[b, BS_VEL + a]
             E.bwork[b, BW_A0 + a] = E.bst[b, BS_ACC + a]
             if E.bwork[b, BW_IMPACT] != 0.0:

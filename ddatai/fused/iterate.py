@@ -59,7 +59,7 @@ def _states_hash(E: ti.template(), m):
 @ti.func
 def _copy_disp(E: ti.template(), m, src, dst):
     for b in range(E.mi[m, MI_B0], E.mi[m, MI_B1]):
-        for a in range(6):
+        for a in ti.static(range(6)):
             E.bwork[b, dst + a] = E.bwork[b, src + a]
 
 

@@ -34,13 +34,10 @@ OK, NAN, OPEN_CLOSE, DISPLACEMENT, INVERTED, PENETRATION = range(6)
 
 
 @ti.func
-def grown(E: ti.template(), m, limit):
-    """Δt ``limit`` (of `rule`) held to the growth limit over the last step's Δt
-    (`time_step.choose_time_step`)."""
-    out = limit
-    if E.mf[m, MF_DT] > 0:
-        out = ti.min(limit, E.mf[m, MF_DT_GROWTH] * E.mf[m, MF_DT])
-    return out
+def time_step(E: ti.template(), m):
+    """Automatic Δt (§4.6, `ddatai.time_step.choose_time_step`), ending on the member's end
+    time without a sliver (`time_step.end_on`)."""
+    return end_on(E, m, rule(E, m, 1))
 
 
 @ti.func
@@ -56,8 +53,8 @@ def end_on(E: ti.template(), m, limit):
 
 
 @ti.func
-def rule(E: ti.template(), m):
-    """`time_step.choose_time_step` without the growth limit (`grown`)."""
+def rule(E: ti.template(), m, grow):
+    """`time_step.choose_time_step`; ``grow`` 0: without the growth limit."""
     dt_fixed = E.mf[m, MF_DT_FIXED]
     limit = E.mf[m, MF_DT_MAX]
     if dt_fixed > 0.0:
@@ -102,6 +99,8 @@ def rule(E: ti.template(), m):
             if acc > 0 or speed > 0:
                 dt = 2.0 * u / (speed + ti.sqrt(speed * speed + 2.0 * acc * u))
             limit = ti.min(limit, dt)
+    if grow and E.mf[m, MF_DT] > 0:
+        limit = ti.min(limit, E.mf[m, MF_DT_GROWTH] * E.mf[m, MF_DT])
     return limit
 
 
@@ -279,11 +278,7 @@ def step(E: ti.template(), m):
     region: nothing changed) or DIVERT (a try that today's path takes over: nothing changed).
     With ``FLAG_RECORD`` the step's record goes to the next row of the member's ``rec``."""
     result = RUNNING
-    # automatic Δt (§4.6), ending on the member's end time without a sliver; the rule's Δt
-    # without its growth limit is the impact step's bound below (the rule is inlined once:
-    # detection changes none of its inputs)
-    rule_dt = rule(E, m)
-    dt = end_on(E, m, grown(E, m, rule_dt))
+    dt = time_step(E, m)
     n = contacts.detect(E, m)
     if n > E.mi[m, MI_CCAP]:
         result = GROW
@@ -298,7 +293,7 @@ def step(E: ti.template(), m):
         if E.mf[m, MF_DT_FIXED] > 0.0:
             shortest = E.mf[m, MF_DT_FIXED] * E.mf[m, MF_DT_MIN_RATIO]
         # the step before a closing ends just before it; the impact step (`ddatai.impacts`)
-        bound = approach_bound(E, m, dt, rule_dt)
+        bound = approach_bound(E, m, dt, rule(E, m, 0))
         dt = end_on(E, m, ti.max(bound, ti.min(dt, shortest)))
         static = (E.mi[m, MI_FLAGS] & FLAG_STATIC) != 0
         # 0: the tries of the step; 1: the impact step taken again from the plastic impact at
@@ -342,7 +337,7 @@ def step(E: ti.template(), m):
                     # again from their velocity projected onto what its closed contacts admit
                     if impact_projection(E, m, dt, beta):
                         for b in range(E.mi[m, MI_B0], E.mi[m, MI_B1]):
-                            for a in range(6):
+                            for a in ti.static(range(6)):
                                 E.bwork[b, BW_SOL + a] = E.bwork[b, BW_PREV + a]
                         break
                     plastic_start(E, m)
