@@ -1,6 +1,7 @@
 """How big the fused kernel's LLVM module is, whole and piece by piece.
 
     python benchmarks/fused_module.py [--cache DIR] [--pieces detect,open_close,...] [--keep DIR]
+                                      [--calls N]
 
 Taichi 1.7.4 keeps a kernel in its offline cache as LLVM IR (text, after its own optimisation);
 a fresh process optimises that module again and makes machine code of it at its first launch
@@ -10,7 +11,10 @@ one phase of the step compiled alone in a kernel of ``run``'s signature, in a fr
 (threads pinned) with a fresh cache of its own, started through `ddatai.fused.warm.warm` (the
 piece ends the member, so the run stops): its module's bytes and instructions and the compile's
 CPU seconds. The pieces overlap (``open_close`` holds ``factor_solve`` and ``law``); the whole
-is more than their sum by the step's own body and the kernel's."""
+is more than their sum by the step's own body and the kernel's. ``--calls N``: instead, the
+``N`` Taichi functions that build the most of ``run``'s Python-to-IR transform (no compile): how
+often each is inlined, from where, and the AST nodes it builds (its own and with its callees;
+a ``ti.static`` loop builds its body once a pass)."""
 
 import argparse
 import os
@@ -68,6 +72,57 @@ except Exception as e:  # the piece's garbage results, after its compile (else n
 '''
 
 
+CALLS = r'''
+import ast, collections, sys
+sys.path.insert(0, {root!r})
+import ddatai.fused.warm
+from ddatai import backend
+backend.ensure("cpu")
+from taichi.lang import impl, kernel_impl
+from taichi.lang.ast import ast_transformer_utils as atu
+stack = ["<kernel run>"]
+calls, own, total = collections.Counter(), collections.Counter(), collections.Counter()
+callers = collections.defaultdict(collections.Counter)
+func_call, build = kernel_impl.Func.__call__, atu.Builder.__call__
+def counted_call(self, *args, **kwargs):
+    name = self.func.__module__.rsplit(".", 1)[-1] + "." + self.func.__name__
+    callers[name][stack[-1]] += 1
+    calls[name] += 1
+    stack.append(name)
+    try:
+        return func_call(self, *args, **kwargs)
+    finally:
+        stack.pop()
+def counted_build(self, ctx, node):
+    if isinstance(node, (ast.stmt, ast.expr)):
+        own[stack[-1]] += 1
+        for name in set(stack):
+            total[name] += 1
+    return build(self, ctx, node)
+kernel_impl.Func.__call__ = counted_call
+atu.Builder.__call__ = counted_build
+class Transformed(Exception):
+    pass
+class Program:  # stop before the compile: the transform is what is counted
+    def __init__(self, prog):
+        self._prog = prog
+    def __getattr__(self, name):
+        return getattr(self._prog, name)
+    def compile_kernel(self, *args):
+        raise Transformed()
+impl.get_runtime().prog = Program(impl.get_runtime().prog)
+try:
+    ddatai.fused.warm.warm()
+except Exception as e:
+    if "Transformed" not in repr(e) and not isinstance(e, Transformed):
+        raise
+print(f"{{sum(calls.values())}} inlined calls, {{total['<kernel run>']}} AST nodes built")
+print("| Taichi function | inlined | AST nodes, own | with callees | called from |\n|---|---|---|---|---|")
+for name, n in total.most_common({top}):
+    print(f"| `{{name}}` | {{calls.get(name, 1)}} | {{own[name]}} | {{n}} | {{dict(callers[name].most_common(3))}} |")
+'''
+
+
 def module(path: Path) -> tuple:
     """(bytes, LLVM instructions) of a cached kernel file (its IR is text)."""
     data = path.read_bytes()
@@ -95,7 +150,13 @@ def main() -> None:
     ap.add_argument("--cache", default="", help="a warm offline cache of the whole run kernel (or its .tic file)")
     ap.add_argument("--pieces", default=",".join(PIECES))
     ap.add_argument("--keep", default="", help="keep each piece's cache in KEEP/<piece> (else a temporary one)")
+    ap.add_argument("--calls", type=int, default=0, help="the N functions that build the most of the transform")
     a = ap.parse_args()
+    if a.calls:
+        with tempfile.TemporaryDirectory(prefix="fused_module_") as cache:
+            subprocess.run([sys.executable, "-c", CALLS.format(root=str(ROOT), top=a.calls)], cwd=ROOT, check=True,
+                           env={**os.environ, **PINNED, "TI_OFFLINE_CACHE_FILE_PATH": cache}, timeout=600)
+        return
     print(f"load {os.getloadavg()[0]:.1f} at the start; checkout {ROOT}")
     print("| module | bytes | LLVM instructions | compile CPU [s] |\n|---|---|---|---|")
     if a.cache:
