@@ -1,6 +1,7 @@
 """What a fresh process pays to take the fused kernel from Taichi's offline cache, phase by phase.
 
     python benchmarks/fused_load.py [--cache DIR] [--repeats 5] [--init KEY=VALUE ...]
+                                    [--against OTHER_CHECKOUT --against-cache DIR]
 
 Each repeat is a fresh process, threads pinned (one Taichi thread, one BLAS thread), that runs
 `ddatai.fused.warm.warm` twice and times (wall and CPU): the import of ddatai, `ti.init`
@@ -9,7 +10,10 @@ its compile or cache load (``Program.compile_kernel``: the offline cache's key a
 the LLVM backends the machine code made of the cached module) and its launch, then the whole
 second `warm`. ``--init KEY=VALUE`` adds options to ``ti.init`` (through `ddatai.backend`'s
 ``_INIT_OPTIONS``, for experiments; such an option may change the cache key and compile afresh).
-Prints one JSON line a process and the medians.
+Prints one JSON line a process and the medians. ``--against``: each repeat runs the other
+checkout (A, with its own warm cache ``--against-cache``) then this one (B), in fresh processes,
+and prints both sides' medians, the B/A ratios of the paired first launches and process totals
+(CPU), and the size of the largest file in each cache (the ``run`` kernel's LLVM module).
 """
 
 import argparse
@@ -82,6 +86,30 @@ print(json.dumps(dict(import_=imp, init=ini, first=first, second=second, total=t
 """
 
 
+def _probe(root: Path, cache: str, opts: dict, a) -> dict:
+    env = {**os.environ, **PINNED}
+    if cache:
+        env["TI_OFFLINE_CACHE_FILE_PATH"] = cache
+    proc = subprocess.run([sys.executable, "-c", PROBE.format(root=str(root), opts=json.dumps(opts), gc_off=a.gc_off, src_cache=a.source_cache)],
+                          capture_output=True, text=True, cwd=root, env=env, timeout=3600)
+    if proc.returncode != 0:
+        raise RuntimeError(proc.stderr[-3000:])
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def _largest(cache: str) -> int:
+    """Bytes of the largest file under ``cache`` (the ``run`` kernel's cached LLVM module)."""
+    files = [f for f in Path(cache).rglob("*") if f.is_file()] if cache else []
+    return max((f.stat().st_size for f in files), default=0)
+
+
+def _medians(rows: list) -> None:
+    for key in ("import_", "init", "ast_run", "compile_run", "ast_other", "compile_other", "launches", "first", "second", "total"):
+        w = statistics.median(r[key][0] for r in rows)
+        c = statistics.median(r[key][1] for r in rows)
+        print(f"  {key:14s} {w:7.3f} / {c:7.3f}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cache", default=os.environ.get("TI_OFFLINE_CACHE_FILE_PATH", ""))
@@ -89,26 +117,28 @@ def main() -> None:
     ap.add_argument("--init", nargs="*", default=[], help="extra ti.init options, KEY=VALUE (VALUE as JSON)")
     ap.add_argument("--gc-off", action="store_true", help="Python's garbage collector off during the first run")
     ap.add_argument("--source-cache", action="store_true", help="read each Taichi function's source once a process")
+    ap.add_argument("--against", default="", help="another checkout (A), run before this one (B) in each repeat")
+    ap.add_argument("--against-cache", default="", help="A's warm Taichi offline cache")
     a = ap.parse_args()
     opts = {k: json.loads(v) for k, v in (o.split("=", 1) for o in a.init)}
-    env = {**os.environ, **PINNED}
-    if a.cache:
-        env["TI_OFFLINE_CACHE_FILE_PATH"] = a.cache
-    rows = []
-    print(f"load {os.getloadavg()[0]:.1f} at the start; cache {a.cache or '(default)'}; ti.init extra {opts}; gc off {a.gc_off}; source cache {a.source_cache}")
+    sides = {"B": (ROOT, a.cache)}
+    if a.against:
+        sides = {"A": (Path(a.against).resolve(), a.against_cache), **sides}
+    rows = {k: [] for k in sides}
+    print(f"load {os.getloadavg()[0]:.1f} at the start; caches {dict((k, v[1] or '(default)') for k, v in sides.items())}; "
+          f"ti.init extra {opts}; gc off {a.gc_off}; source cache {a.source_cache}")
     for _ in range(a.repeats):
-        proc = subprocess.run([sys.executable, "-c", PROBE.format(root=str(ROOT), opts=json.dumps(opts), gc_off=a.gc_off, src_cache=a.source_cache)],
-                              capture_output=True, text=True, cwd=ROOT, env=env, timeout=3600)
-        if proc.returncode != 0:
-            raise RuntimeError(proc.stderr[-3000:])
-        row = json.loads(proc.stdout.strip().splitlines()[-1])
-        rows.append(row)
-        print(json.dumps(row), flush=True)
-    print(f"load {os.getloadavg()[0]:.1f} at the end; medians over {len(rows)} processes, wall / CPU [s]:")
-    for key in ("import_", "init", "ast_run", "compile_run", "ast_other", "compile_other", "launches", "first", "second", "total"):
-        w = statistics.median(r[key][0] for r in rows)
-        c = statistics.median(r[key][1] for r in rows)
-        print(f"  {key:14s} {w:7.3f} / {c:7.3f}")
+        for k, (root, cache) in sides.items():
+            rows[k].append(_probe(root, cache, opts, a))
+            print(k, json.dumps(rows[k][-1]), flush=True)
+    print(f"load {os.getloadavg()[0]:.1f} at the end; medians over {a.repeats} processes a side, wall / CPU [s]:")
+    for k, (root, cache) in sides.items():
+        print(f"{k} = {root} (largest cache file {_largest(cache) / 1e6:.2f} MB):")
+        _medians(rows[k])
+    if a.against:
+        for key in ("launches", "total"):
+            ratio = statistics.median(b[key][1] / x[key][1] for x, b in zip(rows["A"], rows["B"]))
+            print(f"B/A {key} CPU, median of the pairs: {ratio:.3f}")
 
 
 if __name__ == "__main__":
