@@ -178,7 +178,7 @@ def motion_table(scene, params, r):
         d = np.zeros(nb)
         np.maximum.at(d, block, np.hypot(*(r.vertices[f] - v0).T))
         dh = d[held]
-        print(f"| {r.time[f]:.3f} | {dh.max() * 1e3:.3g} mm | {int((dh > 1e-3).sum())} | "
+        print(f"| {r.time[f]:.4f} | {dh.max() * 1e3:.3g} mm | {int((dh > 1e-3).sum())} | "
               f"{int((dh > 2 * moved0.max()).sum())} | {np.median(dh) * 1e3:.3g} mm | "
               f"{np.median(d[free & ~held]) * 1e3:.3g} mm |")
 
