@@ -147,10 +147,7 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
     whether the first pseudo-step left DDA's range, ``ddatai.mechanisms.out_of_range``)."""
     out = released.copy()
     solves = 0
-    guess = None
-    freeze = False
-    stalled = False
-    newton = True
+    guess, freeze, stalled, newton = None, False, False, True
     touching, line0 = contacts.state != OPEN, contacts.line.copy()  # as limit equilibrium counts them
     while solves < MAX_STAGE_SOLVES:
         keep = ~(out[contacts.block_a] | out[contacts.block_b])
@@ -158,6 +155,9 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
             contacts = subset_contacts(contacts, keep)
             touching, line0 = touching[keep], line0[keep]
             guess = guess.subset(keep) if guess is not None else None
+            if contacts.n == 0 and np.all(out | stepper.model.block_fixed):  # every free block released: an iterate
+                # would converge at its first solve, none left for the D that the stage zeroes (`ddatai.start`)
+                return np.zeros((stepper.model.n_blocks, 6)), solves, out & ~released, contacts, False, False, False
             frame = Frame.build(stepper, state, geom, contacts, dt)
         # Newton (``_finish``) once a pseudo-step from where the states settle, before anything is released
         later = np.isfinite(contraction) and stepper.model.n_free <= SMALL_MODEL_BLOCKS  # a small model's later one
