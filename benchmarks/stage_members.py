@@ -14,7 +14,8 @@ held and released blocks, its solves and the settled vertices. With ``--vs``, th
 the other alternate in fresh processes, ``--repeats`` times each; printed: per checkout the
 median over the repeats of the median stage of a held and of a released member, the total, and
 whether every member's held and released blocks are the same in both (and how far the settled
-vertices differ). Threads pinned (BLAS, Taichi one each).
+vertices differ); and the stages of the members that the return mapping released (after its
+solves). Threads pinned (BLAS, Taichi one each).
 """
 
 from __future__ import annotations
@@ -22,7 +23,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import pickle
 import statistics
 import subprocess
 import sys
@@ -127,6 +127,13 @@ def main() -> None:
                   f"{statistics.median(held):.2f} | {statistics.median(rel):.2f} | "
                   f"{statistics.median(sum(x['ms'] for x in rows) for rows in runs):.0f} | "
                   f"{sum(x['solves'] for x in runs[0])} |")
+    # the members that the return mapping released after its stalls (the screen's take no solve)
+    print("| checkout | released after solves: members | their median stage ms (median of repeats) | their total ms |")
+    print("|---|---|---|---|")
+    for r in roots:
+        runs = [[x for x in rows if x["released"] and x["solves"]] for rows in got[r]]
+        print(f"| {r} | {len(runs[0])} | {statistics.median(statistics.median([x['ms'] for x in rows] or [0.0]) for rows in runs):.2f} | "
+              f"{statistics.median(sum(x['ms'] for x in rows) for rows in runs):.0f} |")
     if a.vs:
         x, y = got[roots[0]][0], got[roots[1]][0]
         same = all((p["held"], p["released"]) == (q["held"], q["released"]) for p, q in zip(x, y))

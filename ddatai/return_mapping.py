@@ -147,10 +147,7 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
     whether the first pseudo-step left DDA's range, ``ddatai.mechanisms.out_of_range``)."""
     out = released.copy()
     solves = 0
-    guess = None
-    freeze = False
-    stalled = False
-    newton = True
+    guess, freeze, stalled, newton, asked = None, False, False, True, None
     touching, line0 = contacts.state != OPEN, contacts.line.copy()  # as limit equilibrium counts them
     while solves < MAX_STAGE_SOLVES:
         keep = ~(out[contacts.block_a] | out[contacts.block_b])
@@ -158,6 +155,9 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
             contacts = subset_contacts(contacts, keep)
             touching, line0 = touching[keep], line0[keep]
             guess = guess.subset(keep) if guess is not None else None
+            if contacts.n == 0 and np.all(out | stepper.model.block_fixed):  # every free block released: an iterate
+                # would converge at its first solve, none left for the D that the stage zeroes (`ddatai.start`)
+                return np.zeros((stepper.model.n_blocks, 6)), solves, out & ~released, contacts, False, False, False
             frame = Frame.build(stepper, state, geom, contacts, dt)
         # Newton (``_finish``) once a pseudo-step from where the states settle, before anything is released
         later = np.isfinite(contraction) and stepper.model.n_free <= SMALL_MODEL_BLOCKS  # a small model's later one
@@ -181,13 +181,15 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
             guess = raw
             continue
         if not mechanism.any() and not outcome.converged:
-            # out of balance: blocks with no admissible forces go (`limit_equilibrium`; None: n/a)
-            unsupported = unsupported_blocks(stepper.model, state.vertex_xy, geom,
-                                             Contacts(**{**vars(contacts), "line": line0}), touching, out)
+            # out of balance: blocks with no admissible forces go (`limit_equilibrium`; None: n/a); asked
+            # again only once ``out`` grew (what it reads, the contacts' geometry and strengths, is the same till then)
+            if asked is None or not np.array_equal(asked[0], out):
+                asked = out.copy(), unsupported_blocks(stepper.model, state.vertex_xy, geom,
+                                                       Contacts(**{**vars(contacts), "line": line0}), touching, out)
+            unsupported = asked[1]
             if unsupported is not None and np.any(unsupported & ~out):
                 # released; the rest goes on with its contacts' chatter suppressed (`_iterate`)
-                mechanism = unsupported & ~out
-                freeze = True
+                mechanism, freeze = unsupported & ~out, True
             elif not freeze:
                 freeze, guess = True, raw  # once more, flipping contacts opening by return mapping
                 continue
@@ -227,8 +229,7 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
     else:
         return None, solves, out & ~released, contacts, False, \
             not contracting(stepper, state.vertex_xy, geom, outcome.disp, out, contraction), False
-    law = outcome.law
-    ve = contacts.cint[:, KIND] == VE
+    law, ve = outcome.law, contacts.cint[:, KIND] == VE
     at_strength = guess.closed & ve & \
         (stepper.model.shear_penalty * np.abs(law.ds) >= law.strength * (1.0 - 1e-9))
     bonded = contacts.bond & ((contacts.cohesion > 0.0) | (contacts.tensile > 0.0))
@@ -422,9 +423,8 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
 
 
 def _opened(guess: Guess, law) -> Guess:
-    """The guess with each vertex-edge contact that the normal return mapping opened (gap > 0)
-    open, and the law's distances of those contacts measured from the contact again, in
-    place."""
+    """The guess with each vertex-edge contact that the normal return mapping opened (gap > 0) open, and the
+    law's distances of those contacts measured from the contact again, in place."""
     if law is not None and np.any(guess.gap > 0.0):
         gapped = guess.gap > 0.0
         law.dn[gapped] += guess.gap[gapped]
