@@ -18,6 +18,7 @@ library's own test follows); ``--adopt`` stops the run where a continuation conv
 change the verdict: the library would have to hand over that equilibrium).
 
     PYTHONPATH=$PWD python benchmarks/doubt_stiff.py 400 [--solves 1000 --stall 200 --flips 0]
+    PYTHONPATH=$PWD python benchmarks/doubt_stiff.py 400 --solves 1500 --stall 300 --rounds 10
 """
 
 from __future__ import annotations
@@ -37,6 +38,7 @@ import ddatai as dd  # noqa: E402
 import ddatai.mechanisms as mech  # noqa: E402
 import ddatai.return_mapping as rm  # noqa: E402
 import ddatai.start as start  # noqa: E402
+from ddatai.contacts import subset_contacts  # noqa: E402
 from scaling_scenes import slope_scene  # noqa: E402
 
 #: the last iterations over which a slide counts as steady (its slip increment the same)
@@ -91,6 +93,71 @@ def continued(stepper, state, geom, frame, contacts, raw, out, size, args):
                      f"largest excess / tolerance {ratio:.3g}, thrown {int(thrown.sum())}; {steady}")
 
 
+def rounds(stepper, state, geom, frame, contacts, raw, out, size, args) -> str:
+    """``--rounds R``: the continuation (`continued`'s settings) repeated up to R times, each time
+    releasing what it throws (`return_mapping.mechanisms`) or, where it stalls, the blocks of its
+    steady slides (contacts over the tolerance whose slip of the last WINDOW iterates is within
+    5 % of the WINDOW before) on which their loads do positive work over the last WINDOW
+    iterates' displacement (`mechanisms.driven`), until it converges within the strict tolerance
+    or releases nothing. A report line."""
+    model = stepper.model
+    free = ~model.block_fixed
+    dt = mech.pseudo_time_step(stepper, geom, size)  # the stage's: the first pseudo-step's geometry
+    saved = rm.MAX_ITERATIONS, rm.STALL_ITERATIONS, rm.CHATTER_FLIPS, rm.anderson, rm.stage_law
+    now, c, guess = out.copy(), contacts.copy(), raw.copy()
+    t0, solves, lines = time.process_time(), 0, []
+    for k in range(args.rounds):
+        slips: deque = deque(maxlen=2 * WINDOW + 1)
+        disps: deque = deque(maxlen=2 * WINDOW + 1)
+        n = c.n
+
+        def anderson(history, x, g):
+            slips.append(g[:n].copy())
+            return saved[3](history, x, g)
+
+        def law(m, cc, vec, sca, disp, *a, **kw):
+            disps.append(disp.copy())
+            return saved[4](m, cc, vec, sca, disp, *a, **kw)
+
+        rm.MAX_ITERATIONS, rm.STALL_ITERATIONS, rm.CHATTER_FLIPS = args.solves, args.stall, args.flips
+        rm.anderson, rm.stage_law = anderson, law
+        try:
+            outcome, guess = rm._iterate(stepper, frame, c, geom, now, size, guess, True)
+        finally:
+            rm.MAX_ITERATIONS, rm.STALL_ITERATIONS, rm.CHATTER_FLIPS, rm.anderson, rm.stage_law = saved
+        solves += outcome.solves
+        if outcome.disp is None:
+            lines.append(f"round {k + 1}: a solve not finite")
+            break
+        if outcome.strict:
+            lines.append(f"round {k + 1}: {outcome.solves} solves, converged: {int((free & ~now).sum())} held")
+            break
+        release = rm.mechanisms(stepper, state.vertex_xy, geom, c, outcome.disp, now, size)
+        why = "thrown"
+        over = outcome.excess > outcome.loose
+        if not release.any() and len(slips) == slips.maxlen and over.any():
+            late, early = slips[-1] - slips[WINDOW], slips[WINDOW] - slips[0]
+            same = over & (np.abs(late) > 0.0) & (np.abs(late - early) <= 0.05 * np.abs(late))
+            blocks = np.zeros(model.n_blocks, bool)
+            blocks[c.block_a[same]] = True
+            blocks[c.block_b[same]] = True
+            blocks &= free & ~now
+            release = mech.driven(stepper, state, geom, c, disps[-1] - disps[WINDOW], blocks)
+            why = f"of {int(blocks.sum())} sliding steadily, driven"
+        ratio = float(np.max(np.maximum(outcome.excess, 0.0) / outcome.loose, initial=0.0))
+        lines.append(f"round {k + 1}: {outcome.solves} solves, out of balance "
+                     f"{int((mech.out_of_balance(model, c, outcome) & ~now).sum())}, largest excess / tolerance "
+                     f"{ratio:.3g}, released {int(release.sum())} ({why})")
+        if not release.any():
+            break
+        now |= release
+        keep = ~(now[c.block_a] | now[c.block_b])
+        c, guess = subset_contacts(c, keep), guess.subset(keep)
+        frame = rm.Frame.build(stepper, state, geom, c, dt)
+    return (f"rounds: {solves} solves, {time.process_time() - t0:.2f} CPU s, released {int((now & ~out).sum())}; "
+            + "; ".join(lines))
+
+
 def retrying() -> None:
     """`return_mapping.return_mapping` with the retry (``--retry``, module docstring) patched into its
     source: where limit equilibrium holds every block left and the iteration has stalled, the
@@ -116,6 +183,8 @@ def main():
     ap.add_argument("--stall", type=int, default=200)
     ap.add_argument("--flips", type=int, default=0)
     ap.add_argument("--adopt", action="store_true")
+    ap.add_argument("--rounds", type=int, default=0, help="the continuation repeated, releasing its throws and "
+                    "driven steady slides (`rounds`)")
     ap.add_argument("--retry", action="store_true", help="the stage with the retry, without the continuation")
     ap.add_argument("--steps", type=int, default=1, help="steps after the start (--retry: the held blocks' motion)")
     args = ap.parse_args()
@@ -136,6 +205,11 @@ def main():
     def test(stepper, state, geom, frame, contacts, outcome, guess, out, size, converged_only=False):
         if converged_only:
             unbalanced = mech.out_of_balance(stepper.model, contacts, outcome) & ~out
+            if args.rounds:
+                calls.append(0)
+                print(f"test call {len(calls)}: {int(unbalanced.sum())} blocks out of balance; "
+                      + rounds(stepper, state, geom, frame, contacts, last["raw"], out, size, args), flush=True)
+                return original_test(stepper, state, geom, frame, contacts, outcome, guess, out, size, converged_only)
             done, line = continued(stepper, state, geom, frame, contacts, last["raw"], out, size, args)
             calls.append(done.solves)
             print(f"test call {len(calls)}: {int(unbalanced.sum())} blocks out of balance; {line}", flush=True)
