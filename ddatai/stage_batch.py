@@ -16,7 +16,9 @@ its own terms in its own order: each member's result is, to the bit, the one its
 - ``contact_law_numpy`` (``ddatai.contact_law.contact_law_numpy``): the whole law (the
   open-close iteration of the stage's finish and tests, the balance check);
 - ``contact_vectors`` (`ddatai.assembly.contact_vectors`): each pseudo-step's contact vectors
-  (3 % of a 200-sample study's stages, benchmarks/results/study_throughput.md).
+  (3 % of a 200-sample study's stages, benchmarks/results/study_throughput.md);
+- ``narrow_phase`` (`ddatai.narrow.narrow_phase`): each pseudo-step's contact detection, one
+  narrow phase over the members' union (`ddatai.stage_batch_detect`).
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ from . import side_by_side
 from .assembly import contact_terms_numpy
 from .contact_law import ContactLaw, StageLaw, _law_core, _law_terms, friction_terms
 from .kinematics import vertex_displacement
+from .stage_batch_detect import narrow_group, narrow_phase_many
 from .vectorized import contact_vectors as vectors_numpy
 
 def _offsets(sizes) -> np.ndarray:
@@ -231,6 +234,7 @@ def _vectors_group(*args, **kwargs):
 
 side_by_side.register("block_displacement", _displacement_group, block_displacement_many)
 side_by_side.register("contact_vectors", _vectors_group, contact_vectors_many)
+side_by_side.register("narrow_phase", narrow_group, narrow_phase_many)
 side_by_side.register("assemble_contacts", _assembly_group, assemble_contacts_many)
 side_by_side.register("stage_law", _law_group, stage_law_many)
 side_by_side.register("contact_law_numpy", _law_group, contact_law_many)

@@ -1,0 +1,116 @@
+"""More of the equilibrium stage evaluated for many members at once (`ddatai.stage_batch_detect`
+and the others registered with `ddatai.stage_batch`): every member's result must be, to the bit,
+what its own call gives, whatever the members beside it."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from ddatai import stage_batch, stage_batch_detect, vectorized  # noqa: F401  (registers the operations)
+from ddatai.layout import VV
+from ddatai.model import build_model
+from cases import random_jointed_scene
+from test_vectorized import _last_keys, _moved, _passed_corners
+
+
+def _constants(model):
+    return (model.search_distance, model.max_penetration, math.radians(model.params.angle_tolerance))
+
+
+def _narrow_calls():
+    """Narrow-phase calls of many geometries: random jointed squares (vertex-edge and
+    vertex-vertex contacts, concave blocks) at rest and moved, and the four squares whose
+    diagonal corners passed each other, with and without the last step's keys (the
+    persistent hand-over: a vertex-vertex pair read as two vertex-edge contacts)."""
+    calls = []
+    for seed in range(6):
+        model = build_model(random_jointed_scene(seed))
+        for k, shift in enumerate((0.0, 0.3, 1.0)):
+            xy = _moved(model, 70 + seed + k, shift)
+            keys = None
+            if k == 2:  # the keys of the contacts at rest, another geometry's
+                keys = _last_keys(model, vectorized.detect_contacts(model, model.vertex_xy0)[0])
+            calls.append((model, xy, keys))
+    model, deep, _, _ = _passed_corners(1e-4)
+    handed = _last_keys(model, vectorized.detect_contacts(model, deep)[0])
+    for depth in (1e-12, 0.0, 1e-4):
+        _, xy, _, _ = _passed_corners(depth)
+        calls += [(model, xy, handed), (model, xy, None)]
+    return calls
+
+
+def test_the_narrow_phase_over_many_members_gives_each_its_own_contacts():
+    """`stage_batch_detect.narrow_phase_many` on the calls of each group of equal constants,
+    every call's own pairs (its broad phase) and keys: each member's contacts and lengths
+    equal its own call's to the bit, in its own order; the calls cover vertex-vertex contacts
+    and keys that change what a member finds (so a key moved to another member's numbering
+    would show)."""
+    from ddatai.contacts import PairList
+
+    calls = _narrow_calls()
+    groups: dict = {}
+    for model, xy, keys in calls:
+        pairs = PairList().pairs(model, xy, vectorized.broad_phase)
+        groups.setdefault(_constants(model), []).append((model, xy, pairs, keys))
+    assert max(len(g) for g in groups.values()) >= 6
+    vv = with_keys = 0
+    for group in groups.values():
+        if len(group) < 2:
+            continue
+        got = stage_batch_detect.narrow_phase_many([((m, xy, pairs, None, keys), {}) for m, xy, pairs, keys in group])
+        for (m, xy, pairs, keys), (cint, length) in zip(group, got):
+            want_cint, want_length = vectorized.narrow_phase.__wrapped__(m, xy, pairs, None, keys)
+            assert cint.dtype == want_cint.dtype and length.dtype == want_length.dtype
+            np.testing.assert_array_equal(cint, want_cint)
+            np.testing.assert_array_equal(length, want_length)
+            vv += int(np.count_nonzero(cint[:, 0] == VV))
+            if keys is not None:
+                plain, _ = vectorized.narrow_phase.__wrapped__(m, xy, pairs, None, None)
+                with_keys += not np.array_equal(plain, cint)
+    assert vv > 0 and with_keys > 0
+
+
+def test_union_keys_keep_each_member_s_keys_apart_and_sorted():
+    """A member's vertex-edge key a·n + b and vertex-vertex key n² + a·n + b in the union's
+    numbering: sorted, and each the union's key of the same vertices."""
+    rng = np.random.default_rng(3)
+    n_vertices = np.array([7, 12, 5])
+    at = np.array([0, 7, 19])
+    keys, want = [], []
+    for n, o in zip(n_vertices.tolist(), at.tolist()):
+        a, b = rng.integers(0, n, 6), rng.integers(0, n, 6)
+        vv = rng.random(6) < 0.5
+        keys.append(np.sort(np.where(vv, n * n, 0) + a * n + b))
+        want += [(int(v), a_ + o, b_ + o) for v, a_, b_ in zip(vv, a, b)]
+    union = stage_batch_detect._union_keys(keys + [None], np.append(n_vertices, 4), np.append(at, 24), 28)
+    assert np.all(np.diff(union) >= 0)
+    total = 28
+    expected = sorted((total * total if v else 0) + a * total + b for v, a, b in want)
+    assert union.tolist() == expected
+    assert stage_batch_detect._union_keys([None, np.zeros(0, np.int64)], n_vertices[:2], at[:2], 19) is None
+
+
+@pytest.mark.parametrize("shift", [0.0, 1.0])
+def test_the_narrow_phase_side_by_side_is_registered(shift):
+    """`narrow.narrow_phase` is a side-by-side operation: members running side by side that
+    reach it are evaluated together (and get their own contacts)."""
+    from functools import partial
+
+    from ddatai import side_by_side
+
+    assert side_by_side._BATCHED["narrow_phase"][1] is stage_batch.narrow_phase_many
+    if not side_by_side.available():
+        pytest.skip("greenlet is not installed")
+    model = build_model(random_jointed_scene(2))
+    xys = [_moved(model, 90 + k, shift) for k in range(3)]
+    before = side_by_side.EVALUATIONS.copy()
+    got = side_by_side.run([partial(vectorized.detect_contacts, model, xy) for xy in xys])
+    done = side_by_side.EVALUATIONS - before
+    for xy, (cint, length) in zip(xys, got):
+        want = vectorized.detect_contacts(model, xy)
+        np.testing.assert_array_equal(cint, want[0])
+        np.testing.assert_array_equal(length, want[1])
+    assert done["narrow_phase", True] == (1 if model.numpy_path else 0)
