@@ -79,15 +79,15 @@ class Frame:
 
     @cached_property
     def k_blocks(self):
-        """The block part of K as a CSR matrix (the energy of `return_steps.line_search`), made
-        when a line search first needs it (most frames have none)."""
+        """The block part of K as CSR (`return_steps.line_search`'s energy), made when first needed."""
         n = 6 * self.pattern.n_rows
         return csr_matrix((self.data, self.pattern.indices, self.pattern.indptr), shape=(n, n))
 
     @staticmethod
-    def build(stepper, state: State, geom: dict, contacts: Contacts, dt: float) -> "Frame":
+    def build(stepper, state: State, geom: dict, contacts: Contacts, dt: float, previous=None) -> "Frame":
+        """``previous``: the last frame's `BlockPattern`, its layout kept where the same blocks couple."""
         vec, sca = contact_vectors(stepper.model, state.vertex_xy, geom, contacts)
-        pattern = BlockPattern.build(stepper.model, contacts)
+        pattern = BlockPattern.build(stepper.model, contacts, previous)
         data, rhs = assemble_blocks(stepper.model, state, geom, pattern, dt, STAGE_BETA, static_start=True)
         return Frame(vertex_xy=state.vertex_xy, vec=vec, sca=sca, pattern=pattern, data=data, rhs=rhs)
 
@@ -158,7 +158,7 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
             if contacts.n == 0 and np.all(out | stepper.model.block_fixed):  # every free block released: an iterate
                 # would converge at its first solve, none left for the D that the stage zeroes (`ddatai.start`)
                 return np.zeros((stepper.model.n_blocks, 6)), solves, out & ~released, contacts, False, False, False
-            frame = Frame.build(stepper, state, geom, contacts, dt)
+            frame = Frame.build(stepper, state, geom, contacts, dt, None if frame is None else frame.pattern)
         # Newton (``_finish``) once a pseudo-step from where the states settle, before anything is released
         later = np.isfinite(contraction) and stepper.model.n_free <= SMALL_MODEL_BLOCKS  # a small model's later one
         tail = (NEWTON_LATER if later else NEWTON_AFTER) if newton and not freeze and not np.any(out & ~released) else None
