@@ -161,6 +161,7 @@ def contact_vectors(model: Model, vertex_xy: np.ndarray, geom: dict, contacts: C
     return vec, sca
 
 
+@side_by_side.operation("block_terms")
 def assemble_blocks(model: Model, state: State, geom: dict, pattern: BlockPattern, dt: float, beta: float,
                     static_start: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """The part of K and F that does not depend on contact states: inertia, elasticity,

@@ -18,7 +18,10 @@ its own terms in its own order: each member's result is, to the bit, the one its
 - ``contact_vectors`` (`ddatai.assembly.contact_vectors`): each pseudo-step's contact vectors
   (3 % of a 200-sample study's stages, benchmarks/results/study_throughput.md);
 - ``narrow_phase`` (`ddatai.narrow.narrow_phase`): each pseudo-step's contact detection, one
-  narrow phase over the members' union (`ddatai.stage_batch_detect`).
+  narrow phase over the members' union (`ddatai.stage_batch_detect`);
+- ``settle_points`` (`ddatai.kinematics.settle_points`): each pseudo-step's settlement and block
+  geometry, and ``block_terms`` (`ddatai.assembly.assemble_blocks` of the stage's static system):
+  each frame's block part of K and F (`ddatai.stage_batch_frame`).
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ from .assembly import contact_terms_numpy
 from .contact_law import ContactLaw, StageLaw, _law_core, _law_terms, friction_terms
 from .kinematics import vertex_displacement
 from .stage_batch_detect import narrow_group, narrow_phase_many
+from .stage_batch_frame import block_terms_group, block_terms_many, settle_group, settle_points_many
 from .vectorized import contact_vectors as vectors_numpy
 
 def _offsets(sizes) -> np.ndarray:
@@ -235,6 +239,8 @@ def _vectors_group(*args, **kwargs):
 side_by_side.register("block_displacement", _displacement_group, block_displacement_many)
 side_by_side.register("contact_vectors", _vectors_group, contact_vectors_many)
 side_by_side.register("narrow_phase", narrow_group, narrow_phase_many)
+side_by_side.register("settle_points", settle_group, settle_points_many)
+side_by_side.register("block_terms", block_terms_group, block_terms_many)
 side_by_side.register("assemble_contacts", _assembly_group, assemble_contacts_many)
 side_by_side.register("stage_law", _law_group, stage_law_many)
 side_by_side.register("contact_law_numpy", _law_group, contact_law_many)

@@ -114,3 +114,81 @@ def test_the_narrow_phase_side_by_side_is_registered(shift):
         np.testing.assert_array_equal(cint, want[0])
         np.testing.assert_array_equal(length, want[1])
     assert done["narrow_phase", True] == (1 if model.numpy_path else 0)
+
+
+@pytest.fixture(scope="module")
+def members():
+    """Example I's group at φ = 12° first (another geometry: every index of the others moved),
+    then the first three samples of Example II's study."""
+    from scenes import example_1
+    from test_limit_batch import study_models
+    from test_stage_screen import group_model
+
+    return [group_model(example_1, friction=12.0)] + study_models(3)
+
+
+def _random_states(models, seed):
+    """Each model's initial state with random stresses, its blocks moved a little (another
+    geometry each), and a random D of its free blocks."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for m in models:
+        s = m.initial_state()
+        xy = s.vertex_xy + rng.normal(0.0, 1e-3, s.vertex_xy.shape)
+        s = s.replace(vertex_xy=xy, block_stress=rng.normal(0.0, 1e5, s.block_stress.shape),
+                      block_rotation=rng.normal(0.0, 1e-3, m.n_blocks), geometry=None)
+        disp = np.where(m.block_fixed[:, None], 0.0, rng.normal(0.0, 1e-3, (m.n_blocks, 6)))
+        out.append((m, s, m.block_geometry(xy), disp))
+    return out
+
+
+def test_the_settlement_over_many_members_gives_each_its_own_state(members):
+    """`stage_batch_frame.settle_points_many`: every field of each member's settled state
+    (vertices, stresses, rotations, points, the block geometry at the moved vertices) equals
+    its own call's to the bit."""
+    from ddatai.kinematics import settle_points
+
+    calls = _random_states(members, 5)
+    got = stage_batch.settle_points_many([((m, s, g, d), {}) for m, s, g, d in calls])
+    for (m, s, g, d), state in zip(calls, got):
+        want = settle_points.__wrapped__(m, s, g, d)
+        for name, value in vars(want).items():
+            if isinstance(value, np.ndarray):
+                np.testing.assert_array_equal(getattr(state, name), value, err_msg=name)
+                assert getattr(state, name).dtype == value.dtype, name
+            elif isinstance(value, dict):
+                assert set(state.geometry) == set(value)
+                for k, v in value.items():
+                    np.testing.assert_array_equal(state.geometry[k], v, err_msg=k)
+            elif isinstance(value, (int, float)):
+                assert getattr(state, name) == value, name
+        assert state.memory is s.memory
+        assert not np.array_equal(state.vertex_xy, s.vertex_xy)  # it moved
+
+
+def test_the_block_terms_over_many_members_give_each_its_own_k_and_f(members):
+    """`stage_batch_frame.block_terms_many` (the stage's static system): each member's block part
+    of K and F equals its own `assemble_blocks` call's to the bit, on patterns of other sizes
+    (Example I's group and Example II's, their contacts at t = 0) and random stresses; a model
+    with fixed points or point loads is left to its own call (no group)."""
+    from ddatai.assembly import BlockPattern, assemble_blocks
+    from ddatai.contacts import Contacts, subset_contacts
+    from ddatai.model import ContactMemory
+    from ddatai.step import Stepper
+
+    calls = []
+    for k, (m, s, g, _) in enumerate(_random_states(members, 9)):
+        c = Contacts.start(m, s.vertex_xy, *Stepper(m).detect(s.vertex_xy), ContactMemory.empty(), True)
+        if k == 1:  # its free blocks uncoupled: a pattern of another size
+            c = subset_contacts(c, m.block_fixed[c.block_a] | m.block_fixed[c.block_b])
+        calls.append((m, s, g, BlockPattern.build(m, c), 0.37, 0.5, True))
+    assert len({p.nnz for *_, p, _, _, _ in calls}) >= 2
+    assert len({stage_batch.block_terms_group(m, s, g, p, dt, beta, st) for m, s, g, p, dt, beta, st in calls}) == 1
+    got = stage_batch.block_terms_many([(c, {}) for c in calls])
+    for c, (data, rhs) in zip(calls, got):
+        want_data, want_rhs = assemble_blocks.__wrapped__(*c)
+        np.testing.assert_array_equal(data, want_data)
+        np.testing.assert_array_equal(rhs, want_rhs)
+        assert np.any(data != 0.0) and np.any(rhs != 0.0)
+    m, s, g, p, *_ = calls[0]
+    assert stage_batch.block_terms_group(m, s, g, p, 0.37, 0.5, False) is None  # a step's: not the stage's
