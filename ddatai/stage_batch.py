@@ -19,6 +19,8 @@ its own terms in its own order: each member's result is, to the bit, the one its
   (3 % of a 200-sample study's stages, benchmarks/results/study_throughput.md);
 - ``narrow_phase`` (`ddatai.narrow.narrow_phase`): each pseudo-step's contact detection, one
   narrow phase over the members' union (`ddatai.stage_batch_detect`);
+- ``contacts_start`` (`ddatai.contacts.Contacts.start`): each pseudo-step's contacts with their
+  joints and memory (`ddatai.stage_batch_contacts`);
 - ``settle_points`` (`ddatai.kinematics.settle_points`): each pseudo-step's settlement and block
   geometry, and ``block_terms`` (`ddatai.assembly.assemble_blocks` of the stage's static system):
   each frame's block part of K and F (`ddatai.stage_batch_frame`).
@@ -34,6 +36,7 @@ from . import side_by_side
 from .assembly import contact_terms_numpy
 from .contact_law import ContactLaw, StageLaw, _law_core, _law_terms, friction_terms
 from .kinematics import vertex_displacement
+from .stage_batch_contacts import contacts_start_many, start_group
 from .stage_batch_detect import narrow_group, narrow_phase_many
 from .stage_batch_frame import block_terms_group, block_terms_many, settle_group, settle_points_many
 from .vectorized import contact_vectors as vectors_numpy
@@ -239,6 +242,7 @@ def _vectors_group(*args, **kwargs):
 side_by_side.register("block_displacement", _displacement_group, block_displacement_many)
 side_by_side.register("contact_vectors", _vectors_group, contact_vectors_many)
 side_by_side.register("narrow_phase", narrow_group, narrow_phase_many)
+side_by_side.register("contacts_start", start_group, contacts_start_many)
 side_by_side.register("settle_points", settle_group, settle_points_many)
 side_by_side.register("block_terms", block_terms_group, block_terms_many)
 side_by_side.register("assemble_contacts", _assembly_group, assemble_contacts_many)

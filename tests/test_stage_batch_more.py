@@ -4,6 +4,7 @@ what its own call gives, whatever the members beside it."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -192,3 +193,71 @@ def test_the_block_terms_over_many_members_give_each_its_own_k_and_f(members):
         assert np.any(data != 0.0) and np.any(rhs != 0.0)
     m, s, g, p, *_ = calls[0]
     assert stage_batch.block_terms_group(m, s, g, p, 0.37, 0.5, False) is None  # a step's: not the stage's
+
+
+def _start_calls():
+    """`Contacts.start` calls of random jointed squares (vertex-vertex contacts among them) and of
+    Example II's group: with no memory on the first step, and with a memory of the contacts at rest
+    (random states — sliding ones re-anchored at their friction —, lines, bonds, forces) at
+    moved vertices, on the first step and after it."""
+    from ddatai.contacts import Contacts
+    from ddatai.layout import LOCK, OPEN, SLIDE
+    from ddatai.model import ContactMemory
+    from ddatai.step import Stepper
+    from test_limit_batch import study_models
+
+    rng = np.random.default_rng(11)
+    models = [build_model(random_jointed_scene(seed)) for seed in range(4)] + study_models(2)
+    for k in (1, 2):  # joints of their own on some block pairs (``Model.pair_key``)
+        m = models[k]
+        pairs = np.unique(np.sort(m.vertex_block[vectorized.detect_contacts(m, m.vertex_xy0)[0][:, 1:3]], axis=1),
+                          axis=0)[::2].astype(np.int64)
+        models[k] = dataclasses.replace(m, pair_key=pairs[:, 0] * m.n_blocks + pairs[:, 1],
+                                        pair_joint=rng.integers(0, len(m.joint_tan_phi), len(pairs)).astype(np.int32))
+    calls = []
+    for k, m in enumerate(models):
+        st = Stepper(m)
+        rest = Contacts.start(m, m.vertex_xy0, *st.detect(m.vertex_xy0), ContactMemory.empty(), True)
+        calls.append((m, m.vertex_xy0, *st.detect(m.vertex_xy0), ContactMemory.empty(), True))
+        rest.state[:] = rng.choice(np.array([OPEN, LOCK, SLIDE], np.int8), rest.n)
+        rest.line[:] = rng.integers(0, 2, rest.n)
+        rest.bond[:] = rng.random(rest.n) < 0.5
+        rest.normal_force[:] = rng.uniform(0.0, 1e5, rest.n)
+        rest.omega[:] = rng.uniform(0.0, 1.0, rest.n)
+        rest.shear_dir[:] = rng.choice(np.array([-1, 1], np.int8), rest.n)
+        memory = rest.memory(bond_breaks_on_slip=False)
+        xy = _moved(m, 40 + k, 0.5)
+        cint, length = vectorized.detect_contacts(m, xy)
+        calls += [(m, xy, cint, length, memory, False), (m, xy, cint, length, memory, True)]
+    return calls
+
+
+def test_contacts_start_over_many_members_gives_each_its_own_contacts():
+    """`stage_batch_contacts.contacts_start_many` on each group of calls with equal constants:
+    every field of each member's contacts equals its own `Contacts.start`'s to the bit (the same
+    ``cint`` and ``length`` objects handed back); the calls cover memories found and not,
+    sliding contacts re-anchored, vertex-vertex contacts and members of other sizes."""
+    from ddatai.contacts import Contacts
+    from ddatai.layout import SLIDE, VV
+
+    groups: dict = {}
+    for c in _start_calls():
+        key = stage_batch.start_group(*c)
+        if key is not None:
+            groups.setdefault(key, []).append(c)
+    assert max(len(g) for g in groups.values()) >= 6
+    seen_vv = seen_sliding = paired = 0
+    for group in groups.values():
+        if len(group) < 2:
+            continue
+        got = stage_batch.contacts_start_many([(c, {}) for c in group])
+        for c, contacts in zip(group, got):
+            want = Contacts.start.__wrapped__(*c)
+            for name, value in vars(want).items():
+                np.testing.assert_array_equal(getattr(contacts, name), value, err_msg=name)
+                assert getattr(contacts, name).dtype == value.dtype, name
+            assert contacts.cint is c[2] and contacts.length is c[3]
+            seen_vv += int(np.count_nonzero(contacts.cint[:, 0] == VV))
+            paired += len(c[0].pair_key) > 0
+            seen_sliding += int(np.count_nonzero((contacts.state == SLIDE) & (c[4].key.size > 0)))
+    assert seen_vv > 0 and seen_sliding > 0 and paired > 0
