@@ -237,6 +237,7 @@ def assemble_contacts(model: Model, contacts: Contacts, pattern: BlockPattern, v
                         model.penalty, model.shear_penalty, data, rhs, serial_scatter)
 
 
+@side_by_side.operation("second_order")
 def second_order(model: Model, contacts: Contacts, state: State, geom: dict, rotation: np.ndarray,
                  rhs: np.ndarray) -> np.ndarray:
     """Second-order rotation terms of the constraints, for the exact-rotation update (§5.3).

@@ -23,7 +23,9 @@ its own terms in its own order: each member's result is, to the bit, the one its
   joints and memory (`ddatai.stage_batch_contacts`);
 - ``settle_points`` (`ddatai.kinematics.settle_points`): each pseudo-step's settlement and block
   geometry, and ``block_terms`` (`ddatai.assembly.assemble_blocks` of the stage's static system):
-  each frame's block part of K and F (`ddatai.stage_batch_frame`).
+  each frame's block part of K and F (`ddatai.stage_batch_frame`);
+- ``second_order``, ``midstep_lever_arms`` and ``violations``: the per-solve terms and state test
+  of the open-close finish (`ddatai.stage_batch_finish`).
 """
 
 from __future__ import annotations
@@ -38,6 +40,8 @@ from .contact_law import ContactLaw, StageLaw, _law_core, _law_terms, friction_t
 from .kinematics import vertex_displacement
 from .stage_batch_contacts import contacts_start_many, start_group
 from .stage_batch_detect import narrow_group, narrow_phase_many
+from .stage_batch_finish import (lever_arms_group, lever_arms_many, second_order_group, second_order_many,
+                                 violations_group, violations_many)
 from .stage_batch_frame import block_terms_group, block_terms_many, settle_group, settle_points_many
 from .vectorized import contact_vectors as vectors_numpy
 
@@ -245,6 +249,9 @@ side_by_side.register("narrow_phase", narrow_group, narrow_phase_many)
 side_by_side.register("contacts_start", start_group, contacts_start_many)
 side_by_side.register("settle_points", settle_group, settle_points_many)
 side_by_side.register("block_terms", block_terms_group, block_terms_many)
+side_by_side.register("second_order", second_order_group, second_order_many)
+side_by_side.register("midstep_lever_arms", lever_arms_group, lever_arms_many)
+side_by_side.register("violations", violations_group, violations_many)
 side_by_side.register("assemble_contacts", _assembly_group, assemble_contacts_many)
 side_by_side.register("stage_law", _law_group, stage_law_many)
 side_by_side.register("contact_law_numpy", _law_group, contact_law_many)

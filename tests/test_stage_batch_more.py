@@ -261,3 +261,51 @@ def test_contacts_start_over_many_members_gives_each_its_own_contacts():
             paired += len(c[0].pair_key) > 0
             seen_sliding += int(np.count_nonzero((contacts.state == SLIDE) & (c[4].key.size > 0)))
     assert seen_vv > 0 and seen_sliding > 0 and paired > 0
+
+
+def test_the_open_close_terms_over_many_members_give_each_its_own(members):
+    """`stage_batch_finish`'s operations on Example I's group and Example II's (other geometries
+    and contact counts, some contacts sliding and coupled, a random D that rotates the blocks):
+    each member's second-order shifts, lever arms and state test equal its own calls' to the bit;
+    a member whose blocks do not rotate is left to its own call (its terms are zeros)."""
+    from ddatai.assembly import contact_vectors, second_order
+    from ddatai.contact_law import contact_law, violations_numpy
+    from ddatai.contacts import Contacts, subset_contacts
+    from ddatai.layout import SLIDE
+    from ddatai.lever_arm import midstep_lever_arms
+    from ddatai.model import ContactMemory
+    from ddatai.step import Stepper
+
+    calls = []
+    for k, (m, s, g, disp) in enumerate(_random_states(members + members[:1], 13)):
+        st = Stepper(m)
+        c = Contacts.start(m, s.vertex_xy, *st.detect(s.vertex_xy), ContactMemory.empty(), True)
+        c = subset_contacts(c, np.arange(c.n) < c.n - k % 3)  # other contact counts
+        c.state[::3] = SLIDE
+        c.coupled[::2] = True
+        vec, sca = contact_vectors(m, s.vertex_xy, g, c)
+        law = contact_law(m, c, vec, sca, disp)
+        calls.append((m, s, g, c, disp[:, 2].copy(), law, st.block_load))
+    assert len({c.n for _, _, _, c, *_ in calls}) >= 3
+    ops = {"second_order": (lambda m, s, g, c, r, law, load: (m, c, s, g, r, np.zeros(6 * m.n_free)),
+                            second_order, stage_batch.second_order_many, stage_batch.second_order_group),
+           "lever": (lambda m, s, g, c, r, law, load: (m, c, s.vertex_xy, g["centroid"], r), midstep_lever_arms,
+                     stage_batch.lever_arms_many, stage_batch.lever_arms_group),
+           "violations": (lambda m, s, g, c, r, law, load: (m, c, law, load), violations_numpy,
+                          stage_batch.violations_many, stage_batch.violations_group)}
+    for name, (arguments, plain, many, group) in ops.items():
+        groups: dict = {}
+        for c in calls:
+            groups.setdefault(group(*arguments(*c)), []).append(arguments(*c))
+        assert None not in groups and max(len(g) for g in groups.values()) >= 3, name
+        args = [a for g in groups.values() if len(g) > 1 for a in g]
+        got = [out for g in groups.values() if len(g) > 1 for out in many([(a, {}) for a in g])]
+        for a, out in zip(args, got):
+            want = plain.__wrapped__(*a)
+            for x, y in zip(out if isinstance(out, tuple) else (out,), want if isinstance(want, tuple) else (want,)):
+                np.testing.assert_array_equal(x, y, err_msg=name)
+                assert x.dtype == y.dtype and np.signbit(x).tolist() == np.signbit(y).tolist(), name
+            assert np.any(want[0] if isinstance(want, tuple) else want), name  # not all zeros
+    m, s, g, c, r, *_ = calls[0]
+    assert stage_batch.second_order_group(m, c, s, g, np.zeros_like(r), None) is None
+    assert stage_batch.lever_arms_group(m, c, s.vertex_xy, g["centroid"], np.zeros_like(r)) is None
