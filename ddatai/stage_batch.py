@@ -25,7 +25,8 @@ its own terms in its own order: each member's result is, to the bit, the one its
   geometry, and ``block_terms`` (`ddatai.assembly.assemble_blocks` of the stage's static system):
   each frame's block part of K and F (`ddatai.stage_batch_frame`);
 - ``second_order``, ``midstep_lever_arms`` and ``violations``: the per-solve terms and state test
-  of the open-close finish (`ddatai.stage_batch_finish`).
+  of the open-close finish, and ``iterate_update``: a return-mapping iterate's judgement of its
+  contacts (`ddatai.stage_batch_finish`).
 """
 
 from __future__ import annotations
@@ -40,8 +41,8 @@ from .contact_law import ContactLaw, StageLaw, _law_core, _law_terms, friction_t
 from .kinematics import vertex_displacement
 from .stage_batch_contacts import contacts_start_many, start_group
 from .stage_batch_detect import narrow_group, narrow_phase_many
-from .stage_batch_finish import (lever_arms_group, lever_arms_many, second_order_group, second_order_many,
-                                 violations_group, violations_many)
+from .stage_batch_finish import (iterate_update_group, iterate_update_many, lever_arms_group, lever_arms_many,
+                                 second_order_group, second_order_many, violations_group, violations_many)
 from .stage_batch_frame import block_terms_group, block_terms_many, settle_group, settle_points_many
 from .vectorized import contact_vectors as vectors_numpy
 
@@ -252,6 +253,7 @@ side_by_side.register("block_terms", block_terms_group, block_terms_many)
 side_by_side.register("second_order", second_order_group, second_order_many)
 side_by_side.register("midstep_lever_arms", lever_arms_group, lever_arms_many)
 side_by_side.register("violations", violations_group, violations_many)
+side_by_side.register("iterate_update", iterate_update_group, iterate_update_many)
 side_by_side.register("assemble_contacts", _assembly_group, assemble_contacts_many)
 side_by_side.register("stage_law", _law_group, stage_law_many)
 side_by_side.register("contact_law_numpy", _law_group, contact_law_many)

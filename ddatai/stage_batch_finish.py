@@ -1,4 +1,4 @@
-"""The per-solve work of the equilibrium stage's open-close finish for many members at once
+"""The per-solve work of the equilibrium stage's iterations for many members at once
 (`ddatai.side_by_side`; docs/guide/performance.md, "Batched studies"), registered with the others
 by `ddatai.stage_batch`:
 
@@ -6,7 +6,9 @@ by `ddatai.stage_batch`:
   contact distances at the iterate's rotation;
 - ``midstep_lever_arms`` (`ddatai.lever_arm.midstep_lever_arms`): the contacts' lever arms at
   mid-step;
-- ``violations`` (``ddatai.contact_law.violations_numpy``): which contacts' states must change.
+- ``violations`` (``ddatai.contact_law.violations_numpy``): which contacts' states must change;
+- ``iterate_update`` (`ddatai.return_update.iterate_update`): a return-mapping iterate's
+  judgement of its contacts.
 
 Each over the members' contacts, vertices and blocks one after the other, every index moved by
 the members' before it: the terms are per contact (and per vertex), and each block's load level
@@ -25,6 +27,7 @@ import numpy as np
 from .assembly import second_order
 from .contact_law import violations_numpy
 from .lever_arm import midstep_lever_arms
+from .return_update import Update, iterate_update
 
 
 def _offsets(sizes) -> np.ndarray:
@@ -137,3 +140,37 @@ def violations_many(requests) -> list:
     law = SimpleNamespace(**{f: np.concatenate([getattr(a[2], f) for a in args]) for f in _LAW_FIELDS})
     bad = violations_numpy.__wrapped__(model, u.contacts, law, np.concatenate([a[3] for a in args]))
     return _split(bad, u.counts)
+
+
+# ------------------------------------------------------------------ the return mapping's judgement
+_UPDATE_ARGS = ("model", "contacts", "law", "guess", "flips", "freeze", "shearing", "weight", "tensile",
+                "force_tolerance", "chatter_flips")
+
+
+def iterate_update_group(*args, **kwargs):
+    model, contacts, *_, force_tolerance, chatter_flips = _bound(args, kwargs, _UPDATE_ARGS)
+    if not model.numpy_path or contacts.n == 0:
+        return None
+    return ("iterate_update", float(model.penalty), float(model.shear_penalty),
+            float(model.params.oc_state_tolerance), float(model.force_roundoff), float(force_tolerance),
+            int(chatter_flips))
+
+
+def iterate_update_many(requests) -> list:
+    """`return_update.iterate_update` of each request: one judgement over all the members'
+    contacts (each block's load level over its own contacts)."""
+    args = [_bound(a, kw, _UPDATE_ARGS) for a, kw in requests]
+    models = [a[0] for a in args]
+    u = _Union(models, [a[1] for a in args])
+    m0 = models[0]
+    model = SimpleNamespace(params=m0.params, penalty=m0.penalty, shear_penalty=m0.shear_penalty,
+                            force_roundoff=m0.force_roundoff)
+    law = SimpleNamespace(**{f: np.concatenate([getattr(a[2], f) for a in args])
+                             for f in ("fn", "closed", "dn", "dn_now", "line", "ds", "strength")})
+    guess = SimpleNamespace(**{f: np.concatenate([getattr(a[3], f) for a in args]) for f in ("closed", "line", "gap")})
+    cat = [np.concatenate([a[k] for a in args]) for k in (4, 6, 7, 8)]
+    freeze = np.repeat(np.array([bool(a[5]) for a in args]), u.counts)
+    out = iterate_update.__wrapped__(model, u.contacts, law, guess, cat[0], freeze, cat[1], cat[2], cat[3],
+                                     args[0][9], args[0][10])
+    parts = [_split(x, u.counts) for x in out]
+    return [Update(*p) for p in zip(*parts)]

@@ -309,3 +309,51 @@ def test_the_open_close_terms_over_many_members_give_each_its_own(members):
     m, s, g, c, r, *_ = calls[0]
     assert stage_batch.second_order_group(m, c, s, g, np.zeros_like(r), None) is None
     assert stage_batch.lever_arms_group(m, c, s.vertex_xy, g["centroid"], np.zeros_like(r)) is None
+
+
+def test_the_return_mapping_judgement_over_many_members_gives_each_its_own(members):
+    """`stage_batch_finish.iterate_update_many` (a return-mapping iterate's judgement of its
+    contacts) on members of other contact counts, with random guesses (closed contacts, lines,
+    normal openings), flip counts, freezing on some members and not others, and the stage's law
+    at a random D: every field of each member's judgement equals its own call's to the bit, and
+    the members' contacts close, open and slip (the terms are not all trivial)."""
+    from ddatai.assembly import contact_vectors
+    from ddatai.contact_law import stage_law
+    from ddatai.contacts import Contacts, subset_contacts
+    from ddatai.layout import KIND, VE
+    from ddatai.model import ContactMemory
+    from ddatai.return_mapping import CHATTER_FLIPS, STAGE_FORCE_TOLERANCE, Guess
+    from ddatai.return_update import iterate_update
+    from ddatai.step import Stepper
+
+    rng = np.random.default_rng(17)
+    calls = []
+    for k, (m, s, g, disp) in enumerate(_random_states(members + members[1:], 19)):
+        c = Contacts.start(m, s.vertex_xy, *Stepper(m).detect(s.vertex_xy), ContactMemory.empty(), True)
+        c = subset_contacts(c, np.arange(c.n) < c.n - k % 3)
+        vec, sca = contact_vectors(m, s.vertex_xy, g, c)
+        law = stage_law.__wrapped__(m, c, vec, sca, disp * 1e-3)
+        guess = Guess(closed=rng.random(c.n) < 0.7, line=rng.integers(0, 2, c.n).astype(np.int8),
+                      slip=np.zeros(c.n), gap=np.where(rng.random(c.n) < 0.3, rng.uniform(0, 1e-6, c.n), 0.0))
+        ve = c.cint[:, KIND] == VE
+        shearing = ve & ((c.tan_phi > 0.0) | ((c.cohesion * c.length > 0.0) & c.bond))
+        weight = m.block_density * g["area"] * float(np.hypot(*m.gravity))
+        tensile = np.where(c.bond, c.tensile * c.length, 0.0)
+        calls.append((m, c, law, guess, rng.integers(0, 4, c.n), k % 2 == 0, shearing, weight, tensile,
+                      min(m.params.oc_force_tolerance, STAGE_FORCE_TOLERANCE), CHATTER_FLIPS))
+    groups: dict = {}
+    for c in calls:
+        groups.setdefault(stage_batch.iterate_update_group(*c), []).append(c)
+    assert None not in groups and max(len(g) for g in groups.values()) >= 4
+    flipped = slipped = gapped = 0
+    for group in groups.values():
+        got = stage_batch.iterate_update_many([(c, {}) for c in group])
+        for c, out in zip(group, got):
+            want = iterate_update.__wrapped__(*c)
+            for name, x, y in zip(want._fields, out, want):
+                np.testing.assert_array_equal(x, y, err_msg=name)
+                assert x.dtype == y.dtype, name
+            flipped += int(np.count_nonzero(want.flipped))
+            slipped += int(np.count_nonzero(want.dslip))
+            gapped += int(np.count_nonzero(want.gapping))
+    assert flipped > 0 and slipped > 0 and gapped > 0
