@@ -17,11 +17,11 @@ its own terms in its own order: each member's result is, to the bit, the one its
   open-close iteration of the stage's finish and tests, the balance check);
 - ``contact_vectors`` (`ddatai.assembly.contact_vectors`): each pseudo-step's contact vectors
   (3 % of a 200-sample study's stages, benchmarks/results/study_throughput.md);
-- ``narrow_phase`` (`ddatai.narrow.narrow_phase`): each pseudo-step's contact detection, one
+- ``narrow_phase`` (``ddatai.narrow.narrow_phase``): each pseudo-step's contact detection, one
   narrow phase over the members' union (`ddatai.stage_batch_detect`);
-- ``contacts_start`` (`ddatai.contacts.Contacts.start`): each pseudo-step's contacts with their
+- ``contacts_start`` (``ddatai.contacts.Contacts.start``): each pseudo-step's contacts with their
   joints and memory (`ddatai.stage_batch_contacts`);
-- ``settle_points`` (`ddatai.kinematics.settle_points`): each pseudo-step's settlement and block
+- ``settle_points`` (``ddatai.kinematics.settle_points``): each pseudo-step's settlement and block
   geometry, and ``block_terms`` (`ddatai.assembly.assemble_blocks` of the stage's static system):
   each frame's block part of K and F (`ddatai.stage_batch_frame`);
 - ``second_order``, ``midstep_lever_arms`` and ``violations``: the per-solve terms and state test

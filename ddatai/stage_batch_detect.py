@@ -1,7 +1,7 @@
 """The equilibrium stage's contact detection for many members at once (`ddatai.side_by_side`;
 docs/guide/performance.md, "Batched studies").
 
-``narrow_phase`` (`ddatai.narrow.narrow_phase`, the NumPy narrow phase of a small model) of the
+``narrow_phase`` (``ddatai.narrow.narrow_phase``, the NumPy narrow phase of a small model) of the
 members waiting at it, with the same search distance, penetration limit and angle tolerance,
 is evaluated once on their *union*: one model whose vertices, blocks and block pairs are the
 members' one after the other, each member's indices moved by the vertices and blocks of the

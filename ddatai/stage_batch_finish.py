@@ -2,12 +2,12 @@
 (`ddatai.side_by_side`; docs/guide/performance.md, "Batched studies"), registered with the others
 by `ddatai.stage_batch`:
 
-- ``second_order`` (`ddatai.assembly.second_order`): the second-order rotation terms of the
+- ``second_order`` (``ddatai.assembly.second_order``): the second-order rotation terms of the
   contact distances at the iterate's rotation;
-- ``midstep_lever_arms`` (`ddatai.lever_arm.midstep_lever_arms`): the contacts' lever arms at
+- ``midstep_lever_arms`` (``ddatai.lever_arm.midstep_lever_arms``): the contacts' lever arms at
   mid-step;
 - ``violations`` (``ddatai.contact_law.violations_numpy``): which contacts' states must change;
-- ``iterate_update`` (`ddatai.return_update.iterate_update`): a return-mapping iterate's
+- ``iterate_update`` (``ddatai.return_update.iterate_update``): a return-mapping iterate's
   judgement of its contacts.
 
 Each over the members' contacts, vertices and blocks one after the other, every index moved by

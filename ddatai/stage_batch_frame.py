@@ -2,7 +2,7 @@
 (`ddatai.side_by_side`; docs/guide/performance.md, "Batched studies"), registered with the
 others by `ddatai.stage_batch`:
 
-- ``settle_points`` (`ddatai.kinematics.settle_points`): each pseudo-step's settlement — the
+- ``settle_points`` (``ddatai.kinematics.settle_points``): each pseudo-step's settlement — the
   vertices moved by the exact rotation, the stresses and rotations updated, and the block
   geometry at the moved vertices (`ddatai.geometry.polygon_integrals`);
 - ``block_terms`` (`ddatai.assembly.assemble_blocks` of the stage's static system): the block
