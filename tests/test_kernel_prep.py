@@ -59,8 +59,8 @@ def test_every_message_of_the_step_kernels_is_taichis():
             fresh.ensure_compiled(*_dummy_args(fresh))
     finally:
         context.get_pos_info = quick
-    assert len(names) == 14
-    assert seen[0] > 5000  # every node of the 14 kernels, their @ti.func inlined at each call
+    assert len(names) == 15
+    assert seen[0] > 5000  # every node of the 15 kernels, their @ti.func inlined at each call
     assert wrong == []
 
 
