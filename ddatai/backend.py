@@ -36,6 +36,9 @@ def ensure(arch: str = "cpu") -> str:
         raise ValueError(f"unknown Taichi arch {arch!r}; expected one of {sorted(targets)}")
     ti.init(arch=targets[arch], default_fp=ti.f64, default_ip=ti.i32,
             enable_fallback=True, offline_cache=True, log_level=ti.WARN)
+    from . import kernel_prep
+
+    kernel_prep.install()  # the kernels' first calls in a process, quicker (same IR, same code)
     actual = ti.lang.impl.current_cfg().arch
     name = {ti.cpu: "cpu", ti.x64: "cpu", ti.arm64: "cpu"}.get(actual, str(actual).split(".")[-1])
     if arch not in ("gpu", name):

@@ -97,21 +97,20 @@ def broad_phase(model: Model, vertex_xy: np.ndarray, margin: float, buffers: _Bu
     big_i = big.astype(np.int32)
     fixed = model.block_fixed.astype(np.int32)
     table = max(64, 2 * nb)
+    ox, oy = lo.min(axis=0)
+    sorted_ids = np.zeros(max(1, int(np.count_nonzero(~big))), np.int32)
+    big_ids = np.flatnonzero(big).astype(np.int32)
+    n_big = len(big_ids)
+    if not n_big:
+        big_ids = np.zeros(1, np.int32)  # a kernel takes no empty array
     cell = np.zeros((nb, 2), np.int32)
     bucket = np.zeros(nb, np.int32)
-    bucket_count = np.zeros(table, np.int32)
-    ox, oy = lo.min(axis=0)
-    K.grid_bin(lo, hi, big_i, h, float(ox), float(oy), table, cell, bucket, bucket_count)
-    bucket_start = np.zeros(table + 1, np.int32)
-    np.cumsum(bucket_count, out=bucket_start[1:])
-    sorted_ids = np.zeros(max(1, int(np.count_nonzero(~big))), np.int32)
-    K.grid_scatter(big_i, bucket, bucket_start, np.zeros(table, np.int32), sorted_ids)
-    big_ids = np.flatnonzero(big).astype(np.int32)
     while True:
+        bucket_count = np.zeros(table, np.int32)
+        bucket_start = np.zeros(table + 1, np.int32)
         buffers.count[0] = 0
-        K.grid_query(lo, hi, big_i, fixed, cell, table, bucket_start, sorted_ids, buffers.pairs, buffers.count)
-        if len(big_ids):
-            K.big_query(lo, hi, big_i, big_ids, fixed, buffers.pairs, buffers.count)
+        K.broad_pairs(lo, hi, big_i, h, float(ox), float(oy), table, cell, bucket, bucket_count, bucket_start,
+                      np.zeros(table, np.int32), sorted_ids, big_ids, n_big, fixed, buffers.pairs, buffers.count)
         n = int(buffers.count[0])
         if n <= len(buffers.pairs):
             break

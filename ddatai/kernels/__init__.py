@@ -15,7 +15,7 @@ judgement). The names below are those the step's modules use.
 """
 
 from .assembly import assemble_blocks, assemble_contact_loads, assemble_contacts, assemble_points, contact_vectors, second_order_shift
-from .broad import big_query, grid_bin, grid_query, grid_scatter
+from .broad import big_query, broad_pairs, grid_bin, grid_query, grid_scatter
 from .common import (E0, E1, EDGE_FLOOR, EDGE_FLOOR2, ES, G0, G1, GS, IN_BOND, IN_COHESION, IN_COUPLED,
                      IN_LENGTH, IN_LINE, IN_NORMAL_FORCE, IN_SHEAR_DIR, IN_STATE, IN_TAN_PHI, IN_TENSILE,
                      KIND_VE, KIND_VV, LAW_CLOSED, LAW_DIRECTION, LAW_DN, LAW_DN_NOW, LAW_DS, LAW_ENERGY,
@@ -25,7 +25,7 @@ from .detection import narrow_phase
 from .law import contact_law, internal_force, violations
 
 __all__ = [
-    "assemble_blocks", "assemble_contact_loads", "assemble_contacts", "assemble_points", "big_query", "contact_law", "contact_vectors",
+    "assemble_blocks", "assemble_contact_loads", "assemble_contacts", "assemble_points", "big_query", "broad_pairs", "contact_law", "contact_vectors",
     "grid_bin", "grid_query", "grid_scatter", "internal_force", "narrow_phase", "second_order_shift",
     "violations",
     "E0", "E1", "EDGE_FLOOR", "EDGE_FLOOR2", "ES", "G0", "G1", "GS", "IN_BOND", "IN_COHESION", "IN_COUPLED",
