@@ -39,6 +39,9 @@ def main() -> None:
     ap.add_argument("--warm", type=int, default=300)
     ap.add_argument("--steps", type=int, default=300)
     ap.add_argument("--reps", type=int, default=200)
+    ap.add_argument("--members", default="", help="a pickle of `benchmarks/study_members.py build`: probe one of "
+                    "its members (a study's) instead of the grid")
+    ap.add_argument("--index", type=int, default=0, help="which member of --members (counted over its batches)")
     a = ap.parse_args()
 
     import numpy as np
@@ -58,10 +61,17 @@ def main() -> None:
     from ddatai.fused.kernel import _fastest, _group_displacement
     from ddatai.fused.step import accept, energies, rule, time_step, update, work
 
-    scene, params = grid_scene(a.blocks)
-    params = dataclasses.replace(params, initial_equilibrium=False, kernels="numpy", solver="dense")
-    model = build_model(scene, params)
-    member = Member(model=model, state=model.initial_state(), step_end=a.warm + a.steps + 10, record=True)
+    if a.members:
+        import pickle
+
+        study = [m for b in pickle.loads(Path(a.members).read_bytes()) for m in b]
+        member = dataclasses.replace(study[a.index], record=True, step_end=a.warm + a.steps + 10,
+                                     stop_at=float("inf"), rest_limit=-1.0)
+    else:
+        scene, params = grid_scene(a.blocks)
+        params = dataclasses.replace(params, initial_equilibrium=False, kernels="numpy", solver="dense")
+        model = build_model(scene, params)
+        member = Member(model=model, state=model.initial_state(), step_end=a.warm + a.steps + 10, record=True)
     s = Session([member], launch_steps=4096)
     t = time.perf_counter()
     s.launch(np.array([a.warm]))
