@@ -99,9 +99,18 @@ def rule(E: ti.template(), m, grow):
             if acc > 0 or speed > 0:
                 dt = 2.0 * u / (speed + ti.sqrt(speed * speed + 2.0 * acc * u))
             limit = ti.min(limit, dt)
-    if grow and E.mf[m, MF_DT] > 0:
-        limit = ti.min(limit, E.mf[m, MF_DT_GROWTH] * E.mf[m, MF_DT])
+    if grow:
+        limit = grown(E, m, limit)
     return limit
+
+
+@ti.func
+def grown(E: ti.template(), m, limit):
+    """``limit`` within the growth limit of the last step's Δt (`rule`'s last line)."""
+    out = limit
+    if E.mf[m, MF_DT] > 0:
+        out = ti.min(limit, E.mf[m, MF_DT_GROWTH] * E.mf[m, MF_DT])
+    return out
 
 
 @ti.func
@@ -289,7 +298,10 @@ def step(E: ti.template(), m):
     region: nothing changed) or DIVERT (a try that today's path takes over: nothing changed).
     With ``FLAG_RECORD`` the step's record goes to the next row of the member's ``rec``."""
     result = RUNNING
-    dt = time_step(E, m)
+    # `time_step` from the rule without its growth limit, which the approach bound reads too
+    # (nothing the rule reads changes in between)
+    free_dt = rule(E, m, 0)
+    dt = end_on(E, m, grown(E, m, free_dt))
     n = contacts.detect(E, m)
     if n > E.mi[m, MI_CCAP]:
         result = GROW
@@ -304,7 +316,7 @@ def step(E: ti.template(), m):
         if E.mf[m, MF_DT_FIXED] > 0.0:
             shortest = E.mf[m, MF_DT_FIXED] * E.mf[m, MF_DT_MIN_RATIO]
         # the step before a closing ends just before it; the impact step (`ddatai.impacts`)
-        bound = approach_bound(E, m, dt, rule(E, m, 0))
+        bound = approach_bound(E, m, dt, free_dt)
         dt = end_on(E, m, ti.max(bound, ti.min(dt, shortest)))
         static = (E.mi[m, MI_FLAGS] & FLAG_STATIC) != 0
         # 0: the tries of the step; 1: the impact step taken again from the plastic impact at
