@@ -125,13 +125,7 @@ def _outer_rows(E: ti.template(), m, c, s, t_own, t_other, k, s2, t2_own, t2_oth
                         place = lower + b
                         if i < j0 + b:
                             place = upper - b * (n + 1)
-                        if k2 != 0.0:
-                            E.kmat[place] = (E.kmat[place] + va * E.cvec[c, 6 * t + b]) + va2 * E.cvec[c, 6 * t2 + b]
-                        else:
-                            # without a second term (an open or sliding contact's normal spring
-                            # alone): adding its +0 or −0 changes no entry (K's entries start at
-                            # +0 and a sum is −0 only of two −0)
-                            E.kmat[place] = E.kmat[place] + va * E.cvec[c, 6 * t + b]
+                        E.kmat[place] = (E.kmat[place] + va * E.cvec[c, 6 * t + b]) + va2 * E.cvec[c, 6 * t2 + b]
 
 
 @ti.func
