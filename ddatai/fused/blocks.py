@@ -10,7 +10,7 @@ import taichi as ti
 
 from ..kernels.common import _trow
 from .layout import (BG_AREA, BG_CX, BG_CY, BG_S1, BG_S2, BG_S3, BI_ROW, BI_V0, BI_V1, BM_C, BM_CINV,
-                     BM_RHO, BS_ACC, BS_STRESS, BS_VEL, MF_CARRY, MF_FIXED_PEN, MF_GX, MF_GY, MI_K0, MI_NF,
+                     BM_RHO, BS_ACC, BS_STRESS, BS_VEL, MF_CARRY, MF_FIXED_PEN, MF_GX, MF_GY, MI_NF,
                      MI_P0, MI_P1, MI_R0, MI_X0, PF_FX, PF_FY, PF_X, PF_X0, PF_Y, PF_Y0, PI_BLOCK, PI_KIND,
                      POINT_FIXED, POINT_LOAD, XS_F0)
 from .system import at
@@ -140,22 +140,13 @@ def block_terms(E: ti.template(), m, dt, beta):
         c_inertia = rho / (beta * dt * dt)
         c_velocity = rho / (beta * dt) * carry
         c_accel = rho * (0.5 / beta - 1.0)
-        # the places of the diagonal block's row i in K0 (`system.at`): along L +1 a column,
-        # along U −(n + 1) a column
-        j0 = 6 * r
         for a in range(6):
             mv = 0.0
-            i = j0 + a
-            lower = E.mi[m, MI_K0] + i * n + j0 + k0
-            upper = E.mi[m, MI_K0] + (n - 1 - j0) * n + n - j0 + i + k0
             for c in range(6):
                 k = c_inertia * M[a, c]
                 if a >= 3 and c >= 3:
                     k += s * E.bmat[b, BM_C + 3 * (a - 3) + (c - 3)]
-                place = lower + c
-                if a < c:
-                    place = upper - c * (n + 1)
-                E.kmat[place] += k
+                E.kmat[kidx(E, m, 6 * r + a, 6 * r + c) + k0] += k
                 mv += M[a, c] * (c_velocity * E.bst[b, BS_VEL + c] + c_accel * E.bst[b, BS_ACC + c])
             E.xvec[f0 + 6 * r + a] += mv
         for a in range(3):

@@ -99,18 +99,9 @@ def rule(E: ti.template(), m, grow):
             if acc > 0 or speed > 0:
                 dt = 2.0 * u / (speed + ti.sqrt(speed * speed + 2.0 * acc * u))
             limit = ti.min(limit, dt)
-    if grow:
-        limit = grown(E, m, limit)
+    if grow and E.mf[m, MF_DT] > 0:
+        limit = ti.min(limit, E.mf[m, MF_DT_GROWTH] * E.mf[m, MF_DT])
     return limit
-
-
-@ti.func
-def grown(E: ti.template(), m, limit):
-    """``limit`` within the growth limit of the last step's Δt (`rule`'s last line)."""
-    out = limit
-    if E.mf[m, MF_DT] > 0:
-        out = ti.min(limit, E.mf[m, MF_DT_GROWTH] * E.mf[m, MF_DT])
-    return out
 
 
 @ti.func
@@ -298,10 +289,7 @@ def step(E: ti.template(), m):
     region: nothing changed) or DIVERT (a try that today's path takes over: nothing changed).
     With ``FLAG_RECORD`` the step's record goes to the next row of the member's ``rec``."""
     result = RUNNING
-    # `time_step` from the rule without its growth limit, which the approach bound reads too
-    # (nothing the rule reads changes in between)
-    free_dt = rule(E, m, 0)
-    dt = end_on(E, m, grown(E, m, free_dt))
+    dt = time_step(E, m)
     n = contacts.detect(E, m)
     if n > E.mi[m, MI_CCAP]:
         result = GROW
@@ -316,7 +304,7 @@ def step(E: ti.template(), m):
         if E.mf[m, MF_DT_FIXED] > 0.0:
             shortest = E.mf[m, MF_DT_FIXED] * E.mf[m, MF_DT_MIN_RATIO]
         # the step before a closing ends just before it; the impact step (`ddatai.impacts`)
-        bound = approach_bound(E, m, dt, free_dt)
+        bound = approach_bound(E, m, dt, rule(E, m, 0))
         dt = end_on(E, m, ti.max(bound, ti.min(dt, shortest)))
         static = (E.mi[m, MI_FLAGS] & FLAG_STATIC) != 0
         # 0: the tries of the step; 1: the impact step taken again from the plastic impact at
