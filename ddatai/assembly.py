@@ -161,6 +161,7 @@ def contact_vectors(model: Model, vertex_xy: np.ndarray, geom: dict, contacts: C
     return vec, sca
 
 
+@side_by_side.operation("block_terms")
 def assemble_blocks(model: Model, state: State, geom: dict, pattern: BlockPattern, dt: float, beta: float,
                     static_start: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """The part of K and F that does not depend on contact states: inertia, elasticity,
@@ -236,6 +237,7 @@ def assemble_contacts(model: Model, contacts: Contacts, pattern: BlockPattern, v
                         model.penalty, model.shear_penalty, data, rhs, serial_scatter)
 
 
+@side_by_side.operation("second_order")
 def second_order(model: Model, contacts: Contacts, state: State, geom: dict, rotation: np.ndarray,
                  rhs: np.ndarray) -> np.ndarray:
     """Second-order rotation terms of the constraints, for the exact-rotation update (§5.3).
@@ -290,6 +292,8 @@ def second_order(model: Model, contacts: Contacts, state: State, geom: dict, rot
 # more than a small model's whole work). The Taichi kernels `assemble_blocks`,
 # `assemble_points` and `assemble_contacts` document the terms; tests compare the paths.
 _SIX = np.arange(6)
+#: the left factor (k·u: 0, k·w: 1) of the blocks (i, i), (i, j), (j, j), (j, i) (`_Scatter.outer`)
+_LEFT = np.array([0, 0, 1, 1])
 
 
 def _diagonal_positions(diag_slot: np.ndarray, stride: np.ndarray, rows: np.ndarray) -> np.ndarray:
@@ -350,15 +354,17 @@ class _Scatter:
         diag_slot, stride = self.pattern.diag_slot, self.pattern.stride
         on_i, on_j = rows_i >= 0, rows_j >= 0
         both = on_i & on_j
-        keep = np.array([on_i, both, on_j, both])                        # (4, n): which blocks exist
+        # the blocks that exist, (block side, contact) in the order of the sides, then contacts;
+        # only those are formed (a contact with a fixed block has one of four)
+        side, c = np.array([on_i, both, on_j, both]).nonzero()
         left = k[:, None] * np.array([u, w])                              # (2, n, 6): k·u, k·w
         right = np.array([u2, w2, w2, u2])
-        values = left[[0, 0, 1, 1]][:, :, :, None] * right[:, :, None, :]  # (4, n, 6, 6)
-        base = np.array([diag_slot[rows_i], slot_ij, diag_slot[rows_j], slot_ji], np.int64)
-        rows_stride = stride[np.array([rows_i, rows_i, rows_j, rows_j])].astype(np.int64)
-        at = base[:, :, None, None] + rows_stride[:, :, None, None] * _SIX[:, None] + _SIX
-        self.data_at.append(at[keep].ravel())
-        self.data_add.append(values[keep].ravel())
+        values = left[_LEFT[side], c][:, :, None] * right[side, c][:, None, :]  # (kept, 6, 6)
+        base = np.array([diag_slot[rows_i], slot_ij, diag_slot[rows_j], slot_ji], np.int64)[side, c]
+        rows_stride = stride[np.array([rows_i, rows_i, rows_j, rows_j])[side, c]].astype(np.int64)
+        at = base[:, None, None] + rows_stride[:, None, None] * _SIX[:, None] + _SIX
+        self.data_at.append(at.ravel())
+        self.data_add.append(values.ravel())
 
     def force(self, rows_i, rows_j, f_i, f_j) -> None:
         """Forces f_i on the rows of free blocks i, f_j on those of free blocks j."""

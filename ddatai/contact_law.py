@@ -271,6 +271,7 @@ def violations(model: Model, contacts: Contacts, law: ContactLaw, block_load: np
     return bad.view(bool)
 
 
+@side_by_side.operation("violations")
 def violations_numpy(model: Model, contacts: Contacts, law: ContactLaw, block_load: np.ndarray) -> np.ndarray:
     """Contacts whose assumed state must change, given the law at the solution.
 

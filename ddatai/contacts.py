@@ -16,6 +16,7 @@ import numpy as np
 
 # the states and kinds as plain ints: a NumPy comparison with an IntEnum member costs ~5× one with
 # an int (the member is converted on every call)
+from . import side_by_side
 from .layout import E0, E1, KIND, LOCK, OPEN, SLIDE, V0, V1, VE
 from .model import ContactMemory, Model
 
@@ -247,6 +248,7 @@ class Contacts:
         return Contacts(**{k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in vars(self).items()})
 
     @staticmethod
+    @side_by_side.operation("contacts_start")
     def start(model: Model, vertex_xy: np.ndarray, cint: np.ndarray, length: np.ndarray,
               memory: ContactMemory, first_step: bool) -> "Contacts":
         """Attach joint properties and last step's memory to freshly detected contacts.

@@ -95,6 +95,7 @@ def moved(model: Model, state: State, geom: dict, disp: np.ndarray, vertex_xy: O
         measured_xy=move_points(state.measured_xy, model.measured_block, centroid, disp))
 
 
+@side_by_side.operation("settle_points")
 def settle_points(model: Model, state: State, geom: dict, disp: np.ndarray) -> State:
     """``state`` with its blocks moved by a static increment ``disp`` and its stress added
     (the equilibrium stage's settlement): velocities untouched, fixed blocks' stress kept."""

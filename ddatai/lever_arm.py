@@ -26,11 +26,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import side_by_side
 from .contacts import Contacts
 from .layout import KIND, N_SLOTS, S_E0, S_E1, S_ES, VE, VV
 from .model import Model
 
 
+@side_by_side.operation("midstep_lever_arms")
 def midstep_lever_arms(model: Model, contacts: Contacts, vertex_xy: np.ndarray, centroid: np.ndarray,
                        rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(columns, shift): ``columns`` (m, N_SLOTS) what the rotation column (index 2) of each

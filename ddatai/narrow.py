@@ -29,6 +29,7 @@ import math
 
 import numpy as np
 
+from . import side_by_side
 from .contacts import PairList, sort_contacts
 from .layout import VE, VV
 from .model import Model
@@ -216,6 +217,7 @@ def _mutual_nearest(rows: _Rows, topo: PairTopology, d0: float) -> np.ndarray:
     return nearest
 
 
+@side_by_side.operation("narrow_phase")
 def narrow_phase(model: Model, vertex_xy: np.ndarray, pairs: np.ndarray, cache: NarrowCache | None = None,
                  last_keys: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Contacts of the candidate block pairs (A < B): (cint (m, 5) int32 — kind, vertex0,

@@ -27,6 +27,7 @@ from .limit_equilibrium import unsupported_blocks
 from .open_close import solve
 from .reassembly import ContactSystem
 from .return_steps import anderson, line_search
+from .return_update import iterate_update
 from .updates import Springs, block_rows
 from .mechanisms import MECHANISM_SIZE, anchored, contracting, loaded_away, mechanisms, out_of_range, test_unbalanced
 
@@ -79,15 +80,15 @@ class Frame:
 
     @cached_property
     def k_blocks(self):
-        """The block part of K as a CSR matrix (the energy of `return_steps.line_search`), made
-        when a line search first needs it (most frames have none)."""
+        """The block part of K as CSR (`return_steps.line_search`'s energy), made when first needed."""
         n = 6 * self.pattern.n_rows
         return csr_matrix((self.data, self.pattern.indices, self.pattern.indptr), shape=(n, n))
 
     @staticmethod
-    def build(stepper, state: State, geom: dict, contacts: Contacts, dt: float) -> "Frame":
+    def build(stepper, state: State, geom: dict, contacts: Contacts, dt: float, previous=None) -> "Frame":
+        """``previous``: the last frame's `BlockPattern`, its layout kept where the same blocks couple."""
         vec, sca = contact_vectors(stepper.model, state.vertex_xy, geom, contacts)
-        pattern = BlockPattern.build(stepper.model, contacts)
+        pattern = BlockPattern.build(stepper.model, contacts, previous)
         data, rhs = assemble_blocks(stepper.model, state, geom, pattern, dt, STAGE_BETA, static_start=True)
         return Frame(vertex_xy=state.vertex_xy, vec=vec, sca=sca, pattern=pattern, data=data, rhs=rhs)
 
@@ -158,7 +159,7 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
             if contacts.n == 0 and np.all(out | stepper.model.block_fixed):  # every free block released: an iterate
                 # would converge at its first solve, none left for the D that the stage zeroes (`ddatai.start`)
                 return np.zeros((stepper.model.n_blocks, 6)), solves, out & ~released, contacts, False, False, False
-            frame = Frame.build(stepper, state, geom, contacts, dt)
+            frame = Frame.build(stepper, state, geom, contacts, dt, None if frame is None else frame.pattern)
         # Newton (``_finish``) once a pseudo-step from where the states settle, before anything is released
         later = np.isfinite(contraction) and stepper.model.n_free <= SMALL_MODEL_BLOCKS  # a small model's later one
         tail = (NEWTON_LATER if later else NEWTON_AFTER) if newton and not freeze and not np.any(out & ~released) else None
@@ -299,14 +300,12 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
     model, p = stepper.model, stepper.params
     free = ~model.block_fixed
     ve = contacts.cint[:, KIND] == VE
-    vv = ~ve
     if guess is None:
         guess = Guess.start(contacts)
     # a contact without friction and cohesion carries no shear: no shear spring
     shearing = ve & ((contacts.tan_phi > 0.0) | ((contacts.cohesion * contacts.length > 0.0) & contacts.bond))
     weight = model.block_density * geom["area"] * float(np.hypot(*model.gravity))
     tensile = np.where(contacts.bond, contacts.tensile * contacts.length, 0.0)
-    pen, ks = model.penalty, model.shear_penalty
     disp = np.zeros((model.n_blocks, 6))
     rows = block_rows(model, contacts) if stepper.solver.updates and p.factor_updates else None
     system = ContactSystem(model, frame.pattern, frame.vec, frame.data, frame.rhs, stepper.serial_scatter)
@@ -345,44 +344,15 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
         far = free & ~out & (moved > MECHANISM_SIZE * size)
         if far.any() and np.any(far & ~anchored(stepper, frame.vertex_xy, geom, contacts, disp, size)):
             return outcome, guess  # a block moves away from what holds it: `mechanisms` tells
-        # the load that each contact's blocks carry, and the force tolerance
-        level = weight.copy()
-        np.maximum.at(level, contacts.block_a, np.abs(law.fn))
-        np.maximum.at(level, contacts.block_b, np.abs(law.fn))
-        carried = np.maximum(level[contacts.block_a], level[contacts.block_b])
-        loose = min(p.oc_force_tolerance, STAGE_FORCE_TOLERANCE) * carried + model.force_roundoff
-        outcome.loose = loose
-        # normal, as the open-close judgement (`Stepper.violations`): a closed contact opens where
-        # it pulls beyond its tensile strength (the strict tolerance), an open one closes where
-        # it overlaps and a vertex-vertex one changes line where the other is less penetrated,
-        # both where that moves a force by more than ``Params.oc_state_tolerance`` of the load
-        state_loose = p.oc_state_tolerance * carried + model.force_roundoff
-        closes = ~guess.closed & law.closed & (law.fn > state_loose)
-        # a contact opens (K changes) — but, going on from a stall, a vertex-edge one that has
-        # already opened or closed CHATTER_FLIPS times opens by the return mapping of its
-        # normal spring (below), K kept: states that flip back and forth do not settle
-        frozen = ve & (flips >= CHATTER_FLIPS) & freeze
-        opens = ~frozen & guess.closed & ~law.closed & (pen * law.dn - tensile > loose)
-        flips += closes | opens
-        switch = vv & guess.closed & law.closed & (law.line != guess.line) & \
-            (pen * np.abs(law.dn - law.dn_now) > state_loose)
-        changed = bool(np.any(closes | opens | switch))
-        guess.closed = (guess.closed | closes) & ~opens
-        guess.line = np.where(closes | switch, law.line, guess.line).astype(np.int8)
-        # normal: the return mapping of the tension cut-off — a closed vertex-edge contact
-        # pulled beyond its tensile strength opens by the excess (its spring's rest point moves
-        # by ``gap``), and an opened one closes again as far as it is pressed (gap ≥ 0)
-        allowance = tensile / pen
-        gapping = frozen & guess.closed & ((law.dn > allowance) | (guess.gap > 0.0))
-        new_gap = np.where(gapping, np.maximum(guess.gap + law.dn - allowance, 0.0), 0.0)
-        normal_excess = pen * np.abs(new_gap - guess.gap)
-        # shear: the return mapping
-        trial = ks * law.ds
-        excess = np.where(shearing & guess.closed, np.abs(trial) - law.strength, -np.inf)
-        excess = np.maximum(excess, np.where(gapping, normal_excess, -np.inf))
-        outcome.excess = excess
-        dslip = np.where(excess > 0, np.maximum(np.abs(trial) - law.strength, 0.0) / ks * np.sign(trial), 0.0)
-        dslip = np.where(shearing & guess.closed, dslip, 0.0)
+        # the contacts' judgement: which close, open or change line, the normal return mapping's
+        # openings and the shear springs' excess (`ddatai.return_update`, side by side in a batch)
+        u = iterate_update(model, contacts, law, guess, flips, freeze, shearing, weight, tensile,
+                           min(p.oc_force_tolerance, STAGE_FORCE_TOLERANCE), CHATTER_FLIPS)
+        loose, state_loose, excess, dslip, new_gap = u.loose, u.state_loose, u.excess, u.dslip, u.new_gap
+        outcome.loose, outcome.excess = loose, excess
+        flips += u.flipped
+        changed = bool(np.any(u.changed))
+        guess.closed, guess.line = u.closed, u.line
         if not changed and alpha == 1.0 and np.all(excess <= state_loose):
             # within the looser tolerance: kept in case the strict one is not reached
             accepted = (replace(outcome, disp=disp.copy(), converged=True),

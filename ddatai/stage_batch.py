@@ -16,7 +16,17 @@ its own terms in its own order: each member's result is, to the bit, the one its
 - ``contact_law_numpy`` (``ddatai.contact_law.contact_law_numpy``): the whole law (the
   open-close iteration of the stage's finish and tests, the balance check);
 - ``contact_vectors`` (`ddatai.assembly.contact_vectors`): each pseudo-step's contact vectors
-  (3 % of a 200-sample study's stages, benchmarks/results/study_throughput.md).
+  (3 % of a 200-sample study's stages, benchmarks/results/study_throughput.md);
+- ``narrow_phase`` (``ddatai.narrow.narrow_phase``): each pseudo-step's contact detection, one
+  narrow phase over the members' union (`ddatai.stage_batch_detect`);
+- ``contacts_start`` (``ddatai.contacts.Contacts.start``): each pseudo-step's contacts with their
+  joints and memory (`ddatai.stage_batch_contacts`);
+- ``settle_points`` (``ddatai.kinematics.settle_points``): each pseudo-step's settlement and block
+  geometry, and ``block_terms`` (`ddatai.assembly.assemble_blocks` of the stage's static system):
+  each frame's block part of K and F (`ddatai.stage_batch_frame`);
+- ``second_order``, ``midstep_lever_arms`` and ``violations``: the per-solve terms and state test
+  of the open-close finish, and ``iterate_update``: a return-mapping iterate's judgement of its
+  contacts (`ddatai.stage_batch_finish`).
 """
 
 from __future__ import annotations
@@ -29,6 +39,11 @@ from . import side_by_side
 from .assembly import contact_terms_numpy
 from .contact_law import ContactLaw, StageLaw, _law_core, _law_terms, friction_terms
 from .kinematics import vertex_displacement
+from .stage_batch_contacts import contacts_start_many, start_group
+from .stage_batch_detect import narrow_group, narrow_phase_many
+from .stage_batch_finish import (iterate_update_group, iterate_update_many, lever_arms_group, lever_arms_many,
+                                 second_order_group, second_order_many, violations_group, violations_many)
+from .stage_batch_frame import block_terms_group, block_terms_many, settle_group, settle_points_many
 from .vectorized import contact_vectors as vectors_numpy
 
 def _offsets(sizes) -> np.ndarray:
@@ -231,6 +246,14 @@ def _vectors_group(*args, **kwargs):
 
 side_by_side.register("block_displacement", _displacement_group, block_displacement_many)
 side_by_side.register("contact_vectors", _vectors_group, contact_vectors_many)
+side_by_side.register("narrow_phase", narrow_group, narrow_phase_many)
+side_by_side.register("contacts_start", start_group, contacts_start_many)
+side_by_side.register("settle_points", settle_group, settle_points_many)
+side_by_side.register("block_terms", block_terms_group, block_terms_many)
+side_by_side.register("second_order", second_order_group, second_order_many)
+side_by_side.register("midstep_lever_arms", lever_arms_group, lever_arms_many)
+side_by_side.register("violations", violations_group, violations_many)
+side_by_side.register("iterate_update", iterate_update_group, iterate_update_many)
 side_by_side.register("assemble_contacts", _assembly_group, assemble_contacts_many)
 side_by_side.register("stage_law", _law_group, stage_law_many)
 side_by_side.register("contact_law_numpy", _law_group, contact_law_many)

@@ -296,6 +296,7 @@ def _pseudo_steps(stepper, initial: State, state: State, released: np.ndarray, s
     stalled = False  # set by a pseudo-step that stalls, which then ends the stage
     increment = np.inf  # the last pseudo-step's largest displacement [m] (none yet: no limit)
     unsettled = False
+    pattern = None  # the last frame's (`Frame.build`)
     for pseudo_steps in range(MAX_PSEUDO_STEPS):
         geom = state.geometry if state.geometry is not None else model.block_geometry(state.vertex_xy)
         cint, length = stepper.detect(state.vertex_xy, memory)
@@ -306,7 +307,8 @@ def _pseudo_steps(stepper, initial: State, state: State, released: np.ndarray, s
         if welded:
             disp, n, found, contacts = welded_step(stepper, state, geom, contacts, dt, released, size)
         else:
-            frame = Frame.build(stepper, state, geom, contacts, dt)
+            frame = Frame.build(stepper, state, geom, contacts, dt, pattern)
+            pattern = frame.pattern  # the next pseudo-step's contacts mostly couple the same blocks
             if pseudo_steps >= 2 and balanced(stepper, frame, contacts, geom, size):
                 # the settled geometry holds: its contact forces balance every block (a second
                 # pseudo-step first, which takes the first one's linearisation error out)

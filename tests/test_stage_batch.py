@@ -55,7 +55,9 @@ def test_stages_side_by_side_are_each_member_s_own_to_the_bit(members):
     held = [r.held > 0 for _, r in alone]
     assert any(held) and not all(held)  # both sides of the critical strength
     done = side_by_side.EVALUATIONS - before
-    for name in ("assemble_contacts", "stage_law", "contact_law_numpy", "block_displacement", "contact_vectors"):
+    for name in ("assemble_contacts", "stage_law", "contact_law_numpy", "block_displacement", "contact_vectors",
+                 "narrow_phase", "settle_points", "block_terms", "contacts_start", "second_order",
+                 "midstep_lever_arms", "violations", "iterate_update"):
         assert done[name, True] > 0, name  # evaluated for several members at once
 
 
