@@ -112,7 +112,7 @@ def time_members(a) -> None:
         launched[0] = 0.0
         for b in batches:
             t = time.process_time()
-            outs = engine.run(b)
+            outs = engine.run(b, launch_steps=a.launch_steps) if a.launch_steps else engine.run(b)
             cpu += time.process_time() - t
             for o in outs:
                 steps += len(o.history)
@@ -157,6 +157,7 @@ def main() -> None:
     ap.add_argument("--root", default=str(ROOT))
     ap.add_argument("--only", default="", help="only the members whose run ends so (e.g. 'moved')")
     ap.add_argument("--reps", type=int, default=3)
+    ap.add_argument("--launch-steps", type=int, default=0, help="steps a launch (default: the engine's)")
     a = ap.parse_args()
     {"build": build, "time": time_members, "census": census}[a.what](a)
 
