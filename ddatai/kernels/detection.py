@@ -412,19 +412,25 @@ def pair_contacts(xy: ti.template(), vnext: ti.template(), vprev: ti.template(),
     # A vertex farther outside the other block's box than twice the largest distance the rules
     # accept (d0 from a vertex, max(d0, d9) from an edge onto which it projects; twice, and a
     # relative hair, so that round-off cannot matter) has no contact with it and no mutual-
-    # nearest partner in it: it is skipped (the same contacts)
+    # nearest partner in it: it is skipped (the same contacts, found in the same order)
     reach = 2.0 * ti.max(d0, d9)
     box_a_lo, box_a_hi = _box(xy, a0, a1)
     box_b_lo, box_b_hi = _box(xy, b0, b1)
-    # 1. vertex pairs closer than d0 (mutual nearest): vertex-vertex rules; 2. vertices of A
-    # against edges of B, and 3. vertices of B against edges of A, skipping a vertex whose
-    # mutual-nearest partner is an end of the edge (that pair was handled by rule 1). A vertex
-    # near an edge's end that is not that end's mutual nearest (the end pairs with another
-    # vertex) is tested here: skipping it by distance alone lost the contact of a wedge's tip
-    # sliding along a joint next to the other block's corner while the tip sank into it. Rule 1
-    # runs on A's vertices in the loop of rule 2, from the same mutual-nearest partner (found
-    # once, not twice); the order of the contacts in the region then differs, not the contacts
-    # (every caller sorts them: `contacts.sort_contacts`, `ddatai.fused.contacts._sort`)
+    # 1. vertex pairs closer than d0 (mutual nearest): vertex-vertex rules
+    for ia in range(a0, a1):
+        P = _pt(xy, ia)
+        if not _beyond(P, box_b_lo, box_b_hi, reach + 1e-9 * (ti.abs(P[0]) + ti.abs(P[1]))):
+            ib = _nearest(xy, P, b0, b1, d0)
+            if ib >= 0:
+                if _nearest(xy, _pt(xy, ib), a0, a1, d0) == ia:
+                    _vertex_vertex(xy, vnext, vprev, ia, ib, d0, d9, sin_h1, h1, mem, mlo, mhi, out_int,
+                                   out_len, count, slot, base, cap)
+    # 2. vertices of A against edges of B, and 3. vertices of B against edges of A,
+    # skipping a vertex whose mutual-nearest partner is an end of the edge (that pair was
+    # handled above). A vertex near an edge's end that is not that end's mutual nearest
+    # (the end pairs with another vertex) is tested here: skipping it by distance alone
+    # lost the contact of a wedge's tip sliding along a joint next to the other block's
+    # corner while the tip sank into it
     for s in range(2):
         v_lo, v_hi, e_lo, e_hi = a0, a1, b0, b1
         low, high = box_b_lo, box_b_hi
@@ -433,15 +439,12 @@ def pair_contacts(xy: ti.template(), vnext: ti.template(), vprev: ti.template(),
             low, high = box_a_lo, box_a_hi
         for iv in range(v_lo, v_hi):
             P = _pt(xy, iv)
-            hair = reach + 1e-9 * (ti.abs(P[0]) + ti.abs(P[1]))
-            if not _beyond(P, low, high, hair):
+            if not _beyond(P, low, high, reach + 1e-9 * (ti.abs(P[0]) + ti.abs(P[1]))):
                 partner = _nearest(xy, P, e_lo, e_hi, d0)
                 if partner >= 0:
                     if _nearest(xy, _pt(xy, partner), v_lo, v_hi, d0) != iv:
                         partner = -1
-                if s == 0 and partner >= 0:
-                    _vertex_vertex(xy, vnext, vprev, iv, partner, d0, d9, sin_h1, h1, mem, mlo, mhi, out_int,
-                                   out_len, count, slot, base, cap)
+                hair = reach + 1e-9 * (ti.abs(P[0]) + ti.abs(P[1]))
                 for ie in range(e_lo, e_hi):
                     # a vertex farther than that outside the edge's own box neither projects
                     # onto it within the distances the rules accept (the same argument as for
