@@ -3,6 +3,7 @@
 state by the real kernel.
 
     python benchmarks/fused_phases.py [--blocks 64] [--warm 300] [--reps 200]
+    python benchmarks/fused_phases.py --members PICKLE [--index 1] [--warm 400]   (a study's member)
 
 The grid scene of `benchmarks/small_models.py` (n × n blocks on a fixed base, ntdda's sudden
 start) runs ``--warm`` steps on the fused kernel; then a probe kernel (one thread, a serial loop)
@@ -10,7 +11,9 @@ runs one phase ``--reps`` times on that state, and reports CPU µs a call; "noth
 own cost a call (its launch, shared by the repetitions), to subtract. Phases that change what
 the next call reads run behind the ones they need (the cost is the difference). Also: the
 fused kernel's own time a step over ``--steps`` more steps, the contacts, the free blocks and
-the envelope (the factorisation's profile). Threads pinned (one Taichi thread)."""
+the envelope (the factorisation's profile). ``--members``: instead of the grid, member ``--index`` of
+a pickle of ``benchmarks/study_members.py build`` (Example II's study), its stops off.
+Threads pinned (one Taichi thread)."""
 
 import argparse
 import dataclasses
