@@ -3,6 +3,7 @@
 state by the real kernel.
 
     python benchmarks/fused_phases.py [--blocks 64] [--warm 300] [--reps 200]
+    python benchmarks/fused_phases.py --members PICKLE [--index 1] [--warm 400]   (a study's member)
 
 The grid scene of `benchmarks/small_models.py` (n × n blocks on a fixed base, ntdda's sudden
 start) runs ``--warm`` steps on the fused kernel; then a probe kernel (one thread, a serial loop)
@@ -10,7 +11,9 @@ runs one phase ``--reps`` times on that state, and reports CPU µs a call; "noth
 own cost a call (its launch, shared by the repetitions), to subtract. Phases that change what
 the next call reads run behind the ones they need (the cost is the difference). Also: the
 fused kernel's own time a step over ``--steps`` more steps, the contacts, the free blocks and
-the envelope (the factorisation's profile). Threads pinned (one Taichi thread)."""
+the envelope (the factorisation's profile). ``--members``: instead of the grid, member ``--index`` of
+a pickle of ``benchmarks/study_members.py build`` (Example II's study), its stops off.
+Threads pinned (one Taichi thread)."""
 
 import argparse
 import dataclasses
@@ -39,6 +42,9 @@ def main() -> None:
     ap.add_argument("--warm", type=int, default=300)
     ap.add_argument("--steps", type=int, default=300)
     ap.add_argument("--reps", type=int, default=200)
+    ap.add_argument("--members", default="", help="a pickle of `benchmarks/study_members.py build`: probe one of "
+                    "its members (a study's) instead of the grid")
+    ap.add_argument("--index", type=int, default=0, help="which member of --members (counted over its batches)")
     a = ap.parse_args()
 
     import numpy as np
@@ -58,10 +64,17 @@ def main() -> None:
     from ddatai.fused.kernel import _fastest, _group_displacement
     from ddatai.fused.step import accept, energies, rule, time_step, update, work
 
-    scene, params = grid_scene(a.blocks)
-    params = dataclasses.replace(params, initial_equilibrium=False, kernels="numpy", solver="dense")
-    model = build_model(scene, params)
-    member = Member(model=model, state=model.initial_state(), step_end=a.warm + a.steps + 10, record=True)
+    if a.members:
+        import pickle
+
+        study = [m for b in pickle.loads(Path(a.members).read_bytes()) for m in b]
+        member = dataclasses.replace(study[a.index], record=True, step_end=a.warm + a.steps + 10,
+                                     stop_at=float("inf"), rest_limit=-1.0)
+    else:
+        scene, params = grid_scene(a.blocks)
+        params = dataclasses.replace(params, initial_equilibrium=False, kernels="numpy", solver="dense")
+        model = build_model(scene, params)
+        member = Member(model=model, state=model.initial_state(), step_end=a.warm + a.steps + 10, record=True)
     s = Session([member], launch_steps=4096)
     t = time.perf_counter()
     s.launch(np.array([a.warm]))

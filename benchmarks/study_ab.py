@@ -11,7 +11,8 @@ times, threads pinned in every process (BLAS and Taichi one thread each): the wa
 fused kernel (Taichi's offline cache) included, and the CPU time (user + system) of the process
 and all its workers (the machine is shared: the wall time follows its load). Prints each run,
 the medians, and whether the two checkouts' tables give every sample the same verdict. Run ``python -m ddatai.fused`` in
-each checkout first (the kernel compiled and cached).
+each checkout first (the kernel compiled and cached); ``--a-cache``/``--b-cache`` give each side
+its own Taichi offline cache where their fused kernels differ.
 
 ``--evaluate``: instead, ``kgm.evaluate(Example I, [0, 1], "dda")`` (the fused engine) three
 times in each fresh process, A and B alternating: the first call's wall time (the kernel's load
@@ -55,13 +56,19 @@ print(walls[0], min(walls[1:]), min(cpus[1:]), row.fs, row.critical_friction, le
 """
 
 
+def _env(a, name: str) -> dict:
+    """The environment of side ``name``'s process: threads pinned, its kernel cache."""
+    cache = a.a_cache if name == "A" else a.b_cache
+    return {**os.environ, **PINNED, **({"TI_OFFLINE_CACHE_FILE_PATH": cache} if cache else {})}
+
+
 def evaluate(a) -> None:
     walls = {"A": [], "B": []}
     print(f"# kgm.evaluate(Example I, [0, 1], 'dda'), fused; load {os.getloadavg()[0]:.1f}", flush=True)
     for rep in range(a.repeats):
         for name, root in (("A", a.a), ("B", a.b)):
             proc = subprocess.run([sys.executable, "-c", EVALUATE.format(root=str(Path(root).resolve()))],
-                                  capture_output=True, text=True, cwd=root, env={**os.environ, **PINNED}, timeout=3600)
+                                  capture_output=True, text=True, cwd=root, env=_env(a, name), timeout=3600)
             if proc.returncode != 0:
                 raise SystemExit(proc.stderr[-3000:])
             first, second, cpu, fs, phi, runs = proc.stdout.strip().splitlines()[-1].split()
@@ -82,6 +89,9 @@ def main() -> None:
     ap.add_argument("--samples", type=int, default=400)
     ap.add_argument("--repeats", type=int, default=2)
     ap.add_argument("--evaluate", action="store_true", help="kgm.evaluate of Example I instead of the study")
+    ap.add_argument("--a-cache", default="", help="Taichi's offline cache for A (TI_OFFLINE_CACHE_FILE_PATH; "
+                    "default: the environment's), where A's fused kernel differs from B's")
+    ap.add_argument("--b-cache", default="", help="the same for B")
     a = ap.parse_args()
     if a.evaluate:
         evaluate(a)
@@ -97,7 +107,7 @@ def main() -> None:
                                 kernels="fused", n=a.samples, out=out)
             before = resource.getrusage(resource.RUSAGE_CHILDREN)
             proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=root,
-                                  env={**os.environ, **PINNED}, timeout=3600)
+                                  env=_env(a, name), timeout=3600)
             after = resource.getrusage(resource.RUSAGE_CHILDREN)
             if proc.returncode != 0:
                 raise SystemExit(proc.stderr[-3000:])

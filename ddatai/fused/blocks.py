@@ -98,11 +98,16 @@ def mass(E: ti.template(), b):
 def moved(E: ti.template(), b, x, y, col):
     """A material point (x, y) of block b displaced by the block's D in ``bwork[b, col:col+6]``
     with the exact rotation (§5.3, `kinematics.move_points`)."""
+    r = E.bwork[b, col + 2]
+    return moved_by(E, b, x, y, col, ti.cos(r), ti.sin(r))
+
+
+@ti.func
+def moved_by(E: ti.template(), b, x, y, col, c, s):
+    """`moved` with the cosine and sine of the block's rotation given (once a block, not once a
+    point)."""
     X = x - E.bgeo[b, BG_CX]
     Y = y - E.bgeo[b, BG_CY]
-    r = E.bwork[b, col + 2]
-    c = ti.cos(r)
-    s = ti.sin(r)
     nx = x + (E.bwork[b, col + 0] + E.bwork[b, col + 3] * X + 0.5 * E.bwork[b, col + 5] * Y + X * (c - 1.0) - Y * s)
     ny = y + (E.bwork[b, col + 1] + E.bwork[b, col + 4] * Y + 0.5 * E.bwork[b, col + 5] * X + X * s + Y * (c - 1.0))
     return nx, ny

@@ -119,11 +119,21 @@ def open_close(E: ti.template(), m, dt, beta, last):
             rot = E.bwork[b, BW_ROT]
             if rot != 0.0:
                 any_rotation = 1
-            # each block's once, not each contact vertex's (`contacts._q`, `contacts._dq`)
-            E.bwork[b, BW_TRIG] = ti.cos(rot) - 1.0
-            E.bwork[b, BW_TRIG + 1] = ti.sin(rot) - rot
-            E.bwork[b, BW_TRIG + 2] = ti.cos(0.5 * rot) - 1.0
-            E.bwork[b, BW_TRIG + 3] = ti.sin(0.5 * rot)
+            # each block's once, not each contact vertex's (`contacts._q`, `contacts._dq`); a
+            # fixed block's rotation is +0 (its D is), whose terms are +0 exactly
+            t0 = 0.0
+            t1 = 0.0
+            t2 = 0.0
+            t3 = 0.0
+            if E.bint[b, BI_ROW] >= 0:
+                t0 = ti.cos(rot) - 1.0
+                t1 = ti.sin(rot) - rot
+                t2 = ti.cos(0.5 * rot) - 1.0
+                t3 = ti.sin(0.5 * rot)
+            E.bwork[b, BW_TRIG] = t0
+            E.bwork[b, BW_TRIG + 1] = t1
+            E.bwork[b, BW_TRIG + 2] = t2
+            E.bwork[b, BW_TRIG + 3] = t3
         contacts.second_order_shift(E, m, any_rotation)
         # the vertex's lever arms at mid-step (Params.midstep_lever_arms; else the step start's)
         contacts.lever_arms(E, m, any_rotation and (E.mi[m, MI_FLAGS] & FLAG_MIDSTEP) != 0)
@@ -160,7 +170,10 @@ def open_close(E: ti.template(), m, dt, beta, last):
             elif stage == 2:
                 col = BW_D
                 s = 1
-            energy = law.evaluate(E, m, col, s) + system.block_energy(E, m, col, brhs)
+            energy = law.evaluate(E, m, col, s)
+            if stage != 0 or has_previous != 0:
+                # the energy at the solution is read only by a line search (from the second solve)
+                energy += system.block_energy(E, m, col, brhs)
             bad = 0
             if stage != 1:
                 bad = law.violations(E, m, s)  # (one place in the compiled kernel)

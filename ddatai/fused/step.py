@@ -11,7 +11,7 @@ from . import blocks, contacts, law
 from .impacts import approach_bound, impact_projection, impacted, plastic_start, swap_start
 from .iterate import open_close
 from .layout import BW_PREV
-from .layout import (BG_AREA, BG_CX, BG_CY, BG_RADIUS, BI_ROW, BM_C, BM_RHO, BS_ACC, BS_ROT, BS_STRESS,
+from .layout import (BG_AREA, BG_CX, BG_CY, BG_RADIUS, BI_ROW, BI_V0, BI_V1, BM_C, BM_RHO, BS_ACC, BS_ROT, BS_STRESS,
                      BS_VEL, BW_SOL, CAUSE_CYCLES, CAUSE_FAILED, CF_DN, CF_DN0, CF_DS, CF_DS0, CF_LAW, CI_A,
                      CI_B, CI_DIR, CI_KIND, CI_STATE, CI_STATE0, DIVERT, FLAG_AUTO_PENALTY, FLAG_RECORD,
                      FLAG_STATIC, GROW, LF_FRICTION_NOW, MF_ACCEL, MF_BETA, MF_CARRY, MF_DISP_REJECT, MF_DT,
@@ -110,12 +110,22 @@ def accept(E: ti.template(), m):
     moved by D (into ``vnew``), the largest displacement and penetration. Returns (cause,
     largest vertex displacement, deepest penetration, ratio)."""
     umax = 0.0
-    for v in range(E.mi[m, MI_V0], E.mi[m, MI_V1]):
-        b = E.vblock[v]
-        nx, ny = blocks.moved(E, b, E.vxy[v, 0], E.vxy[v, 1], BW_SOL)
-        E.vnew[v, 0] = nx
-        E.vnew[v, 1] = ny
-        umax = ti.max(umax, ti.sqrt((nx - E.vxy[v, 0]) ** 2 + (ny - E.vxy[v, 1]) ** 2))
+    # block by block (a block's vertices are contiguous): the rotation's cosine and sine once a
+    # block; a fixed block's vertices stay where they are (its D is zero)
+    for b in range(E.mi[m, MI_B0], E.mi[m, MI_B1]):
+        if E.bint[b, BI_ROW] >= 0:
+            r = E.bwork[b, BW_SOL + 2]
+            c = ti.cos(r)
+            s = ti.sin(r)
+            for v in range(E.bint[b, BI_V0], E.bint[b, BI_V1]):
+                nx, ny = blocks.moved_by(E, b, E.vxy[v, 0], E.vxy[v, 1], BW_SOL, c, s)
+                E.vnew[v, 0] = nx
+                E.vnew[v, 1] = ny
+                umax = ti.max(umax, ti.sqrt((nx - E.vxy[v, 0]) ** 2 + (ny - E.vxy[v, 1]) ** 2))
+        else:
+            for v in range(E.bint[b, BI_V0], E.bint[b, BI_V1]):
+                E.vnew[v, 0] = E.vxy[v, 0]
+                E.vnew[v, 1] = E.vxy[v, 1]
     pen = 0.0
     base = E.mi[m, MI_C0]
     for c in range(base, base + E.mi[m, MI_NC]):
@@ -248,8 +258,9 @@ def update(E: ti.template(), m, dt, beta):
         E.vxy[v, 0] = E.vnew[v, 0]
         E.vxy[v, 1] = E.vnew[v, 1]
     for b in range(E.mi[m, MI_B0], E.mi[m, MI_B1]):
-        blocks.geometry(E, b)
-        E.bgeo[b, BG_RADIUS] = blocks.radius(E, b)
+        if E.bint[b, BI_ROW] >= 0:  # a fixed block's vertices did not move: nor did its geometry
+            blocks.geometry(E, b)
+            E.bgeo[b, BG_RADIUS] = blocks.radius(E, b)
     return accel / dt
 
 

@@ -253,14 +253,21 @@ def _emit(out_int: ti.template(), out_len: ti.template(), count: ti.template(), 
 
 @ti.func
 def _nearest(xy: ti.template(), P, lo, hi, limit):
-    """Index of the vertex in [lo, hi) nearest to P within `limit` (ties: lowest index), or -1."""
+    """Index of the vertex in [lo, hi) nearest to P within `limit` (ties: lowest index), or -1.
+    The square root only where it can matter: a vertex whose squared distance passes
+    limit²·(1 + 1e-12) lies farther than ``limit`` after rounding too, and the best distance
+    never passes ``limit`` (the same vertex, the same ties)."""
     best = -1
     best_d = limit
+    far = limit * limit * (1.0 + 1e-12)
     for k in range(lo, hi):
-        dist = _norm2(_pt(xy, k) - P)
-        if dist < best_d or (dist == best_d and best == -1):
-            best = k
-            best_d = dist
+        r = _pt(xy, k) - P
+        square = r[0] * r[0] + r[1] * r[1]
+        if square <= far:
+            dist = ti.sqrt(square)
+            if dist < best_d or (dist == best_d and best == -1):
+                best = k
+                best_d = dist
     return best
 
 
@@ -437,8 +444,15 @@ def pair_contacts(xy: ti.template(), vnext: ti.template(), vprev: ti.template(),
                 if partner >= 0:
                     if _nearest(xy, _pt(xy, partner), v_lo, v_hi, d0) != iv:
                         partner = -1
+                hair = reach + 1e-9 * (ti.abs(P[0]) + ti.abs(P[1]))
                 for ie in range(e_lo, e_hi):
-                    if partner != ie and partner != vnext[ie]:
+                    # a vertex farther than that outside the edge's own box neither projects
+                    # onto it within the distances the rules accept (the same argument as for
+                    # the block's box above): skipped before the tests' roots and divisions
+                    q0 = _pt(xy, ie)
+                    q1 = _pt(xy, vnext[ie])
+                    if partner != ie and partner != vnext[ie] and \
+                            not _beyond(P, ti.min(q0, q1), ti.max(q0, q1), hair):
                         ok, length = _ve_test(xy, vnext, vprev, iv, ie, d0, d9, sin_h1, 1)
                         if ok == 1:
                             _emit(out_int, out_len, count, slot, base, cap, KIND_VE, iv, ie, -1, -1, length)
