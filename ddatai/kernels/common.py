@@ -122,3 +122,20 @@ def _dot6(vec: ti.template(), c, s, d: ti.template(), b):
     for a in ti.static(range(6)):
         acc += vec[c, s, a] * d[b, a]
     return acc
+
+
+@ti.func
+def _box(xy: ti.template(), lo, hi):
+    """The bounding box (lower, upper corner) of vertices ``lo:hi``."""
+    low = ti.Vector([1e300, 1e300])
+    high = ti.Vector([-1e300, -1e300])
+    for k in range(lo, hi):
+        low = ti.min(low, _pt(xy, k))
+        high = ti.max(high, _pt(xy, k))
+    return low, high
+
+
+@ti.func
+def _beyond(P, low, high, reach):
+    """Whether P lies farther than ``reach`` outside the box (low, high) along an axis."""
+    return P[0] < low[0] - reach or P[0] > high[0] + reach or P[1] < low[1] - reach or P[1] > high[1] + reach

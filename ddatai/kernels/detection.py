@@ -5,7 +5,7 @@
 import taichi as ti
 
 from .common import (EDGE_FLOOR, EDGE_FLOOR2, I32_1, I32_2, F64_1, F64_2, KIND_VE, KIND_VV, MEM_K2, MEM_KIND, MEM_V0,
-                     PASSED_DEPTH, SLACK, TIE, TWO_PI, _cross, _dot2, _norm2, _pt, _wrap)
+                     PASSED_DEPTH, SLACK, TIE, TWO_PI, _beyond, _box, _cross, _dot2, _norm2, _pt, _wrap)
 
 
 @ti.func
@@ -382,23 +382,6 @@ def _vertex_vertex(xy: ti.template(), vnext: ti.template(), vprev: ti.template()
             ok, length = _ve_test(xy, vnext, vprev, v, e2, d0, d9, sin_h1, 0)
             if ok == 1:
                 _emit(out_int, out_len, count, slot, base, cap, KIND_VE, v, e2, -1, -1, length)
-
-
-@ti.func
-def _box(xy: ti.template(), lo, hi):
-    """The bounding box (lower, upper corner) of vertices ``lo:hi``."""
-    low = ti.Vector([1e300, 1e300])
-    high = ti.Vector([-1e300, -1e300])
-    for k in range(lo, hi):
-        low = ti.min(low, _pt(xy, k))
-        high = ti.max(high, _pt(xy, k))
-    return low, high
-
-
-@ti.func
-def _beyond(P, low, high, reach):
-    """Whether P lies farther than ``reach`` outside the box (low, high) along an axis."""
-    return P[0] < low[0] - reach or P[0] > high[0] + reach or P[1] < low[1] - reach or P[1] > high[1] + reach
 
 
 @ti.func
