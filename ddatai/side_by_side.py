@@ -28,6 +28,8 @@ from __future__ import annotations
 from collections import Counter
 from typing import Callable
 
+import numpy as np
+
 #: run members side by side where greenlet is installed (False: one after the other, as without
 #: it; the benchmarks' reference)
 ENABLED = True
@@ -95,6 +97,22 @@ def operation(name: str) -> Callable:
         side_by_side.__doc__, side_by_side.__module__ = fn.__doc__, fn.__module__
         return side_by_side
     return wrap
+
+
+def bound(args, kwargs, names) -> list:
+    """A request's arguments in the order of ``names``, the parameters of the operation's plain
+    function (None where left out): how a ``group`` or ``batched`` reads a member's call."""
+    out = list(args) + [None] * (len(names) - len(args))
+    for k, v in kwargs.items():
+        out[names.index(k)] = v
+    return out
+
+
+def offsets(sizes) -> np.ndarray:
+    """Where each member's entries start in the concatenation of its arrays of ``sizes``."""
+    out = np.zeros(len(sizes), np.int64)
+    np.cumsum(np.asarray(sizes, np.int64)[:-1], out=out[1:])
+    return out
 
 
 def register(name: str, group: Callable, batched: Callable) -> None:

@@ -36,6 +36,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from . import side_by_side
+from .side_by_side import bound as _bound, offsets as _offsets
 from .assembly import contact_terms_numpy
 from .contact_law import ContactLaw, StageLaw, _law_core, _law_terms, friction_terms
 from .kinematics import vertex_displacement
@@ -45,13 +46,6 @@ from .stage_batch_finish import (iterate_update_group, iterate_update_many, leve
                                  second_order_group, second_order_many, violations_group, violations_many)
 from .stage_batch_frame import block_terms_group, block_terms_many, settle_group, settle_points_many
 from .vectorized import contact_vectors as vectors_numpy
-
-def _offsets(sizes) -> np.ndarray:
-    """Where each member's entries start in the concatenation of arrays of ``sizes``."""
-    out = np.zeros(len(sizes), np.int64)
-    np.cumsum(sizes[:-1], out=out[1:])
-    return out
-
 
 def _cat(arrays) -> np.ndarray:
     return np.concatenate(arrays)
@@ -142,13 +136,6 @@ def _law_group(*args, **kwargs):
 _LAW_ARGS = ("model", "contacts", "vec", "sca", "disp", "shift")
 _ASSEMBLY_ARGS = ("model", "contacts", "pattern", "vec", "sca", "data", "rhs", "serial_scatter")
 
-
-def _bound(args, kwargs, names) -> list:
-    """A call's arguments in the order of ``names`` (None where left out)."""
-    out = list(args) + [None] * (len(names) - len(args))
-    for k, v in kwargs.items():
-        out[names.index(k)] = v
-    return out
 
 
 def _law_inputs(requests, fields):

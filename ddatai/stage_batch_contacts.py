@@ -17,28 +17,16 @@ import numpy as np
 
 from .contacts import Contacts, edge_projection, signed_distance
 from .layout import E0, E1, KIND, LOCK, OPEN, SLIDE, V0, V1, VE
+from .side_by_side import bound as _bound, offsets as _offsets
 
 _ARGS = ("model", "vertex_xy", "cint", "length", "memory", "first_step")
 
 
-def _bound(args, kwargs) -> list:
-    out = list(args) + [None] * (len(_ARGS) - len(args))
-    for k, v in kwargs.items():
-        out[_ARGS.index(k)] = v
-    return out
-
-
 def start_group(*args, **kwargs):
-    model, _, cint, _, memory, first_step = _bound(args, kwargs)
+    model, _, cint, _, memory, first_step = _bound(args, kwargs, _ARGS)
     if len(cint) == 0 or len(model.joint_barton) or len(memory.slip) or not model.numpy_path:
         return None
     return ("start", float(model.penalty), float(model.shear_penalty), float(model.open_tol), bool(first_step))
-
-
-def _offsets(sizes) -> np.ndarray:
-    out = np.zeros(len(sizes), np.int64)
-    np.cumsum(np.asarray(sizes, np.int64)[:-1], out=out[1:])
-    return out
 
 
 def _ranked(keys: list, member_keys_bound: int) -> np.ndarray:
@@ -49,7 +37,7 @@ def _ranked(keys: list, member_keys_bound: int) -> np.ndarray:
 def contacts_start_many(requests) -> list:
     """`Contacts.start` of each request (module docstring): each member's `Contacts`, with its
     own ``cint`` and ``length``."""
-    args = [_bound(a, kw) for a, kw in requests]
+    args = [_bound(a, kw, _ARGS) for a, kw in requests]
     models = [a[0] for a in args]
     m0, first_step = models[0], args[0][5]
     counts = [len(a[2]) for a in args]

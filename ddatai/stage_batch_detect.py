@@ -24,29 +24,17 @@ from types import SimpleNamespace
 import numpy as np
 
 from .narrow import narrow_phase
+from .side_by_side import bound as _bound, offsets as _offsets
 
 _ARGS = ("model", "vertex_xy", "pairs", "cache", "last_keys")
 
 
-def _bound(args, kwargs) -> list:
-    out = list(args) + [None] * (len(_ARGS) - len(args))
-    for k, v in kwargs.items():
-        out[_ARGS.index(k)] = v
-    return out
-
-
 def narrow_group(*args, **kwargs):
-    model, _, pairs = _bound(args, kwargs)[:3]
+    model, _, pairs = _bound(args, kwargs, _ARGS)[:3]
     if not model.numpy_path or len(pairs) == 0:
         return None
     return ("narrow", float(model.search_distance), float(model.max_penetration),
             float(math.radians(model.params.angle_tolerance)))
-
-
-def _offsets(sizes: np.ndarray) -> np.ndarray:
-    out = np.zeros(len(sizes), np.int64)
-    np.cumsum(sizes[:-1], out=out[1:])
-    return out
 
 
 def _union_keys(keys: list, n_vertices: np.ndarray, at: np.ndarray, total: int) -> "np.ndarray | None":
@@ -75,7 +63,7 @@ def _union_keys(keys: list, n_vertices: np.ndarray, at: np.ndarray, total: int) 
 def narrow_phase_many(requests) -> list:
     """`narrow.narrow_phase` of each request, one narrow phase over the members' union (module
     docstring): each member's (cint, length), as its own call gives them."""
-    args = [_bound(a, kw) for a, kw in requests]
+    args = [_bound(a, kw, _ARGS) for a, kw in requests]
     models = [a[0] for a in args]
     n_vertices = np.array([len(m.vertex_block) for m in models], np.int64)
     n_blocks = np.array([m.n_blocks for m in models], np.int64)

@@ -28,19 +28,7 @@ from .assembly import second_order
 from .contact_law import violations_numpy
 from .lever_arm import midstep_lever_arms
 from .return_update import Update, iterate_update
-
-
-def _offsets(sizes) -> np.ndarray:
-    out = np.zeros(len(sizes), np.int64)
-    np.cumsum(np.asarray(sizes, np.int64)[:-1], out=out[1:])
-    return out
-
-
-def _bound(args, kwargs, names) -> list:
-    out = list(args) + [None] * (len(names) - len(args))
-    for k, v in kwargs.items():
-        out[names.index(k)] = v
-    return out
+from .side_by_side import bound as _bound, offsets as _offsets
 
 
 def _split(a: np.ndarray, sizes) -> list:

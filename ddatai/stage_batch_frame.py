@@ -22,23 +22,11 @@ import numpy as np
 from .assembly import block_terms_numpy
 from .geometry import mass_matrix, polygon_integrals
 from .kinematics import move_points, rotate_stress
-
-
-def _offsets(sizes) -> np.ndarray:
-    out = np.zeros(len(sizes), np.int64)
-    np.cumsum(np.asarray(sizes, np.int64)[:-1], out=out[1:])
-    return out
+from .side_by_side import bound as _bound, offsets as _offsets
 
 
 def _split(a: np.ndarray, sizes) -> list:
     return [a[s:s + n] for s, n in zip(_offsets(sizes).tolist(), sizes)]
-
-
-def _bound(args, kwargs, names) -> list:
-    out = list(args) + [None] * (len(names) - len(args))
-    for k, v in kwargs.items():
-        out[names.index(k)] = v
-    return out
 
 
 # ------------------------------------------------------------------ the settlement
