@@ -260,6 +260,10 @@ class Contacts:
         New contacts start open, except on the first step, where contacts touching within the
         opening tolerance start closed and locked (vertex-edge), and edge-edge contacts of the
         initial geometry are bonded (docs/method/dda.md §3.7, §2.8.5).
+
+        Its twin for many members at once, ``ddatai.stage_batch_contacts.contacts_start_many``,
+        writes these rules again over a member axis; tests/test_stage_batch_more.py holds the two
+        equal to the bit, so a change here fails there until the twin follows.
         """
         m = len(cint)
         key = contact_keys(cint, model.n_vertices)
