@@ -329,8 +329,12 @@ def test_members_packed_side_by_side_come_back_as_they_went_in():
     """`ddatai.fused.pack` (NumPy, no Taichi): two members with contact memory (a dropped grid
     after 20 steps of the NumPy path, Example I after its stage) laid side by side in the
     engine's arrays come back bit for bit: positions, velocities, stresses, Δt and the contact
-    memory keyed as today's path keys it."""
+    memory keyed as today's path keys it. The blocks' geometry, computed over the launch's
+    vertices at once, is each member's own to the bit (`Model.block_geometry` and
+    `block_radius` at its state and at its start, the weight scale ρ·A₀·|g|)."""
+    from ddatai.fused import layout as L
     from ddatai.fused.pack import Member, pack, unpack_state
+    from ddatai.kinematics import block_radius
 
     scene, params = dropped_grid(3)
     grid = build_model(scene, dataclasses.replace(params, kernels="numpy"))
@@ -348,6 +352,16 @@ def test_members_packed_side_by_side_come_back_as_they_went_in():
         assert (back.time, back.step, back.dt) == (state.time, state.step, state.dt)
         for name in ("key", "state", "line", "omega", "bond", "shear_dir", "dn", "normal_force", "kind"):
             np.testing.assert_array_equal(getattr(back.memory, name), getattr(state.memory, name), err_msg=name)
+        b0, b1 = arrays["mi"][k, L.MI_B0], arrays["mi"][k, L.MI_B1]
+        got, mo = arrays["bgeo"][b0:b1], m.model
+        now, start = mo.block_geometry(state.vertex_xy), mo.block_geometry(mo.vertex_xy0)
+        assert not np.array_equal(state.vertex_xy, mo.vertex_xy0)
+        for col, want in ((L.BG_AREA, now["area"]), (L.BG_CX, now["centroid"][:, 0]), (L.BG_CY, now["centroid"][:, 1]),
+                          (L.BG_S1, now["s1"]), (L.BG_S2, now["s2"]), (L.BG_S3, now["s3"]),
+                          (L.BG_RADIUS, block_radius(mo, state.vertex_xy, now["centroid"])),
+                          (L.BG_RADIUS0, block_radius(mo, mo.vertex_xy0, start["centroid"])),
+                          (L.BG_LOAD, mo.block_density * start["area"] * float(np.hypot(*mo.gravity)))):
+            np.testing.assert_array_equal(got[:, col], want, err_msg=str(col))
 
 
 @pytest.mark.slow

@@ -43,7 +43,8 @@ class Outcome:
     """"done" (its end time or step count), "moved" (its group passed the stop distance), "at
     rest", or "diverted" (a step that today's path takes over, ``cause``)."""
     state: object
-    """Its `ddatai.model.State` at the end (for "diverted": at the start of the step handed over)."""
+    """Its `ddatai.model.State` at the end (for "diverted": at the start of the step handed over);
+    None where `run` was asked for none (``states=False``) and the run did not divert."""
     model: object
     """Its model with the penalty the run ended with."""
     history: np.ndarray
@@ -171,20 +172,25 @@ class Session:
                       record=m.record, frame_every=m.frame_every, start_penalty=m.start_penalty,
                       quiet=int(self.arrays["mi"][i, L.MI_QUIET]), contacts=factor * m.contacts)
 
-    def outcome(self, i: int, status: int, history: list, records: list, launches: int, wall: float) -> Outcome:
+    def outcome(self, i: int, status: int, history: list, records: list, launches: int, wall: float, *,
+                state: bool = True) -> Outcome:
+        """Member i's `Outcome`; ``state`` False: without its end state (None), unless diverted."""
         from ..records import STEP_DTYPE
 
         mi = self.arrays["mi"][i]
         cause = {L.CAUSE_CYCLES: "cycles", L.CAUSE_FAILED: "failed"}.get(int(mi[L.MI_CAUSE]), "")
-        return Outcome(status=STATUS[status], state=self.state(i), model=self.model(i),
+        return Outcome(status=STATUS[status], state=self.state(i) if state or status == L.DIVERT else None,
+                       model=self.model(i),
                        history=np.concatenate(history) if history else np.zeros((0, 2)),
                        records=np.concatenate(records) if records else np.zeros(0, STEP_DTYPE),
                        cause=cause if status == L.DIVERT else "", quiet=int(mi[L.MI_QUIET]),
                        penalty_raised=bool(mi[L.MI_RAISED]), launches=launches, wall_time=wall)
 
 
-def run(members: list, *, arch: str = "cpu", launch_steps: int = LAUNCH_STEPS) -> list:
-    """Run every member (`Member`) to its end on the fused engine; one `Outcome` each."""
+def run(members: list, *, arch: str = "cpu", launch_steps: int = LAUNCH_STEPS, states: bool = True) -> list:
+    """Run every member (`Member`) to its end on the fused engine; one `Outcome` each.
+    ``states=False``: an outcome's end state is read back only where the member diverted (a
+    batch of judgements takes its verdicts from the histories alone)."""
     members = list(members)
     outcomes: list[Optional[Outcome]] = [None] * len(members)
     history = [[] for _ in members]
@@ -212,7 +218,8 @@ def run(members: list, *, arch: str = "cpu", launch_steps: int = LAUNCH_STEPS) -
                 if status == L.GROW:
                     grow.append(i)
                 elif status != L.RUNNING:
-                    outcomes[k] = session.outcome(i, status, history[k], records[k], launches[k], walls[k])
+                    outcomes[k] = session.outcome(i, status, history[k], records[k], launches[k], walls[k],
+                                                  state=states)
             if grow:
                 # more room for the contacts: every member not finished goes on in a new launch
                 for i, k in enumerate(active):

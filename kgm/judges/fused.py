@@ -24,7 +24,7 @@ from ddatai.params import Params
 
 from ..kinds import RunEnd
 from ..settings import DdaSettings
-from .run import Report, RestCounter, RunPlan, block_displacements, block_speeds, sub_scene, verdict
+from .run import Report, RestCounter, RunPlan, block_displacements, block_speeds, group_size, sub_scene, verdict
 
 
 def judge_fused(members, blocks: frozenset, *, settings: DdaSettings, params: Optional[Params] = None,
@@ -109,13 +109,15 @@ def prepare_fused(members, blocks: frozenset, *, settings: DdaSettings, params: 
 
     if not members:
         return Prepared(runs=[], plans=[], fields=[], seconds=0.0)
-    # one plan for the members that share a block system (the probes of a bisection round)
-    by_system: dict = {}
+    # one plan for the members whose groups have the same area (the probes of a bisection
+    # round, a study's samples of one geometry): the plan depends on the system through it alone
+    by_size: dict = {}
     plans = []
     for m in members:
-        if id(m.system) not in by_system:
-            by_system[id(m.system)] = RunPlan.of(m.system, blocks, settings, params)
-        plans.append(by_system[id(m.system)])
+        size = group_size(m.system, blocks)
+        if size not in by_size:
+            by_size[size] = RunPlan.of(m.system, blocks, settings, params)
+        plans.append(by_size[size])
     prm = plans[0].params
     steps = sum(p.duration / (prm.dt if prm.dt is not None else prm.dt_max) for p in plans)
     if choose_batch(prm, member_steps=steps)[0] != "fused":
@@ -162,8 +164,9 @@ def run_prepared(prepared: Prepared, *, report: Report = None) -> list:
     # a member whose stage released blocks in doubt runs on today's path from its start: their
     # first steps take the resolved Δt of `ddatai.in_doubt`, which the fused engine does not apply
     doubt = [bool(run.state.in_doubt.any()) for run in prepared.runs]
-    fused = iter(engine.run([r for r, d in zip(prepared.runs, doubt) if not d], arch=prepared.plans[0].params.arch)
-                 if not all(doubt) else [])
+    # the verdicts need each run's history, and the state only of a run handed over (`_go_on`)
+    fused = iter(engine.run([r for r, d in zip(prepared.runs, doubt) if not d], arch=prepared.plans[0].params.arch,
+                            states=False) if not all(doubt) else [])
     outcomes = [_from_start(run) if d else next(fused) for run, d in zip(prepared.runs, doubt)]
     ends = {engine.STATUS[layout.STOP_MOVED]: RunEnd.STOPPED_EARLY, engine.STATUS[layout.STOP_REST]: RunEnd.AT_REST}
     wall = prepared.seconds + time.perf_counter() - start

@@ -31,8 +31,8 @@ again with the same arguments reads the samples already there and runs only the 
 from __future__ import annotations
 
 import functools
-import inspect
 import math
+import pickle
 import time
 import warnings
 from collections import deque
@@ -40,7 +40,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Mapping, Optional
 
-import numpy as np
 from ddatai.workers import WorkerLost
 
 from ..analysis import analyze_problem, evaluate_group
@@ -52,7 +51,7 @@ from ..kinds import METHOD_NAMES, Method, Sampling
 from ..report import GroupResult
 from ..settings import DdaSettings, Settings
 from .rare import Transform, rare_sampling, rare_study
-from .sampling import _check_sampling, sample_seeds, sample_variables
+from .sampling import _check_build, _check_sampling, _scalar, sample_seeds, sample_variables
 from .study import SampleRow, Study, StudyFile, monte_carlo_cov, pf_of, read_samples, reliability_index, study_table
 
 #: most DDA samples judged side by side in one batch of a study: a batch's verdicts are saved
@@ -216,6 +215,14 @@ def _prepare_batch(job: _Job, items: tuple) -> tuple:
     return rows, work
 
 
+def _prepare_sent(job: _Job, items: tuple) -> tuple:
+    """`_prepare_batch` as a preparing worker sends it: each group ``(indices, bytes)``, its
+    samples' indices and its work pickled once, here; the study's process hands the bytes to the
+    runner as they are, unpickling and pickling again none of the prepared members."""
+    rows, work = _prepare_batch(job, items)
+    return rows, [([item[0] for item, _ in part[0]], pickle.dumps(part, pickle.HIGHEST_PROTOCOL)) for part in work]
+
+
 @dataclass(frozen=True)
 class _Whole:
     """A batch that the study's idle runner judges whole, from its screens (`_prepared_then_run`)."""
@@ -231,6 +238,8 @@ def _finish_batch(job: _Job, work) -> list:
 
     if isinstance(work, _Whole):
         return _evaluate_batch(job, work.items)
+    if isinstance(work, bytes):  # a group as its preparing worker pickled it (`_prepare_sent`)
+        work = pickle.loads(work)
     if isinstance(work, str):  # the kernel loaded ahead of the first batch, on this architecture
         from ddatai.fused.warm import warm
 
@@ -248,7 +257,7 @@ def _finish_batch(job: _Job, work) -> list:
 def _prepared_then_run(job: _Job, batches: list, workers: int):
     """(index, row) of every sample of ``batches`` on ``workers`` local processes, one a CPU:
     the runner, the only one that loads the fused kernel (once a study), runs what the others
-    prepare in NumPy (`_prepare_batch`, `_finish_batch`, `ddatai.workers.Runner`), one batch
+    prepare in NumPy (`_prepare_sent`, `_finish_batch`, `ddatai.workers.Runner`), one batch
     each a round; about to idle (loaded, no whole batch and at most one prepared in hand), it
     judges the last batch not yet begun whole (`_Whole`). A prepared batch lost with the runner
     is recorded as lost, sample by sample (docs/kgm/probabilistic.md)."""
@@ -258,7 +267,7 @@ def _prepared_then_run(job: _Job, batches: list, workers: int):
     samples, whole = {}, {}  # in the runner's hands by key: prepared batches' samples, whole batches, the load
     todo, alone = deque(batches), deque()  # alone: a whole batch's samples lost with the runner
     with Runner(functools.partial(_finish_batch, job)) as runner, \
-            ProcessPool(functools.partial(_prepare_batch, job), max(1, workers - 1)) as pool:
+            ProcessPool(functools.partial(_prepare_sent, job), max(1, workers - 1)) as pool:
         if params is not None and params.kernels == "fused" and params.arch in ("cpu", "cuda", "gpu"):
             runner.submit("load", params.arch)  # the study asks for the fused engine: loaded now
             whole["load"] = ()
@@ -290,9 +299,9 @@ def _prepared_then_run(job: _Job, batches: list, workers: int):
                     continue
                 rows, work = out
                 yield from rows
-                for k, part in enumerate(work):
-                    samples[(index, k)] = [item[0] for item, _ in part[0]]
-                    runner.submit((index, k), part)
+                for k, (indices, sent) in enumerate(work):
+                    samples[(index, k)] = indices
+                    runner.submit((index, k), sent)
                 yield from taken(runner.poll())
 
 
@@ -472,27 +481,3 @@ def _n_workers(client, workers: Optional[int]) -> int:
         return max(1, len(client.scheduler_info()["workers"]))
     except Exception:
         return 1
-
-
-def _scalar(v):
-    return float(v) if isinstance(v, (np.floating, float)) else v.item() if isinstance(v, np.generic) else v
-
-
-def _check_build(build, variables: Mapping, geometry_seed: Optional[bool]) -> bool:
-    """Whether to pass ``seed=``; raises if ``build`` does not take a variable's name."""
-    fn = build.resolve() if hasattr(build, "resolve") else build
-    try:
-        sig = inspect.signature(fn)
-    except (TypeError, ValueError):
-        return bool(geometry_seed)
-    params = sig.parameters
-    var_kw = any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values())
-    for k in variables:
-        if k not in params and not var_kw:
-            raise ValueError(f"variable {k!r} is not a parameter of build{sig} ({getattr(fn, '__name__', fn)})")
-    takes_seed = "seed" in params or var_kw
-    if geometry_seed and not takes_seed:
-        raise ValueError(f"geometry_seed=True but build{sig} has no 'seed' parameter")
-    return takes_seed and "seed" in params if geometry_seed is None else bool(geometry_seed)
-
-

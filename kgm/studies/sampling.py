@@ -13,6 +13,7 @@ workers or on the order in which samples complete.
 
 from __future__ import annotations
 
+import inspect
 import math
 from typing import Mapping, Optional
 
@@ -173,3 +174,25 @@ def read_variables(path) -> tuple[dict, dict]:
     from ddatai.io.tomlfile import read_toml
 
     return variables_from_mapping(read_toml(path, "variables file"))
+
+
+def _scalar(v):
+    return float(v) if isinstance(v, (np.floating, float)) else v.item() if isinstance(v, np.generic) else v
+
+
+def _check_build(build, variables: Mapping, geometry_seed: Optional[bool]) -> bool:
+    """Whether to pass ``seed=``; raises if ``build`` does not take a variable's name."""
+    fn = build.resolve() if hasattr(build, "resolve") else build
+    try:
+        sig = inspect.signature(fn)
+    except (TypeError, ValueError):
+        return bool(geometry_seed)
+    params = sig.parameters
+    var_kw = any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values())
+    for k in variables:
+        if k not in params and not var_kw:
+            raise ValueError(f"variable {k!r} is not a parameter of build{sig} ({getattr(fn, '__name__', fn)})")
+    takes_seed = "seed" in params or var_kw
+    if geometry_seed and not takes_seed:
+        raise ValueError(f"geometry_seed=True but build{sig} has no 'seed' parameter")
+    return takes_seed and "seed" in params if geometry_seed is None else bool(geometry_seed)
