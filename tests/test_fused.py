@@ -212,7 +212,7 @@ def test_kgm_judgements_on_the_fused_engine_are_the_numpy_path_s():
 def test_a_member_whose_contacts_outgrow_their_region_goes_on_with_more():
     """A contact region of one contact: the member is launched again, from the start of the step
     that overflowed, with twice the room, until its contacts fit; the run is the one with room
-    enough (never truncated)."""
+    enough (never truncated), also where its end state is not asked for (``states=False``)."""
     from ddatai.fused import engine
     from ddatai.fused.pack import Member
 
@@ -224,6 +224,10 @@ def test_a_member_whose_contacts_outgrow_their_region_goes_on_with_more():
     assert tight.status == roomy.status == "done"
     assert tight.launches > roomy.launches
     np.testing.assert_array_equal(tight.state.vertex_xy, roomy.state.vertex_xy)
+    # without the end states (a batch of judgements): the same run, its state not read back
+    light = engine.run([Member(model=model, state=state, step_end=30, contacts=1)], states=False)[0]
+    assert light.status == "done" and light.state is None and light.launches == tight.launches
+    np.testing.assert_array_equal(light.history, tight.history)
 
 
 @pytest.mark.slow

@@ -85,8 +85,9 @@ def test_a_study_runs_on_its_workers_count_and_the_idle_runner_judges_the_last_b
     """`_prepared_then_run` with ``workers=2``: one preparing process beside the runner (not
     two), every sample's row once; a runner about to idle (no whole batch and at most one
     prepared in hand) takes the last batch not yet begun and judges it whole, and the samples of
-    a whole batch lost with it are prepared by the others (in-process stand-ins for the
-    processes, the phases stubbed: only the schedule is tested)."""
+    a whole batch lost with it are prepared by the others; a prepared batch reaches the runner
+    as the bytes its worker pickled (in-process stand-ins for the processes, the phases
+    stubbed: only the schedule is tested)."""
     from types import SimpleNamespace
 
     import ddatai.workers
@@ -111,6 +112,8 @@ def test_a_study_runs_on_its_workers_count_and_the_idle_runner_judges_the_last_b
                     yield index, self.fn(item)
 
     class Busy:  # returns its items only when drained: never idle once it has one
+        given = []
+
         def __init__(self, fn):
             self.fn, self.items = fn, []
 
@@ -122,6 +125,7 @@ def test_a_study_runs_on_its_workers_count_and_the_idle_runner_judges_the_last_b
 
         def submit(self, key, item):
             self.items.append((key, item))
+            Busy.given.append(item)
 
         @property
         def pending(self):
@@ -166,6 +170,8 @@ def test_a_study_runs_on_its_workers_count_and_the_idle_runner_judges_the_last_b
     assert Pool.sizes == [1]
     assert sorted(i for i, _ in rows) == list(range(12))
     assert dict(rows) == {i: "whole" if i >= 9 else "run" for i in range(12)}  # idle only at the start
+    sent = [item for item in Busy.given if not isinstance(item, pr._Whole)]
+    assert len(sent) == 3 and all(isinstance(item, bytes) for item in sent)  # as pickled by the worker
 
     monkeypatch.setattr(ddatai.workers, "Runner", Eager)
     rows = list(pr._prepared_then_run(job, batches, 3))

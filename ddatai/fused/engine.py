@@ -69,6 +69,8 @@ def records_of(rows: np.ndarray, seconds_per_step: float) -> np.ndarray:
     from ..records import STEP_DTYPE
 
     out = np.zeros(len(rows), STEP_DTYPE)
+    if not len(rows):  # not recorded (a judgement's run): nothing to copy, field by field
+        return out
     for col, name in enumerate(_RECORD_FIELDS):
         out[name] = rows[:, col]
     out["t_solve"] = seconds_per_step
@@ -182,7 +184,7 @@ class Session:
         return Outcome(status=STATUS[status], state=self.state(i) if state or status == L.DIVERT else None,
                        model=self.model(i),
                        history=np.concatenate(history) if history else np.zeros((0, 2)),
-                       records=np.concatenate(records) if records else np.zeros(0, STEP_DTYPE),
+                       records=np.concatenate(records) if any(len(r) for r in records) else np.zeros(0, STEP_DTYPE),
                        cause=cause if status == L.DIVERT else "", quiet=int(mi[L.MI_QUIET]),
                        penalty_raised=bool(mi[L.MI_RAISED]), launches=launches, wall_time=wall)
 
