@@ -5,7 +5,9 @@ twice is recorded as lost. And the split of a DDA-judged study's batch that feed
 `kgm.studies.probabilistic._prepare_batch` settles the members in NumPy without the kernel."""
 
 import math
+import pickle
 
+import numpy as np
 import pytest
 
 import worker_cases
@@ -51,7 +53,7 @@ def test_an_error_in_the_runner_is_raised_with_its_traceback():
 def test_a_study_batch_is_prepared_without_the_fused_kernel(monkeypatch):
     """`_prepare_batch` of two Example II samples on the fused engine: each member's sub-model
     built and settled by its own stage (NumPy), nothing launched; the samples keep their order
-    and their critical group."""
+    and their critical group, and the batch pickles (to the runner) and comes back bit for bit."""
     from pathlib import Path
 
     import ddatai as dd
@@ -79,6 +81,15 @@ def test_a_study_batch_is_prepared_without_the_fused_kernel(monkeypatch):
     assert all(math.isfinite(p.delta) and p.delta > 0 for p in prepared.plans)
     # every member starts from its own stage's state (time 0, settled or released)
     assert all(run.state.time == 0.0 for run in prepared.runs)
+    # sent to the runner (the states field by field, `Prepared.__reduce__`): back bit for bit
+    back = pickle.loads(pickle.dumps(prepared, pickle.HIGHEST_PROTOCOL))
+    for run, got in zip(prepared.runs, back.runs):
+        assert (got.t_end, got.stop_at, got.group) == (run.t_end, run.stop_at, run.group)
+        for name, value in vars(run.state).items():
+            for part, want in (vars(value).items() if name == "memory" else [(name, value)]):
+                have = getattr(got.state.memory, part) if name == "memory" else getattr(got.state, part)
+                assert type(have) is type(want) and getattr(have, "dtype", None) == getattr(want, "dtype", None), part
+                np.testing.assert_equal(have, want, err_msg=part)
 
 
 def test_a_study_runs_on_its_workers_count_and_the_idle_runner_judges_the_last_batch_whole(monkeypatch):
