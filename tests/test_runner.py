@@ -50,6 +50,22 @@ def test_an_error_in_the_runner_is_raised_with_its_traceback():
     assert "fails_on_three" in str(info.value.__cause__)
 
 
+def test_a_study_s_worker_process_keeps_what_it_holds_out_of_the_collector_once():
+    """`_keep_for_life` in a worker process: the objects alive then are left out of the
+    collector's full passes (`gc.freeze`), once; in the study's own process nothing is."""
+    import gc
+
+    from kgm.studies.probabilistic import _keep_for_life
+
+    with Runner(worker_cases.frozen_by_keep_for_life) as runner:
+        runner.submit(0, None)
+        [(_, (before, once, twice))] = list(runner.drain())
+    assert before == 0 and once > 1000 and twice == once
+    count = gc.get_freeze_count()
+    _keep_for_life()
+    assert gc.get_freeze_count() == count
+
+
 def test_a_study_batch_is_prepared_without_the_fused_kernel(monkeypatch):
     """`_prepare_batch` of two Example II samples on the fused engine: each member's sub-model
     built and settled by its own stage (NumPy), nothing launched; the samples keep their order
