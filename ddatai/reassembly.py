@@ -102,11 +102,11 @@ class ContactSystem:
         self.scratch = self.scratch_rhs = None  # what `_rows_again` assembles into
 
     @staticmethod
-    def _key(contacts: Contacts) -> tuple:
+    def _key(contacts: Contacts, copy: bool = True) -> tuple:
         """What a contact's terms in K depend on besides its vectors: its state and line, and for
         friction coupled to the solve's normal force its direction and tanφ."""
-        return (contacts.state.copy(), contacts.line.copy(), contacts.coupled.copy(),
-                contacts.shear_dir.copy(), contacts.tan_phi.copy())
+        fields = (contacts.state, contacts.line, contacts.coupled, contacts.shear_dir, contacts.tan_phi)
+        return tuple(a.copy() for a in fields) if copy else fields
 
     def system(self, contacts: Contacts, sca: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(K's CSR data, F) with the contacts' terms for their states and ``sca``."""
@@ -136,9 +136,18 @@ class ContactSystem:
         return self.data, rhs
 
     def _assemble_all(self, contacts: Contacts, sca: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        if self.model.numpy_path:
+            # K again only where what it depends on changed: else the last K, F's terms alone
+            # (`assembly.contact_terms_numpy`, the same floats), as `system` does on the kernels
+            key = b"".join(a.tobytes() for a in self._key(contacts, copy=False))
+            if self.data is not None and key == self.key:
+                rhs = self.block_rhs.copy()
+                assemble_contacts(self.model, contacts, self.pattern, self.vec, sca, None, rhs, self.serial_scatter)
+                self.kept += 1
+                return self.data, rhs
         data, rhs = self.block_data.copy(), self.block_rhs.copy()
         assemble_contacts(self.model, contacts, self.pattern, self.vec, sca, data, rhs, self.serial_scatter)
-        self.data, self.key = data, self._key(contacts)
+        self.data, self.key = data, key if self.model.numpy_path else self._key(contacts)
         self.full += 1
         return data, rhs
 

@@ -97,7 +97,12 @@ def assemble_contacts_many(requests) -> list:
     m0 = models[0]
     c = _contacts(models, contacts, _ASSEMBLY_FIELDS, blocks=False)
     const, slope = friction_terms(m0, c)
-    data_len, rhs_len = [len(d) for d in datas], [len(r) for r in rhss]
+    # F's terms alone where every member asks only them (data None: its K has not changed);
+    # else K too, a member that asks only F getting its K's terms in a scratch array
+    stiffness = any(d is not None for d in datas)
+    if stiffness:
+        datas = [np.zeros(len(p.indices)) if d is None else d for d, p in zip(datas, patterns)]
+    data_len, rhs_len = [len(d) for d in datas] if stiffness else [0] * len(datas), [len(r) for r in rhss]
 
     def union():  # the members' patterns, blocks and rows one after the other (`stage_batch_index`)
         counts = [x.n for x in contacts]
@@ -119,11 +124,12 @@ def assemble_contacts_many(requests) -> list:
     pattern, vblock, dof, data_at, rhs_at = kept(
         ("assembly", tuple(data_len), tuple(rhs_len)),
         tuple(models) + tuple(patterns) + tuple(x for c in contacts for x in (c.cint, c.block_a, c.block_b)), union)
-    data, rhs = _cat(datas), _cat(rhss)
+    data, rhs = _cat(datas) if stiffness else None, _cat(rhss)
     contact_terms_numpy(c.cint, c.state, c.line, vblock, dof, _cat([a[3] for a in args]), _cat([a[4] for a in args]),
                         const, slope, c.shear_dir, pattern, m0.penalty, m0.shear_penalty, data, rhs)
-    for d, s, n in zip(datas, data_at, data_len):
-        d[:] = data[s:s + n]
+    for d, s, n in zip([a[5] for a in args] if stiffness else (), data_at, data_len):
+        if d is not None:
+            d[:] = data[s:s + n]
     for r, s, n in zip(rhss, rhs_at, rhs_len):
         r[:] = rhs[s:s + n]
     return [None] * len(requests)
