@@ -264,6 +264,8 @@ def uncouple_pulling(contacts: Contacts, law: ContactLaw, held: np.ndarray) -> b
     from the last solve's normal force (`Contacts.coupled` off: N = 0, friction c·L), not from
     the same solve's, which is the tension and gives a friction against Coulomb's law. In
     place; returns whether any changed."""
+    if not held.any():
+        return False  # none held (the usual case): none to uncouple
     pulling = held & contacts.coupled & (contacts.state == SLIDE) & (law.fn_now < 0)
     contacts.coupled[pulling] = False
     return bool(pulling.any())

@@ -311,13 +311,16 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
     system = ContactSystem(model, frame.pattern, frame.vec, frame.data, frame.rhs, stepper.serial_scatter)
     history: list = []
     flips = np.zeros(contacts.n, np.int64)  # how often each contact opened or closed
+    closed_state = np.where(shearing, LOCK, SLIDE)  # a closed contact's state in K
+    movable, far_at = free & ~out, MECHANISM_SIZE * size
+    force_tolerance = min(p.oc_force_tolerance, STAGE_FORCE_TOLERANCE)
     changed = True  # the closed contacts changed: K is factorised
     best, best_at = np.inf, 0
     outcome = Outcome()
     accepted = None  # the last iterate within ``Params.oc_state_tolerance``
     steady = 0
     for it in range(1, MAX_ITERATIONS + 1):
-        contacts.state[:] = np.where(guess.closed, np.where(shearing, LOCK, SLIDE), OPEN)
+        contacts.state[:] = np.where(guess.closed, closed_state, OPEN)
         contacts.line[:] = guess.line
         contacts.coupled[:] = False
         sca = frame.sca.copy()
@@ -330,7 +333,7 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
         springs = Springs.of(model, contacts, frame.vec, rows) if rows is not None else None
         target = solve(stepper, frame.pattern, data, rhs, reuse=not changed, springs=springs)
         outcome.solves += 1
-        if not np.all(np.isfinite(target)):
+        if not np.isfinite(target).all():
             outcome.disp = None
             return outcome, guess
         # where contacts opened or closed, the step stops where the energy stops falling (slips
@@ -341,32 +344,32 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
         law = stage_law(stepper.model, contacts, frame.vec, sca, disp)  # coupled: this solve's N
         outcome.disp, outcome.law = disp, law
         moved = block_displacement(stepper.model, frame.vertex_xy, geom, disp)
-        far = free & ~out & (moved > MECHANISM_SIZE * size)
+        far = movable & (moved > far_at)
         if far.any() and np.any(far & ~anchored(stepper, frame.vertex_xy, geom, contacts, disp, size)):
             return outcome, guess  # a block moves away from what holds it: `mechanisms` tells
         # the contacts' judgement: which close, open or change line, the normal return mapping's
         # openings and the shear springs' excess (`ddatai.return_update`, side by side in a batch)
         u = iterate_update(model, contacts, law, guess, flips, freeze, shearing, weight, tensile,
-                           min(p.oc_force_tolerance, STAGE_FORCE_TOLERANCE), CHATTER_FLIPS)
+                           force_tolerance, CHATTER_FLIPS)
         loose, state_loose, excess, dslip, new_gap = u.loose, u.state_loose, u.excess, u.dslip, u.new_gap
         outcome.loose, outcome.excess = loose, excess
         flips += u.flipped
-        changed = bool(np.any(u.changed))
+        changed = bool(u.changed.any())
         guess.closed, guess.line = u.closed, u.line
-        if not changed and alpha == 1.0 and np.all(excess <= state_loose):
+        if not changed and alpha == 1.0 and (excess <= state_loose).all():
             # within the looser tolerance: kept in case the strict one is not reached
             accepted = (replace(outcome, disp=disp.copy(), converged=True),
                         Guess(closed=guess.closed.copy(), line=guess.line.copy(), slip=guess.slip + dslip,
                               gap=guess.gap.copy()),
                         dslip)
-            if np.all(excess <= loose):
+            if (excess <= loose).all():
                 # the last correction brings each spring to at most its strength; the forces it
                 # moves are within the tolerance
                 guess.slip = guess.slip + dslip
                 law.ds[:] = law.ds - dslip
                 outcome.converged = outcome.strict = True
                 return outcome, guess
-        unbalance = float(np.max(np.maximum(excess, 0.0) / loose, initial=0.0))
+        unbalance = float((np.maximum(excess, 0.0) / loose).max(initial=0.0))
         states_moved = changed or alpha < 1.0  # states changed, or the line search stopped short
         steady = 0 if states_moved else steady + 1
         if tail is not None and steady >= tail and it > 1:

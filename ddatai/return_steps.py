@@ -73,12 +73,12 @@ def line_search(stepper, frame, contacts: Contacts, sca: np.ndarray, disp: np.nd
 def anderson(history: list, x: np.ndarray, g: np.ndarray) -> np.ndarray:
     """Anderson acceleration (depth ANDERSON_DEPTH) of the fixed point x = g(x) of the slips:
     the combination of the last iterates whose residuals g − x cancel best (least squares)."""
-    history.append((x, g))
+    history.append((g - x, g))  # each iterate's residual, made once
     if len(history) > ANDERSON_DEPTH + 1:
         history.pop(0)
     if len(history) < 2:
         return g
-    f = np.array([gi - xi for xi, gi in history])
+    f = np.array([fi for fi, _ in history])
     gs = np.array([gi for _, gi in history])
     df, dg = (f[1:] - f[:-1]).T, (gs[1:] - gs[:-1]).T
     gamma = np.linalg.lstsq(df, f[-1], rcond=None)[0]
