@@ -254,7 +254,7 @@ def second_order(model: Model, contacts: Contacts, state: State, geom: dict, rot
     """
     m = model
     shift = np.zeros((contacts.n, 3))
-    if not np.any(rotation):
+    if not np.count_nonzero(rotation):
         return shift
     xy, centroid, nxt, vb = state.vertex_xy, geom["centroid"], m.vertex_next, m.vertex_block
 
@@ -325,7 +325,7 @@ def point_terms_numpy(point_block, point_xy, point_force, stiffness, dof, centro
                       data, rhs) -> None:
     """`kernels.assemble_points` in NumPy: K += k·TᵀT, F += Tᵀf of every point on a free block."""
     on = dof[point_block] >= 0
-    if not on.any():
+    if not np.count_nonzero(on):
         return
     b = point_block[on]
     r = dof[b].astype(np.int64)
@@ -407,7 +407,7 @@ def contact_terms_numpy(cint, state, line, vblock, dof, vec, sca, friction_const
     ve = kinds == VE
     locked = ve & (state[closed] == LOCK)
     sliding = ve & (state[closed] == SLIDE)
-    if locked.any():
+    if np.count_nonzero(locked):
         c = closed[locked]
         es, gs = vec[c, S_ES], vec[c, S_GS]
         if stiffness:
@@ -415,7 +415,7 @@ def contact_terms_numpy(cint, state, line, vblock, dof, vec, sca, friction_const
                           es, gs, es, gs)
         f = (-shear_penalty * sca[c, 2])[:, None]
         scatter.force(ri[locked], rj[locked], f * es, f * gs)
-    if sliding.any():
+    if np.count_nonzero(sliding):
         c = closed[sliding]
         sgn = shear_dir[c].astype(np.float64)
         # internal force sgn·S(D)·∇ds with S = a − b·(dn0 + ∇dnᵀD)
@@ -423,7 +423,7 @@ def contact_terms_numpy(cint, state, line, vblock, dof, vec, sca, friction_const
         es, gs = vec[c, S_ES], vec[c, S_GS]
         scatter.force(ri[sliding], rj[sliding], -f * es, -f * gs)
         coupled = friction_slope[c] != 0.0
-        if stiffness and coupled.any():
+        if stiffness and np.count_nonzero(coupled):
             cc = c[coupled]
             sel = np.flatnonzero(sliding)[coupled]
             scatter.outer(ri[sel], rj[sel], sij[sel], sji[sel], -sgn[coupled] * friction_slope[cc],

@@ -141,7 +141,7 @@ def _law_core(m: Model, contacts: Contacts, vec: np.ndarray, sca: np.ndarray, di
     dn_now = dn0.copy()   # normal distance of the line the contact's state uses
     dn = dn0.copy()       # of the line the law uses: the less penetrated one
     line = np.zeros(contacts.n, np.int8)
-    if vv.any():
+    if np.count_nonzero(vv):
         # line 1: vertex1 (of block b) against an edge of block a
         dn1 = sca[vv, 1] + shift[vv, 1] + np.einsum("ij,ij->i", vec[vv, S_E1], db[vv]) + \
             np.einsum("ij,ij->i", vec[vv, S_G1], da[vv])
@@ -339,9 +339,9 @@ def judge(model: Model, contacts: Contacts, law: ContactLaw, bad: np.ndarray,
     # in which it breaks)
     breaks = break_bonds & contacts.bond & (law.state != LOCK) & bad & \
         ((law.state == OPEN) | (p.bond_breaks_on_slip & (law.state == SLIDE)))
-    if breaks.any():
+    if np.count_nonzero(breaks):
         contacts.bond[breaks] = False
-    changed = bool(np.any(bad))
+    changed = bool(np.count_nonzero(bad))
     if changed:
         # a sliding contact whose slip turns round passes through sticking: it locks
         # (Shi's rule) and slides the other way only if its spring then exceeds S. Newton's
@@ -420,7 +420,7 @@ def accumulate_slip(model: Model, contacts: Contacts, vec: np.ndarray, disp: np.
     §2.8.4) to every sliding vertex-edge contact on a softening joint (eq. BB7), in place."""
     c = contacts
     soft = (c.state == SLIDE) & (c.cint[:, KIND] != VV) & ~np.isnan(model.joint_barton[c.joint, 5])
-    if soft.any():
+    if np.count_nonzero(soft):
         k = np.flatnonzero(soft)
         step = np.einsum("ij,ij->i", vec[k, S_ES], disp[c.block_a[k]]) + \
             np.einsum("ij,ij->i", vec[k, S_GS], disp[c.block_b[k]])

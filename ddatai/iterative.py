@@ -138,7 +138,7 @@ def _refinement(k, b: np.ndarray, x: np.ndarray, solve, target: float, passes: i
     scale = max(float(np.abs(b).max()), 1e-300)
     best, last = x, 1.0
     for done in range(passes + 1):
-        if not np.all(np.isfinite(x)):
+        if not np.isfinite(x).all():
             return best, last, False
         r = b - k @ x
         residual = float(np.abs(r).max()) / scale
@@ -170,7 +170,7 @@ def refine_to_roundoff(k, b: np.ndarray, x: np.ndarray, solve, passes: int = REU
     abs_k, abs_b = abs(k), np.abs(b)
     last = np.inf
     for done in range(passes + 1):
-        if not np.all(np.isfinite(x)):
+        if not np.isfinite(x).all():
             return x, np.inf, False
         r = b - k @ x
         residual = float(np.abs(r).max())

@@ -62,7 +62,7 @@ def contact_rhs(model, contacts: Contacts, vec: np.ndarray, sca: np.ndarray, rhs
     coefficient[:, 0] = (-model.penalty) * np.where(line1, near[:, 1], near[:, 0])
     coefficient[:, 1] = coefficient[:, 0]
     coefficient[:, 2] = np.where(ve & (state == LOCK), (-model.shear_penalty) * near[:, 2], 0.0)
-    if sliding.any():
+    if np.count_nonzero(sliding):
         const, slope = friction_terms(model, contacts)
         c = closed[sliding]
         coefficient[sliding, 2] = -(contacts.shear_dir[c].astype(np.float64) * (const[c] - slope[c] * sca[c, 0]))
@@ -120,7 +120,7 @@ class ContactSystem:
         changed = np.zeros(contacts.n, bool)
         for old, new in zip(self.key, self._key(contacts)):
             changed |= old != new
-        if changed.any():
+        if np.count_nonzero(changed):
             touched = self._blocks(contacts, changed)
             if np.count_nonzero(touched) > FULL_ABOVE * self.pattern.n_rows:
                 return self._assemble_all(contacts, sca)

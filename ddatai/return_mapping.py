@@ -162,7 +162,8 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
             frame = Frame.build(stepper, state, geom, contacts, dt, None if frame is None else frame.pattern)
         # Newton (``_finish``) once a pseudo-step from where the states settle, before anything is released
         later = np.isfinite(contraction) and stepper.model.n_free <= SMALL_MODEL_BLOCKS  # a small model's later one
-        tail = (NEWTON_LATER if later else NEWTON_AFTER) if newton and not freeze and not np.any(out & ~released) else None
+        tail = (NEWTON_LATER if later else NEWTON_AFTER) \
+            if newton and not freeze and not np.count_nonzero(out & ~released) else None
         outcome, raw = _iterate(stepper, frame, contacts, geom, out, size, guess, freeze, tail=tail)
         solves += outcome.solves
         if outcome.disp is None:
@@ -171,24 +172,24 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
         contacts.state[:] = np.where(guess.closed, contacts.state, OPEN)
         contacts.dn[:] = outcome.law.dn_now
         mechanism = mechanisms(stepper, state.vertex_xy, geom, contacts, outcome.disp, out, size)
-        thrown = mechanism.any()  # thrown by the iterate (not by limit equilibrium or the test)
+        thrown = bool(np.count_nonzero(mechanism))  # thrown by the iterate (not by limit equilibrium or the test)
         if outcome.steady:  # cut short for Newton: where it does not finish, the return mapping goes on
             newton = False
-            if not mechanism.any():
+            if not np.count_nonzero(mechanism):
                 done, n = _finish(stepper, state, geom, frame, contacts, outcome, guess, out, size)
                 solves += n
                 if done is not None:
                     return done[0], solves, out & ~released, done[1], False, False, False
             guess = raw
             continue
-        if not mechanism.any() and not outcome.converged:
+        if not np.count_nonzero(mechanism) and not outcome.converged:
             # out of balance: blocks with no admissible forces go (`limit_equilibrium`; None: n/a); asked
             # again only once ``out`` grew (what it reads, the contacts' geometry and strengths, is the same till then)
             if asked is None or not np.array_equal(asked[0], out):
                 asked = out.copy(), unsupported_blocks(stepper.model, state.vertex_xy, geom,
                                                        Contacts(**{**vars(contacts), "line": line0}), touching, out)
             unsupported = asked[1]
-            if unsupported is not None and np.any(unsupported & ~out):
+            if unsupported is not None and np.count_nonzero(unsupported & ~out):
                 # released; the rest goes on with its contacts' chatter suppressed (`_iterate`)
                 mechanism, freeze = unsupported & ~out, True
             elif not freeze:
@@ -203,7 +204,7 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
                 mechanism, n, doubtful = loaded_away(stepper, state, geom, frame, contacts, outcome, guess, out,
                                                      size, converged_only=unsupported is not None)
                 solves += n
-                if doubt is not None and unsupported is not None and mechanism.any():
+                if doubt is not None and unsupported is not None and np.count_nonzero(mechanism):
                     # neither a converged test nor an unconverged one proves these blocks moved
                     # or held (the static problem of non-associated friction has many
                     # solutions): a slow turn-on of the weight settles it (`ddatai.turn_on`)
@@ -211,17 +212,17 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
                     mechanism = np.zeros_like(mechanism)
                     stalled = True
                 else:
-                    stalled = unsupported is not None and not mechanism.any()
+                    stalled = unsupported is not None and not np.count_nonzero(mechanism)
                     if doubtful and in_doubt is not None:
                         in_doubt |= mechanism
-        if not mechanism.any() and (outcome.converged or stalled):
+        if not np.count_nonzero(mechanism) and (outcome.converged or stalled):
             break
         # no equilibrium, or blocks to release: where the held ones do not contract, the
         # pseudo-step ends, releasing nothing (`mechanisms.contracting`)
         diverging = not contracting(stepper, state.vertex_xy, geom, outcome.disp, out | mechanism, contraction)
-        if diverging or not mechanism.any():
+        if diverging or not np.count_nonzero(mechanism):
             return None, solves, out & ~released, contacts, False, diverging, False
-        if thrown and not np.isfinite(contraction) and not np.any(out & ~released) and \
+        if thrown and not np.isfinite(contraction) and not np.count_nonzero(out & ~released) and \
                 out_of_range(stepper, contacts, outcome.disp, out, mechanism, size):
             # the first pseudo-step threw blocks from an iterate outside DDA's range: releasing them
             # cascades through the model (docs/method/dda.md §8.12); the stage starts welded
@@ -234,7 +235,7 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
     at_strength = guess.closed & ve & \
         (stepper.model.shear_penalty * np.abs(law.ds) >= law.strength * (1.0 - 1e-9))
     bonded = contacts.bond & ((contacts.cohesion > 0.0) | (contacts.tensile > 0.0))
-    if not outcome.strict or np.any(at_strength & bonded):
+    if not outcome.strict or np.count_nonzero(at_strength & bonded):
         # within the looser tolerance only (a wedge that must slide by millimetres until bolts
         # or a wedging joint take its load: each iterate slides it by its excess over the stiff
         # shear spring), or a bonded contact at its strength, which the run's first step would
@@ -260,7 +261,7 @@ def _finish(stepper, state: State, geom: dict, frame: Frame, contacts: Contacts,
     finished, n = test_unbalanced(stepper, state, geom, frame, contacts, outcome, guess,
                                   ~stepper.model.block_fixed, MAX_FINISH_SOLVES)
     if finished is None or not finished[2] or \
-            mechanisms(stepper, state.vertex_xy, geom, finished[1], finished[0], out, size).any():
+            np.count_nonzero(mechanisms(stepper, state.vertex_xy, geom, finished[1], finished[0], out, size)):
         return None, n
     disp, done, _ = finished
     _shift_lock_points(stepper, state.vertex_xy, done, guess.slip)
@@ -345,7 +346,8 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
         outcome.disp, outcome.law = disp, law
         moved = block_displacement(stepper.model, frame.vertex_xy, geom, disp)
         far = movable & (moved > far_at)
-        if far.any() and np.any(far & ~anchored(stepper, frame.vertex_xy, geom, contacts, disp, size)):
+        if np.count_nonzero(far) and \
+                np.count_nonzero(far & ~anchored(stepper, frame.vertex_xy, geom, contacts, disp, size)):
             return outcome, guess  # a block moves away from what holds it: `mechanisms` tells
         # the contacts' judgement: which close, open or change line, the normal return mapping's
         # openings and the shear springs' excess (`ddatai.return_update`, side by side in a batch)
@@ -354,7 +356,7 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
         loose, state_loose, excess, dslip, new_gap = u.loose, u.state_loose, u.excess, u.dslip, u.new_gap
         outcome.loose, outcome.excess = loose, excess
         flips += u.flipped
-        changed = bool(u.changed.any())
+        changed = bool(np.count_nonzero(u.changed))
         guess.closed, guess.line = u.closed, u.line
         if not changed and alpha == 1.0 and (excess <= state_loose).all():
             # within the looser tolerance: kept in case the strict one is not reached
@@ -398,7 +400,7 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
 def _opened(guess: Guess, law) -> Guess:
     """The guess with each vertex-edge contact that the normal return mapping opened (gap > 0) open, and the
     law's distances of those contacts measured from the contact again, in place."""
-    if law is not None and np.any(guess.gap > 0.0):
+    if law is not None and np.count_nonzero(guess.gap > 0.0):
         gapped = guess.gap > 0.0
         law.dn[gapped] += guess.gap[gapped]
         law.dn_now[gapped] += guess.gap[gapped]
@@ -437,7 +439,7 @@ def _shift_lock_points(stepper, vertex_xy: np.ndarray, contacts: Contacts, slip:
     place: ds = (P1 − P0)·t falls by l·Δω when the lock point P0 moves by Δω along the edge."""
     model = stepper.model
     shift = (contacts.cint[:, KIND] == VE) & (slip != 0.0)
-    if shift.any():
+    if np.count_nonzero(shift):
         edge = contacts.cint[shift, 2]
         length = np.hypot(*(vertex_xy[edge] - vertex_xy[model.vertex_next[edge]]).T)
         contacts.omega[shift] += slip[shift] / length

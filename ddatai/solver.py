@@ -287,7 +287,7 @@ class SparseSolver:
         if factor_symmetric != symmetric or not self._same(key, indptr, indices):
             return None
         b = np.ascontiguousarray(rhs, dtype=np.float64)
-        if not np.any(b):
+        if not np.count_nonzero(b):
             return np.zeros(n)
         if self._exact and self.backend != "dense" and len(self._factored_data) == len(data) and \
                 np.array_equal(self._factored_data, data):
@@ -326,7 +326,7 @@ class SparseSolver:
         from scipy.sparse import csr_matrix
 
         b = np.ascontiguousarray(rhs, dtype=np.float64)
-        if not np.any(b):
+        if not np.count_nonzero(b):
             return np.zeros(n)
         k = self._dense(data, indices, indptr, n) if self.backend == "dense" else \
             csr_matrix((data, indices, indptr), shape=(n, n))
