@@ -184,6 +184,10 @@ def contact_keys(cint: np.ndarray, n_vertices: int) -> np.ndarray:
     return np.where(ve, k + cint[:, E0], v * v + k + cint[:, V1])
 
 
+#: the fields of `Contacts` fixed during a step (its contacts' identity and geometry): never written in place
+GEOMETRY = frozenset({"cint", "length", "key", "block_a", "block_b", "joint"})
+
+
 @dataclass(kw_only=True, eq=False)
 class Contacts:
     """The contacts of one step: geometry (fixed during the step) and open-close state.
@@ -244,7 +248,10 @@ class Contacts:
         return len(self.key)
 
     def copy(self) -> "Contacts":
-        return Contacts(**{k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in vars(self).items()})
+        """A copy whose state can change apart; the geometry (``GEOMETRY``, fixed during the step and
+        written by no one) is shared: the batched evaluations know it again (`ddatai.stage_batch_index`)."""
+        return Contacts(**{k: (v.copy() if isinstance(v, np.ndarray) and k not in GEOMETRY else v)
+                           for k, v in vars(self).items()})
 
     @staticmethod
     @side_by_side.operation("contacts_start")
