@@ -166,7 +166,7 @@ def open_close(stepper, state: State, geom: dict, contacts: Contacts, pattern: B
         solution = solve(stepper, pattern, data, rhs, symmetric=symmetric, reuse=reuse_first and it == 1,
                          krylov=it > 1, springs=springs)
         t0 = timer.add("solve", t0)
-        if not np.isfinite(solution).all():
+        if np.count_nonzero(np.isfinite(solution)) < solution.size:
             return OpenClose(displacement=None, iterations=it, converged=False,
                              changing=np.zeros(contacts.n, bool))
         law = contact_law(model, contacts, vec, sca, solution, shift)

@@ -187,7 +187,7 @@ def contact_law_many(requests) -> list:
     out = []
     for k, (s, n) in enumerate(zip(at.tolist(), counts)):
         shear = closed[s:s + n] & ve[s:s + n]
-        energy = float(np.sum(normal_energy[s:s + n]) + np.sum(huber[s:s + n][shear]))
+        energy = float(np.add.reduce(normal_energy[s:s + n]) + np.add.reduce(huber[s:s + n][shear]))  # np.sum's
         out.append(ContactLaw(energy=energy, tan_phi=None, **{name: part[k] for name, part in parts.items()}))
     return out
 
