@@ -337,10 +337,11 @@ def judge(model: Model, contacts: Contacts, law: ContactLaw, bad: np.ndarray,
     # slide has failed in this step: it loses its cohesion and tensile strength now, and
     # the step is solved again without them (its strength is not carried through the step
     # in which it breaks)
-    breaks = break_bonds & contacts.bond & (law.state != LOCK) & bad & \
-        ((law.state == OPEN) | (p.bond_breaks_on_slip & (law.state == SLIDE)))
-    if np.count_nonzero(breaks):
-        contacts.bond[breaks] = False
+    if break_bonds:  # (none break in the equilibrium stage, whose joints are Mohr–Coulomb)
+        breaks = contacts.bond & (law.state != LOCK) & bad & \
+            ((law.state == OPEN) | (p.bond_breaks_on_slip & (law.state == SLIDE)))
+        if np.count_nonzero(breaks):
+            contacts.bond[breaks] = False
     changed = bool(np.count_nonzero(bad))
     if changed:
         # a sliding contact whose slip turns round passes through sticking: it locks
@@ -374,7 +375,7 @@ def judge(model: Model, contacts: Contacts, law: ContactLaw, bad: np.ndarray,
         return Judgement(changed=True, bad=bad)
     closed_ve = (contacts.state != OPEN) & ~vv
     return Judgement(changed=False, bad=bad,
-                     coulomb=float(np.max((np.abs(law.ft_now) - law.strength)[closed_ve], initial=0.0)),
+                     coulomb=float(np.maximum.reduce((np.abs(law.ft_now) - law.strength)[closed_ve], initial=0.0)),
                      friction=law.friction_now)
 
 
