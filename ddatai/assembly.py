@@ -220,7 +220,8 @@ def assemble_blocks(model: Model, state: State, geom: dict, pattern: BlockPatter
 @side_by_side.operation("assemble_contacts")
 def assemble_contacts(model: Model, contacts: Contacts, pattern: BlockPattern, vec: np.ndarray,
                       sca: np.ndarray, data: np.ndarray, rhs: np.ndarray, serial_scatter: bool) -> None:
-    """Add springs of closed contacts and friction loads of sliding ones, in place (§2.8)."""
+    """Add springs of closed contacts and friction loads of sliding ones, in place (§2.8).
+    ``data`` None (the NumPy path only): F's terms alone (`reassembly.ContactSystem`)."""
     if contacts.n == 0:
         return
     const, slope = friction_terms(model, contacts)
@@ -253,7 +254,7 @@ def second_order(model: Model, contacts: Contacts, state: State, geom: dict, rot
     """
     m = model
     shift = np.zeros((contacts.n, 3))
-    if not np.any(rotation):
+    if not np.count_nonzero(rotation):
         return shift
     xy, centroid, nxt, vb = state.vertex_xy, geom["centroid"], m.vertex_next, m.vertex_block
 
@@ -324,7 +325,7 @@ def point_terms_numpy(point_block, point_xy, point_force, stiffness, dof, centro
                       data, rhs) -> None:
     """`kernels.assemble_points` in NumPy: K += k·TᵀT, F += Tᵀf of every point on a free block."""
     on = dof[point_block] >= 0
-    if not on.any():
+    if not np.count_nonzero(on):
         return
     b = point_block[on]
     r = dof[b].astype(np.int64)
@@ -384,7 +385,8 @@ def contact_terms_numpy(cint, state, line, vblock, dof, vec, sca, friction_const
                         pattern: BlockPattern, penalty: float, shear_penalty: float, data, rhs) -> None:
     """`kernels.assemble_contacts` in NumPy: the normal spring of every closed contact (on its
     active line), the shear spring of a locked vertex-edge one, the friction of a sliding one
-    (with its non-symmetric term when the friction is coupled to this solve's normal force)."""
+    (with its non-symmetric term when the friction is coupled to this solve's normal force).
+    ``data`` None: F's terms alone, the same floats (its additions are F's own, apart from K's)."""
     closed = np.flatnonzero(state != OPEN)
     if not len(closed):
         return
@@ -397,21 +399,23 @@ def contact_terms_numpy(cint, state, line, vblock, dof, vec, sca, friction_const
     sji = np.where(q == 1, pattern.slot_ab[closed], pattern.slot_ba[closed])
     u, w = vec[closed, S_E0 + 2 * q], vec[closed, S_G0 + 2 * q]   # the active line's gradients
     d0 = sca[closed, q]
-    k = np.full(len(closed), penalty)
     scatter = _Scatter(pattern)
-    scatter.outer(ri, rj, sij, sji, k, u, w, u, w)
+    stiffness = data is not None
+    if stiffness:
+        scatter.outer(ri, rj, sij, sji, np.full(len(closed), penalty), u, w, u, w)
     scatter.force(ri, rj, (-penalty * d0)[:, None] * u, (-penalty * d0)[:, None] * w)
     ve = kinds == VE
     locked = ve & (state[closed] == LOCK)
     sliding = ve & (state[closed] == SLIDE)
-    if locked.any():
+    if np.count_nonzero(locked):
         c = closed[locked]
         es, gs = vec[c, S_ES], vec[c, S_GS]
-        scatter.outer(ri[locked], rj[locked], sij[locked], sji[locked], np.full(len(c), shear_penalty),
-                      es, gs, es, gs)
+        if stiffness:
+            scatter.outer(ri[locked], rj[locked], sij[locked], sji[locked], np.full(len(c), shear_penalty),
+                          es, gs, es, gs)
         f = (-shear_penalty * sca[c, 2])[:, None]
         scatter.force(ri[locked], rj[locked], f * es, f * gs)
-    if sliding.any():
+    if np.count_nonzero(sliding):
         c = closed[sliding]
         sgn = shear_dir[c].astype(np.float64)
         # internal force sgn·S(D)·∇ds with S = a − b·(dn0 + ∇dnᵀD)
@@ -419,7 +423,7 @@ def contact_terms_numpy(cint, state, line, vblock, dof, vec, sca, friction_const
         es, gs = vec[c, S_ES], vec[c, S_GS]
         scatter.force(ri[sliding], rj[sliding], -f * es, -f * gs)
         coupled = friction_slope[c] != 0.0
-        if coupled.any():
+        if stiffness and np.count_nonzero(coupled):
             cc = c[coupled]
             sel = np.flatnonzero(sliding)[coupled]
             scatter.outer(ri[sel], rj[sel], sij[sel], sji[sel], -sgn[coupled] * friction_slope[cc],

@@ -141,7 +141,7 @@ def _law_core(m: Model, contacts: Contacts, vec: np.ndarray, sca: np.ndarray, di
     dn_now = dn0.copy()   # normal distance of the line the contact's state uses
     dn = dn0.copy()       # of the line the law uses: the less penetrated one
     line = np.zeros(contacts.n, np.int8)
-    if vv.any():
+    if np.count_nonzero(vv):
         # line 1: vertex1 (of block b) against an edge of block a
         dn1 = sca[vv, 1] + shift[vv, 1] + np.einsum("ij,ij->i", vec[vv, S_E1], db[vv]) + \
             np.einsum("ij,ij->i", vec[vv, S_G1], da[vv])
@@ -190,7 +190,7 @@ def contact_law_numpy(model: Model, contacts: Contacts, vec: np.ndarray, sca: np
     dn, ds, line, closed, strength, dn_now, tan_phi, vv, ve, allowance = _law_core(m, contacts, vec, sca, disp,
                                                                                   shift)
     fields, normal_energy, huber = _law_terms(m, contacts, dn, ds, closed, strength, dn_now, vv, ve, allowance)
-    energy = float(np.sum(normal_energy) + np.sum(huber[closed & ve]))
+    energy = float(np.add.reduce(normal_energy) + np.add.reduce(huber[closed & ve]))  # np.sum's, without its wrapper
     return ContactLaw(dn=dn, ds=ds, line=line, closed=closed, strength=strength, dn_now=dn_now, energy=energy,
                       tan_phi=tan_phi if len(m.joint_barton) else None, **fields)
 
@@ -337,11 +337,12 @@ def judge(model: Model, contacts: Contacts, law: ContactLaw, bad: np.ndarray,
     # slide has failed in this step: it loses its cohesion and tensile strength now, and
     # the step is solved again without them (its strength is not carried through the step
     # in which it breaks)
-    breaks = break_bonds & contacts.bond & (law.state != LOCK) & bad & \
-        ((law.state == OPEN) | (p.bond_breaks_on_slip & (law.state == SLIDE)))
-    if breaks.any():
-        contacts.bond[breaks] = False
-    changed = bool(np.any(bad))
+    if break_bonds:  # (none break in the equilibrium stage, whose joints are Mohr–Coulomb)
+        breaks = contacts.bond & (law.state != LOCK) & bad & \
+            ((law.state == OPEN) | (p.bond_breaks_on_slip & (law.state == SLIDE)))
+        if np.count_nonzero(breaks):
+            contacts.bond[breaks] = False
+    changed = bool(np.count_nonzero(bad))
     if changed:
         # a sliding contact whose slip turns round passes through sticking: it locks
         # (Shi's rule) and slides the other way only if its spring then exceeds S. Newton's
@@ -374,7 +375,7 @@ def judge(model: Model, contacts: Contacts, law: ContactLaw, bad: np.ndarray,
         return Judgement(changed=True, bad=bad)
     closed_ve = (contacts.state != OPEN) & ~vv
     return Judgement(changed=False, bad=bad,
-                     coulomb=float(np.max((np.abs(law.ft_now) - law.strength)[closed_ve], initial=0.0)),
+                     coulomb=float(np.maximum.reduce((np.abs(law.ft_now) - law.strength)[closed_ve], initial=0.0)),
                      friction=law.friction_now)
 
 
@@ -420,7 +421,7 @@ def accumulate_slip(model: Model, contacts: Contacts, vec: np.ndarray, disp: np.
     §2.8.4) to every sliding vertex-edge contact on a softening joint (eq. BB7), in place."""
     c = contacts
     soft = (c.state == SLIDE) & (c.cint[:, KIND] != VV) & ~np.isnan(model.joint_barton[c.joint, 5])
-    if soft.any():
+    if np.count_nonzero(soft):
         k = np.flatnonzero(soft)
         step = np.einsum("ij,ij->i", vec[k, S_ES], disp[c.block_a[k]]) + \
             np.einsum("ij,ij->i", vec[k, S_GS], disp[c.block_b[k]])

@@ -184,6 +184,10 @@ def contact_keys(cint: np.ndarray, n_vertices: int) -> np.ndarray:
     return np.where(ve, k + cint[:, E0], v * v + k + cint[:, V1])
 
 
+#: the fields of `Contacts` fixed during a step (its contacts' identity and geometry): never written in place
+GEOMETRY = frozenset({"cint", "length", "key", "block_a", "block_b", "joint"})
+
+
 @dataclass(kw_only=True, eq=False)
 class Contacts:
     """The contacts of one step: geometry (fixed during the step) and open-close state.
@@ -244,7 +248,10 @@ class Contacts:
         return len(self.key)
 
     def copy(self) -> "Contacts":
-        return Contacts(**{k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in vars(self).items()})
+        """A copy whose state can change apart; the geometry (``GEOMETRY``, fixed during the step and
+        written by no one) is shared: the batched evaluations know it again (`ddatai.stage_batch_index`)."""
+        return Contacts(**{k: (v.copy() if isinstance(v, np.ndarray) and k not in GEOMETRY else v)
+                           for k, v in vars(self).items()})
 
     @staticmethod
     @side_by_side.operation("contacts_start")
@@ -289,7 +296,7 @@ class Contacts:
         # that of a line it does not use (a corner 0.75 mm past the other's edge is no 1e7 N/m)
         vv = ~ve
         dn1 = np.full(m, -np.inf)
-        if vv.any():
+        if np.count_nonzero(vv):
             dn1[vv] = signed_distance(vertex_xy, model.vertex_next, cint[vv, V1], cint[vv, E1])
         line[vv] = dn1[vv] > dn0[vv]
         normal_force = model.penalty * np.maximum(-np.where(line == 1, dn1, dn0), 0.0)
@@ -318,7 +325,7 @@ class Contacts:
             locked[found] = memory.state[src] == LOCK
             omega[locked] = memory.omega[pos[locked]]
             sliding = found & (state == SLIDE) & ve
-            if sliding.any():
+            if np.count_nonzero(sliding):
                 # A sliding contact carries the friction force S opposite to its sliding
                 # direction. Its lock point is placed S/ks behind the vertex, so that if it
                 # locks again its shear spring starts from that same force: no force jump at the
@@ -357,7 +364,7 @@ class Contacts:
                              omega=self.omega.copy(), bond=self.bond & locked,
                              shear_dir=self.shear_dir.copy(), dn=self.dn.copy(),
                              normal_force=self.normal_force.copy(), kind=self.cint[:, KIND].astype(np.int8),
-                             slip=self.slip.copy() if self.slip.any() else np.zeros(0))
+                             slip=self.slip.copy() if np.count_nonzero(self.slip) else np.zeros(0))
 
 
 def barton_tan(model: Model, joint: np.ndarray, normal_force: np.ndarray, length: np.ndarray,
@@ -369,7 +376,7 @@ def barton_tan(model: Model, joint: np.ndarray, normal_force: np.ndarray, length
     is that mobilised after the contact's ``slip`` (eq. BB7)."""
     jrc, jcs, phir, cap, red, peak = model.joint_barton[joint].T
     soft = ~np.isnan(peak)
-    if slip is not None and soft.any():
+    if slip is not None and np.count_nonzero(soft):
         from .params import jrc_mobilised
 
         jrc = jrc.copy()

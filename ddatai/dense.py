@@ -11,6 +11,7 @@ as those functions do for a float64 matrix, so the floats are theirs; the errors
 from __future__ import annotations
 
 import numpy as np
+from scipy.linalg.lapack import dgetrf, dgetrs, dpotrf, dpotrs  # this module loads on a first solve
 
 
 class Cholesky:
@@ -18,8 +19,6 @@ class Cholesky:
     default); ``numpy.linalg.LinAlgError`` where K is not positive definite."""
 
     def __init__(self, k: np.ndarray):
-        from scipy.linalg.lapack import dpotrf
-
         self.factor, info = dpotrf(k, lower=False, clean=False, overwrite_a=False)
         if info > 0:
             raise np.linalg.LinAlgError(f"{info}-th leading minor of the array is not positive definite")
@@ -27,8 +26,6 @@ class Cholesky:
             raise ValueError(f'LAPACK reported an illegal value in {-info}-th argument on entry to "POTRF".')
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
-        from scipy.linalg.lapack import dpotrs
-
         x, info = dpotrs(self.factor, rhs, lower=False, overwrite_b=False)
         if info != 0:
             raise ValueError(f"illegal value in {-info}th argument of internal potrs")
@@ -40,16 +37,12 @@ class LU:
     diagonal (where ``lu_factor`` warns)."""
 
     def __init__(self, k: np.ndarray):
-        from scipy.linalg.lapack import dgetrf
-
         self.lu, self.piv, info = dgetrf(k, overwrite_a=False)
         if info < 0:
             raise ValueError(f"illegal value in {-info}th argument of internal getrf (lu_factor)")
         self.singular = info > 0
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
-        from scipy.linalg.lapack import dgetrs
-
         x, info = dgetrs(self.lu, self.piv, rhs, trans=0, overwrite_b=False)
         if info != 0:
             raise ValueError(f"illegal value in {-info}th argument of internal gesv|posv")

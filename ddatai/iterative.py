@@ -135,13 +135,13 @@ def _refinement(k, b: np.ndarray, x: np.ndarray, solve, target: float, passes: i
     as a pass reduces the residual by less than that factor: done (the better of the last two
     x) if both residuals are below `REUSE_FLOOR` — the residual's own round-off —, not done
     otherwise."""
-    scale = max(float(np.abs(b).max()), 1e-300)
+    scale = max(float(np.maximum.reduce(np.abs(b))), 1e-300)
     best, last = x, 1.0
     for done in range(passes + 1):
-        if not np.all(np.isfinite(x)):
+        if np.count_nonzero(np.isfinite(x)) < x.size:
             return best, last, False
         r = b - k @ x
-        residual = float(np.abs(r).max()) / scale
+        residual = float(np.maximum.reduce(np.abs(r))) / scale
         if residual <= target:
             return x, residual, True
         if rate is not None and residual > rate * last:
@@ -170,7 +170,7 @@ def refine_to_roundoff(k, b: np.ndarray, x: np.ndarray, solve, passes: int = REU
     abs_k, abs_b = abs(k), np.abs(b)
     last = np.inf
     for done in range(passes + 1):
-        if not np.all(np.isfinite(x)):
+        if not np.isfinite(x).all():
             return x, np.inf, False
         r = b - k @ x
         residual = float(np.abs(r).max())

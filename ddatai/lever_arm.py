@@ -94,7 +94,7 @@ def lever_shift(contacts: Contacts, columns: np.ndarray, rotation: np.ndarray) -
 def with_lever_arms(vec: np.ndarray, columns: np.ndarray) -> np.ndarray:
     """The contact vectors ``vec`` (m, N_SLOTS, 6) with ``columns`` added to their rotation
     column (a copy; ``vec`` itself where nothing changes)."""
-    if not columns.any():
+    if not np.count_nonzero(columns):
         return vec
     out = vec.copy()
     out[:, :, 2] += columns

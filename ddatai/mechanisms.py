@@ -55,9 +55,9 @@ def mechanisms(stepper, vertex_xy: np.ndarray, geom: dict, contacts: Contacts, d
     free = ~model.block_fixed
     moved = block_displacement(stepper.model, vertex_xy, geom, disp)
     far = free & ~out & (moved > MECHANISM_SIZE * size)
-    mechanism = far & ~anchored(stepper, vertex_xy, geom, contacts, disp, size) if far.any() else far
+    mechanism = far & ~anchored(stepper, vertex_xy, geom, contacts, disp, size) if np.count_nonzero(far) else far
     deep = (contacts.state != OPEN) & (-contacts.dn > model.penetration_limit)
-    if deep.any():
+    if np.count_nonzero(deep):
         sunk = np.zeros(model.n_blocks, bool)
         sunk[contacts.block_a[deep]] = True
         sunk[contacts.block_b[deep]] = True
@@ -116,7 +116,7 @@ def driven(stepper, state: State, geom: dict, contacts: Contacts, disp: np.ndarr
     against its loads (its contacts at their strength all sliding, where some of them would
     stick) is held."""
     model = stepper.model
-    if not moving.any():
+    if not np.count_nonzero(moving):
         return moving
     link = (contacts.state != OPEN) & moving[contacts.block_a] & moving[contacts.block_b]
     n = model.n_blocks
@@ -205,14 +205,14 @@ def sunk_into_released(stepper, state: State, released: np.ndarray, fraction: fl
     support the stage had taken away: they are released too (`ddatai.start`)."""
     model = stepper.model
     out = np.zeros(model.n_blocks, bool)
-    if not released.any():
+    if not np.count_nonzero(released):
         return out
     held = ~model.block_fixed & ~released
     cint, length = stepper.detect(state.vertex_xy)
     contacts = Contacts.start(model, state.vertex_xy, cint, length, ContactMemory.empty(), True)
     a, b = contacts.block_a, contacts.block_b
     mixed = (held[a] & released[b]) | (released[a] & held[b])
-    if not mixed.any():
+    if not np.count_nonzero(mixed):
         return out
     geom = model.block_geometry(state.vertex_xy)
     _, sca = contact_vectors(model, state.vertex_xy, geom, contacts)
@@ -284,7 +284,7 @@ def screen_programs(stepper, state: State):
     model = stepper.model
     none = np.zeros(model.n_blocks, bool)
     free = ~model.block_fixed
-    if not applicable(model) or not free.any() or np.count_nonzero(free) > SCREEN_BLOCKS:
+    if not applicable(model) or not np.count_nonzero(free) or np.count_nonzero(free) > SCREEN_BLOCKS:
         return none
     geom = state.geometry if state.geometry is not None else model.block_geometry(state.vertex_xy)
     cint, length = stepper.detect(state.vertex_xy)

@@ -153,7 +153,7 @@ def open_close(stepper, state: State, geom: dict, contacts: Contacts, pattern: B
         block_rhs = rhs.copy()
         assemble_contacts(model, contacts, pattern, vec, sca + shift, data, rhs, stepper.serial_scatter)
         t0 = timer.add("assembly", t0)
-        symmetric = not bool(np.any(contacts.coupled & (contacts.state == SLIDE) & (contacts.tan_phi > 0)))
+        symmetric = not np.count_nonzero(contacts.coupled & (contacts.state == SLIDE) & (contacts.tan_phi > 0))
         # the first solve has the states the last one ended with: K has moved only with
         # the blocks, and the last factor may still solve it (`ddatai.solver`, reuse)
         # the later solves differ from the last factor by the contacts that changed state
@@ -166,13 +166,13 @@ def open_close(stepper, state: State, geom: dict, contacts: Contacts, pattern: B
         solution = solve(stepper, pattern, data, rhs, symmetric=symmetric, reuse=reuse_first and it == 1,
                          krylov=it > 1, springs=springs)
         t0 = timer.add("solve", t0)
-        if not np.all(np.isfinite(solution)):
+        if np.count_nonzero(np.isfinite(solution)) < solution.size:
             return OpenClose(displacement=None, iterations=it, converged=False,
                              changing=np.zeros(contacts.n, bool))
         law = contact_law(model, contacts, vec, sca, solution, shift)
         bad = hold_closed(contacts, law, violations(model, contacts, law, stepper.block_load), held)
         disp = solution
-        if previous is not None and bad.any():
+        if previous is not None and np.count_nonzero(bad):
             if block_k is None:
                 block_k = csr_matrix((data0, pattern.indices, pattern.indptr), shape=(n, n))
             damped, damped_law = line_search(stepper, contacts, vec, sca, shift, previous, solution, law,
@@ -183,7 +183,7 @@ def open_close(stepper, state: State, geom: dict, contacts: Contacts, pattern: B
             if damped is not solution:
                 damped_bad = hold_closed(contacts, damped_law,
                                          violations(model, contacts, damped_law, stepper.block_load), held)
-                if damped_bad.any():
+                if np.count_nonzero(damped_bad):
                     disp, law, bad = damped, damped_law, damped_bad
         rotation = disp[:, 2].copy()
         verdict = judge(model, contacts, law, bad, break_bonds, couple=not lagged)
@@ -251,7 +251,7 @@ def hold_cycling(contacts: Contacts, seen: dict, history: list, held: np.ndarray
         return
     loop = np.array(history[seen[key]:])
     cycling = np.any(loop != loop[0], axis=0) & ~held
-    if not cycling.any():
+    if not np.count_nonzero(cycling):
         return
     contacts.state[cycling & (contacts.state == OPEN)] = LOCK
     held |= cycling
@@ -264,9 +264,11 @@ def uncouple_pulling(contacts: Contacts, law: ContactLaw, held: np.ndarray) -> b
     from the last solve's normal force (`Contacts.coupled` off: N = 0, friction c·L), not from
     the same solve's, which is the tension and gives a friction against Coulomb's law. In
     place; returns whether any changed."""
+    if not np.count_nonzero(held):
+        return False  # none held (the usual case): none to uncouple
     pulling = held & contacts.coupled & (contacts.state == SLIDE) & (law.fn_now < 0)
     contacts.coupled[pulling] = False
-    return bool(pulling.any())
+    return bool(np.count_nonzero(pulling))
 
 
 def hold_closed(contacts: Contacts, law: ContactLaw, bad: np.ndarray, held: np.ndarray) -> np.ndarray:
@@ -276,7 +278,7 @@ def hold_closed(contacts: Contacts, law: ContactLaw, bad: np.ndarray, held: np.n
     it), in place on ``law``; a held contact changes only from locked to sliding. A held
     contact that pulls takes its friction from the last solve's normal force (zero, not the
     tension: `uncouple_pulling`)."""
-    if not held.any():
+    if not np.count_nonzero(held):
         return bad
     pull = held & (law.state == OPEN)
     law.state[pull] = SLIDE

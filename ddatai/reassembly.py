@@ -62,7 +62,7 @@ def contact_rhs(model, contacts: Contacts, vec: np.ndarray, sca: np.ndarray, rhs
     coefficient[:, 0] = (-model.penalty) * np.where(line1, near[:, 1], near[:, 0])
     coefficient[:, 1] = coefficient[:, 0]
     coefficient[:, 2] = np.where(ve & (state == LOCK), (-model.shear_penalty) * near[:, 2], 0.0)
-    if sliding.any():
+    if np.count_nonzero(sliding):
         const, slope = friction_terms(model, contacts)
         c = closed[sliding]
         coefficient[sliding, 2] = -(contacts.shear_dir[c].astype(np.float64) * (const[c] - slope[c] * sca[c, 0]))
@@ -102,11 +102,11 @@ class ContactSystem:
         self.scratch = self.scratch_rhs = None  # what `_rows_again` assembles into
 
     @staticmethod
-    def _key(contacts: Contacts) -> tuple:
+    def _key(contacts: Contacts, copy: bool = True) -> tuple:
         """What a contact's terms in K depend on besides its vectors: its state and line, and for
         friction coupled to the solve's normal force its direction and tanφ."""
-        return (contacts.state.copy(), contacts.line.copy(), contacts.coupled.copy(),
-                contacts.shear_dir.copy(), contacts.tan_phi.copy())
+        fields = (contacts.state, contacts.line, contacts.coupled, contacts.shear_dir, contacts.tan_phi)
+        return tuple(a.copy() for a in fields) if copy else fields
 
     def system(self, contacts: Contacts, sca: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(K's CSR data, F) with the contacts' terms for their states and ``sca``."""
@@ -120,7 +120,7 @@ class ContactSystem:
         changed = np.zeros(contacts.n, bool)
         for old, new in zip(self.key, self._key(contacts)):
             changed |= old != new
-        if changed.any():
+        if np.count_nonzero(changed):
             touched = self._blocks(contacts, changed)
             if np.count_nonzero(touched) > FULL_ABOVE * self.pattern.n_rows:
                 return self._assemble_all(contacts, sca)
@@ -136,9 +136,18 @@ class ContactSystem:
         return self.data, rhs
 
     def _assemble_all(self, contacts: Contacts, sca: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        if self.model.numpy_path:
+            # K again only where what it depends on changed: else the last K, F's terms alone
+            # (`assembly.contact_terms_numpy`, the same floats), as `system` does on the kernels
+            key = b"".join(a.tobytes() for a in self._key(contacts, copy=False))
+            if self.data is not None and key == self.key:
+                rhs = self.block_rhs.copy()
+                assemble_contacts(self.model, contacts, self.pattern, self.vec, sca, None, rhs, self.serial_scatter)
+                self.kept += 1
+                return self.data, rhs
         data, rhs = self.block_data.copy(), self.block_rhs.copy()
         assemble_contacts(self.model, contacts, self.pattern, self.vec, sca, data, rhs, self.serial_scatter)
-        self.data, self.key = data, self._key(contacts)
+        self.data, self.key = data, key if self.model.numpy_path else self._key(contacts)
         self.full += 1
         return data, rhs
 

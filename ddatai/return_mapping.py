@@ -162,7 +162,8 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
             frame = Frame.build(stepper, state, geom, contacts, dt, None if frame is None else frame.pattern)
         # Newton (``_finish``) once a pseudo-step from where the states settle, before anything is released
         later = np.isfinite(contraction) and stepper.model.n_free <= SMALL_MODEL_BLOCKS  # a small model's later one
-        tail = (NEWTON_LATER if later else NEWTON_AFTER) if newton and not freeze and not np.any(out & ~released) else None
+        tail = (NEWTON_LATER if later else NEWTON_AFTER) \
+            if newton and not freeze and not np.count_nonzero(out & ~released) else None
         outcome, raw = _iterate(stepper, frame, contacts, geom, out, size, guess, freeze, tail=tail)
         solves += outcome.solves
         if outcome.disp is None:
@@ -171,24 +172,24 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
         contacts.state[:] = np.where(guess.closed, contacts.state, OPEN)
         contacts.dn[:] = outcome.law.dn_now
         mechanism = mechanisms(stepper, state.vertex_xy, geom, contacts, outcome.disp, out, size)
-        thrown = mechanism.any()  # thrown by the iterate (not by limit equilibrium or the test)
+        thrown = bool(np.count_nonzero(mechanism))  # thrown by the iterate (not by limit equilibrium or the test)
         if outcome.steady:  # cut short for Newton: where it does not finish, the return mapping goes on
             newton = False
-            if not mechanism.any():
+            if not np.count_nonzero(mechanism):
                 done, n = _finish(stepper, state, geom, frame, contacts, outcome, guess, out, size)
                 solves += n
                 if done is not None:
                     return done[0], solves, out & ~released, done[1], False, False, False
             guess = raw
             continue
-        if not mechanism.any() and not outcome.converged:
+        if not np.count_nonzero(mechanism) and not outcome.converged:
             # out of balance: blocks with no admissible forces go (`limit_equilibrium`; None: n/a); asked
             # again only once ``out`` grew (what it reads, the contacts' geometry and strengths, is the same till then)
             if asked is None or not np.array_equal(asked[0], out):
                 asked = out.copy(), unsupported_blocks(stepper.model, state.vertex_xy, geom,
                                                        Contacts(**{**vars(contacts), "line": line0}), touching, out)
             unsupported = asked[1]
-            if unsupported is not None and np.any(unsupported & ~out):
+            if unsupported is not None and np.count_nonzero(unsupported & ~out):
                 # released; the rest goes on with its contacts' chatter suppressed (`_iterate`)
                 mechanism, freeze = unsupported & ~out, True
             elif not freeze:
@@ -203,7 +204,7 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
                 mechanism, n, doubtful = loaded_away(stepper, state, geom, frame, contacts, outcome, guess, out,
                                                      size, converged_only=unsupported is not None)
                 solves += n
-                if doubt is not None and unsupported is not None and mechanism.any():
+                if doubt is not None and unsupported is not None and np.count_nonzero(mechanism):
                     # neither a converged test nor an unconverged one proves these blocks moved
                     # or held (the static problem of non-associated friction has many
                     # solutions): a slow turn-on of the weight settles it (`ddatai.turn_on`)
@@ -211,17 +212,17 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
                     mechanism = np.zeros_like(mechanism)
                     stalled = True
                 else:
-                    stalled = unsupported is not None and not mechanism.any()
+                    stalled = unsupported is not None and not np.count_nonzero(mechanism)
                     if doubtful and in_doubt is not None:
                         in_doubt |= mechanism
-        if not mechanism.any() and (outcome.converged or stalled):
+        if not np.count_nonzero(mechanism) and (outcome.converged or stalled):
             break
         # no equilibrium, or blocks to release: where the held ones do not contract, the
         # pseudo-step ends, releasing nothing (`mechanisms.contracting`)
         diverging = not contracting(stepper, state.vertex_xy, geom, outcome.disp, out | mechanism, contraction)
-        if diverging or not mechanism.any():
+        if diverging or not np.count_nonzero(mechanism):
             return None, solves, out & ~released, contacts, False, diverging, False
-        if thrown and not np.isfinite(contraction) and not np.any(out & ~released) and \
+        if thrown and not np.isfinite(contraction) and not np.count_nonzero(out & ~released) and \
                 out_of_range(stepper, contacts, outcome.disp, out, mechanism, size):
             # the first pseudo-step threw blocks from an iterate outside DDA's range: releasing them
             # cascades through the model (docs/method/dda.md §8.12); the stage starts welded
@@ -234,7 +235,7 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
     at_strength = guess.closed & ve & \
         (stepper.model.shear_penalty * np.abs(law.ds) >= law.strength * (1.0 - 1e-9))
     bonded = contacts.bond & ((contacts.cohesion > 0.0) | (contacts.tensile > 0.0))
-    if not outcome.strict or np.any(at_strength & bonded):
+    if not outcome.strict or np.count_nonzero(at_strength & bonded):
         # within the looser tolerance only (a wedge that must slide by millimetres until bolts
         # or a wedging joint take its load: each iterate slides it by its excess over the stiff
         # shear spring), or a bonded contact at its strength, which the run's first step would
@@ -260,7 +261,7 @@ def _finish(stepper, state: State, geom: dict, frame: Frame, contacts: Contacts,
     finished, n = test_unbalanced(stepper, state, geom, frame, contacts, outcome, guess,
                                   ~stepper.model.block_fixed, MAX_FINISH_SOLVES)
     if finished is None or not finished[2] or \
-            mechanisms(stepper, state.vertex_xy, geom, finished[1], finished[0], out, size).any():
+            np.count_nonzero(mechanisms(stepper, state.vertex_xy, geom, finished[1], finished[0], out, size)):
         return None, n
     disp, done, _ = finished
     _shift_lock_points(stepper, state.vertex_xy, done, guess.slip)
@@ -311,13 +312,16 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
     system = ContactSystem(model, frame.pattern, frame.vec, frame.data, frame.rhs, stepper.serial_scatter)
     history: list = []
     flips = np.zeros(contacts.n, np.int64)  # how often each contact opened or closed
+    closed_state = np.where(shearing, LOCK, SLIDE)  # a closed contact's state in K
+    movable, far_at = free & ~out, MECHANISM_SIZE * size
+    force_tolerance = min(p.oc_force_tolerance, STAGE_FORCE_TOLERANCE)
     changed = True  # the closed contacts changed: K is factorised
     best, best_at = np.inf, 0
     outcome = Outcome()
     accepted = None  # the last iterate within ``Params.oc_state_tolerance``
     steady = 0
     for it in range(1, MAX_ITERATIONS + 1):
-        contacts.state[:] = np.where(guess.closed, np.where(shearing, LOCK, SLIDE), OPEN)
+        contacts.state[:] = np.where(guess.closed, closed_state, OPEN)
         contacts.line[:] = guess.line
         contacts.coupled[:] = False
         sca = frame.sca.copy()
@@ -330,7 +334,7 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
         springs = Springs.of(model, contacts, frame.vec, rows) if rows is not None else None
         target = solve(stepper, frame.pattern, data, rhs, reuse=not changed, springs=springs)
         outcome.solves += 1
-        if not np.all(np.isfinite(target)):
+        if np.count_nonzero(np.isfinite(target)) < target.size:
             outcome.disp = None
             return outcome, guess
         # where contacts opened or closed, the step stops where the energy stops falling (slips
@@ -341,32 +345,33 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
         law = stage_law(stepper.model, contacts, frame.vec, sca, disp)  # coupled: this solve's N
         outcome.disp, outcome.law = disp, law
         moved = block_displacement(stepper.model, frame.vertex_xy, geom, disp)
-        far = free & ~out & (moved > MECHANISM_SIZE * size)
-        if far.any() and np.any(far & ~anchored(stepper, frame.vertex_xy, geom, contacts, disp, size)):
+        far = movable & (moved > far_at)
+        if np.count_nonzero(far) and \
+                np.count_nonzero(far & ~anchored(stepper, frame.vertex_xy, geom, contacts, disp, size)):
             return outcome, guess  # a block moves away from what holds it: `mechanisms` tells
         # the contacts' judgement: which close, open or change line, the normal return mapping's
         # openings and the shear springs' excess (`ddatai.return_update`, side by side in a batch)
         u = iterate_update(model, contacts, law, guess, flips, freeze, shearing, weight, tensile,
-                           min(p.oc_force_tolerance, STAGE_FORCE_TOLERANCE), CHATTER_FLIPS)
+                           force_tolerance, CHATTER_FLIPS)
         loose, state_loose, excess, dslip, new_gap = u.loose, u.state_loose, u.excess, u.dslip, u.new_gap
         outcome.loose, outcome.excess = loose, excess
         flips += u.flipped
-        changed = bool(np.any(u.changed))
+        changed = bool(np.count_nonzero(u.changed))
         guess.closed, guess.line = u.closed, u.line
-        if not changed and alpha == 1.0 and np.all(excess <= state_loose):
+        if not changed and alpha == 1.0 and (excess <= state_loose).all():
             # within the looser tolerance: kept in case the strict one is not reached
             accepted = (replace(outcome, disp=disp.copy(), converged=True),
                         Guess(closed=guess.closed.copy(), line=guess.line.copy(), slip=guess.slip + dslip,
                               gap=guess.gap.copy()),
                         dslip)
-            if np.all(excess <= loose):
+            if (excess <= loose).all():
                 # the last correction brings each spring to at most its strength; the forces it
                 # moves are within the tolerance
                 guess.slip = guess.slip + dslip
                 law.ds[:] = law.ds - dslip
                 outcome.converged = outcome.strict = True
                 return outcome, guess
-        unbalance = float(np.max(np.maximum(excess, 0.0) / loose, initial=0.0))
+        unbalance = float((np.maximum(excess, 0.0) / loose).max(initial=0.0))
         states_moved = changed or alpha < 1.0  # states changed, or the line search stopped short
         steady = 0 if states_moved else steady + 1
         if tail is not None and steady >= tail and it > 1:
@@ -395,7 +400,7 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
 def _opened(guess: Guess, law) -> Guess:
     """The guess with each vertex-edge contact that the normal return mapping opened (gap > 0) open, and the
     law's distances of those contacts measured from the contact again, in place."""
-    if law is not None and np.any(guess.gap > 0.0):
+    if law is not None and np.count_nonzero(guess.gap > 0.0):
         gapped = guess.gap > 0.0
         law.dn[gapped] += guess.gap[gapped]
         law.dn_now[gapped] += guess.gap[gapped]
@@ -434,7 +439,7 @@ def _shift_lock_points(stepper, vertex_xy: np.ndarray, contacts: Contacts, slip:
     place: ds = (P1 − P0)·t falls by l·Δω when the lock point P0 moves by Δω along the edge."""
     model = stepper.model
     shift = (contacts.cint[:, KIND] == VE) & (slip != 0.0)
-    if shift.any():
+    if np.count_nonzero(shift):
         edge = contacts.cint[shift, 2]
         length = np.hypot(*(vertex_xy[edge] - vertex_xy[model.vertex_next[edge]]).T)
         contacts.omega[shift] += slip[shift] / length

@@ -49,7 +49,7 @@ def line_search(stepper, frame, contacts: Contacts, sca: np.ndarray, disp: np.nd
     r0, r1, rs = _measures(frame.vec, None, contacts, step)
     allowance = np.where(contacts.bond, contacts.tensile * contacts.length / model.penalty, 0.0)
 
-    def slope(a: float) -> float:
+    def slope_vv(a: float) -> float:
         n0, n1 = dn0 + a * r0, dn1 + a * r1
         one = n1 > n0
         dn = np.where(one, n1, n0)
@@ -58,6 +58,14 @@ def line_search(stepper, frame, contacts: Contacts, sca: np.ndarray, disp: np.nd
         shear = np.where(closed & shearing, model.shear_penalty * (ds + a * rs), 0.0)
         return curvature * a + slope0 + float(normal @ np.where(one, r1, r0)) + float(shear @ rs)
 
+    def slope_ve(a: float) -> float:  # the same where every contact is vertex-edge (line 1 −∞, rate 0)
+        dn = dn0 + a * r0
+        closed = dn <= allowance
+        normal = np.where(closed, model.penalty * dn, 0.0)
+        shear = np.where(closed & shearing, model.shear_penalty * (ds + a * rs), 0.0)
+        return curvature * a + slope0 + float(normal @ r0) + float(shear @ rs)
+
+    slope = slope_vv if np.count_nonzero(contacts.cint[:, KIND] == VV) else slope_ve
     if slope(1.0) <= 0.0:
         return 1.0
     lo, hi = 0.0, 1.0
@@ -73,12 +81,12 @@ def line_search(stepper, frame, contacts: Contacts, sca: np.ndarray, disp: np.nd
 def anderson(history: list, x: np.ndarray, g: np.ndarray) -> np.ndarray:
     """Anderson acceleration (depth ANDERSON_DEPTH) of the fixed point x = g(x) of the slips:
     the combination of the last iterates whose residuals g − x cancel best (least squares)."""
-    history.append((x, g))
+    history.append((g - x, g))  # each iterate's residual, made once
     if len(history) > ANDERSON_DEPTH + 1:
         history.pop(0)
     if len(history) < 2:
         return g
-    f = np.array([gi - xi for xi, gi in history])
+    f = np.array([fi for fi, _ in history])
     gs = np.array([gi for _, gi in history])
     df, dg = (f[1:] - f[:-1]).T, (gs[1:] - gs[:-1]).T
     gamma = np.linalg.lstsq(df, f[-1], rcond=None)[0]

@@ -26,6 +26,7 @@ count the time of the members beside it too.
 from __future__ import annotations
 
 from collections import Counter
+from itertools import accumulate
 from typing import Callable
 
 import numpy as np
@@ -99,9 +100,11 @@ def operation(name: str) -> Callable:
     return wrap
 
 
-def bound(args, kwargs, names) -> list:
+def bound(args, kwargs, names) -> list | tuple:
     """A request's arguments in the order of ``names``, the parameters of the operation's plain
     function (None where left out): how a ``group`` or ``batched`` reads a member's call."""
+    if not kwargs and len(args) == len(names):
+        return args  # every argument given by position (read only)
     out = list(args) + [None] * (len(names) - len(args))
     for k, v in kwargs.items():
         out[names.index(k)] = v
@@ -110,9 +113,8 @@ def bound(args, kwargs, names) -> list:
 
 def offsets(sizes) -> np.ndarray:
     """Where each member's entries start in the concatenation of its arrays of ``sizes``."""
-    out = np.zeros(len(sizes), np.int64)
-    np.cumsum(np.asarray(sizes, np.int64)[:-1], out=out[1:])
-    return out
+    sizes = sizes.tolist() if isinstance(sizes, np.ndarray) else list(sizes)
+    return np.array([0, *accumulate(sizes[:-1])], np.int64) if sizes else np.zeros(0, np.int64)
 
 
 def register(name: str, group: Callable, batched: Callable) -> None:
@@ -164,6 +166,8 @@ def run(calls) -> list:
         return [c() for c in calls]
     results: list = [None] * len(calls)
     errors: dict = {}
+    # the members waiting, by operation and group, in the order they came to wait (a group
+    # goes when it is evaluated, and comes again with the first member that waits in it)
     waiting: dict = {}
     members = [_Member(c) for c in calls]
 
@@ -177,7 +181,11 @@ def run(calls) -> list:
             errors[k] = err
             return
         if isinstance(out, _Request) and not members[k].dead:
-            waiting[k] = out
+            at = waiting.get((out.name, out.group))
+            if at is None:
+                waiting[out.name, out.group] = [(k, out)]
+            else:
+                at.append((k, out))
         else:
             results[k] = out
 
@@ -186,13 +194,10 @@ def run(calls) -> list:
         for k in range(len(calls)):
             advance(k, _START)
         while waiting:
-            groups: dict = {}
-            for k, req in waiting.items():
-                groups.setdefault((req.name, req.group), []).append(k)
-            (name, _), ks = max(groups.items(), key=lambda item: len(item[1]))
-            requests = [waiting.pop(k) for k in ks]
-            outs = _evaluate(name, [(r.args, r.kwargs) for r in requests])
-            for k, out in zip(ks, outs):
+            key = max(waiting, key=lambda g: len(waiting[g]))  # the largest group, the first such
+            group = waiting.pop(key)
+            outs = _evaluate(key[0], [(r.args, r.kwargs) for _, r in group])
+            for (k, _), out in zip(group, outs):
                 advance(k, out)
     finally:
         ACTIVE -= 1

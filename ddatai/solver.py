@@ -60,6 +60,7 @@ solutions to the bit (``benchmarks/memory_phases.py``, docs/guide/performance.md
 
 from __future__ import annotations
 
+from contextlib import nullcontext
 from typing import Optional
 
 import numpy as np
@@ -110,6 +111,7 @@ def resolve(name: str, unknowns: Optional[int] = None) -> str:
 
 from .pardiso import (PardisoError, _locate_mkl, _Pardiso, _upper_triangle,  # noqa: F401 (PardisoError: public)
                       symmetric_pattern)
+from .threads import limited, one_blas_thread
 from .iterative import (KRYLOV_ACCEPT, KRYLOV_BLOCKS, KRYLOV_ITERATIONS, REFINE_ABOVE, REFINE_PASSES,
                         REUSE_PASSES, REUSE_RATE, REUSE_RESIDUAL, _refinement, changed_blocks, gmres,
                         refine_to_roundoff)
@@ -285,7 +287,7 @@ class SparseSolver:
         if factor_symmetric != symmetric or not self._same(key, indptr, indices):
             return None
         b = np.ascontiguousarray(rhs, dtype=np.float64)
-        if not np.any(b):
+        if not np.count_nonzero(b):
             return np.zeros(n)
         if self._exact and self.backend != "dense" and len(self._factored_data) == len(data) and \
                 np.array_equal(self._factored_data, data):
@@ -324,7 +326,7 @@ class SparseSolver:
         from scipy.sparse import csr_matrix
 
         b = np.ascontiguousarray(rhs, dtype=np.float64)
-        if not np.any(b):
+        if not np.count_nonzero(b):
             return np.zeros(n)
         k = self._dense(data, indices, indptr, n) if self.backend == "dense" else \
             csr_matrix((data, indices, indptr), shape=(n, n))
@@ -348,10 +350,8 @@ class SparseSolver:
 
     def _solve_dense(self, data, indices, indptr, rhs, n, symmetric) -> np.ndarray:
         """LAPACK on the dense K: Cholesky when K is symmetric (LU if it turns out not positive
-        definite), LU with partial pivoting otherwise; BLAS on one thread (`ddatai.threads`)."""
-        from .threads import one_blas_thread
-
-        with one_blas_thread():
+        definite), LU with partial pivoting otherwise; BLAS on one thread (`ddatai.threads`, once)."""
+        with nullcontext() if limited() else one_blas_thread():
             return self._solve_dense_one_thread(data, indices, indptr, rhs, n, symmetric)
 
     def _solve_dense_one_thread(self, data, indices, indptr, rhs, n, symmetric) -> np.ndarray:

@@ -42,6 +42,7 @@ from .contact_law import ContactLaw, StageLaw, _law_core, _law_terms, friction_t
 from .kinematics import vertex_displacement
 from .stage_batch_contacts import contacts_start_many, start_group
 from .stage_batch_detect import narrow_group, narrow_phase_many
+from .stage_batch_index import contact_index, frozen, kept
 from .stage_batch_finish import (iterate_update_group, iterate_update_many, lever_arms_group, lever_arms_many,
                                  second_order_group, second_order_many, violations_group, violations_many)
 from .stage_batch_frame import block_terms_group, block_terms_many, settle_group, settle_points_many
@@ -67,18 +68,13 @@ _STAGE_LAW_FIELDS = ("line", "bond", "tensile", "length", "tan_phi", "cohesion")
 _LAW_FIELDS = _STAGE_LAW_FIELDS + ("coupled", "normal_force", "state", "shear_dir")
 
 
-def _contacts(models, contacts, counts, fields, blocks: bool):
+def _contacts(models, contacts, fields, blocks: bool):
     """The members' contacts concatenated (``fields``, ``cint`` with its vertices moved by the
-    members' before them, and with ``blocks`` their blocks so moved)."""
-    n_vertices = np.array([len(m.vertex_block) for m in models])
-    cint = _cat([c.cint for c in contacts])
-    vertex_at = np.repeat(_offsets(n_vertices), counts)[:, None]
-    cint = np.concatenate([cint[:, :1], np.where(cint[:, 1:] >= 0, cint[:, 1:] + vertex_at, cint[:, 1:])], axis=1)
-    out = SimpleNamespace(cint=cint, n=int(sum(counts)), **{k: _cat([getattr(c, k) for c in contacts]) for k in fields})
+    members' before them, and with ``blocks`` their blocks so moved: `stage_batch_index`)."""
+    index = contact_index(models, contacts)
+    out = SimpleNamespace(cint=index.cint, n=index.n, **{k: _cat([getattr(c, k) for c in contacts]) for k in fields})
     if blocks:
-        block_at = np.repeat(_offsets(np.array([m.n_blocks for m in models])), counts)
-        out.block_a = _cat([c.block_a for c in contacts]) + block_at
-        out.block_b = _cat([c.block_b for c in contacts]) + block_at
+        out.block_a, out.block_b = index.block_a, index.block_b
     return out
 
 
@@ -98,29 +94,44 @@ def assemble_contacts_many(requests) -> list:
     contacts = [a[1] for a in args]
     patterns = [a[2] for a in args]
     datas, rhss = [a[5] for a in args], [a[6] for a in args]
-    counts = [c.n for c in contacts]
     m0 = models[0]
-    c = _contacts(models, contacts, counts, _ASSEMBLY_FIELDS, blocks=False)
+    c = _contacts(models, contacts, _ASSEMBLY_FIELDS, blocks=False)
     const, slope = friction_terms(m0, c)
-    data_at = _offsets(np.array([len(d) for d in datas]))
-    rows = np.array([len(m.block_dof) for m in models])
-    rhs_len = np.array([len(r) for r in rhss])
-    row_at = _offsets(rhs_len // 6)
-    n_rows = [len(p.diag_slot) for p in patterns]
-    pattern = SimpleNamespace(slot_ab=_shifted([p.slot_ab for p in patterns], data_at, counts),
-                              slot_ba=_shifted([p.slot_ba for p in patterns], data_at, counts),
-                              diag_slot=_shifted([p.diag_slot for p in patterns], data_at, n_rows),
-                              stride=_cat([p.stride for p in patterns]))
-    vblock = _cat([m.vertex_block for m in models]) + np.repeat(_offsets(np.array([m.n_blocks for m in models])),
-                                                               [len(m.vertex_block) for m in models])
-    dof = _shifted([m.block_dof for m in models], row_at, rows)
-    data, rhs = _cat(datas), _cat(rhss)
+    # F's terms alone where every member asks only them (data None: its K has not changed);
+    # else K too, a member that asks only F getting its K's terms in a scratch array
+    stiffness = any(d is not None for d in datas)
+    if stiffness:
+        datas = [np.zeros(len(p.indices)) if d is None else d for d, p in zip(datas, patterns)]
+    data_len, rhs_len = [len(d) for d in datas] if stiffness else [0] * len(datas), [len(r) for r in rhss]
+
+    def union():  # the members' patterns, blocks and rows one after the other (`stage_batch_index`)
+        counts = [x.n for x in contacts]
+        data_at = _offsets(np.array(data_len))
+        rows = np.array([len(m.block_dof) for m in models])
+        row_at = _offsets(np.array(rhs_len) // 6)
+        n_rows = [len(p.diag_slot) for p in patterns]
+        pattern = SimpleNamespace(slot_ab=_shifted([p.slot_ab for p in patterns], data_at, counts),
+                                  slot_ba=_shifted([p.slot_ba for p in patterns], data_at, counts),
+                                  diag_slot=_shifted([p.diag_slot for p in patterns], data_at, n_rows),
+                                  stride=_cat([p.stride for p in patterns]))
+        vblock = _cat([m.vertex_block for m in models]) + np.repeat(_offsets(np.array([m.n_blocks for m in models])),
+                                                                   [len(m.vertex_block) for m in models])
+        dof = _shifted([m.block_dof for m in models], row_at, rows)
+        for a in (pattern.slot_ab, pattern.slot_ba, pattern.diag_slot, pattern.stride, vblock, dof):
+            frozen(a)
+        return pattern, vblock, dof, data_at.tolist(), _offsets(np.array(rhs_len)).tolist()
+
+    pattern, vblock, dof, data_at, rhs_at = kept(
+        ("assembly", tuple(data_len), tuple(rhs_len)),
+        tuple(models) + tuple(patterns) + tuple(x for c in contacts for x in (c.cint, c.block_a, c.block_b)), union)
+    data, rhs = _cat(datas) if stiffness else None, _cat(rhss)
     contact_terms_numpy(c.cint, c.state, c.line, vblock, dof, _cat([a[3] for a in args]), _cat([a[4] for a in args]),
                         const, slope, c.shear_dir, pattern, m0.penalty, m0.shear_penalty, data, rhs)
-    for d, part in zip(datas, _split(data, data_at, [len(d) for d in datas])):
-        d[:] = part
-    for r, part in zip(rhss, _split(rhs, _offsets(rhs_len), rhs_len.tolist())):
-        r[:] = part
+    for d, s, n in zip([a[5] for a in args] if stiffness else (), data_at, data_len):
+        if d is not None:
+            d[:] = data[s:s + n]
+    for r, s, n in zip(rhss, rhs_at, rhs_len):
+        r[:] = rhs[s:s + n]
     return [None] * len(requests)
 
 
@@ -142,8 +153,8 @@ def _law_inputs(requests, fields):
     args = [_bound(a, kw, _LAW_ARGS) for a, kw in requests]
     models = [a[0] for a in args]
     contacts = [a[1] for a in args]
-    counts = [c.n for c in contacts]
-    c = _contacts(models, contacts, counts, fields, blocks=True)
+    c = _contacts(models, contacts, fields, blocks=True)
+    counts = contact_index(models, contacts).counts
     sca = _cat([a[3] for a in args])
     shifts = [a[5] for a in args]
     shift = None if all(s is None for s in shifts) else \
@@ -176,7 +187,7 @@ def contact_law_many(requests) -> list:
     out = []
     for k, (s, n) in enumerate(zip(at.tolist(), counts)):
         shear = closed[s:s + n] & ve[s:s + n]
-        energy = float(np.sum(normal_energy[s:s + n]) + np.sum(huber[s:s + n][shear]))
+        energy = float(np.add.reduce(normal_energy[s:s + n]) + np.add.reduce(huber[s:s + n][shear]))  # np.sum's
         out.append(ContactLaw(energy=energy, tan_phi=None, **{name: part[k] for name, part in parts.items()}))
     return out
 
@@ -187,15 +198,19 @@ def block_displacement_many(requests) -> list:
     the exact rotation, the largest of each block's), one evaluation over all."""
     args = [_bound(a, kw, ("model", "vertex_xy", "geom", "disp")) for a, kw in requests]
     models = [a[0] for a in args]
-    n_blocks = [m.n_blocks for m in models]
-    n_vertices = [len(m.vertex_block) for m in models]
-    block = _cat([m.vertex_block for m in models]) + np.repeat(_offsets(np.array(n_blocks)), n_vertices)
-    start = _cat([m.vertex_offset[:-1] for m in models]) + np.repeat(_offsets(np.array(n_vertices)), n_blocks)
+
+    def union():  # the members' vertices and blocks one after the other (`stage_batch_index`)
+        n_blocks = [m.n_blocks for m in models]
+        n_vertices = [len(m.vertex_block) for m in models]
+        block = _cat([m.vertex_block for m in models]) + np.repeat(_offsets(np.array(n_blocks)), n_vertices)
+        start = _cat([m.vertex_offset[:-1] for m in models]) + np.repeat(_offsets(np.array(n_vertices)), n_blocks)
+        return SimpleNamespace(vertex_block=frozen(block)), frozen(start), _offsets(np.array(n_blocks)), n_blocks
+
+    model, start, block_at, n_blocks = kept("displacement", tuple(models), union)
     xy = _cat([a[1] for a in args])
-    model = SimpleNamespace(vertex_block=block)
     moved = vertex_displacement(model, xy, {"centroid": _cat([a[2]["centroid"] for a in args])},
                                 _cat([a[3] for a in args]))
-    return _split(np.maximum.reduceat(moved, start), _offsets(np.array(n_blocks)), n_blocks)
+    return _split(np.maximum.reduceat(moved, start), block_at, n_blocks)
 
 
 def _displacement_group(*args, **kwargs):
@@ -218,7 +233,7 @@ def contact_vectors_many(requests) -> list:
     n_vertices = [len(m.vertex_block) for m in models]
     vertex_at = np.repeat(_offsets(np.array(n_vertices)), n_vertices)
     block_at = np.repeat(_offsets(np.array([m.n_blocks for m in models])), n_vertices)
-    c = _contacts(models, contacts, counts, ("omega",), blocks=False)
+    c = _contacts(models, contacts, ("omega",), blocks=False)
     model = SimpleNamespace(vertex_next=_cat([m.vertex_next for m in models]) + vertex_at,
                             vertex_block=_cat([m.vertex_block for m in models]) + block_at)
     vec, sca = vectors_numpy(model, _cat([a[1] for a in args]), _cat([a[2]["centroid"] for a in args]), c.cint, c.omega)

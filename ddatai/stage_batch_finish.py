@@ -29,6 +29,7 @@ from .contact_law import violations_numpy
 from .lever_arm import midstep_lever_arms
 from .return_update import Update, iterate_update
 from .side_by_side import bound as _bound, offsets as _offsets
+from .stage_batch_index import contact_index, frozen, kept
 
 
 def _split(a: np.ndarray, sizes) -> list:
@@ -37,25 +38,24 @@ def _split(a: np.ndarray, sizes) -> list:
 
 class _Union:
     """The members' models and contacts one after the other: vertices, blocks and contacts, with
-    the vertex and block indices moved by the members' before each."""
+    the vertex and block indices moved by the members' before each (the indices kept while the
+    same members come again: `ddatai.stage_batch_index`)."""
 
     def __init__(self, models, contacts, fields=()):
-        n_vertices = [len(m.vertex_block) for m in models]
-        n_blocks = [m.n_blocks for m in models]
-        self.counts = [c.n for c in contacts]
-        self.n_blocks = n_blocks
-        v_at, b_at = _offsets(n_vertices), _offsets(n_blocks)
-        self.model = SimpleNamespace(
-            vertex_next=np.concatenate([m.vertex_next.astype(np.int64) + o for m, o in zip(models, v_at.tolist())]),
-            vertex_block=np.concatenate([m.vertex_block.astype(np.int64) + o for m, o in zip(models, b_at.tolist())]))
-        local = np.concatenate([c.cint for c in contacts])
-        at_v = np.repeat(v_at, self.counts)[:, None]
-        cint = np.concatenate([local[:, :1], np.where(local[:, 1:] >= 0, local[:, 1:] + at_v, local[:, 1:])], axis=1)
-        at_b = np.repeat(b_at, self.counts)
+        index = contact_index(models, contacts)
+        self.counts = index.counts
+        self.model = kept("union", tuple(models), lambda: _models(models))
         self.contacts = SimpleNamespace(
-            cint=cint, n=len(cint), block_a=np.concatenate([c.block_a for c in contacts]) + at_b,
-            block_b=np.concatenate([c.block_b for c in contacts]) + at_b,
+            cint=index.cint, n=index.n, block_a=index.block_a, block_b=index.block_b,
             **{f: np.concatenate([getattr(c, f) for c in contacts]) for f in fields})
+
+
+def _models(models) -> SimpleNamespace:
+    v_at = _offsets([len(m.vertex_block) for m in models])
+    b_at = _offsets([m.n_blocks for m in models])
+    return SimpleNamespace(
+        vertex_next=frozen(np.concatenate([m.vertex_next.astype(np.int64) + o for m, o in zip(models, v_at.tolist())])),
+        vertex_block=frozen(np.concatenate([m.vertex_block.astype(np.int64) + o for m, o in zip(models, b_at.tolist())])))
 
 
 def _rotating(model, contacts, rotation) -> bool:

@@ -234,7 +234,7 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
                                                                            dt, welded, doubt, in_doubt)
         diverged = failed == DIVERGED
         solves += n
-        if doubt is not None and doubt.any() and not failed:
+        if doubt is not None and np.count_nonzero(doubt) and not failed:
             slow_end = turn_on(stepper, initial, released, SUNK_FRACTION)
             if slow_end is not None:
                 state, out, steps = slow_end
@@ -254,7 +254,7 @@ def _stage(stepper, state: State, size: np.ndarray, dt: float, t0: float,
         # steps out of Coulomb's law: docs/method/dda.md §8.12). Its equilibrium leaned on the
         # released block: in doubt, it is released too, and the rest is solved again from t = 0
         sunk = sunk_into_released(stepper, state, released, SUNK_FRACTION)
-        if not sunk.any():
+        if not np.count_nonzero(sunk):
             break
         released |= sunk
         state = initial
@@ -302,7 +302,7 @@ def _pseudo_steps(stepper, initial: State, state: State, released: np.ndarray, s
         cint, length = stepper.detect(state.vertex_xy, memory)
         contacts = Contacts.start(model, state.vertex_xy, cint, length, memory, True)
         contacts = subset_contacts(contacts, ~(released[contacts.block_a] | released[contacts.block_b]))
-        if not np.any(contacts.state != OPEN):
+        if not np.count_nonzero(contacts.state != OPEN):
             break  # nothing (left) touches: nothing to hold
         if welded:
             disp, n, found, contacts = welded_step(stepper, state, geom, contacts, dt, released, size)
@@ -326,7 +326,7 @@ def _pseudo_steps(stepper, initial: State, state: State, released: np.ndarray, s
             break  # it would throw what its divergence moves: the last equilibrium, as below
         if disp is None:  # no equilibrium found
             return state, last, memory, solves, stalled, unsettled, True
-        if found.any():
+        if np.count_nonzero(found):
             # a released block starts from where it was at t = 0
             released |= found
             state = restore(model, state, initial, found)
@@ -334,7 +334,7 @@ def _pseudo_steps(stepper, initial: State, state: State, released: np.ndarray, s
         held = free & ~released
         disp[~held] = 0.0
         step = float(block_displacement(stepper.model, state.vertex_xy, geom, disp).max(initial=0.0))
-        if not found.any() and step >= GEOMETRY_CONTRACTION * increment:
+        if not np.count_nonzero(found) and step >= GEOMETRY_CONTRACTION * increment:
             # the pseudo-steps are a fixed-point iteration on the geometry (each solves the
             # static increment at the last one's settled shape); where an increment does not
             # shrink, the iteration does not converge — the load grows with the deflection
@@ -376,12 +376,12 @@ def balanced(stepper, frame: Frame, contacts: Contacts, geom: dict, size: np.nda
     np.maximum.at(level, c.block_b, np.abs(law.fn))
     loose = BALANCE_ROUNDOFF * np.maximum(level[c.block_a], level[c.block_b])
     tensile = np.where(c.bond, c.tensile * c.length, 0.0)
-    if np.any(closed & ~law.closed & (model.penalty * law.dn - tensile > loose)) or \
-            np.any(~closed & law.closed & (law.fn > loose)):
+    if np.count_nonzero(closed & ~law.closed & (model.penalty * law.dn - tensile > loose)) or \
+            np.count_nonzero(~closed & law.closed & (law.fn > loose)):
         return False
     locked = ve & closed & (c.state == LOCK)
     excess = np.where(locked, model.shear_penalty * np.abs(law.ds) - law.strength, 0.0)
-    if np.any(excess > loose):
+    if np.count_nonzero(excess > loose):
         return False
     residual = np.abs((frame.rhs - internal_force(stepper.model, c, frame.vec, law, stepper.serial_scatter)).reshape(-1, 6))
     rows = stepper.free_idx

@@ -31,6 +31,12 @@ def _controllers() -> list:
 _DEPTH = 0  # how many blocks are open: inside one, BLAS is limited already
 
 
+def limited() -> bool:
+    """Whether a `one_blas_thread` block is open (a solve inside one need not open its own:
+    the equilibrium stage's hundreds of small solves skip the context manager's cost)."""
+    return _DEPTH > 0
+
+
 @contextmanager
 def one_blas_thread():
     """BLAS limited to one thread inside the block. A block inside another costs nothing (a

@@ -339,3 +339,22 @@ def test_numpy_path_detection_at_the_same_geometry_gives_the_same_contacts():
     moved = xy.copy()
     moved[model.vertex_block == int(np.flatnonzero(~model.block_fixed)[0])] += 0.5 * model.search_distance
     np.testing.assert_array_equal(stepper.detect(moved)[0], vectorized.detect_contacts(model, moved, None)[0])
+
+
+def test_a_copy_shares_the_geometry_and_owns_its_state():
+    """`Contacts.copy`: the contacts' geometry (``contacts.GEOMETRY``: fixed during a step, written
+    by no one) is shared, so the batched evaluations know a copy's contacts again
+    (`ddatai.stage_batch_index`); every other array is the copy's own."""
+    from ddatai.contacts import GEOMETRY
+
+    model = build_model(random_jointed_scene(1))
+    st, s = Stepper(model), model.initial_state()
+    c = Contacts.start(model, s.vertex_xy, *st.detect(s.vertex_xy), ContactMemory.empty(), True)
+    d = c.copy()
+    for name, value in vars(c).items():
+        if isinstance(value, np.ndarray):
+            assert (getattr(d, name) is value) == (name in GEOMETRY), name
+            np.testing.assert_array_equal(getattr(d, name), value)
+    d.state[:] = ContactState.OPEN
+    d.omega[:] += 1.0
+    assert np.any(c.state != ContactState.OPEN) and not np.array_equal(c.omega, d.omega)

@@ -180,3 +180,63 @@ def test_each_operation_over_many_members_gives_each_its_own_floats(members):
                                                  for m, _, _, _, disp, geom, *_ in calls])
     for (m, _, _, _, disp, geom, *_), got in zip(calls, moved):
         np.testing.assert_array_equal(got, block_displacement.__wrapped__(m, m.vertex_xy0, geom, disp))
+
+
+def test_f_alone_is_the_full_assembly_s_f_and_k_is_kept_while_states_stay(members):
+    """The contact assembly asked for F alone (``data`` None: the return mapping's iterates whose
+    K has not changed, `reassembly.ContactSystem`) gives the F of the full assembly to the bit,
+    alone and side by side beside members that ask for K too (and again from the members' kept
+    indices, `ddatai.stage_batch_index`); ContactSystem keeps the last K while the contacts'
+    states stay, and assembles it again, the same as a fresh one, once they change."""
+    from ddatai.assembly import BlockPattern, assemble_blocks, assemble_contacts, contact_vectors
+    from ddatai.contacts import Contacts
+    from ddatai.layout import OPEN, SLIDE
+    from ddatai.model import ContactMemory
+    from ddatai.reassembly import ContactSystem
+
+    rng = np.random.default_rng(11)
+    calls = []
+    for m in members[:3]:
+        st, s = Stepper(m), m.initial_state()
+        c = Contacts.start(m, s.vertex_xy, *st.detect(s.vertex_xy), ContactMemory.empty(), True)
+        c.state[::3] = SLIDE
+        c.coupled[::2] = True
+        c.normal_force[:] = rng.uniform(0.0, 1e5, c.n)
+        geom = m.block_geometry(s.vertex_xy)
+        vec, sca = contact_vectors(m, s.vertex_xy, geom, c)
+        sca = sca + rng.normal(0.0, 1e-5, sca.shape)
+        pattern = BlockPattern.build(m, c)
+        data, rhs = assemble_blocks(m, s, geom, pattern, 1.0, 0.5, static_start=True)
+        calls.append((m, c, pattern, vec, sca, data, rhs))
+    full = []
+    for m, c, pattern, vec, sca, data, rhs in calls:
+        d, r = data.copy(), rhs.copy()
+        assemble_contacts.__wrapped__(m, c, pattern, vec, sca, d, r, False)
+        r_alone = rhs.copy()
+        assemble_contacts.__wrapped__(m, c, pattern, vec, sca, None, r_alone, False)
+        np.testing.assert_array_equal(r_alone, r)
+        full.append((d, r))
+    assert len({stage_batch._assembly_group(*call) for call in calls}) == 1
+    for ask_k in ([True, False, True], [False] * 3, [False] * 3):
+        got = [(data.copy() if k else None, rhs.copy()) for k, (*_, data, rhs) in zip(ask_k, calls)]
+        stage_batch.assemble_contacts_many([((m, c, pattern, vec, sca, d, r, False), {})
+                                            for (m, c, pattern, vec, sca, _, _), (d, r) in zip(calls, got)])
+        for (d, r), (want_d, want_r) in zip(got, full):
+            np.testing.assert_array_equal(r, want_r)
+            if d is not None:
+                np.testing.assert_array_equal(d, want_d)
+    m, c, pattern, vec, sca, data, rhs = calls[0]
+    system = ContactSystem(m, pattern, vec, data, rhs, False)
+    k0, f0 = system.system(c, sca)
+    k1, f1 = system.system(c, sca + 1e-6)
+    assert k1 is k0 and system.kept == 1 and system.full == 1
+    want = rhs.copy()
+    assemble_contacts.__wrapped__(m, c, pattern, vec, sca + 1e-6, data.copy(), want, False)
+    np.testing.assert_array_equal(f1, want)
+    c.state[1] = OPEN
+    k2, _ = system.system(c, sca)
+    want_k = data.copy()
+    assemble_contacts.__wrapped__(m, c, pattern, vec, sca, want_k, rhs.copy(), False)
+    assert k2 is not k0 and system.full == 2
+    np.testing.assert_array_equal(k2, want_k)
+    assert not np.array_equal(k2, k0)
