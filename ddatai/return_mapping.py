@@ -328,7 +328,8 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
         # K changes only where contacts open or close: the last factor solves it otherwise, and
         # where CHOLMOD is installed its rank updates follow those that do (`ddatai.updates`)
         springs = Springs.of(model, contacts, frame.vec, rows) if rows is not None else None
-        target = solve(stepper, frame.pattern, data, rhs, reuse=not changed, springs=springs)
+        # (after the frame's first, updates of low rank of the last factor: `ddatai.lowrank`)
+        target = solve(stepper, frame.pattern, data, rhs, reuse=not changed, springs=springs, lowrank=it > 1)
         outcome.solves += 1
         if not np.all(np.isfinite(target)):
             outcome.disp = None

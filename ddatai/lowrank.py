@@ -1,0 +1,133 @@
+"""Solves of K = K₀ + ΔK with the factor of K₀ in hand, where ΔK is of low rank (the
+Sherman–Morrison–Woodbury identity): the equilibrium stage's iterates (`ddatai.return_mapping`),
+whose K changes between two solves only where a contact opens or closes — its normal and shear
+springs, a rank-1 term each, docs/method/dda.md §2.3 — while the frame's geometry stays.
+
+ΔK is read from the two matrices themselves (the entries that differ, on the rows and columns
+S of the blocks whose contacts changed), its rank r from the singular values of its dense
+|S| × |S| part, ΔK = U·Vᵀ; then with Z = K₀⁻¹U (r solves with the factor, done once for this K)
+
+    K⁻¹ b = y − Z (I + Vᵀ Z)⁻¹ Vᵀ y,    y = K₀⁻¹ b,
+
+one solve with the factor a right-hand side. Each solve is checked by its residual and refined
+(``ddatai.iterative._refinement``) to the accuracy a Krylov solve is accepted at
+(``ddatai.iterative.KRYLOV_ACCEPT``, what a direct solve reaches); where it does not get there
+(a capacitance matrix too ill-conditioned, a rank above `RANK_MAX`) the caller factorises.
+
+Against GMRES preconditioned by the same factor (``ddatai.solver``, ``krylov``), which takes
+about one iteration (one solve) per rank as well: the later solves of the same K (the stage's
+slips change only F, 1–3 solves a K) cost one solve each here, and (rank + 1) again by GMRES
+(benchmarks/results/stage_solves.md).
+"""
+
+from __future__ import annotations
+
+from typing import Optional
+
+import numpy as np
+
+from .iterative import KRYLOV_ACCEPT, _refinement
+
+#: the largest rank of ΔK solved by updates: the set-up solves the r columns of U with the factor
+#: in one call (PARDISO at 1,600 blocks: 1.7 ms for one, 5.5 ms for 8, 8.6 ms for 16; a Cholesky
+#: factorisation with its solve 20.7 ms); 6, 12, 24 and 40 measured on the grid's stage, 12 best
+#: (benchmarks/results/stage_solves.md)
+RANK_MAX = 12
+#: ΔK is looked at only while it touches at most this many rows (25 blocks; its dense part's
+#: eigendecomposition grows with their cube)
+ROWS_MAX = 150
+#: singular values of ΔK below this fraction of the largest entry of K are its round-off
+ROUND_OFF = 1e-13
+#: corrections with the updated solve where its first residual is above ``KRYLOV_ACCEPT``
+REFINE_PASSES = 2
+
+
+class LowRankSolve:
+    """K⁻¹ for one K = K₀ + U·Vᵀ (module docstring), from ``solve0`` (K₀'s factor)."""
+
+    def __init__(self, data: np.ndarray, k, solve0, u: np.ndarray, v: np.ndarray, many: bool = False):
+        self.data = data    # K's CSR data (the solver's copy), against which a later K is matched
+        self.k = k          # K as CSR, for the residual
+        self.solve0 = solve0
+        if many and u.shape[1] > 1:  # one call for the r columns (PARDISO: 8 in 3.3 solves' time)
+            self.z = solve0(np.ascontiguousarray(u.T)).T
+        else:
+            self.z = np.column_stack([solve0(np.ascontiguousarray(c)) for c in u.T]) if u.shape[1] else u
+        self.v = v
+        self.capacitance = np.eye(u.shape[1]) + v.T @ self.z
+        self.rank = u.shape[1]
+
+    @staticmethod
+    def build(data: np.ndarray, data0: np.ndarray, indices: np.ndarray, indptr: np.ndarray, solve0,
+              row_of: np.ndarray, many: bool = False) -> "Optional[LowRankSolve]":
+        """The update of K₀ (CSR data ``data0``, factor ``solve0``) to K (``data``, the same
+        structure; ``row_of``: each entry's row), or None where ΔK's rank is above `RANK_MAX`."""
+        from scipy.sparse import csr_matrix
+
+        n = len(indptr) - 1
+        changed = np.flatnonzero(data != data0)
+        if len(changed) > ROWS_MAX * ROWS_MAX:
+            return None
+        rows, cols = row_of[changed], indices[changed]
+        support = np.union1d(rows, cols)
+        if len(support) > ROWS_MAX:
+            return None
+        delta = np.zeros((len(support), len(support)))
+        delta[np.searchsorted(support, rows), np.searchsorted(support, cols)] = data[changed] - data0[changed]
+        scale = float(np.abs(data).max(initial=0.0))
+        if np.abs(delta - delta.T).max(initial=0.0) <= ROUND_OFF * scale:
+            # the springs' terms, symmetric to round-off (which the residual check sees): ΔK = Q Λ Qᵀ
+            sigma, left = np.linalg.eigh(0.5 * (delta + delta.T))
+            right = left.T
+        else:
+            left, sigma, right = np.linalg.svd(delta)
+        keep = np.abs(sigma) > ROUND_OFF * scale
+        rank = int(np.count_nonzero(keep))
+        if rank > RANK_MAX:
+            return None
+        u = np.zeros((n, rank))
+        v = np.zeros((n, rank))
+        u[support] = left[:, keep] * sigma[keep]
+        v[support] = right[keep].T
+        copy = np.array(data, dtype=np.float64)
+        return LowRankSolve(copy, csr_matrix((copy, indices, indptr), shape=(n, n)), solve0, u, v, many)
+
+    def apply(self, b: np.ndarray) -> np.ndarray:
+        """K⁻¹ b by the identity (unchecked)."""
+        y = self.solve0(np.ascontiguousarray(b))
+        if not self.rank:
+            return y
+        return y - self.z @ np.linalg.solve(self.capacitance, self.v.T @ y)
+
+    def solve(self, b: np.ndarray) -> "Optional[np.ndarray]":
+        """x with K x = b to ``KRYLOV_ACCEPT`` (relative residual, max norm), refined where
+        needed; None where it does not get there."""
+        b = np.ascontiguousarray(b, dtype=np.float64)
+        if not np.any(b):
+            return np.zeros_like(b)
+        x, _, done = _refinement(self.k, b, self.apply(b), self.apply, KRYLOV_ACCEPT, REFINE_PASSES)
+        return x if done and np.all(np.isfinite(x)) else None
+
+
+def solve_updated(solver, data, indices, indptr, rhs, n) -> "Optional[np.ndarray]":
+    """`ddatai.solver.SparseSolver.solve` with ``lowrank``: K solved as an update of low rank of the
+    matrix of the solver's Cholesky factor (the direct solve where it is that matrix); None where
+    it is not one (another structure or factor type, a rank above `RANK_MAX`, no accurate solve)."""
+    factor, factored = solver._factor, solver._factored_data
+    if factor is None or not factor[0] or not solver._same(factor[1], indptr, indices) \
+            or factored is None or len(factored) != len(data):
+        return None
+    if solver._exact and np.array_equal(factored, data):
+        solver.reused += 1  # the matrix factorised: its direct solve (`SparseSolver._solve_reusing`)
+        return factor[2](np.ascontiguousarray(rhs, dtype=np.float64))
+    last = solver._lowrank
+    if last is None or last[0] is not factored or not np.array_equal(last[1].data, data):
+        solver._lowrank = None
+        update = LowRankSolve.build(data, factored, indices, indptr, factor[2], solver._rows(indptr, indices, n),
+                                    many=solver.backend == "pardiso")
+        if update is None:
+            return None
+        solver._lowrank = last = (factored, update)
+    x = last[1].solve(rhs)
+    solver.lowrank += x is not None
+    return x
