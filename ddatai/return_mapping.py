@@ -28,6 +28,7 @@ from .open_close import solve
 from .reassembly import ContactSystem
 from .return_steps import anderson, line_search
 from .return_update import iterate_update
+from .lowrank import RANK_MAX
 from .updates import Springs, block_rows
 from .mechanisms import MECHANISM_SIZE, anchored, contracting, loaded_away, mechanisms, out_of_range, test_unbalanced
 
@@ -328,8 +329,8 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
         # K changes only where contacts open or close: the last factor solves it otherwise, and
         # where CHOLMOD is installed its rank updates follow those that do (`ddatai.updates`)
         springs = Springs.of(model, contacts, frame.vec, rows) if rows is not None else None
-        # (after the frame's first, updates of low rank of the last factor: `ddatai.lowrank`)
-        target = solve(stepper, frame.pattern, data, rhs, reuse=not changed, springs=springs, lowrank=it > 1)
+        # (after the frame's first, updates of low rank of the last factor while few changed: `ddatai.lowrank`)
+        target = solve(stepper, frame.pattern, data, rhs, reuse=not changed, springs=springs, lowrank=it > 1 and few)
         outcome.solves += 1
         if not np.all(np.isfinite(target)):
             outcome.disp = None
@@ -353,6 +354,7 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
         outcome.loose, outcome.excess = loose, excess
         flips += u.flipped
         changed = bool(np.any(u.changed))
+        few = np.count_nonzero(u.changed) <= RANK_MAX  # each a term of rank 1 or 2 in K
         guess.closed, guess.line = u.closed, u.line
         if not changed and alpha == 1.0 and np.all(excess <= state_loose):
             # within the looser tolerance: kept in case the strict one is not reached
