@@ -313,6 +313,7 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
     history: list = []
     flips = np.zeros(contacts.n, np.int64)  # how often each contact opened or closed
     changed = True  # the closed contacts changed: K is factorised
+    few = False     # ... at most RANK_MAX of them (`ddatai.lowrank`)
     best, best_at = np.inf, 0
     outcome = Outcome()
     accepted = None  # the last iterate within ``Params.oc_state_tolerance``
