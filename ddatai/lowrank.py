@@ -45,8 +45,10 @@ REFINE_PASSES = 2
 class LowRankSolve:
     """K⁻¹ for one K = K₀ + U·Vᵀ (module docstring), from ``solve0`` (K₀'s factor)."""
 
-    def __init__(self, data: np.ndarray, k, solve0, u: np.ndarray, v: np.ndarray, many: bool = False):
-        self.data = data    # K's CSR data (the solver's copy), against which a later K is matched
+    def __init__(self, changed: np.ndarray, values: np.ndarray, k, solve0, u: np.ndarray, v: np.ndarray,
+                 many: bool = False):
+        # K is K₀ but at the CSR entries ``changed``, where it holds ``values``: a later K is matched by them
+        self.changed, self.values = changed, values
         self.k = k          # K as CSR, for the residual
         self.solve0 = solve0
         if many and u.shape[1] > 1:  # one call for the r columns (PARDISO: 8 in 3.3 solves' time)
@@ -58,14 +60,14 @@ class LowRankSolve:
         self.rank = u.shape[1]
 
     @staticmethod
-    def build(data: np.ndarray, data0: np.ndarray, indices: np.ndarray, indptr: np.ndarray, solve0,
-              row_of: np.ndarray, many: bool = False) -> "Optional[LowRankSolve]":
+    def build(data: np.ndarray, data0: np.ndarray, changed: np.ndarray, indices: np.ndarray, indptr: np.ndarray,
+              solve0, row_of: np.ndarray, scale: float, many: bool = False) -> "Optional[LowRankSolve]":
         """The update of K₀ (CSR data ``data0``, factor ``solve0``) to K (``data``, the same
-        structure; ``row_of``: each entry's row), or None where ΔK's rank is above `RANK_MAX`."""
+        structure, differing at the entries ``changed``; ``row_of``: each entry's row; ``scale``: the
+        largest entry of K₀), or None where ΔK's rank is above `RANK_MAX`."""
         from scipy.sparse import csr_matrix
 
         n = len(indptr) - 1
-        changed = np.flatnonzero(data != data0)
         if len(changed) > ROWS_MAX * ROWS_MAX:
             return None
         rows, cols = row_of[changed], indices[changed]
@@ -74,7 +76,6 @@ class LowRankSolve:
             return None
         delta = np.zeros((len(support), len(support)))
         delta[np.searchsorted(support, rows), np.searchsorted(support, cols)] = data[changed] - data0[changed]
-        scale = float(np.abs(data).max(initial=0.0))
         if np.abs(delta - delta.T).max(initial=0.0) <= ROUND_OFF * scale:
             # the springs' terms, symmetric to round-off (which the residual check sees): ΔK = Q Λ Qᵀ
             sigma, left = np.linalg.eigh(0.5 * (delta + delta.T))
@@ -89,8 +90,8 @@ class LowRankSolve:
         v = np.zeros((n, rank))
         u[support] = left[:, keep] * sigma[keep]
         v[support] = right[keep].T
-        copy = np.array(data, dtype=np.float64)
-        return LowRankSolve(copy, csr_matrix((copy, indices, indptr), shape=(n, n)), solve0, u, v, many)
+        k = csr_matrix((np.array(data, dtype=np.float64), indices, indptr), shape=(n, n))
+        return LowRankSolve(changed, k.data[changed], k, solve0, u, v, many)
 
     def apply(self, b: np.ndarray) -> np.ndarray:
         """K⁻¹ b by the identity (unchecked)."""
@@ -117,17 +118,23 @@ def solve_updated(solver, data, indices, indptr, rhs, n) -> "Optional[np.ndarray
     if factor is None or not factor[0] or not solver._same(factor[1], indptr, indices) \
             or factored is None or len(factored) != len(data):
         return None
-    if solver._exact and np.array_equal(factored, data):
+    # one pass over K: where it differs from the factor's matrix (`LowRankSolve` matches a later K by that)
+    changed = np.flatnonzero(data != factored)
+    if solver._exact and not len(changed):
         solver.reused += 1  # the matrix factorised: its direct solve (`SparseSolver._solve_reusing`)
         return factor[2](np.ascontiguousarray(rhs, dtype=np.float64))
     last = solver._lowrank
-    if last is None or last[0] is not factored or not np.array_equal(last[1].data, data):
-        solver._lowrank = None
-        update = LowRankSolve.build(data, factored, indices, indptr, factor[2], solver._rows(indptr, indices, n),
-                                    many=solver.backend == "pardiso")
+    if last is None or last[0] is not factored:
+        last = solver._lowrank = (factored, float(np.abs(factored).max(initial=0.0)), None)
+    update = last[2]
+    if update is None or not np.array_equal(update.changed, changed) or \
+            not np.array_equal(update.values, data[changed]):
+        solver._lowrank = (factored, last[1], None)
+        update = LowRankSolve.build(data, factored, changed, indices, indptr, factor[2],
+                                    solver._rows(indptr, indices, n), last[1], many=solver.backend == "pardiso")
         if update is None:
             return None
-        solver._lowrank = last = (factored, update)
-    x = last[1].solve(rhs)
+        solver._lowrank = (factored, last[1], update)
+    x = update.solve(rhs)
     solver.lowrank += x is not None
     return x

@@ -137,7 +137,7 @@ class SparseSolver:
         self.krylov_iterations = 0  # GMRES iterations of those
         self.updated = 0         # solves done by CHOLMOD rank updates of the last factor (``springs``)
         self.lowrank = 0         # solves done by the Woodbury identity with the factor (``lowrank``)
-        self._lowrank = None     # (the factor's matrix, `ddatai.lowrank.LowRankSolve` of the last K)
+        self._lowrank = None     # (the factor's matrix, its largest entry, `ddatai.lowrank.LowRankSolve` of the last K)
         # the CHOLMOD factor that follows the contact springs (`ddatai.updates`), where the
         # [cholmod] extra is installed and the system is solved sparse
         self._updating = None
