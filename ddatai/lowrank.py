@@ -36,6 +36,11 @@ RANK_MAX = 12
 #: ΔK is looked at only while it touches at most this many rows (25 blocks; its dense part's
 #: eigendecomposition grows with their cube)
 ROWS_MAX = 150
+#: systems of fewer unknowns are factorised as before: their factorisations cost too little for the
+#: updates' own NumPy work (~1 ms a solve) to pay — paired, the 391-block slope's stage (2,346
+#: unknowns) took 1.03–1.14 × main's CPU with them, ntdda's 400-block grid the same, the 1,537-block
+#: slope 0.97–1.03 ×, the 1,600- and 6,400-block grids 0.90–0.96 and 0.86 × (benchmarks/results/stage_solves.md)
+LOWRANK_UNKNOWNS = 6000
 #: singular values of ΔK below this fraction of the largest entry of K are its round-off
 ROUND_OFF = 1e-13
 #: corrections with the updated solve where its first residual is above ``KRYLOV_ACCEPT``
@@ -113,9 +118,10 @@ class LowRankSolve:
 def solve_updated(solver, data, indices, indptr, rhs, n) -> "Optional[np.ndarray]":
     """`ddatai.solver.SparseSolver.solve` with ``lowrank``: K solved as an update of low rank of the
     matrix of the solver's Cholesky factor (the direct solve where it is that matrix); None where
-    it is not one (another structure or factor type, a rank above `RANK_MAX`, no accurate solve)."""
+    it is not one (fewer unknowns than `LOWRANK_UNKNOWNS`, another structure or factor type, a rank
+    above `RANK_MAX`, no accurate solve)."""
     factor, factored = solver._factor, solver._factored_data
-    if factor is None or not factor[0] or not solver._same(factor[1], indptr, indices) \
+    if n < LOWRANK_UNKNOWNS or factor is None or not factor[0] or not solver._same(factor[1], indptr, indices) \
             or factored is None or len(factored) != len(data):
         return None
     # one pass over K: where it differs from the factor's matrix (`LowRankSolve` matches a later K by that)

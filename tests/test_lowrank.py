@@ -1,7 +1,8 @@
 """Updates of low rank of the factor in hand (`ddatai.lowrank`, ``SparseSolver.solve(lowrank=True)``):
 the equilibrium stage's iterates, whose K differs from the matrix factorised by the springs of the
 contacts that opened or closed, are solved by the factor and the Woodbury identity to a direct
-solve's accuracy, and a change beyond ``RANK_MAX`` is factorised."""
+solve's accuracy, and a change beyond ``RANK_MAX`` (or a system below ``LOWRANK_UNKNOWNS``) is
+factorised."""
 
 import numpy as np
 import pytest
@@ -18,14 +19,21 @@ def _direct(backend, pattern, data, rhs):
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
-def test_update_of_the_factor_matches_the_direct_solve(backend):
+def test_update_of_the_factor_matches_the_direct_solve(backend, monkeypatch):
     """One and two contacts changed (a rank of at most 2 each: normal and shear spring): the
     solve by the old factor and the identity has a direct solve's residual and its solution
     (1e-10 relative), with no factorisation, and another F on the same K reuses the update;
     every closed contact changed is factorised, and the new factor serves the next solves."""
+    from ddatai import lowrank
+
     pattern, systems = _changed_states(2, (1, 2, None))
     (data0, rhs0), few, more, many = systems
     n = len(rhs0)
+    solver = SparseSolver(backend)
+    solver.solve(data0, pattern.indices, pattern.indptr, rhs0, pattern=pattern)
+    solver.solve(few[0], pattern.indices, pattern.indptr, few[1], pattern=pattern, lowrank=True)
+    assert (solver.factorisations, solver.lowrank) == (2, 0)  # too small a system: factorised as before
+    monkeypatch.setattr(lowrank, "LOWRANK_UNKNOWNS", 0)  # this one has a few hundred unknowns
     solver = SparseSolver(backend)
     solver.solve(data0, pattern.indices, pattern.indptr, rhs0, pattern=pattern, lowrank=True)
     assert (solver.factorisations, solver.lowrank) == (1, 0)  # no factor yet
