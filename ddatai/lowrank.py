@@ -1,18 +1,20 @@
 """Solves of K = K₀ + ΔK with the factor of K₀ in hand, where ΔK is of low rank (the
 Sherman–Morrison–Woodbury identity): the equilibrium stage's iterates (`ddatai.return_mapping`),
 whose K changes between two solves only where a contact opens or closes — its normal and shear
-springs, a rank-1 term each, docs/method/dda.md §2.3 — while the frame's geometry stays.
+springs, a rank-1 term each, docs/method/dda.md §2.8 — while the frame's geometry stays.
 
 ΔK is read from the two matrices themselves (the entries that differ, on the rows and columns
-S of the blocks whose contacts changed), its rank r from the singular values of its dense
-|S| × |S| part, ΔK = U·Vᵀ; then with Z = K₀⁻¹U (r solves with the factor, done once for this K)
+S of the blocks whose contacts changed), its rank r from the eigenvalues of its dense |S| × |S|
+part (symmetric to round-off; its singular values otherwise), ΔK = U·Vᵀ; then with Z = K₀⁻¹U
+(the r columns solved with the factor in one call, once for this K)
 
     K⁻¹ b = y − Z (I + Vᵀ Z)⁻¹ Vᵀ y,    y = K₀⁻¹ b,
 
 one solve with the factor a right-hand side. Each solve is checked by its residual and refined
 (``ddatai.iterative._refinement``) to the accuracy a Krylov solve is accepted at
 (``ddatai.iterative.KRYLOV_ACCEPT``, what a direct solve reaches); where it does not get there
-(a capacitance matrix too ill-conditioned, a rank above `RANK_MAX`) the caller factorises.
+(a capacitance matrix too ill-conditioned, a rank above `RANK_MAX`, a system below
+`LOWRANK_UNKNOWNS`) the caller factorises.
 
 Against GMRES preconditioned by the same factor (``ddatai.solver``, ``krylov``), which takes
 about one iteration (one solve) per rank as well: the later solves of the same K (the stage's
@@ -41,7 +43,7 @@ ROWS_MAX = 150
 #: unknowns) took 1.03–1.14 × main's CPU with them, ntdda's 400-block grid the same, the 1,537-block
 #: slope 0.97–1.03 ×, the 1,600- and 6,400-block grids 0.90–0.96 and 0.86 × (benchmarks/results/stage_solves.md)
 LOWRANK_UNKNOWNS = 6000
-#: singular values of ΔK below this fraction of the largest entry of K are its round-off
+#: eigen- or singular values of ΔK below this fraction of the largest entry of K₀ are its round-off
 ROUND_OFF = 1e-13
 #: corrections with the updated solve where its first residual is above ``KRYLOV_ACCEPT``
 REFINE_PASSES = 2
