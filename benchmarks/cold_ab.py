@@ -55,7 +55,12 @@ stepper = Stepper(model)
 state = model.initial_state()
 c = cpu()
 state, rec = settle(stepper, state)
-out.update(stage_cpu=cpu() - c, start_cpu=cpu(), start_wall=time.time() - T0, solves=int(rec.solves))
+out.update(stage_cpu=cpu() - c, start_cpu=cpu(), start_wall=time.time() - T0, solves=int(rec.solves),
+           factorisations=int(rec.factorisations), held=int(rec.held), released=int(rec.released),
+           lowrank=int(getattr(stepper.solver, "lowrank", -1)))
+if {save!r}:
+    import numpy as np
+    np.save({save!r} + "/" + case.replace(":", "_") + "_" + str(int(T0 * 1e6)) + ".npy", state.vertex_xy)
 state, _ = stepper.step(state)
 out.update(first_step_cpu=cpu(), first_step_wall=time.time() - T0, taichi=backend.current())
 h = hashlib.sha256()
@@ -68,8 +73,8 @@ print("RESULT " + json.dumps(out))
 FIELDS = ["import_cpu", "stage_cpu", "start_cpu", "start_wall", "first_step_cpu", "first_step_wall"]
 
 
-def one(tree: Path, case: str, cache: str) -> dict:
-    code = PROBE.format(bench=str(tree / "benchmarks"), scenes=str(tree), case=case)
+def one(tree: Path, case: str, cache: str, save: str = "") -> dict:
+    code = PROBE.format(bench=str(tree / "benchmarks"), scenes=str(tree), case=case, save=save)
     env = {**os.environ, **PINNED, "PYTHONPATH": str(tree)}
     if cache:
         env["TI_OFFLINE_CACHE_FILE_PATH"] = cache
@@ -87,6 +92,8 @@ def main():
     ap.add_argument("--cases", default="grid:1600,grid:400,slope:400,example_1")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--cache", default=os.environ.get("TI_OFFLINE_CACHE_FILE_PATH", ""))
+    ap.add_argument("--save", default="", help="a folder: each process saves its settled vertices there "
+                    "(CASE_TIME.npy), to compare the two sides' positions")
     a = ap.parse_args()
     trees = {"A": Path(a.baseline).resolve(), "B": ROOT}
     runs: dict = {}
@@ -94,14 +101,14 @@ def main():
     for r in range(a.repeat):
         for case in a.cases.split(","):
             for side in ("AB" if r % 2 == 0 else "BA"):
-                res = one(trees[side], case, a.cache)
+                res = one(trees[side], case, a.cache, a.save and str(Path(a.save, side).resolve()))
                 runs.setdefault((case, side), []).append(res)
                 print(json.dumps(dict(repeat=r, case=case, side=side, load=os.getloadavg()[0], **res)), flush=True)
         loads.append(os.getloadavg()[0])
     print(f"\nA = {trees['A']}, B = {trees['B']}; {a.repeat} fresh processes a side and case, alternating; "
           f"load (1 min) {min(loads):.2f}-{max(loads):.2f}; medians, s")
-    print("| case | side | " + " | ".join(FIELDS) + " | solves | state |")
-    print("|---|---|" + "---|" * (len(FIELDS) + 2))
+    print("| case | side | " + " | ".join(FIELDS) + " | solves | factorisations | held/released | state |")
+    print("|---|---|" + "---|" * (len(FIELDS) + 4))
     for case in a.cases.split(","):
         med = {}
         for side in "AB":
@@ -109,8 +116,9 @@ def main():
             med[side] = {f: statistics.median(x[f] for x in rs) for f in FIELDS}
             states = sorted({x["state"] for x in rs})
             print(f"| {case} | {side} | " + " | ".join(f"{med[side][f]:.3f}" for f in FIELDS) +
-                  f" | {rs[0]['solves']} | {','.join(states)} |")
-        print(f"| {case} | B/A | " + " | ".join(f"{med['B'][f] / med['A'][f]:.3f}" for f in FIELDS) + " | | " +
+                  f" | {rs[0]['solves']} | {rs[0].get('factorisations')} | {rs[0].get('held')}/{rs[0].get('released')}"
+                  f" | {','.join(states)} |")
+        print(f"| {case} | B/A | " + " | ".join(f"{med['B'][f] / med['A'][f]:.3f}" for f in FIELDS) + " | | | | " +
               ("same" if {x['state'] for x in runs[(case, 'A')]} == {x['state'] for x in runs[(case, 'B')]}
                else "DIFFERENT") + " |")
 

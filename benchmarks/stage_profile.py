@@ -42,11 +42,24 @@ PARTS = [
     ("limit equilibrium (`unsupported_blocks`)", "limit_equilibrium.py", "unsupported_blocks"),
     ("open-close finish / test (`open_close.open_close`)", "open_close.py", "open_close"),
     ("balance check (`start.balanced`)", "start.py", "balanced"),
+    ("updates of low rank, less their PARDISO calls (`lowrank.solve_updated`)", "lowrank.py", "solve_updated"),
 ]
 #: with ``--updates``: CHOLMOD's part of the solver (its factorisations, updates, refinements; PARDISO's
 #: calls inside it, an LU where K is not positive definite, are in PARDISO's rows)
 UPDATES = [("CHOLMOD: factorisations, rank updates, their refinement (`Solver._solve_updating`)", "solver.py",
             "_solve_updating")]
+
+
+def _pardiso_under(stats, file: str) -> float:
+    """CPU of PARDISO's calls made from functions of ``file`` (through the factor's solve, a lambda
+    of `ddatai.solver`)."""
+    spent = 0.0
+    for (f, _, fn), (_, _, _, _, callers) in stats.items():
+        if f.endswith("solver.py") and fn == "<lambda>":
+            for caller, (_, _, _, ct) in callers.items():
+                if caller[0].endswith(file):
+                    spent += ct
+    return spent
 
 
 def main():
@@ -129,6 +142,8 @@ def main():
         spent = sum(h[1] for h in hit)
         if name == "open_close":
             inside_oc, spent = spent, spent - inside[1]  # its PARDISO calls are in their rows
+        if name == "solve_updated":  # its PARDISO calls (the columns of Z, the solves) are in their rows
+            spent -= _pardiso_under(stats, "lowrank.py")
         if name == "_solve_updating":
             spent -= sum(c for (f, _, fn), (_, _, _, c, callers) in stats.items()
                          if f.endswith("pardiso.py") and fn == "call"

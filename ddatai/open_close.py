@@ -84,7 +84,8 @@ class OpenClose:
 
 
 def solve(stepper, pattern: BlockPattern, data: np.ndarray, rhs: np.ndarray,
-          symmetric: bool = True, reuse: bool = False, krylov: bool = False, springs=None) -> np.ndarray:
+          symmetric: bool = True, reuse: bool = False, krylov: bool = False, springs=None,
+          lowrank: bool = False) -> np.ndarray:
     """Solve K D = F (`ddatai.solver`); returns D as (B, 6) with zeros for fixed blocks.
     ``symmetric=False`` when coupled friction made K non-symmetric; ``reuse`` when K should
     be close to the matrix last factorised (a step's first solve: the same contact states
@@ -92,12 +93,13 @@ def solve(stepper, pattern: BlockPattern, data: np.ndarray, rhs: np.ndarray,
     ``krylov`` when K differs from it by a few contacts' states (a later solve of the
     iteration: GMRES preconditioned by that factor); ``springs`` (`ddatai.updates.Springs`) the
     contact springs of a symmetric K, which the solver follows by rank updates of its factor
-    where CHOLMOD is installed."""
+    where CHOLMOD is installed; ``lowrank`` when K differs from it by a few contacts' springs
+    (the equilibrium stage's iterates: `ddatai.lowrank`)."""
     d = np.zeros((stepper.model.n_blocks, 6))
     if pattern.n_rows == 0:
         return d
     x = stepper.solver.solve(data, pattern.indices, pattern.indptr, rhs, pattern=pattern,
-                             symmetric=symmetric, reuse=reuse, krylov=krylov, springs=springs)
+                             symmetric=symmetric, reuse=reuse, krylov=krylov, springs=springs, lowrank=lowrank)
     d[stepper.free_idx] = x.reshape(-1, 6)
     return d
 

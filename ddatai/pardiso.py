@@ -97,7 +97,8 @@ class _Pardiso:
     def call(self, phase: int, data: np.ndarray, indptr: np.ndarray, indices: np.ndarray,
              rhs: np.ndarray) -> np.ndarray:
         n = len(indptr) - 1
-        x = np.zeros_like(rhs)
+        x = np.zeros_like(rhs)  # (n,) or (nrhs, n): the right-hand sides one after another (column-major n × nrhs)
+        nrhs = rhs.shape[0] if rhs.ndim == 2 else 1
         err = ctypes.c_int32(0)
         i32 = ctypes.POINTER(ctypes.c_int32)
         f64 = ctypes.POINTER(ctypes.c_double)
@@ -105,7 +106,7 @@ class _Pardiso:
                   ctypes.byref(ctypes.c_int32(1)), ctypes.byref(ctypes.c_int32(self.mtype)),
                   ctypes.byref(ctypes.c_int32(phase)), ctypes.byref(ctypes.c_int32(n)),
                   data.ctypes.data_as(f64), indptr.ctypes.data_as(i32), indices.ctypes.data_as(i32),
-                  self.perm.ctypes.data_as(i32), ctypes.byref(ctypes.c_int32(1)),
+                  self.perm.ctypes.data_as(i32), ctypes.byref(ctypes.c_int32(nrhs)),
                   self.iparm.ctypes.data_as(i32), ctypes.byref(ctypes.c_int32(0)),
                   rhs.ctypes.data_as(f64), x.ctypes.data_as(f64), ctypes.byref(err))
         if err.value != 0:

@@ -28,6 +28,7 @@ from .open_close import solve
 from .reassembly import ContactSystem
 from .return_steps import anderson, line_search
 from .return_update import iterate_update
+from .lowrank import RANK_MAX
 from .updates import Springs, block_rows
 from .mechanisms import MECHANISM_SIZE, anchored, contracting, loaded_away, mechanisms, out_of_range, test_unbalanced
 
@@ -316,6 +317,7 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
     movable, far_at = free & ~out, MECHANISM_SIZE * size
     force_tolerance = min(p.oc_force_tolerance, STAGE_FORCE_TOLERANCE)
     changed = True  # the closed contacts changed: K is factorised
+    few = False     # ... at most RANK_MAX of them (`ddatai.lowrank`)
     best, best_at = np.inf, 0
     outcome = Outcome()
     accepted = None  # the last iterate within ``Params.oc_state_tolerance``
@@ -332,7 +334,8 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
         # K changes only where contacts open or close: the last factor solves it otherwise, and
         # where CHOLMOD is installed its rank updates follow those that do (`ddatai.updates`)
         springs = Springs.of(model, contacts, frame.vec, rows) if rows is not None else None
-        target = solve(stepper, frame.pattern, data, rhs, reuse=not changed, springs=springs)
+        # (after the frame's first, updates of low rank of the last factor while few changed: `ddatai.lowrank`)
+        target = solve(stepper, frame.pattern, data, rhs, reuse=not changed, springs=springs, lowrank=it > 1 and few)
         outcome.solves += 1
         if np.count_nonzero(np.isfinite(target)) < target.size:
             outcome.disp = None
@@ -356,7 +359,9 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
         loose, state_loose, excess, dslip, new_gap = u.loose, u.state_loose, u.excess, u.dslip, u.new_gap
         outcome.loose, outcome.excess = loose, excess
         flips += u.flipped
-        changed = bool(np.count_nonzero(u.changed))
+        n_changed = np.count_nonzero(u.changed)
+        changed = bool(n_changed)
+        few = n_changed <= RANK_MAX  # each a term of rank 1 or 2 in K
         guess.closed, guess.line = u.closed, u.line
         if not changed and alpha == 1.0 and (excess <= state_loose).all():
             # within the looser tolerance: kept in case the strict one is not reached

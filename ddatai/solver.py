@@ -36,19 +36,8 @@ did not change: only F moved) and its factorisation perturbed no pivot, the solv
 factor is the direct solve itself, as accurate as the factorisation's own, and is not refined
 (refinement to round-off took 3.4 solves at 1,600 blocks).
 
-**Krylov solves with the last factor.** The later solves of an open-close iteration differ
-from the matrix last factorised by the terms of the contacts whose state changed (each lock ↔
-slide or open ↔ closed change a rank-1 or rank-2 term) while the geometry is the same. Such a
-solve (``krylov=True``) is done by GMRES preconditioned by the factor in hand (``gmres``, right
-preconditioning, at most ``KRYLOV_ITERATIONS`` iterations) to a relative residual of
-``KRYLOV_RESIDUAL``, the accuracy of a direct solve. GMRES takes about one iteration per block
-whose rows of K changed (measured on the 1,540-block slope), and an iteration (a solve with the
-factor, 1.7–2.9 ms there, and a product with K) costs 1/10 of a Cholesky factorisation (25 ms)
-and 1/25 of an LU (55–70 ms). So it is tried only while the changed entries of K lie in the
-rows of at most ``KRYLOV_BLOCKS`` blocks (half a factorisation's cost in iterations, by the
-factor's type; fixed numbers, not timings, so that a run takes the same path every time), and
-stops after twice as many iterations; where it does not converge the matrix is factorised, and
-that factor preconditions the next solves.
+**Krylov solves with the last factor** (``krylov``) and **updates of low rank** (``lowrank``): `ddatai.iterative`,
+`ddatai.lowrank`.
 
 **One factor at a time.** PARDISO keeps one handle per matrix type (Cholesky and LU), each with
 its analysis; a factorisation of one type frees the other's factor (MKL's phase 0, the analysis
@@ -115,6 +104,7 @@ from .threads import limited, one_blas_thread
 from .iterative import (KRYLOV_ACCEPT, KRYLOV_BLOCKS, KRYLOV_ITERATIONS, REFINE_ABOVE, REFINE_PASSES,
                         REUSE_PASSES, REUSE_RATE, REUSE_RESIDUAL, _refinement, changed_blocks, gmres,
                         refine_to_roundoff)
+from . import lowrank as _lowrank  # noqa: E402
 
 
 class SparseSolver:
@@ -148,6 +138,8 @@ class SparseSolver:
         self.krylov = 0          # solves done by GMRES with an earlier factor (``krylov``)
         self.krylov_iterations = 0  # GMRES iterations of those
         self.updated = 0         # solves done by CHOLMOD rank updates of the last factor (``springs``)
+        self.lowrank = 0         # solves done by the Woodbury identity with the factor (``lowrank``)
+        self._lowrank = None     # (the factor's matrix, its largest entry, `ddatai.lowrank.LowRankSolve` of the last K)
         # the CHOLMOD factor that follows the contact springs (`ddatai.updates`), where the
         # [cholmod] extra is installed and the system is solved sparse
         self._updating = None
@@ -171,17 +163,22 @@ class SparseSolver:
 
     def solve(self, data: np.ndarray, indices: np.ndarray, indptr: np.ndarray, rhs: np.ndarray,
               pattern: object = None, symmetric: bool = True, reuse: bool = False,
-              krylov: bool = False, springs=None) -> np.ndarray:
+              krylov: bool = False, springs=None, lowrank: bool = False) -> np.ndarray:
         """x with K x = ``rhs``. ``reuse``: K is expected to be close to the last matrix
         factorised (module docstring): try refinement with that factor first. ``krylov``: K
         differs from it by the terms of a few contacts: try GMRES preconditioned by it first.
         ``springs`` (`ddatai.updates.Springs`, a symmetric K): the contact springs in K; where
         CHOLMOD is installed, K is solved by rank updates of the last factor while its springs
         differ from that factor's by few terms, and factorised by CHOLMOD otherwise (so that
-        the next solves can update it)."""
+        the next solves can update it). ``lowrank``: K differs from the Cholesky factor's matrix
+        by a term of low rank, solved by the factor and the Woodbury identity (`ddatai.lowrank`)."""
         n = len(indptr) - 1
         if springs is not None and symmetric and self._updating is not None:
             return self._solve_updating(data, indices, indptr, rhs, n, springs, reuse, pattern)
+        if lowrank and symmetric and self.backend != "dense":
+            x = _lowrank.solve_updated(self, data, indices, indptr, rhs, n)
+            if x is not None:
+                return x
         if self._updating is not None:
             self._updating.forget()  # another K: its factor no longer follows the springs
         if self.backend == "dense" and n <= DENSE_KRYLOV_UNKNOWNS:
@@ -200,7 +197,7 @@ class SparseSolver:
         self.lu_factorisations += not symmetric
         # the last factor and its matrix are replaced now: let them go before the new ones are
         # made (the solve with the old factor holds its matrix, 0.26 GB at 102,400 blocks)
-        self._factor = self._factored_data = None
+        self._factor = self._factored_data = self._lowrank = None
         # the matrix of the factor, against which a Krylov solve measures its change
         self._factored_data = np.array(data, dtype=np.float64)
         self._exact = True  # unless PARDISO perturbs a pivot (`_solve_pardiso`)
@@ -340,12 +337,15 @@ class SparseSolver:
         self.last_residual = residual
         return x
 
-    def _dense(self, data, indices, indptr, n) -> np.ndarray:
-        """K as a dense (n, n) array (the row of each CSR entry kept per structure)."""
+    def _rows(self, indptr, indices, n) -> np.ndarray:  # the row of each CSR entry, kept per structure
         if self._dense_rows is None or not self._same(self._dense_rows[0], indptr, indices):
             self._dense_rows = ((indptr, indices), np.repeat(np.arange(n), np.diff(indptr)))
+        return self._dense_rows[1]
+
+    def _dense(self, data, indices, indptr, n) -> np.ndarray:
+        """K as a dense (n, n) array (the row of each CSR entry kept per structure)."""
         k = np.zeros((n, n))
-        k[self._dense_rows[1], indices] = data
+        k[self._rows(indptr, indices, n), indices] = data
         return k
 
     def _solve_dense(self, data, indices, indptr, rhs, n, symmetric) -> np.ndarray:
