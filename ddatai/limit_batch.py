@@ -33,11 +33,14 @@ def settle_many(models, states=None) -> list:
     code, the contact assembly, contact law and block displacements of the members waiting at
     them evaluated at once, `ddatai.stage_batch`): the settled states, as each stage alone gives
     them, to the bit."""
-    from . import side_by_side, stage_batch  # noqa: F401  (stage_batch: the stage's operations side by side)
+    from importlib import import_module
+
+    from . import side_by_side
     from .start import settle
     from .step import Stepper
     from .threads import one_blas_thread
 
+    import_module(f"{__package__}.stage_batch")  # registers the stage's operations side by side
     steppers = [Stepper(m) for m in models]
     states = [m.initial_state() for m in models] if states is None else list(states)
     # one BLAS-thread limit around the whole batch: a member's stage opens its own, and side by
@@ -176,7 +179,8 @@ def _mehrotra_many(a, b, tan_phi, cohesion, tensile) -> list:
             g = ids[better]
             best_gap[g], best_sum[g], best_y[g] = gap[better], rp[better].sum(axis=1) + rm[better].sum(axis=1), \
                 y[better]
-        converged = finite & (primal < le.IPM_TOLERANCE) & (dual < le.DUAL_TOLERANCE) & (gap < le.IPM_TOLERANCE)
+        ended = finite & (primal < le.IPM_TOLERANCE) & (gap < le.IPM_TOLERANCE)
+        converged = ended & (dual < le.DUAL_TOLERANCE)
         for j in np.flatnonzero(converged):
             out[ids[j]] = (float(rp[j].sum() + rm[j].sum()), y[j].copy())
         q = z / s
@@ -190,7 +194,7 @@ def _mehrotra_many(a, b, tan_phi, cohesion, tensile) -> list:
         newton_matrix[diagonal] += 1.0 / q4 + 1.0 / q5
         # each member's Cholesky factor; one that is not positive definite ends that member's
         # iteration (round-off), as `_DenseFactor` ends one alone
-        done = ~finite | converged
+        done = ~finite | ended
         try:
             lower = np.linalg.cholesky(newton_matrix)
         except np.linalg.LinAlgError:

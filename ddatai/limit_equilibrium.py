@@ -50,7 +50,10 @@ MAX_PROGRAMS = 12
 #: interior-point iterations of one program; its tolerances on the mean complementarity gap
 #: and the scaled equilibrium residual, and on the dual residual (of unit costs). The Newton
 #: systems lose accuracy as the gap falls below ~1e-9, the dual residual first (it stalls near
-#: 1e-5 on a block at its limit): the identification of the moving blocks needs far less
+#: 1e-5 on a block at its limit): the identification of the moving blocks needs far less. Where
+#: the gap and the equilibrium residual meet IPM_TOLERANCE and the dual residual does not, the
+#: iteration ends at its best iterate: the steps beyond lose the dual residual to round-off and
+#: diverge (docs/method/dda.md §8.12)
 MAX_IPM_ITERATIONS = 80
 IPM_TOLERANCE = 1e-8
 DUAL_TOLERANCE = 1e-4
@@ -294,8 +297,10 @@ def _mehrotra(a, b, tan_phi, cohesion, tensile):
             break
         if primal < 100.0 * IPM_TOLERANCE and dual < 10.0 * DUAL_TOLERANCE and (best is None or gap < best[0]):
             best = (gap, float(rp.sum() + rm.sum()), y.copy())
-        if primal < IPM_TOLERANCE and dual < DUAL_TOLERANCE and gap < IPM_TOLERANCE:
-            return float(rp.sum() + rm.sum()), y
+        if primal < IPM_TOLERANCE and gap < IPM_TOLERANCE:
+            if dual < DUAL_TOLERANCE:
+                return float(rp.sum() + rm.sum()), y
+            break  # the dual residual lost to round-off: the steps from here diverge
         q = z / s
         q1, q2, q3, q4, q5 = q[:m], q[m:2 * m], q[2 * m:3 * m], q[3 * m:3 * m + n], q[3 * m + n:]
         # H per contact [[q1 + μ²(q2 + q3), μ(q3 − q2)], [μ(q3 − q2), q2 + q3]], inverted

@@ -131,3 +131,43 @@ def test_members_share_the_first_detection_only_by_its_key():
             for got, want in zip(st.detect(xy, last), own.detect(xy, last)):
                 np.testing.assert_array_equal(got, want)
                 assert got.dtype == want.dtype
+
+
+def _lp_optimum(a, b, tan_phi, cohesion, tensile) -> float:
+    """min Σ(r⁺ + r⁻) of the program (`limit_equilibrium._solve_program`) by SciPy's HiGHS
+    (a simplex/interior-point code of its own): the reference."""
+    from scipy.optimize import linprog
+    from scipy.sparse import csr_matrix, diags, hstack, identity, vstack
+
+    m, n = len(tan_phi), a.shape[0]
+    one, none = identity(m), csr_matrix((m, m))
+    # −N ≤ T·L, S − N·tanφ ≤ c·L, −S − N·tanφ ≤ c·L (x = N, S, r⁺, r⁻)
+    upper = hstack([vstack([-one, -diags(tan_phi), -diags(tan_phi)]), vstack([none, one, -one]),
+                    csr_matrix((3 * m, 2 * n))])
+    out = linprog(np.r_[np.zeros(2 * m), np.ones(2 * n)], A_ub=upper.tocsr(), b_ub=np.r_[tensile, cohesion, cohesion],
+                  A_eq=hstack([a, identity(n), -identity(n)]).tocsr(), b_eq=-b,
+                  bounds=[(None, None)] * (2 * m) + [(0.0, None)] * (2 * n), method="highs")
+    assert out.status == 0
+    return float(out.fun)
+
+
+def test_the_interior_point_answers_the_programs_optimum():
+    """The interior point stops where its gap and equilibrium residual meet IPM_TOLERANCE and its
+    dual residual does not (the steps after it lose the dual residual to round-off and diverge),
+    at its best iterate: Σ(r⁺ + r⁻) is the program's optimum (HiGHS) to the interior point's
+    tolerance — its best iterates' gap (≤ ~1e-7 a complementarity pair) on the program's few tens
+    of pairs, and HiGHS's own (1e-7) — 1e-5, a half of the held/released line (HELD a block), side
+    by side and alone, held and released members (Example II's first study samples, Example I's
+    group either side of its critical friction)."""
+    from scenes import example_1
+
+    models = study_models(12) + [group_model(example_1, friction=f) for f in (9.0, 13.0)]
+    programs = [screen_program(Stepper(m), m.initial_state()) for m in models]
+    answers = limit_batch.solve_programs(programs)
+    held = 0
+    for p in programs:
+        optimum = _lp_optimum(*p)
+        for got in (answers[le.program_key(*p)], le._solve_program(*p)):
+            assert abs(got[0] - optimum) <= 1e-5
+        held += optimum <= le.HELD * 2
+    assert 0 < held < len(programs)
