@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from contextlib import contextmanager, nullcontext
 from functools import partial
+from importlib import import_module
 
 import numpy as np
 
@@ -33,8 +34,6 @@ def settle_many(models, states=None) -> list:
     code, the contact assembly, contact law and block displacements of the members waiting at
     them evaluated at once, `ddatai.stage_batch`): the settled states, as each stage alone gives
     them, to the bit."""
-    from importlib import import_module
-
     from . import side_by_side
     from .start import settle
     from .step import Stepper
@@ -61,16 +60,21 @@ def screened_ahead(steppers, states):
     that share their geometry share its detection (`ddatai.batch_detect.share_detection`). The
     screens' answers stay primed for the stages' own tests, which may ask them again (as a
     stage alone finds its screen's last programs among those solved lately)."""
+    from . import side_by_side
     from .batch_detect import share_detection
     from .mechanisms import SCREENED, screen_programs
 
+    import_module(f"{__package__}.stage_batch")  # registers the operations side by side
     share_detection(steppers, states)
     started, done = [], {}
-    for st, s in zip(steppers, states):
-        programs = screen_programs(st, s)
-        try:
-            started.append((st, s, programs, next(programs)))
-        except StopIteration as end:
+    # each screen up to its first program, side by side (`ddatai.side_by_side`: the members'
+    # contacts at t = 0 started at once, each its own to the bit)
+    screens = [screen_programs(st, s) for st, s in zip(steppers, states)]
+    for st, s, programs, (first, end) in zip(steppers, states, screens,
+                                              side_by_side.run([partial(_first, g) for g in screens])):
+        if end is None:
+            started.append((st, s, programs, first))
+        else:
             done[id(st)] = (st, s, end.value)
     answers = solve_programs([p for _, _, _, p in started])
     le.PRIMED.update(answers)
@@ -91,6 +95,15 @@ def screened_ahead(steppers, states):
             le.PRIMED.pop(key, None)
         for key in done:
             SCREENED.pop(key, None)
+
+
+def _first(programs):
+    """(the first program that the generator ``programs`` yields, None), or (None, its
+    StopIteration) where it yields none."""
+    try:
+        return next(programs), None
+    except StopIteration as end:
+        return None, end
 
 
 def solve_programs(programs) -> dict:

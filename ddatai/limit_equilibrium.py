@@ -63,6 +63,16 @@ DUAL_TOLERANCE = 1e-4
 DENSE_ROWS = 300
 
 
+def median(values: np.ndarray) -> float:
+    """``np.median(values)`` to the bit — the middle value, or the two middle ones' (a + b) / 2,
+    NaN of none —, without its ~20 µs of dispatch (a small model's stage asks it of two blocks)."""
+    v = np.sort(values, axis=None)
+    k = len(v) // 2
+    if len(v) % 2:
+        return float(v[k])
+    return float((v[k - 1] + v[k]) / 2.0) if len(v) else float("nan")
+
+
 def applicable(model) -> bool:
     """Whether the program carries every force of the stage: not with bolts or a water table."""
     return len(model.bolt_block) == 0 and model.water_xy is None and len(model.water_heads) == 0
@@ -150,9 +160,11 @@ def unsupported_programs(model, vertex_xy: np.ndarray, geom: dict, contacts: Con
         row_of[tested] = np.arange(n_blocks)
         # in units of the blocks' loads: each block's rows by its weight (its moment row by
         # weight × size), the contact forces by the median weight: coefficients of order one
-        scale = np.repeat(weight[tested], 3) * np.tile([1.0, 1.0, 0.0], n_blocks) + \
-            np.repeat(weight[tested] * size[tested], 3) * np.tile([0.0, 0.0, 1.0], n_blocks)
-        unit = float(np.median(weight[tested]))
+        scale = np.empty((n_blocks, 3))
+        scale[:, 0] = scale[:, 1] = weight[tested]
+        scale[:, 2] = weight[tested] * size[tested]
+        scale = scale.ravel()
+        unit = median(weight[tested])
         equilibrium = _kept_matrix(sel, block_a, block_b, point, normal, tangent, centroid, row_of,
                                    3 * n_blocks, unit / scale)
         outcome = yield (equilibrium, load[tested].ravel() / scale, contacts.tan_phi[sel],

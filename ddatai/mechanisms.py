@@ -15,7 +15,7 @@ from .geometry import displacement_matrix
 from .assembly import contact_vectors, load_forces
 from .kinematics import block_displacement
 from .model_checks import STRAIN_LIMIT
-from .limit_equilibrium import _interior_point, answered, applicable, unsupported_programs
+from .limit_equilibrium import _interior_point, answered, applicable, median, unsupported_programs
 from .layout import KIND, LOCK, OPEN, SLIDE, VE
 from .model import ContactMemory, State
 from .open_close import open_close
@@ -347,4 +347,4 @@ def pseudo_time_step(stepper, geom, size) -> float:
         accel = max(accel, float(np.max(np.hypot(loads[:, 0], loads[:, 1]) / mass[model.load_block])))
     if accel == 0.0:  # initial stresses only: any acceleration scale will do
         accel = 1.0
-    return float(np.sqrt(2.0 * FALL_IN_SIZES * np.median(size[~model.block_fixed]) / accel))
+    return float(np.sqrt(2.0 * FALL_IN_SIZES * median(size[~model.block_fixed]) / accel))

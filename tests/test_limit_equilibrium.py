@@ -197,3 +197,13 @@ def test_dense_newton_steps_give_the_programs_of_the_sparse_ones(case, monkeypat
     assert unsupported(scene) == dense
     expected = {"plane held": 0, "plane slides": 1, "cohesion": 1, "example_1 at 8": 2, "jointed_slope": 25}[case]
     assert len(dense) == expected
+
+
+def test_the_median_is_numpys_to_the_bit():
+    """`limit_equilibrium.median` (the program's unit force, the stage's pseudo time step) gives
+    ``np.median``'s float, odd and even counts, ties and a column of a 2-D array; NaN of none."""
+    rng = np.random.default_rng(7)
+    for n in range(1, 12):
+        for values in (rng.lognormal(size=n) * 1e5, np.round(rng.uniform(size=n), 1), rng.normal(size=(n, 2))[:, 1]):
+            assert limit_equilibrium.median(values) == float(np.median(values))
+    assert np.isnan(limit_equilibrium.median(np.zeros(0)))
