@@ -4,7 +4,7 @@ whose K changes between two solves only where a contact opens or closes — its 
 springs, a rank-1 term each, docs/method/dda.md §2.8 — while the frame's geometry stays.
 
 ΔK is read from the two matrices themselves (the entries that differ, on the rows and columns
-S of the blocks whose contacts changed), its rank r from the eigenvalues of its dense |S| × |S|
+``S`` of the blocks whose contacts changed), its rank r from the eigenvalues of its dense ``|S| × |S|``
 part (symmetric to round-off; its singular values otherwise), ΔK = U·Vᵀ; then with Z = K₀⁻¹U
 (the r columns solved with the factor in one call, once for this K)
 
@@ -13,8 +13,8 @@ part (symmetric to round-off; its singular values otherwise), ΔK = U·Vᵀ; the
 one solve with the factor a right-hand side. Each solve is checked by its residual and refined
 (``ddatai.iterative._refinement``) to the accuracy a Krylov solve is accepted at
 (``ddatai.iterative.KRYLOV_ACCEPT``, what a direct solve reaches); where it does not get there
-(a capacitance matrix too ill-conditioned, a rank above `RANK_MAX`, a system below
-`LOWRANK_UNKNOWNS`) the caller factorises.
+(a capacitance matrix too ill-conditioned, a rank above ``RANK_MAX``, a system below
+``LOWRANK_UNKNOWNS``) the caller factorises.
 
 Against GMRES preconditioned by the same factor (``ddatai.solver``, ``krylov``), which takes
 about one iteration (one solve) per rank as well: the later solves of the same K (the stage's
