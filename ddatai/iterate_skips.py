@@ -3,7 +3,7 @@ evaluate contact by contact (docs/method/dda.md §8.12): the line search's slope
 the contacts that provably keep their state along the whole step, and the blocks' displacements
 bounded before they are measured vertex by vertex.
 
-- ``line_search`` is `return_steps.line_search`'s bisection of the energy's slope, piecewise
+- `LineSearch` is `return_steps.line_search`'s bisection of the energy's slope, piecewise
   linear in α ∈ [0, 1]. A contact contributes p·dn(α)·∂dn/∂α + k_s·ds(α)·∂ds/∂α while it is
   closed, on the line that is less penetrated; dn(α) = dn + α·r is evaluated in floats as a
   monotone function of α (a rounded product, then a rounded sum), so a contact closed (or
@@ -14,7 +14,8 @@ bounded before they are measured vertex by vertex.
   close or change line on the way, tens among thousands) are evaluated at each of the 30
   bisections. The slope is the same up to the order of its sums (round-off): α can differ
   from the full evaluation's only where the slope is within round-off of zero, by the
-  bisection's own resolution (2⁻³⁰ of the step) where it does.
+  bisection's own resolution (2⁻³⁰ of the step) where it does. The distances at D and their
+  rates along the step come from one sparse product of the frame's contact vectors with both.
 - ``far_blocks``: a vertex at distance ρ from its centroid moves by at most
   |(u₀, v₀)| + ρ·(|r₀| + ‖ε‖) (the finite rotation moves it by 2ρ·|sin(r₀/2)| ≤ ρ·|r₀|, the
   strain ε = [[εx, γ/2], [γ/2, εy]] by at most ρ·‖ε‖_F): where that bound, with a margin for
@@ -32,8 +33,10 @@ import numpy as np
 
 from .contacts import Contacts
 from .kinematics import block_displacement, block_radius
-from .layout import KIND, VV
-from .return_steps import LINE_SEARCH_BISECTIONS, _measures
+from scipy.sparse import csr_matrix
+
+from .layout import KIND, S_E0, S_E1, S_ES, S_G0, S_G1, S_GS, VV
+from .return_steps import LINE_SEARCH_BISECTIONS
 
 #: relative round-off of a contact's two normal distances below which a vertex-vertex contact's
 #: line order is evaluated at every bisection (each distance is dn + α·r, a few roundings)
@@ -42,22 +45,50 @@ ORDER_ROUNDOFF = 1e-13
 #: round-off it adds (the measured displacement is moved − original coordinates)
 BOUND_MARGIN = 1e-9
 
+_SIX = np.arange(6)
 
-def line_search(stepper, frame, contacts: Contacts, sca: np.ndarray, disp: np.ndarray,
-                step: np.ndarray, shearing: np.ndarray) -> float:
-    """`return_steps.line_search` (its arguments, its energy and bisection) with the terms of
-    the contacts that keep their state along the step summed once (module docstring)."""
-    model = stepper.model
-    rows = stepper.free_idx
-    x, v = disp[rows].ravel(), step[rows].ravel()
-    kv = frame.k_blocks @ v
-    curvature = float(v @ kv)
-    slope0 = float(kv @ x) - float(frame.rhs @ v)  # vᵀ(K x − F), K symmetric
-    dn0, dn1, ds = _measures(frame.vec, sca, contacts, disp)
-    r0, r1, rs = _measures(frame.vec, None, contacts, step)
+
+class LineSearch:
+    """`return_steps.line_search` (its arguments, its energy and bisection) for the contacts of one
+    frame, with the terms of the contacts that keep their state along the step summed once (module
+    docstring). The distances' rows (dn of line 0, dn of line 1, ds: §2.8.1, linear in D) are one
+    sparse matrix of the frame's contact vectors, applied to D and to the step in one product."""
+
+    def __init__(self, model, frame, contacts: Contacts):
+        n, v = contacts.n, frame.vec
+        a = 6 * contacts.block_a[:, None] + _SIX
+        b = 6 * contacts.block_b[:, None] + _SIX
+        columns = np.empty((n, 3, 12), np.int64)
+        values = np.empty((n, 3, 12))
+        for row, (first, second, near, far) in enumerate(((S_E0, S_G0, a, b), (S_G1, S_E1, a, b),
+                                                          (S_ES, S_GS, a, b))):
+            columns[:, row, :6], columns[:, row, 6:] = near, far
+            values[:, row, :6], values[:, row, 6:] = v[:, first], v[:, second]
+        self.rows = csr_matrix((values.ravel(), columns.ravel(), np.arange(0, 36 * n + 1, 12)),
+                               shape=(3 * n, 6 * model.n_blocks))
+
+    def __call__(self, stepper, frame, contacts: Contacts, sca: np.ndarray, disp: np.ndarray,
+                 step: np.ndarray, shearing: np.ndarray) -> float:
+        model = stepper.model
+        rows = stepper.free_idx
+        x, v = disp[rows].ravel(), step[rows].ravel()
+        kv = frame.k_blocks @ v
+        curvature = float(v @ kv)
+        slope0 = float(kv @ x) - float(frame.rhs @ v)  # vᵀ(K x − F), K symmetric
+        vv = contacts.cint[:, KIND] == VV
+        measured = (self.rows @ np.column_stack([disp.ravel(), step.ravel()])).reshape(-1, 3, 2)
+        dn0, r0 = measured[:, 0, 0] + sca[:, 0], measured[:, 0, 1]
+        dn1, r1 = np.where(vv, measured[:, 1, 0] + sca[:, 1], -np.inf), np.where(vv, measured[:, 1, 1], 0.0)
+        ds, rs = np.where(vv, 0.0, measured[:, 2, 0] + sca[:, 2]), np.where(vv, 0.0, measured[:, 2, 1])
+        return _bisect(model, contacts, vv, shearing, curvature, slope0, dn0, dn1, ds, r0, r1, rs)
+
+
+def _bisect(model, contacts: Contacts, vv: np.ndarray, shearing: np.ndarray, curvature: float, slope0: float,
+            dn0, dn1, ds, r0, r1, rs) -> float:
+    """The bisection of `LineSearch` from the distances at D (``dn0``, ``dn1``, ``ds``) and their
+    rates along the step (``r0``, ``r1``, ``rs``)."""
     allowance = np.where(contacts.bond, contacts.tensile * contacts.length / model.penalty, 0.0)
     pen, ks = model.penalty, model.shear_penalty
-    vv = contacts.cint[:, KIND] == VV
     # at α = 0 and α = 1 (the same floats as the bisection's: 1.0·r = r)
     a0, a1, b0, b1 = dn0, dn0 + r0, dn1, dn1 + r1
     one0, one1 = b0 > a0, b1 > a1

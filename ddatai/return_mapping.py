@@ -314,7 +314,8 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
     system = ContactSystem(model, frame.pattern, frame.vec, frame.data, frame.rhs, stepper.serial_scatter)
     # a large model's line search and far blocks skip what provably stays (`ddatai.iterate_skips`)
     large = 6 * model.n_free >= LOWRANK_UNKNOWNS
-    searching, far_blocks = (iterate_skips.line_search, iterate_skips.FarBlocks(model, frame.vertex_xy, geom)) \
+    searching, far_blocks = (iterate_skips.LineSearch(model, frame, contacts),
+                             iterate_skips.FarBlocks(model, frame.vertex_xy, geom)) \
         if large else (line_search, None)
     history: list = []
     flips = np.zeros(contacts.n, np.int64)  # how often each contact opened or closed

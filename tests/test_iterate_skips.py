@@ -38,10 +38,10 @@ def test_skips_match_the_reference_on_a_slopes_stage(monkeypatch):
     reference = dd.simulate(scene, params, steps=1).start[0]
     monkeypatch.setattr(return_mapping, "LOWRANK_UNKNOWNS", 0)  # the large models' path on a small one
     searched, far_tests = [], [0]
-    skipped_search, far_call = iterate_skips.line_search, iterate_skips.FarBlocks.__call__
+    skipped_search, far_call = iterate_skips.LineSearch.__call__, iterate_skips.FarBlocks.__call__
 
-    def search(*args):
-        alpha = skipped_search(*args)
+    def search(self, *args):
+        alpha = skipped_search(self, *args)
         searched.append((alpha, return_steps.line_search(*args)))
         return alpha
 
@@ -52,7 +52,7 @@ def test_skips_match_the_reference_on_a_slopes_stage(monkeypatch):
         far_tests[0] += 1
         return found
 
-    monkeypatch.setattr(iterate_skips, "line_search", search)
+    monkeypatch.setattr(iterate_skips.LineSearch, "__call__", search)
     monkeypatch.setattr(iterate_skips.FarBlocks, "__call__", far)
     skipped = dd.simulate(scene, params, steps=1).start[0]
     alphas = np.array(searched)
