@@ -1,9 +1,9 @@
-"""What a large model's return-mapping iterate (`ddatai.return_mapping`, ``_iterate``) need not
+"""What a large model's return-mapping iterate (``ddatai.return_mapping``, ``_iterate``) need not
 evaluate contact by contact (docs/method/dda.md §8.12): the line search's slope summed once for
 the contacts that provably keep their state along the whole step, and the blocks' displacements
 bounded before they are measured vertex by vertex.
 
-- `LineSearch` is `return_steps.line_search`'s bisection of the energy's slope, piecewise
+- ``LineSearch`` is ``return_steps.line_search``'s bisection of the energy's slope, piecewise
   linear in α ∈ [0, 1]. A contact contributes p·dn(α)·∂dn/∂α + k_s·ds(α)·∂ds/∂α while it is
   closed, on the line that is less penetrated; dn(α) = dn + α·r is evaluated in floats as a
   monotone function of α (a rounded product, then a rounded sum), so a contact closed (or
@@ -16,12 +16,12 @@ bounded before they are measured vertex by vertex.
   from the full evaluation's only where the slope is within round-off of zero, by the
   bisection's own resolution (2⁻³⁰ of the step) where it does. The distances at D and their
   rates along the step come from one sparse product of the frame's contact vectors with both.
-- ``far_blocks``: a vertex at distance ρ from its centroid moves by at most
-  |(u₀, v₀)| + ρ·(|r₀| + ‖ε‖) (the finite rotation moves it by 2ρ·|sin(r₀/2)| ≤ ρ·|r₀|, the
+- ``FarBlocks``: a vertex at distance ρ from its centroid moves by at most
+  ‖(u₀, v₀)‖ + ρ·(abs(r₀) + ‖ε‖) (the finite rotation moves it by 2ρ·abs(sin(r₀/2)) ≤ ρ·abs(r₀), the
   strain ε = [[εx, γ/2], [γ/2, εy]] by at most ρ·‖ε‖_F): where that bound, with a margin for
   the round-off of the vertices' coordinates, stays below the distance at which a block is
   far (``MECHANISM_SIZE``·size) for every block, none is, exactly as measured vertex by vertex
-  (`kinematics.block_displacement`), which is done otherwise.
+  (``kinematics.block_displacement``), which is done otherwise.
 
 Both apply from ``lowrank.LOWRANK_UNKNOWNS`` unknowns (1,000 free blocks): a smaller model, or a
 member of a batch run side by side, takes the reference path bit for bit.
@@ -49,7 +49,7 @@ _SIX = np.arange(6)
 
 
 class LineSearch:
-    """`return_steps.line_search` (its arguments, its energy and bisection) for the contacts of one
+    """``return_steps.line_search`` (its arguments, its energy and bisection) for the contacts of one
     frame, with the terms of the contacts that keep their state along the step summed once (module
     docstring). The distances' rows (dn of line 0, dn of line 1, ds: §2.8.1, linear in D) are one
     sparse matrix of the frame's contact vectors, applied to D and to the step in one product."""
@@ -85,7 +85,7 @@ class LineSearch:
 
 def _bisect(model, contacts: Contacts, vv: np.ndarray, shearing: np.ndarray, curvature: float, slope0: float,
             dn0, dn1, ds, r0, r1, rs) -> float:
-    """The bisection of `LineSearch` from the distances at D (``dn0``, ``dn1``, ``ds``) and their
+    """The bisection of ``LineSearch`` from the distances at D (``dn0``, ``dn1``, ``ds``) and their
     rates along the step (``r0``, ``r1``, ``rs``)."""
     allowance = np.where(contacts.bond, contacts.tensile * contacts.length / model.penalty, 0.0)
     pen, ks = model.penalty, model.shear_penalty
@@ -134,7 +134,7 @@ def _bisect(model, contacts: Contacts, vv: np.ndarray, shearing: np.ndarray, cur
 
 def displacement_bound(disp: np.ndarray, radius: np.ndarray) -> np.ndarray:
     """(B,) a bound of how far D ``disp`` (B, 6) moves any vertex of each block within ``radius``
-    [m] of its centroid [m] (module docstring; `kinematics.move_points`' exact rotation)."""
+    [m] of its centroid [m] (module docstring; the exact rotation of ``kinematics.move_points``)."""
     strain = np.sqrt(disp[:, 3] ** 2 + disp[:, 4] ** 2 + 0.5 * disp[:, 5] ** 2)
     return np.hypot(disp[:, 0], disp[:, 1]) + radius * (np.abs(disp[:, 2]) + strain)
 
