@@ -27,8 +27,9 @@ from .limit_equilibrium import unsupported_blocks
 from .open_close import solve
 from .reassembly import ContactSystem
 from .return_steps import anderson, line_search
+from . import iterate_skips
 from .return_update import iterate_update
-from .lowrank import RANK_MAX
+from .lowrank import LOWRANK_UNKNOWNS, RANK_MAX
 from .updates import Springs, block_rows
 from .mechanisms import MECHANISM_SIZE, anchored, contracting, loaded_away, mechanisms, out_of_range, test_unbalanced
 
@@ -311,6 +312,11 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
     disp = np.zeros((model.n_blocks, 6))
     rows = block_rows(model, contacts) if stepper.solver.updates and p.factor_updates else None
     system = ContactSystem(model, frame.pattern, frame.vec, frame.data, frame.rhs, stepper.serial_scatter)
+    # a large model's line search and far blocks skip what provably stays (`ddatai.iterate_skips`)
+    large = 6 * model.n_free >= LOWRANK_UNKNOWNS
+    searching, far_blocks = (iterate_skips.LineSearch(model, frame, contacts),
+                             iterate_skips.FarBlocks(model, frame.vertex_xy, geom)) \
+        if large else (line_search, None)
     history: list = []
     flips = np.zeros(contacts.n, np.int64)  # how often each contact opened or closed
     closed_state = np.where(shearing, LOCK, SLIDE)  # a closed contact's state in K
@@ -342,13 +348,13 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
             return outcome, guess
         # where contacts opened or closed, the step stops where the energy stops falling (slips
         # alone change only F: the solution is the minimiser)
-        alpha = line_search(stepper, frame, contacts, sca, disp, target - disp, shearing) \
+        alpha = searching(stepper, frame, contacts, sca, disp, target - disp, shearing) \
             if changed and it > 1 else 1.0
         disp = target if alpha == 1.0 else disp + alpha * (target - disp)
         law = stage_law(stepper.model, contacts, frame.vec, sca, disp)  # coupled: this solve's N
         outcome.disp, outcome.law = disp, law
-        moved = block_displacement(stepper.model, frame.vertex_xy, geom, disp)
-        far = movable & (moved > far_at)
+        far = far_blocks(disp, movable, far_at) if large else \
+            movable & (block_displacement(stepper.model, frame.vertex_xy, geom, disp) > far_at)
         if np.count_nonzero(far) and \
                 np.count_nonzero(far & ~anchored(stepper, frame.vertex_xy, geom, contacts, disp, size)):
             return outcome, guess  # a block moves away from what holds it: `mechanisms` tells
