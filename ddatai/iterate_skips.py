@@ -36,7 +36,7 @@ from .kinematics import block_displacement, block_radius
 from scipy.sparse import csr_matrix
 
 from .layout import KIND, S_E0, S_E1, S_ES, S_G0, S_G1, S_GS, VV
-from .return_steps import LINE_SEARCH_BISECTIONS
+from .return_steps import root
 
 #: relative round-off of a contact's two normal distances below which a vertex-vertex contact's
 #: line order is evaluated at every bisection (each distance is dn + α·r, a few roundings)
@@ -120,16 +120,7 @@ def _bisect(model, contacts: Contacts, vv: np.ndarray, shearing: np.ndarray, cur
         shear = np.where(closed & shearing, ks * (ds + a * rs), 0.0)
         return linear1 * a + linear0 + float(normal @ np.where(one, r1, r0)) + float(shear @ rs)
 
-    if slope(1.0) <= 0.0:
-        return 1.0
-    lo, hi = 0.0, 1.0
-    for _ in range(LINE_SEARCH_BISECTIONS):
-        mid = 0.5 * (lo + hi)
-        if slope(mid) < 0.0:
-            lo = mid
-        else:
-            hi = mid
-    return max(lo, 1.0 / 2 ** LINE_SEARCH_BISECTIONS)
+    return root(slope)
 
 
 def displacement_bound(disp: np.ndarray, radius: np.ndarray) -> np.ndarray:

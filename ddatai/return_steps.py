@@ -66,6 +66,13 @@ def line_search(stepper, frame, contacts: Contacts, sca: np.ndarray, disp: np.nd
         return curvature * a + slope0 + float(normal @ r0) + float(shear @ rs)
 
     slope = slope_vv if np.count_nonzero(contacts.cint[:, KIND] == VV) else slope_ve
+    return root(slope)
+
+
+def root(slope) -> float:
+    """The step α ∈ (0, 1] where the line search stops: 1 where the energy still falls there,
+    else a root of ``slope`` by ``LINE_SEARCH_BISECTIONS`` bisections,
+    never below their resolution."""
     if slope(1.0) <= 0.0:
         return 1.0
     lo, hi = 0.0, 1.0
