@@ -36,7 +36,7 @@ from .kinematics import block_displacement, block_radius
 from scipy.sparse import csr_matrix
 
 from .layout import KIND, S_E0, S_E1, S_ES, S_G0, S_G1, S_GS, VV
-from .return_steps import root
+from .return_steps import blocks_slope, root
 
 #: relative round-off of a contact's two normal distances below which a vertex-vertex contact's
 #: line order is evaluated at every bisection (each distance is dn + α·r, a few roundings)
@@ -70,11 +70,7 @@ class LineSearch:
     def __call__(self, stepper, frame, contacts: Contacts, sca: np.ndarray, disp: np.ndarray,
                  step: np.ndarray, shearing: np.ndarray) -> float:
         model = stepper.model
-        rows = stepper.free_idx
-        x, v = disp[rows].ravel(), step[rows].ravel()
-        kv = frame.k_blocks @ v
-        curvature = float(v @ kv)
-        slope0 = float(kv @ x) - float(frame.rhs @ v)  # vᵀ(K x − F), K symmetric
+        curvature, slope0 = blocks_slope(stepper, frame, disp, step)
         vv = contacts.cint[:, KIND] == VV
         measured = (self.rows @ np.column_stack([disp.ravel(), step.ravel()])).reshape(-1, 3, 2)
         dn0, r0 = measured[:, 0, 0] + sca[:, 0], measured[:, 0, 1]

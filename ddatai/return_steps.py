@@ -40,11 +40,7 @@ def line_search(stepper, frame, contacts: Contacts, sca: np.ndarray, disp: np.nd
     slope, piecewise linear in α, has its root before 1 (bisection), and the iterate stops
     there: contacts that all flip together cannot flip back and forth."""
     model = stepper.model
-    rows = stepper.free_idx
-    x, v = disp[rows].ravel(), step[rows].ravel()
-    kv = frame.k_blocks @ v
-    curvature = float(v @ kv)
-    slope0 = float(kv @ x) - float(frame.rhs @ v)  # vᵀ(K x − F), K symmetric
+    curvature, slope0 = blocks_slope(stepper, frame, disp, step)
     dn0, dn1, ds = _measures(frame.vec, sca, contacts, disp)
     r0, r1, rs = _measures(frame.vec, None, contacts, step)
     allowance = np.where(contacts.bond, contacts.tensile * contacts.length / model.penalty, 0.0)
@@ -67,6 +63,15 @@ def line_search(stepper, frame, contacts: Contacts, sca: np.ndarray, disp: np.nd
 
     slope = slope_vv if np.count_nonzero(contacts.cint[:, KIND] == VV) else slope_ve
     return root(slope)
+
+
+def blocks_slope(stepper, frame, disp: np.ndarray, step: np.ndarray) -> tuple:
+    """The blocks' part of the line search's slope, linear in α: its rate vᵀKv and its value
+    at α = 0, vᵀ(K x − F) (K symmetric; x, v: ``disp`` and ``step`` of the free blocks)."""
+    rows = stepper.free_idx
+    x, v = disp[rows].ravel(), step[rows].ravel()
+    kv = frame.k_blocks @ v
+    return float(v @ kv), float(kv @ x) - float(frame.rhs @ v)
 
 
 def root(slope) -> float:
