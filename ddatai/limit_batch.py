@@ -39,7 +39,7 @@ def settle_many(models, states=None) -> list:
     from .step import Stepper
     from .threads import one_blas_thread
 
-    import_module(f"{__package__}.stage_batch")  # registers the stage's operations side by side
+    _register_operations()
     steppers = [Stepper(m) for m in models]
     states = [m.initial_state() for m in models] if states is None else list(states)
     # one BLAS-thread limit around the whole batch: a member's stage opens its own, and side by
@@ -64,7 +64,7 @@ def screened_ahead(steppers, states):
     from .batch_detect import share_detection
     from .mechanisms import SCREENED, screen_programs
 
-    import_module(f"{__package__}.stage_batch")  # registers the operations side by side
+    _register_operations()
     share_detection(steppers, states)
     started, done = [], {}
     # each screen up to its first program, side by side (`ddatai.side_by_side`: the members'
@@ -95,6 +95,11 @@ def screened_ahead(steppers, states):
             le.PRIMED.pop(key, None)
         for key in done:
             SCREENED.pop(key, None)
+
+
+def _register_operations() -> None:
+    """The stage's operations registered side by side (`ddatai.stage_batch` does it on import)."""
+    import_module(f"{__package__}.stage_batch")
 
 
 def _first(programs):
