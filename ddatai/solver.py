@@ -139,7 +139,9 @@ class SparseSolver:
         self.krylov_iterations = 0  # GMRES iterations of those
         self.updated = 0         # solves done by CHOLMOD rank updates of the last factor (``springs``)
         self.lowrank = 0         # solves done by the Woodbury identity with the factor (``lowrank``)
-        self._lowrank = None     # (the factor's matrix, its largest entry, `ddatai.lowrank.LowRankSolve` of the last K)
+        self._lowrank = None     # (the factor's matrix, its largest entry, `ddatai.lowrank.LowRankSolve` of the last K,
+        #                          whether its own solve reached `ddatai.lowrank.FACTOR_RESIDUAL_MAX`)
+        self._factored_solve = None  # (b, x) of the factorisation's own solve, for that check (`ddatai.lowrank`)
         # the CHOLMOD factor that follows the contact springs (`ddatai.updates`), where the
         # [cholmod] extra is installed and the system is solved sparse
         self._updating = None
@@ -197,11 +199,13 @@ class SparseSolver:
         self.lu_factorisations += not symmetric
         # the last factor and its matrix are replaced now: let them go before the new ones are
         # made (the solve with the old factor holds its matrix, 0.26 GB at 102,400 blocks)
-        self._factor = self._factored_data = self._lowrank = None
+        self._factor = self._factored_data = self._lowrank = self._factored_solve = None
         # the matrix of the factor, against which a Krylov solve measures its change
         self._factored_data = np.array(data, dtype=np.float64)
         self._exact = True  # unless PARDISO perturbs a pivot (`_solve_pardiso`)
-        return self._factorise(self._factored_data, indices, indptr, rhs, n, symmetric, pattern)
+        x = self._factorise(self._factored_data, indices, indptr, rhs, n, symmetric, pattern)
+        _lowrank.factorised(self, rhs, x, n, symmetric)  # whether updates of this factor can pay
+        return x
 
     def _solve_updating(self, data, indices, indptr, rhs, n, springs, reuse, pattern=None) -> np.ndarray:
         """The symmetric solve with springs (`solve`): by updates of the factor in hand, each
