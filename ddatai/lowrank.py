@@ -14,7 +14,8 @@ one solve with the factor a right-hand side. Each solve is checked by its residu
 (``ddatai.iterative._refinement``) to the accuracy a Krylov solve is accepted at
 (``ddatai.iterative.KRYLOV_ACCEPT``, what a direct solve reaches); where it does not get there
 (a capacitance matrix too ill-conditioned, a rank above ``RANK_MAX``, a system below
-``LOWRANK_UNKNOWNS``) the caller factorises.
+``LOWRANK_UNKNOWNS``) the caller factorises, and so it does at once where the factor's own solve
+left a residual above ``FACTOR_RESIDUAL_MAX`` (an update of it would not get there either).
 
 Against GMRES preconditioned by the same factor (``ddatai.solver``, ``krylov``), which takes
 about one iteration (one solve) per rank as well: the later solves of the same K (the stage's
@@ -51,10 +52,12 @@ REFINE_PASSES = 2
 #: residual of at most this (100 × ``KRYLOV_ACCEPT``): where K is so ill-conditioned that the direct
 #: solve itself stays far above the bar, its updates cannot reach it in ``REFINE_PASSES`` either
 #: and are set up, refined and thrown away before the factorisation. On ``benchmarks/scaling.py``'s
-#: 1,537-block slope (welded blocks, a direct solve's residual 8e-10 at the median) 273 of the
-#: stage's 460 attempts failed so, 243 of them from such factors (2.0 s of the stage's 18 s); on
-#: ntdda's grids no factor is above it (the largest 3e-11 at 1,600 blocks). A function of the
-#: computed numbers only: the same model takes the same path on every run
+#: 1,537-block slope family (1,474 free blocks, welded: a direct solve's residual 8e-10 at the
+#: median) 273 of the stage's 575 asks ended in a factorisation after that work (210 missed the
+#: bar, 63 had a rank above ``RANK_MAX``), 243 of them from such factors, 2.0 s of the stage's
+#: 18 s; with this check 44 do, and the stage took 0.91–0.95 × its CPU. On ntdda's grids no factor
+#: is above it (the largest 3e-11 at 1,600 blocks): their path is the same to the bit. A function
+#: of the computed numbers only: the same model takes the same path on every run
 #: (benchmarks/results/stage_solves.md)
 FACTOR_RESIDUAL_MAX = 1e-10
 
