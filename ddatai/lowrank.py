@@ -144,6 +144,8 @@ def solve_updated(solver, data, indices, indptr, rhs, n) -> "Optional[np.ndarray
     if solver._exact and not len(changed):
         solver.reused += 1  # the matrix factorised: its direct solve (`SparseSolver._solve_reusing`)
         return factor[2](np.ascontiguousarray(rhs, dtype=np.float64))
+    # ``solver._lowrank``: (the factor's matrix, its largest entry, the last K's update, whether the
+    # factor's own solve reached `FACTOR_RESIDUAL_MAX`)
     last = solver._lowrank
     if last is None or last[0] is not factored:
         last = solver._lowrank = (factored, float(np.abs(factored).max(initial=0.0)), None,
@@ -164,11 +166,13 @@ def solve_updated(solver, data, indices, indptr, rhs, n) -> "Optional[np.ndarray
     return x
 
 
-def factorised(solver, rhs, x, n, symmetric) -> None:
+def factorised(solver, rhs, x, n, symmetric) -> np.ndarray:
     """Keep a copy of a factorisation's own solve (K₀ x = b) where its factor may be updated
-    (`solve_updated`), for the check of `FACTOR_RESIDUAL_MAX` on the first update asked of it."""
+    (`solve_updated`), for the check of `FACTOR_RESIDUAL_MAX` on the first update asked of it;
+    returns x."""
     solver._factored_solve = (np.array(rhs, dtype=np.float64), np.array(x, dtype=np.float64)) \
         if symmetric and n >= LOWRANK_UNKNOWNS and solver.backend != "dense" else None
+    return x
 
 
 def _reaches(factored_solve, data0, indices, indptr, n) -> bool:

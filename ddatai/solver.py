@@ -126,9 +126,8 @@ class SparseSolver:
         self._structure = None   # (structure key, whether it is symmetric) of the last non-symmetric K
         self.perturbed_fallbacks = 0  # LU of the symmetric pattern redone with matching (`_factorise`)
         self.last_residual = 0.0  # relative residual of the last PARDISO solve, when it was checked
-        # the last factorisation: (symmetric, (indptr, indices), solve(r) with its factor)
-        self._factor = None
-        self._factored_data = None
+        # the last factorisation: (symmetric, (indptr, indices), solve(r) with its factor); its matrix
+        self._factor = self._factored_data = None
         # whether the factor in hand is the exact factor of ``_factored_data`` (a direct
         # factorisation without perturbed pivots): a solve with it then needs no refinement
         self._exact = False
@@ -139,9 +138,7 @@ class SparseSolver:
         self.krylov_iterations = 0  # GMRES iterations of those
         self.updated = 0         # solves done by CHOLMOD rank updates of the last factor (``springs``)
         self.lowrank = 0         # solves done by the Woodbury identity with the factor (``lowrank``)
-        self._lowrank = None     # (the factor's matrix, its largest entry, `ddatai.lowrank.LowRankSolve` of the last K,
-        #                          whether its own solve reached `ddatai.lowrank.FACTOR_RESIDUAL_MAX`)
-        self._factored_solve = None  # (b, x) of the factorisation's own solve, for that check (`ddatai.lowrank`)
+        self._lowrank = self._factored_solve = None  # its state and the factorisation's own (b, x): `ddatai.lowrank`
         # the CHOLMOD factor that follows the contact springs (`ddatai.updates`), where the
         # [cholmod] extra is installed and the system is solved sparse
         self._updating = None
@@ -200,12 +197,11 @@ class SparseSolver:
         # the last factor and its matrix are replaced now: let them go before the new ones are
         # made (the solve with the old factor holds its matrix, 0.26 GB at 102,400 blocks)
         self._factor = self._factored_data = self._lowrank = self._factored_solve = None
-        # the matrix of the factor, against which a Krylov solve measures its change
-        self._factored_data = np.array(data, dtype=np.float64)
-        self._exact = True  # unless PARDISO perturbs a pivot (`_solve_pardiso`)
+        # the matrix of the factor, against which a Krylov solve measures its change; the factor exact
+        # unless PARDISO perturbs a pivot (`_solve_pardiso`); its own solve kept (`ddatai.lowrank.factorised`)
+        self._factored_data, self._exact = np.array(data, dtype=np.float64), True
         x = self._factorise(self._factored_data, indices, indptr, rhs, n, symmetric, pattern)
-        _lowrank.factorised(self, rhs, x, n, symmetric)  # whether updates of this factor can pay
-        return x
+        return _lowrank.factorised(self, rhs, x, n, symmetric)
 
     def _solve_updating(self, data, indices, indptr, rhs, n, springs, reuse, pattern=None) -> np.ndarray:
         """The symmetric solve with springs (`solve`): by updates of the factor in hand, each
