@@ -154,7 +154,7 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
     touching, line0 = contacts.state != OPEN, contacts.line.copy()  # as limit equilibrium counts them
     while solves < MAX_STAGE_SOLVES:
         keep = ~(out[contacts.block_a] | out[contacts.block_b])
-        if frame is None or not keep.all():
+        if frame is None or np.count_nonzero(keep) < keep.size:
             contacts = subset_contacts(contacts, keep)
             touching, line0 = touching[keep], line0[keep]
             guess = guess.subset(keep) if guess is not None else None
@@ -369,13 +369,13 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
         changed = bool(n_changed)
         few = n_changed <= RANK_MAX  # each a term of rank 1 or 2 in K
         guess.closed, guess.line = u.closed, u.line
-        if not changed and alpha == 1.0 and (excess <= state_loose).all():
+        if not changed and alpha == 1.0 and np.count_nonzero(excess <= state_loose) == excess.size:
             # within the looser tolerance: kept in case the strict one is not reached
             accepted = (replace(outcome, disp=disp.copy(), converged=True),
                         Guess(closed=guess.closed.copy(), line=guess.line.copy(), slip=guess.slip + dslip,
                               gap=guess.gap.copy()),
                         dslip)
-            if (excess <= loose).all():
+            if np.count_nonzero(excess <= loose) == excess.size:
                 # the last correction brings each spring to at most its strength; the forces it
                 # moves are within the tolerance
                 guess.slip = guess.slip + dslip
