@@ -17,7 +17,7 @@ from typing import Optional
 import numpy as np
 from scipy.sparse import csr_matrix
 
-from .assembly import BlockPattern, assemble_blocks, contact_vectors
+from .assembly import BlockPattern, assemble_blocks, contact_vectors, kept_pattern
 from .contact_law import stage_law
 from .contacts import Contacts, subset_contacts
 from .kinematics import block_displacement
@@ -90,7 +90,7 @@ class Frame:
     def build(stepper, state: State, geom: dict, contacts: Contacts, dt: float, previous=None) -> "Frame":
         """``previous``: the last frame's `BlockPattern`, its layout kept where the same blocks couple."""
         vec, sca = contact_vectors(stepper.model, state.vertex_xy, geom, contacts)
-        pattern = BlockPattern.build(stepper.model, contacts, previous)
+        pattern = kept_pattern(stepper.model, contacts, previous)  # the same contacts' blocks: the same pattern
         data, rhs = assemble_blocks(stepper.model, state, geom, pattern, dt, STAGE_BETA, static_start=True)
         return Frame(vertex_xy=state.vertex_xy, vec=vec, sca=sca, pattern=pattern, data=data, rhs=rhs)
 
