@@ -22,7 +22,7 @@ count takes it (~40–50 ms over the ~100,000 objects of a process that loaded t
 where it falls in a study's own processes (which take what they hold at their start out of those
 passes, `kgm.studies.probabilistic._keep_for_life`).
 
-Batches of 40 samples (the study's ``SAVED_BATCH``) of friction N(22°, 2°), cohesion
+Batches of the study's ``SAVED_BATCH`` samples (128) of friction N(22°, 2°), cohesion
 N(20 kPa, 5 kPa) correlated −0.3, seed 1, group {0, 1} of ``scenes/example_2.py``, Δt 1.3 ms,
 p = 1·E, the fused engine (``benchmarks/small_models.py``'s study); the kernel loaded from
 Taichi's offline cache first (its load not counted). Prints each run, the medians in ms a sample,
