@@ -54,10 +54,13 @@ from .rare import Transform, rare_sampling, rare_study
 from .sampling import _check_build, _check_sampling, _scalar, sample_seeds, sample_variables
 from .study import SampleRow, Study, StudyFile, monte_carlo_cov, pf_of, read_samples, reliability_index, study_table
 
-#: most DDA samples judged side by side in one batch of a study: a batch's verdicts are saved
-#: when it ends, about every 5 s of a worker's time on Example II (40 samples a batch cost ~15 %
-#: more a sample than 80, measured on 2 workers) [-]
-SAVED_BATCH = 40
+#: most DDA samples judged side by side in one batch of a study (`DdaSettings.sample_batch`'s
+#: default): a batch's verdicts are saved when it ends, about every 1.3 s of the two processes'
+#: CPU on Example II (~10 ms a sample). A larger batch shares each side-by-side evaluation of the
+#: members' stages among more of them (`ddatai.side_by_side`: ~60 µs an evaluation whatever its
+#: members): Example II's preparing worker took ~5.9 ms a sample in batches of 40, ~5.0 in
+#: batches of 128, no less in batches of 256 (benchmarks/results/study_throughput.md) [-]
+SAVED_BATCH = 128
 
 # ---------------------------------------------------------------------- one sample
 @dataclass(frozen=True)
