@@ -97,7 +97,7 @@ def main() -> None:
                 dt = time.perf_counter() - t
                 res = float(np.abs(k @ x - b).max() / np.abs(b).max())
                 rows[name, m].append((dt, its, done, res))
-    print(f"| contacts changed | own: ms, iterations, residual | SciPy: ms, iterations, residual | time SciPy / own |")
+    print("| contacts changed | own: ms, iterations, residual | SciPy: ms, iterations, residual | time SciPy / own |")
     print("|---|---|---|---|")
     for m in changes:
         own, sci = np.array(rows["own", m]), np.array(rows["scipy", m])
