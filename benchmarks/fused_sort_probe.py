@@ -1,5 +1,5 @@
-"""The fused engine's contact sort after detection (``contacts._sort``) with and without the
-counting pass by (kind, vertex block) before it (``contacts._by_block``), on the grid scene of
+"""The fused engine's contact sort after detection (``contacts._sort``) with and without a stable
+counting pass by (kind, the block of vertex0) before it (``by_block`` below), on the grid scene of
 `benchmarks/small_models.py` at its packing (ntdda's sudden start): the contacts as the narrow
 phase finds them, then each variant sorts that same region; the order is checked against numpy's
 stable sort by key, CPU µs a call (the copy of the unsorted region subtracted).
@@ -54,21 +54,48 @@ def main() -> None:
     base = int(A["mi"][0, L.MI_C0])
 
     @ti.func
-    def no_sort(E: ti.template(), base, n):
-        pass
+    def bucket(E: ti.template(), c, b0, nb):
+        """(kind, the block of vertex0): the key's leading part, as one of 2·nb buckets."""
+        return E.cint[c, L.CI_KIND] * nb + E.vblock[E.cint[c, L.CI_V0]] - b0
 
     @ti.func
-    def no_pass(E: ti.template(), base, n, b0, nb):
+    def by_block(E: ti.template(), base, n, b0, nb):
+        """A stable counting pass of the n > 2·nb contacts by `bucket` before the insertion sort:
+        the narrow phase finds them pair by pair, a block's contacts spread over its pairs, so
+        the insertion sort alone moves each far; after this pass only within a bucket. The order
+        is the insertion sort's (stable by the whole key) whatever this pass does. Scratch: the
+        columns that ``contacts.start`` writes next (counts in CI_JOINT of the first 2·nb + 1
+        rows, the rows' copies in CI_STATE .. CI_STATE + 4 and ``cf[:, CF_LEN]``)."""
+        for k in range(2 * nb + 1):
+            E.cint[base + k, L.CI_JOINT] = 0
+        for c in range(base, base + n):
+            E.cint[base + 1 + bucket(E, c, b0, nb), L.CI_JOINT] += 1
+        for k in range(1, 2 * nb + 1):
+            E.cint[base + k, L.CI_JOINT] += E.cint[base + k - 1, L.CI_JOINT]
+        for c in range(base, base + n):
+            k = bucket(E, c, b0, nb)
+            d = base + E.cint[base + k, L.CI_JOINT]
+            E.cint[base + k, L.CI_JOINT] = d - base + 1
+            for q in ti.static(range(5)):
+                E.cint[d, L.CI_STATE + q] = E.cint[c, q]
+            E.cf[d, L.CF_LEN] = E.clen[c]
+        for c in range(base, base + n):
+            for q in ti.static(range(5)):
+                E.cint[c, q] = E.cint[c, L.CI_STATE + q]
+            E.clen[c] = E.cf[c, L.CF_LEN]
+
+    @ti.func
+    def no_sort(E: ti.template(), base, n):
         pass
 
     @ti.kernel
     def arrive(E: Pack) -> ti.i32:
         return contacts.detect(E, 0)
 
-    keep = contacts._sort, contacts._by_block
-    contacts._sort, contacts._by_block = no_sort, no_pass
+    keep = contacts._sort
+    contacts._sort = no_sort  # the contacts in the narrow phase's order
     n = int(arrive(args))
-    contacts._sort, contacts._by_block = keep
+    contacts._sort = keep
     rows = A["cint"][base:base + n, :5].copy()
     lens = A["clen"][base:base + n].copy()
     k2 = np.where(rows[:, 0] == 1, rows[:, 3], rows[:, 2])
@@ -90,7 +117,7 @@ def main() -> None:
                     E.cint[base + c, q] = snap_i[c, q]
                 E.clen[base + c] = snap_f[c]
             if phase == 2:
-                contacts._by_block(E, base, n, b0, nb)
+                by_block(E, base, n, b0, nb)
             if phase >= 1:
                 contacts._sort(E, base, n)
         return nb

@@ -77,8 +77,6 @@ def detect(E: ti.template(), m):
                                   E.memi, base, mend, E.cint, E.clen, E.ccount, m, base, cap)
     n = E.ccount[m]
     if n <= cap:
-        if n > 16 and n > 2 * (b1 - b0):
-            _by_block(E, base, n, b0, b1 - b0)
         _sort(E, base, n)
     return n
 
@@ -95,39 +93,6 @@ def _key(E: ti.template(), c):
 @ti.func
 def _less(a0, a1, a2, b0, b1, b2):
     return a0 < b0 or (a0 == b0 and (a1 < b1 or (a1 == b1 and a2 < b2)))
-
-
-@ti.func
-def _bucket(E: ti.template(), c, b0, nb):
-    """(kind, the block of vertex0): the key's leading part, as one of 2·nb buckets."""
-    return E.cint[c, CI_KIND] * nb + E.vblock[E.cint[c, CI_V0]] - b0
-
-
-@ti.func
-def _by_block(E: ti.template(), base, n, b0, nb):
-    """A stable counting pass of the n > 2·nb contacts by `_bucket`, before `_sort`: the
-    narrow phase finds them pair by pair, a block's contacts spread over its pairs, so the
-    insertion sort alone moves each far; after this pass it moves them within a bucket only.
-    The order is `_sort`'s (stable by the whole key) whatever this pass does. Scratch: the
-    columns that `start` writes next (the counts in CI_JOINT of the first 2·nb + 1 rows, the
-    rows' copies in CI_STATE .. CI_STATE + 4 and ``cf[:, CF_LEN]``)."""
-    for k in range(2 * nb + 1):
-        E.cint[base + k, CI_JOINT] = 0
-    for c in range(base, base + n):
-        E.cint[base + 1 + _bucket(E, c, b0, nb), CI_JOINT] += 1
-    for k in range(1, 2 * nb + 1):
-        E.cint[base + k, CI_JOINT] += E.cint[base + k - 1, CI_JOINT]
-    for c in range(base, base + n):
-        k = _bucket(E, c, b0, nb)
-        d = base + E.cint[base + k, CI_JOINT]
-        E.cint[base + k, CI_JOINT] = d - base + 1
-        for q in ti.static(range(5)):
-            E.cint[d, CI_STATE + q] = E.cint[c, q]
-        E.cf[d, CF_LEN] = E.clen[c]
-    for c in range(base, base + n):
-        for q in ti.static(range(5)):
-            E.cint[c, q] = E.cint[c, CI_STATE + q]
-        E.clen[c] = E.cf[c, CF_LEN]
 
 
 @ti.func
