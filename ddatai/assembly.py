@@ -128,33 +128,6 @@ class BlockPattern:
             slot_ba=_block_slots(bkey, slot, nr, rb, ra), pair_key=pair, block_key=bkey, block_slot=slot)
 
 
-#: `kept_pattern`'s patterns of small models, by content (a study's members share a geometry:
-#: their stages' frames couple the same blocks through the same contacts' blocks again and again)
-KEPT_PATTERNS = 64
-_PATTERNS: dict = {}
-
-
-def kept_pattern(model: Model, contacts: Contacts, previous: Optional[BlockPattern] = None) -> BlockPattern:
-    """`BlockPattern.build` for a model of at most ``model.SMALL_MODEL_BLOCKS`` free blocks and no
-    bolts (the equilibrium stage's frames): a pattern depends only on the free blocks' count and
-    each contact's two block rows, so one made for the same ones is given again (its arrays are
-    never written after `BlockPattern.build`, as the solver relies on), the last KEPT_PATTERNS
-    kept; other models build theirs."""
-    from .model import SMALL_MODEL_BLOCKS
-
-    if model.n_free > SMALL_MODEL_BLOCKS or len(model.bolt_block):
-        return BlockPattern.build(model, contacts, previous)
-    dof = model.block_dof
-    key = (model.n_free, dof[contacts.block_a].astype(np.int64).tobytes(), dof[contacts.block_b].astype(np.int64).tobytes())
-    hit = _PATTERNS.get(key)
-    if hit is None:
-        hit = BlockPattern.build(model, contacts, previous)
-        if len(_PATTERNS) >= KEPT_PATTERNS:
-            del _PATTERNS[next(iter(_PATTERNS))]
-        _PATTERNS[key] = hit
-    return hit
-
-
 def _block_slots(block_key: np.ndarray, block_slot: np.ndarray, n_rows: int, r: np.ndarray,
                  c: np.ndarray) -> np.ndarray:
     """Slot of the 6×6 block (r, c) for each entry, -1 where r or c is fixed or r == c."""

@@ -43,7 +43,7 @@ def midstep_lever_arms(model: Model, contacts: Contacts, vertex_xy: np.ndarray, 
     n = contacts.n
     columns = np.zeros((n, N_SLOTS))
     shift = np.zeros((n, 3))
-    if n == 0 or not np.count_nonzero(rotation):
+    if n == 0 or not np.any(rotation):
         return columns, shift
     nxt, vb = model.vertex_next, model.vertex_block
     x = vertex_xy - centroid[vb]

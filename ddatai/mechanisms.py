@@ -289,10 +289,10 @@ def screen_programs(stepper, state: State):
     geom = state.geometry if state.geometry is not None else model.block_geometry(state.vertex_xy)
     cint, length = stepper.detect(state.vertex_xy)
     contacts = Contacts.start(model, state.vertex_xy, cint, length, ContactMemory.empty(), True)
-    if not np.count_nonzero(contacts.state != OPEN):
+    if not np.any(contacts.state != OPEN):
         return none  # nothing touches: the stage has nothing to hold or release
     found = yield from unsupported_programs(model, state.vertex_xy, geom, contacts, np.ones(contacts.n, bool), none)
-    return free if found is not None and np.count_nonzero(found[free]) == np.count_nonzero(free) else none
+    return free if found is not None and np.all(found[free]) else none
 
 
 def contracting(stepper, vertex_xy: np.ndarray, geom: dict, disp: np.ndarray, out: np.ndarray,

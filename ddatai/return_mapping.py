@@ -17,7 +17,7 @@ from typing import Optional
 import numpy as np
 from scipy.sparse import csr_matrix
 
-from .assembly import BlockPattern, assemble_blocks, contact_vectors, kept_pattern
+from .assembly import BlockPattern, assemble_blocks, contact_vectors
 from .contact_law import stage_law
 from .contacts import Contacts, subset_contacts
 from .kinematics import block_displacement
@@ -90,7 +90,7 @@ class Frame:
     def build(stepper, state: State, geom: dict, contacts: Contacts, dt: float, previous=None) -> "Frame":
         """``previous``: the last frame's `BlockPattern`, its layout kept where the same blocks couple."""
         vec, sca = contact_vectors(stepper.model, state.vertex_xy, geom, contacts)
-        pattern = kept_pattern(stepper.model, contacts, previous)  # the same contacts' blocks: the same pattern
+        pattern = BlockPattern.build(stepper.model, contacts, previous)
         data, rhs = assemble_blocks(stepper.model, state, geom, pattern, dt, STAGE_BETA, static_start=True)
         return Frame(vertex_xy=state.vertex_xy, vec=vec, sca=sca, pattern=pattern, data=data, rhs=rhs)
 
@@ -154,7 +154,7 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
     touching, line0 = contacts.state != OPEN, contacts.line.copy()  # as limit equilibrium counts them
     while solves < MAX_STAGE_SOLVES:
         keep = ~(out[contacts.block_a] | out[contacts.block_b])
-        if frame is None or np.count_nonzero(keep) < keep.size:
+        if frame is None or not keep.all():
             contacts = subset_contacts(contacts, keep)
             touching, line0 = touching[keep], line0[keep]
             guess = guess.subset(keep) if guess is not None else None
@@ -369,13 +369,13 @@ def _iterate(stepper, frame: Frame, contacts: Contacts, geom: dict, out: np.ndar
         changed = bool(n_changed)
         few = n_changed <= RANK_MAX  # each a term of rank 1 or 2 in K
         guess.closed, guess.line = u.closed, u.line
-        if not changed and alpha == 1.0 and np.count_nonzero(excess <= state_loose) == excess.size:
+        if not changed and alpha == 1.0 and (excess <= state_loose).all():
             # within the looser tolerance: kept in case the strict one is not reached
             accepted = (replace(outcome, disp=disp.copy(), converged=True),
                         Guess(closed=guess.closed.copy(), line=guess.line.copy(), slip=guess.slip + dslip,
                               gap=guess.gap.copy()),
                         dslip)
-            if np.count_nonzero(excess <= loose) == excess.size:
+            if (excess <= loose).all():
                 # the last correction brings each spring to at most its strength; the forces it
                 # moves are within the tolerance
                 guess.slip = guess.slip + dslip

@@ -366,11 +366,11 @@ class SparseSolver:
             except np.linalg.LinAlgError:
                 solve = None
         if solve is None:
-            if np.count_nonzero(np.isfinite(k)) < k.size:
+            if not np.all(np.isfinite(k)):
                 self._factor = None
                 return np.full(n, np.nan)
             lu = LU(k)
-            if lu.singular or np.count_nonzero(np.diag(lu.lu) == 0.0):  # singular: reported as a non-finite solution
+            if lu.singular or np.any(np.diag(lu.lu) == 0.0):  # singular: reported as a non-finite solution
                 self._factor = None
                 return np.full(n, np.nan)
             solve = lu.solve

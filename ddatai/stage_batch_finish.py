@@ -59,7 +59,7 @@ def _models(models) -> SimpleNamespace:
 
 
 def _rotating(model, contacts, rotation) -> bool:
-    return bool(model.numpy_path and contacts.n and np.count_nonzero(rotation) and not len(model.fixed_point_block))
+    return bool(model.numpy_path and contacts.n and np.any(rotation) and not len(model.fixed_point_block))
 
 
 # ------------------------------------------------------------------ second-order terms

@@ -386,5 +386,5 @@ def balanced(stepper, frame: Frame, contacts: Contacts, geom: dict, size: np.nda
     residual = np.abs((frame.rhs - internal_force(stepper.model, c, frame.vec, law, stepper.serial_scatter)).reshape(-1, 6))
     rows = stepper.free_idx
     allowed = BALANCE_ROUNDOFF * level[rows]
-    forces, moments = residual[:, :2] <= allowed[:, None], residual[:, 2:] <= (allowed * size[rows])[:, None]
-    return np.count_nonzero(forces) == forces.size and np.count_nonzero(moments) == moments.size
+    return bool(np.all(residual[:, :2] <= allowed[:, None]) and
+                np.all(residual[:, 2:] <= (allowed * size[rows])[:, None]))

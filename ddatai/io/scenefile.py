@@ -13,7 +13,6 @@ its line, a ``build`` that returns something else).
 
 from __future__ import annotations
 
-import functools
 import importlib.util
 import math
 import sys
@@ -61,16 +60,9 @@ def _where(err: BaseException, path: Path) -> str:
 
 
 def _script_paths(path: Path) -> list[str]:
-    # the script's folder (modules beside it) and the folder above it (its package); an
-    # absolute path resolved once (a study builds its script's scene every sample: ~25 µs of
-    # system calls a resolve), a relative one each time (it follows the working folder)
-    return list(_script_folders(path) if path.is_absolute() else _script_folders.__wrapped__(path))
-
-
-@functools.lru_cache(maxsize=64)
-def _script_folders(path: Path) -> tuple[str, str]:
+    # the script's folder (modules beside it) and the folder above it (its package)
     here = path.resolve().parent
-    return str(here), str(here.parent)
+    return [str(here), str(here.parent)]
 
 
 def load_scene_script(path, joints=None) -> SceneScript:
