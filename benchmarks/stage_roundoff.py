@@ -9,8 +9,9 @@ from outside.
 
 - ``outcome``: the stage's record (held, released, in doubt, solves, welded) and the held set's hash;
   ``--jitter a``: each solve's D (return mapping, open-close test, finish) multiplied by 1 + a·r, r
-  uniform in [−1, 1] (seeded): a perturbation at the size of a solve's round-off; ``--take-thrown``
-  and ``--floor-still``: two levers tried and not kept (`take_thrown`, `floor_still`).
+  uniform in [−1, 1] (seeded): a perturbation at the size of a solve's round-off; ``--take-thrown``,
+  ``--floor-still`` and ``--floor-keeps-thrown``: levers tried and not kept (`take_thrown`,
+  `floor_still`, `floor_keeps_thrown`).
   ``CASE``: ``family:size`` of `scaling_scenes` or ``scene:name`` (``scenes/name.py``).
 - ``trace``: every return-mapping iterate's contact judgement (`ddatai.return_update.iterate_update`):
   each state rule's quantity minus its bar over the bar (``q``: closing, N − tol_state; opening,
@@ -92,6 +93,8 @@ def outcome(a):
         take_thrown(model)
     if a.floor_still:
         floor_still()
+    if a.floor_keeps_thrown:
+        floor_keeps_thrown(model)
     t = time.process_time()
     state, rec = settle(stepper, model.initial_state())
     held = held_set(model, state)
@@ -141,6 +144,41 @@ def floor_still():
 
     iterate_skips.LineSearch.__call__ = still(large)
     rm.line_search = still(small)
+
+
+def floor_keeps_thrown(model):
+    """Experiment (not the library's rule): where the line search ends at its floor (2^-30 of the step),
+    the blocks that the solve throws away from what holds it keep their D (their target, solved at a
+    condition ~1e12, is not mixed into the iterate); the other blocks take the floor step."""
+    from ddatai.kinematics import block_displacement
+    from ddatai.return_steps import LINE_SEARCH_BISECTIONS
+
+    floor = 1.0 / 2 ** LINE_SEARCH_BISECTIONS
+    plain, large, small, geoms, last = rm.solve, iterate_skips.LineSearch.__call__, rm.line_search, {}, {}
+
+    def solve(*args, **kw):
+        last["target"] = plain(*args, **kw)
+        return last["target"]
+
+    def keep(stepper, frame, contacts, disp, alpha):
+        if alpha > floor:
+            return alpha
+        geom = geoms.setdefault(id(frame.vertex_xy), model.block_geometry(frame.vertex_xy))
+        size = np.sqrt(geom["area"])
+        target = last["target"]
+        far = ~model.block_fixed & (block_displacement(model, frame.vertex_xy, geom, target) > mech.MECHANISM_SIZE * size)
+        if np.count_nonzero(far):
+            thrown = far & ~mech.anchored(stepper, frame.vertex_xy, geom, contacts, target, size)
+            target[thrown] = disp[thrown]  # in place: the iterate's D is disp + α (target − disp)
+        return alpha
+
+    def searched_large(self, stepper, frame, contacts, sca, disp, step, shearing):
+        return keep(stepper, frame, contacts, disp, large(self, stepper, frame, contacts, sca, disp, step, shearing))
+
+    def searched_small(stepper, frame, contacts, sca, disp, step, shearing):
+        return keep(stepper, frame, contacts, disp, small(stepper, frame, contacts, sca, disp, step, shearing))
+
+    rm.solve, iterate_skips.LineSearch.__call__, rm.line_search = solve, searched_large, searched_small
 
 
 def trace(a):
@@ -313,6 +351,7 @@ def main():
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--take-thrown", action="store_true", help="experiment: `take_thrown`")
     p.add_argument("--floor-still", action="store_true", help="experiment: `floor_still`")
+    p.add_argument("--floor-keeps-thrown", action="store_true", help="experiment: `floor_keeps_thrown`")
     p = sub.add_parser("trace")
     p.add_argument("case")
     p.add_argument("--solver", default="auto")
