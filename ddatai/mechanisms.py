@@ -6,6 +6,8 @@ ones. They are released: they start at t = 0 under sudden gravity."""
 
 from __future__ import annotations
 
+from typing import Optional
+
 import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
@@ -79,14 +81,14 @@ def out_of_balance(model, contacts: Contacts, outcome) -> np.ndarray:
 
 def test_unbalanced(stepper, state: State, geom: dict, frame, contacts: Contacts,
                      outcome, guess, unbalanced: np.ndarray,
-                     max_solves: int = MAX_TEST_SOLVES):
+                     max_solves: int = MAX_TEST_SOLVES, friction: Optional[str] = None):
     """The open-close iteration of a static step (`Stepper.open_close`, Mohr–Coulomb: bonds
     kept) from where `_iterate` stopped: closed vertex-edge contacts at or beyond their strength
     slide against their shear (friction of their own normal force), the others are locked with
     their lock points moved by their slip. A block that the contacts cannot hold then moves
     ~FALL_IN_SIZES × its net acceleration / g sizes; one that they hold stays. Returns
     ((D, the contacts as judged, whether the iteration converged), solves), or (None, solves)
-    when a solve is not finite."""
+    when a solve is not finite. ``friction``: the iteration's (`open_close.open_close`)."""
     model = stepper.model
     c = contacts.copy()
     ve = c.cint[:, KIND] == VE
@@ -101,7 +103,8 @@ def test_unbalanced(stepper, state: State, geom: dict, frame, contacts: Contacts
     c.coupled[:] = at & (c.tan_phi > 0)
     c.normal_force[:] = np.where(guess.closed, np.maximum(law.fn, 0.0), 0.0)
     oc = open_close(stepper, state, geom, c, frame.pattern, frame.vec, sca, frame.data, frame.rhs,
-                    np.zeros(model.n_blocks), StepTimer(), max_solves, break_bonds=False, reuse_first=False)
+                    np.zeros(model.n_blocks), StepTimer(), max_solves, break_bonds=False, reuse_first=False,
+                    friction=friction)
     disp, n, converged = oc.displacement, oc.iterations, oc.converged
     if disp is None:
         return None, n
