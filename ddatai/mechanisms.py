@@ -19,6 +19,7 @@ from .kinematics import block_displacement
 from .model_checks import STRAIN_LIMIT
 from .limit_equilibrium import _interior_point, answered, applicable, median, unsupported_programs
 from .layout import KIND, LOCK, OPEN, SLIDE, VE
+from .lowrank import LOWRANK_UNKNOWNS
 from .model import ContactMemory, State
 from .open_close import open_close
 from .records import StepTimer
@@ -77,6 +78,20 @@ def out_of_balance(model, contacts: Contacts, outcome) -> np.ndarray:
     blocks[contacts.block_a[over]] = True
     blocks[contacts.block_b[over]] = True
     return blocks & ~model.block_fixed
+
+
+def finish_friction(model) -> "str | None":
+    """The friction of the stage's Newton finish (``return_mapping._finish``): "lagged" from
+    ``lowrank.LOWRANK_UNKNOWNS`` unknowns (1,000 free blocks), else None (the run's,
+    ``Params.oc_friction``). Coupled friction makes the finish's K non-symmetric at its first
+    sliding contact: an LU with an analysis of its own, ~40 ms at 1,600 blocks against a Cholesky
+    factorisation's ~21 ms on the iterates' analysis, 14 of them in ntdda's grid's stage. Lagged
+    friction (each sliding contact's friction from the last solve's normal force, a load in F)
+    keeps K symmetric; its convergence test asks the friction of the solve itself, so the
+    equilibrium found meets the same tolerances, and where it stalls the iteration goes on coupled
+    (`open_close.open_close`, ``LAGGED_STALL``). Smaller models, and every member of a batch, keep
+    the run's friction and their stage bit for bit (benchmarks/results/stage_solves.md)."""
+    return "lagged" if 6 * model.n_free >= LOWRANK_UNKNOWNS else None
 
 
 def test_unbalanced(stepper, state: State, geom: dict, frame, contacts: Contacts,

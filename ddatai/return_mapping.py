@@ -3,8 +3,7 @@ pseudo-step. Every closed contact stays a spring, its shear measured from a lock
 its slip, while the iteration finds which contacts open and how far each slides (slips
 accelerated by Anderson mixing, an energy line search where states change); once its states
 stop changing, and at a stalled or bonded-at-strength end, the open-close iteration of a static
-step (semismooth Newton; a large model's with lagged friction, `finish_friction`) finishes it
-(``_finish``); blocks the
+step (semismooth Newton; ``mechanisms.finish_friction``) finishes it (``_finish``); blocks the
 contacts cannot hold are found (thrown away, or out of balance and moved by their loads) and
 released (docs/method/dda.md §8.12).
 """
@@ -32,7 +31,8 @@ from . import iterate_skips
 from .return_update import iterate_update
 from .lowrank import LOWRANK_UNKNOWNS, RANK_MAX
 from .updates import Springs, block_rows
-from .mechanisms import MECHANISM_SIZE, anchored, contracting, loaded_away, mechanisms, out_of_range, test_unbalanced
+from .mechanisms import (MECHANISM_SIZE, anchored, contracting, finish_friction, loaded_away, mechanisms,
+                         out_of_range, test_unbalanced)
 
 #: Newmark's β of the stage's system: that of a first step (the stage's pseudo-steps have no
 #: acceleration history; `kinematics.newmark_beta`)
@@ -253,20 +253,6 @@ def return_mapping(stepper, state: State, geom: dict, contacts: Contacts, dt: fl
             return done[0], solves, out & ~released, done[1], False, False, False
     _hand_over(stepper, state.vertex_xy, contacts, outcome.law, guess)
     return outcome.disp, solves, out & ~released, contacts, stalled, False, False
-
-
-def finish_friction(model) -> "str | None":
-    """The friction of ``_finish``'s open-close iteration: "lagged" from ``LOWRANK_UNKNOWNS``
-    unknowns (1,000 free blocks), else the run's (``Params.oc_friction``). Coupled friction makes
-    the finish's K non-symmetric at its first sliding contact: an LU with an analysis of its own,
-    ~40 ms at 1,600 blocks against a Cholesky factorisation's ~21 ms on the iterates' analysis,
-    14 of them in the grid's stage. Lagged friction (each sliding contact's friction from the last
-    solve's normal force, a load in F) keeps K symmetric; its convergence test asks the friction
-    of the solve itself, so the equilibrium found meets the same tolerances, and where it stalls
-    the iteration goes on coupled (`open_close.open_close`, ``LAGGED_STALL``). Smaller models,
-    and every member of a batch, keep the run's friction and their stage bit for bit
-    (benchmarks/results/stage_solves.md)."""
-    return "lagged" if 6 * model.n_free >= LOWRANK_UNKNOWNS else None
 
 
 def _finish(stepper, state: State, geom: dict, frame: Frame, contacts: Contacts, outcome: "Outcome",
