@@ -6,6 +6,8 @@ ones. They are released: they start at t = 0 under sudden gravity."""
 
 from __future__ import annotations
 
+from typing import Optional
+
 import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
@@ -17,6 +19,7 @@ from .kinematics import block_displacement
 from .model_checks import STRAIN_LIMIT
 from .limit_equilibrium import _interior_point, answered, applicable, median, unsupported_programs
 from .layout import KIND, LOCK, OPEN, SLIDE, VE
+from .lowrank import LOWRANK_UNKNOWNS
 from .model import ContactMemory, State
 from .open_close import open_close
 from .records import StepTimer
@@ -77,16 +80,30 @@ def out_of_balance(model, contacts: Contacts, outcome) -> np.ndarray:
     return blocks & ~model.block_fixed
 
 
+def finish_friction(model) -> "str | None":
+    """The friction of the stage's Newton finish (``return_mapping._finish``): "lagged" from
+    ``lowrank.LOWRANK_UNKNOWNS`` unknowns (1,000 free blocks), else None (the run's,
+    ``Params.oc_friction``). Coupled friction makes the finish's K non-symmetric at its first
+    sliding contact: an LU with an analysis of its own, ~40 ms at 1,600 blocks against a Cholesky
+    factorisation's ~21 ms on the iterates' analysis, 14 of them in ntdda's grid's stage. Lagged
+    friction (each sliding contact's friction from the last solve's normal force, a load in F)
+    keeps K symmetric; its convergence test asks the friction of the solve itself, so the
+    equilibrium found meets the same tolerances, and where it stalls the iteration goes on coupled
+    (`open_close.open_close`, ``LAGGED_STALL``). Smaller models, and every member of a batch, keep
+    the run's friction and their stage bit for bit (benchmarks/results/stage_solves.md)."""
+    return "lagged" if 6 * model.n_free >= LOWRANK_UNKNOWNS else None
+
+
 def test_unbalanced(stepper, state: State, geom: dict, frame, contacts: Contacts,
                      outcome, guess, unbalanced: np.ndarray,
-                     max_solves: int = MAX_TEST_SOLVES):
+                     max_solves: int = MAX_TEST_SOLVES, friction: Optional[str] = None):
     """The open-close iteration of a static step (`Stepper.open_close`, Mohr–Coulomb: bonds
     kept) from where `_iterate` stopped: closed vertex-edge contacts at or beyond their strength
     slide against their shear (friction of their own normal force), the others are locked with
     their lock points moved by their slip. A block that the contacts cannot hold then moves
     ~FALL_IN_SIZES × its net acceleration / g sizes; one that they hold stays. Returns
     ((D, the contacts as judged, whether the iteration converged), solves), or (None, solves)
-    when a solve is not finite."""
+    when a solve is not finite. ``friction``: the iteration's (`open_close.open_close`)."""
     model = stepper.model
     c = contacts.copy()
     ve = c.cint[:, KIND] == VE
@@ -101,7 +118,8 @@ def test_unbalanced(stepper, state: State, geom: dict, frame, contacts: Contacts
     c.coupled[:] = at & (c.tan_phi > 0)
     c.normal_force[:] = np.where(guess.closed, np.maximum(law.fn, 0.0), 0.0)
     oc = open_close(stepper, state, geom, c, frame.pattern, frame.vec, sca, frame.data, frame.rhs,
-                    np.zeros(model.n_blocks), StepTimer(), max_solves, break_bonds=False, reuse_first=False)
+                    np.zeros(model.n_blocks), StepTimer(), max_solves, break_bonds=False, reuse_first=False,
+                    friction=friction)
     disp, n, converged = oc.displacement, oc.iterations, oc.converged
     if disp is None:
         return None, n

@@ -107,7 +107,8 @@ def solve(stepper, pattern: BlockPattern, data: np.ndarray, rhs: np.ndarray,
 def open_close(stepper, state: State, geom: dict, contacts: Contacts, pattern: BlockPattern,
                vec: np.ndarray, sca: np.ndarray, data0: np.ndarray, rhs0: np.ndarray,
                rotation: np.ndarray, timer: "StepTimer", max_iterations: int, break_bonds: bool = True,
-               reuse_first: bool = True, hold_cycles: bool = False, give_up_cycles: bool = False) -> OpenClose:
+               reuse_first: bool = True, hold_cycles: bool = False, give_up_cycles: bool = False,
+               friction: Optional[str] = None) -> OpenClose:
     """The open-close iteration (§4) in place on ``contacts``, from the block terms ``data0``,
     ``rhs0`` (`assembly.assemble_blocks`) and the rotation predicted for the step (for the
     second-order terms). ``reuse_first``: the first solve may try the last factor (the states
@@ -115,14 +116,15 @@ def open_close(stepper, state: State, geom: dict, contacts: Contacts, pattern: B
     (off in the equilibrium stage, whose joints are Mohr–Coulomb). ``hold_cycles``: a cycle of
     states holds its contacts closed (`hold_cycling`; the step's last try, at the shortest Δt).
     ``give_up_cycles``: a cycle of states ends the try at once, not converged (`cycling`; a
-    step's tries before the last, which a shorter Δt follows)."""
+    step's tries before the last, which a shorter Δt follows). ``friction``: "coupled" or
+    "lagged" for this iteration (None: ``Params.oc_friction``)."""
     model = stepper.model
     n = 6 * pattern.n_rows
     block_k = None   # K of the block terms, for the line search (built when first needed)
     previous = None  # last iterate D
     disp = None
     verdict = None
-    lagged = stepper.params.oc_friction == "lagged"
+    lagged = (friction or stepper.params.oc_friction) == "lagged"
     if lagged:
         contacts.coupled[:] = False  # friction from the last solve's N: K symmetric
     fewest, since = contacts.n + 1, 0  # the fewest contacts changing, solves since then

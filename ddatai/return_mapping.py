@@ -3,7 +3,7 @@ pseudo-step. Every closed contact stays a spring, its shear measured from a lock
 its slip, while the iteration finds which contacts open and how far each slides (slips
 accelerated by Anderson mixing, an energy line search where states change); once its states
 stop changing, and at a stalled or bonded-at-strength end, the open-close iteration of a static
-step (semismooth Newton) finishes it (``_finish``); blocks the
+step (semismooth Newton; ``mechanisms.finish_friction``) finishes it (``_finish``); blocks the
 contacts cannot hold are found (thrown away, or out of balance and moved by their loads) and
 released (docs/method/dda.md §8.12).
 """
@@ -31,7 +31,8 @@ from . import iterate_skips
 from .return_update import iterate_update
 from .lowrank import LOWRANK_UNKNOWNS, RANK_MAX
 from .updates import Springs, block_rows
-from .mechanisms import MECHANISM_SIZE, anchored, contracting, loaded_away, mechanisms, out_of_range, test_unbalanced
+from .mechanisms import (MECHANISM_SIZE, anchored, contracting, finish_friction, loaded_away, mechanisms,
+                         out_of_range, test_unbalanced)
 
 #: Newmark's β of the stage's system: that of a first step (the stage's pseudo-steps have no
 #: acceleration history; `kinematics.newmark_beta`)
@@ -261,7 +262,8 @@ def _finish(stepper, state: State, geom: dict, frame: Frame, contacts: Contacts,
     converges and moves no block away, ((D, the contacts with their lock points moved by the
     slips), solves), else (None, solves)."""
     finished, n = test_unbalanced(stepper, state, geom, frame, contacts, outcome, guess,
-                                  ~stepper.model.block_fixed, MAX_FINISH_SOLVES)
+                                  ~stepper.model.block_fixed, MAX_FINISH_SOLVES,
+                                  friction=finish_friction(stepper.model))
     if finished is None or not finished[2] or \
             np.count_nonzero(mechanisms(stepper, state.vertex_xy, geom, finished[1], finished[0], out, size)):
         return None, n

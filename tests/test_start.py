@@ -268,3 +268,42 @@ def test_the_scaling_families_start_without_the_welded_fallback(family, size):
         assert record.released == int(np.count_nonzero(released))
         assert np.all(released[moving])
         assert record.released <= 1.1 * np.count_nonzero(moving)
+
+
+def test_a_large_models_finish_is_lagged_and_a_small_ones_keeps_the_runs_friction():
+    """`mechanisms.finish_friction`: from 1,000 free blocks (``lowrank.LOWRANK_UNKNOWNS``) the
+    stage's Newton finish solves with lagged friction (K symmetric: a Cholesky factorisation
+    instead of an LU, benchmarks/results/stage_solves.md); a smaller model keeps the run's."""
+    from ddatai.mechanisms import finish_friction
+
+    assert finish_friction(build_model(*soft_stack(32, 32))) == "lagged"  # 1,024 free blocks
+    assert finish_friction(build_model(*soft_stack(20, 20))) is None
+
+
+def test_the_finish_with_lagged_friction_hands_over_an_equilibrium(monkeypatch):
+    """The Newton finish with lagged friction (each sliding contact's friction from the last
+    solve's normal force; its convergence test asks the friction of the solve itself) ends in an
+    equilibrium as the coupled one does: on ntdda's soft grid (12 × 12) every block is held and
+    three steps from the start move no block by more than round-off (1e-9 m)."""
+    from ddatai import mechanisms, return_mapping
+
+    frictions = []
+    open_close = mechanisms.open_close
+
+    def recorded(*args, **kwargs):
+        frictions.append(kwargs.get("friction"))
+        return open_close(*args, **kwargs)
+
+    monkeypatch.setattr(return_mapping, "finish_friction", lambda model: "lagged")
+    monkeypatch.setattr(mechanisms, "open_close", recorded)
+    scene, params = soft_stack(12, 12)
+    model = build_model(scene, params)
+    stepper = Stepper(model)
+    state, record = settle(stepper, model.initial_state())
+    assert "lagged" in frictions
+    assert not record.welded and not record.unsettled and record.held == model.n_free
+    start = model.block_geometry(state.vertex_xy)["centroid"]
+    for _ in range(3):
+        state, _ = stepper.step(state)
+    moved = np.hypot(*(model.block_geometry(state.vertex_xy)["centroid"] - start).T)
+    assert moved.max() < 1e-9
