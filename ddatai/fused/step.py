@@ -320,7 +320,8 @@ def step(E: ti.template(), m):
         coulomb = 0.0
         while True:
             last = dt * E.mf[m, MF_DT_CUT] < shortest and retry != 1
-            cycled, cause_oc, its, excess = open_close(E, m, dt, beta, last)
+            # the retake's iteration starts from the first try's converged states (`impacts.resumed`)
+            cycled, cause_oc, its, excess = open_close(E, m, dt, beta, last, retry == 1)
             cause = cause_oc
             iterations = its
             coulomb = excess
