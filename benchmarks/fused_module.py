@@ -31,7 +31,7 @@ PINNED = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS"
 #: to the member's row so that nothing is dropped as dead code)
 PIECES = {
     "detect": "E.mi[m, 0] = contacts.detect(E, m)",
-    "open_close": "a, b, c, d = iterate.open_close(E, m, dt, beta, E.mi[m, 1] > 0, E.mi[m, 2] > 0)\nE.mf[m, 0] = a + b + c + d",
+    "open_close": "a, b, c, d = iterate.open_close(E, m, dt, beta, E.mi[m, 1] > 0)\nE.mf[m, 0] = a + b + c + d",
     "factor_solve": "if system.factor(E, m, E.mi[m, 2] > 0):\n    E.mi[m, 0] = system.solve(E, m)",
     "law": ("E.mf[m, 0] = law.evaluate(E, m, 3, 0) + law.violations(E, m, 0)\nlaw.internal_force(E, m, 1, 5)\n"
             "a, b = law.judge(E, m, 0, 1)\nE.mf[m, 1] = a + b"),

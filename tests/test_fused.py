@@ -430,7 +430,7 @@ def test_a_study_on_local_workers_runs_the_fused_kernel_in_one_process():
 def test_the_fused_impact_retake_starts_from_the_first_try_s_states():
     """The kernel's twin of tests/test_impacts.py's retake: the rocking block's two impact steps
     in 150 steps, each first try three solves, each retake one (from the first try's converged
-    states, `ddatai.fused.contacts.try_start`), as on the NumPy path."""
+    states, left in place by `ddatai.fused.step`), as on the NumPy path."""
     from test_impacts import numpy_records, retakes, rocking_model
 
     def fused(model, state, steps):

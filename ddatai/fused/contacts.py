@@ -281,26 +281,16 @@ def vectors(E: ti.template(), m):
 @ti.func
 def restore(E: ti.template(), m):
     """The open-close fields as the step found them (each try starts from them)."""
-    try_start(E, m, 0)
-
-
-@ti.func
-def try_start(E: ti.template(), m, resume):
-    """The open-close fields a try starts from: as the step found them, or with ``resume`` (the
-    impact step taken again, `ddatai.impacts.resumed`) the states, lines, bonds, sliding
-    directions, coupling and normal forces the first try converged to, left in place; the
-    distances always the step start's."""
     base = E.mi[m, MI_C0]
     for c in range(base, base + E.mi[m, MI_NC]):
-        if resume == 0:
-            E.cint[c, CI_STATE] = E.cint[c, CI_STATE0]
-            E.cint[c, CI_LINE] = E.cint[c, CI_LINE0]
-            E.cint[c, CI_BOND] = E.cint[c, CI_BOND0]
-            E.cint[c, CI_DIR] = E.cint[c, CI_DIR0]
-            E.cint[c, CI_COUPLED] = E.cint[c, CI_COUPLED0]
-            E.cf[c, CF_NF] = E.cf[c, CF_NF0]
+        E.cint[c, CI_STATE] = E.cint[c, CI_STATE0]
+        E.cint[c, CI_LINE] = E.cint[c, CI_LINE0]
+        E.cint[c, CI_BOND] = E.cint[c, CI_BOND0]
+        E.cint[c, CI_DIR] = E.cint[c, CI_DIR0]
+        E.cint[c, CI_COUPLED] = E.cint[c, CI_COUPLED0]
         E.cf[c, CF_DN] = E.cf[c, CF_DN0]
         E.cf[c, CF_DS] = E.cf[c, CF_DS0]
+        E.cf[c, CF_NF] = E.cf[c, CF_NF0]
 
 
 @ti.func
