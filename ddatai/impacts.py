@@ -14,7 +14,9 @@ velocity and acceleration (``approach_bound``); the step before it ends IMPACT_L
 step before it; the impact step is IMPACT_OMEGA/√(p/m) long (the spring settles within it);
 its solve finds which contacts hold, and the step is taken again from the impacted blocks'
 velocity projected onto what they admit (`Stepper.impact_projection`, ``plastic_start``): a
-plastic impact at the step's start, restitution 0, the momentum about the contact kept.
+plastic impact at the step's start, restitution 0, the momentum about the contact kept. The
+retake's open-close iteration starts from the contact states the first try converged to
+(``resumed``): the same step and Δt, only the impacted blocks' start velocity changed.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ import numpy as np
 
 from .geometry import mass_matrix
 from .layout import KIND, OPEN, S_E0, S_E1, S_G0, S_G1, VV
+from .contacts import Contacts
 from .model import Model, State
 from .time_step import choose_time_step
 
@@ -151,3 +154,21 @@ def plastic_start(state: State, projected: np.ndarray, blocks: np.ndarray) -> St
     velocity[blocks] = projected[blocks]
     accel[blocks] = 0.0
     return state.replace(block_velocity=velocity, block_accel=accel)
+
+
+def resumed(start: Contacts, accepted: Contacts) -> Contacts:
+    """The contacts from which the impact step is taken again: ``start`` (the step's contacts as
+    detected, each try's first guess) with the open-close fields the first try converged to,
+    from ``accepted`` (its accepted solve's). The retake is the same step at the same Δt, only the
+    impacted blocks' start velocity projected (``plastic_start``), so its iteration's natural
+    first guess is where the first one ended (docs/method/dda.md §4.6, *Impacts*), not the step
+    start's states it began from: each solve judges the law afresh, and the retake is accepted
+    by the same tests as any try. Taken: the state, the VV contact's active line, the sliding
+    direction, whether its friction is coupled, the normal force the friction of an uncoupled
+    one reads (what each solve assumes) and the bonds: v₊ was projected with the accepted solve's
+    contacts, a bond broken there among them (a rocking block's old corner, bonded since the
+    start, lifting off as the new one lands). The distances stay the step start's."""
+    out = start.copy()
+    for name in ("state", "line", "shear_dir", "coupled", "normal_force", "bond"):
+        getattr(out, name)[:] = getattr(accepted, name)
+    return out

@@ -52,7 +52,7 @@ from .open_close import open_close, solve
 from .records import StepRecord, StepTimer
 from .results import SimulationError
 from .solver import SparseSolver
-from .impacts import approach_bound, impacted, negligible, plastic_start
+from .impacts import approach_bound, impacted, negligible, plastic_start, resumed
 from .time_step import choose_time_step, end_on
 
 
@@ -187,7 +187,8 @@ class Stepper:
             projected = self.impact_projection(state, geom, attempt, dt)
             if not negligible(model, state, geom, projected, impact):
                 start = plastic_start(state, projected, impact)
-                again = self.attempt(start, geom, contacts, vec, sca, dt, timer)
+                # its iteration starts from the states the first try converged to (`resumed`)
+                again = self.attempt(start, geom, resumed(contacts, attempt.contacts), vec, sca, dt, timer)
                 oc_total += again.iterations
                 start, attempt = (start, again) if again.ok else (state, attempt)
         t0 = _time.perf_counter()

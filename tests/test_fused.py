@@ -424,3 +424,21 @@ def test_a_study_on_local_workers_runs_the_fused_kernel_in_one_process():
         tables.append((np.asarray(study.table["failed"]).tolist(), study.pf))
     assert tables[0] == tables[1]
     assert 0 < sum(tables[0][0]) < 12
+
+
+@pytest.mark.slow
+def test_the_fused_impact_retake_starts_from_the_first_try_s_states():
+    """The kernel's twin of tests/test_impacts.py's retake: the rocking block's two impact steps
+    in 150 steps, each first try three solves, each retake one (from the first try's converged
+    states, left in place by `ddatai.fused.step`), as on the NumPy path."""
+    from test_impacts import numpy_records, retakes, rocking_model
+
+    def fused(model, state, steps):
+        out = _fused_run(model, state, steps)
+        assert out.status == "done"
+        return out.records["oc_total"], out.records["oc_iterations"]
+
+    model = rocking_model()
+    got = retakes(model, 150, fused)
+    np.testing.assert_array_equal(got, retakes(model, 150, numpy_records))
+    assert np.all(got[0] == 3) and np.all(got[1] == 1) and len(got[1]) == 2, got

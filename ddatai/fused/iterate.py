@@ -74,9 +74,10 @@ def _trial(E: ti.template(), m, alpha):
 @ti.func
 def open_close(E: ti.template(), m, dt, beta, last):
     """One try of the step with Δt = ``dt``: the block terms, then the open-close iteration
-    in place on the contacts (restored to the step's start first). The accepted iterate is
-    left in ``BW_SOL``. ``last``: the step's last try (a cycle of states is then handed to
-    today's path). Returns (cycled, cause OK / NAN / OPEN_CLOSE, solves, the converged solve's
+    in place on the contacts, from the states they hold (the step's: `contacts.restore`, or the
+    first try's converged ones for the impact step taken again: `ddatai.fused.step`). The
+    accepted iterate is left in ``BW_SOL``. ``last``: the step's last try (a cycle of states is
+    then handed to today's path). Returns (cycled, cause OK / NAN / OPEN_CLOSE, solves, the converged solve's
     largest excess of a shear force over its strength)."""
     nf = E.mi[m, MI_NF]
     n = 6 * nf
@@ -85,7 +86,6 @@ def open_close(E: ti.template(), m, dt, beta, last):
     brhs = xs + XS_BRHS * n
     grad = xs + XS_GRAD * n
     hashes = xs + XS_HASH * n
-    contacts.restore(E, m)
     system.clear_block_terms(E, m)
     blocks.block_terms(E, m, dt, beta)
     carry = E.mf[m, MF_CARRY]

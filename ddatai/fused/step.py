@@ -320,6 +320,10 @@ def step(E: ti.template(), m):
         coulomb = 0.0
         while True:
             last = dt * E.mf[m, MF_DT_CUT] < shortest and retry != 1
+            # each try starts from the step start's contact states; the impact step taken again
+            # from the first try's converged ones, left in place (`ddatai.impacts.resumed`)
+            if retry != 1:
+                contacts.restore(E, m)
             cycled, cause_oc, its, excess = open_close(E, m, dt, beta, last)
             cause = cause_oc
             iterations = its
