@@ -190,6 +190,17 @@ def soft_stack(width: int, height: int) -> tuple[dd.Scene, dd.Params]:
     return stacked_grid(width, height, soft), dd.Params(dt=1e-3, penalty=1e9, plane="stress")
 
 
+def assert_hands_over_an_equilibrium(stepper, model, state, record):
+    """Every block held, neither welded nor unsettled, and three steps from the start move none
+    by more than 1e-9 m."""
+    assert not record.welded and not record.unsettled and record.held == model.n_free
+    start = model.block_geometry(state.vertex_xy)["centroid"]
+    for _ in range(3):
+        state, _ = stepper.step(state)
+    moved = np.hypot(*(model.block_geometry(state.vertex_xy)["centroid"] - start).T)
+    assert moved.max() < 1e-9
+
+
 def test_the_return_mapping_is_finished_by_newton_and_the_start_is_at_rest(monkeypatch):
     """ntdda's soft grid (20 × 20, E = 100 MPa: 4 cm of settlement): once the return mapping's
     contact states stop changing, the rest is the slips' linear convergence, and the open-close
@@ -212,12 +223,7 @@ def test_the_return_mapping_is_finished_by_newton_and_the_start_is_at_rest(monke
     stepper = Stepper(model)
     state, record = settle(stepper, model.initial_state())
     assert any(finished)
-    assert not record.welded and not record.unsettled and record.held == model.n_free
-    start = model.block_geometry(state.vertex_xy)["centroid"]
-    for _ in range(3):
-        state, _ = stepper.step(state)
-    moved = np.hypot(*(model.block_geometry(state.vertex_xy)["centroid"] - start).T)
-    assert moved.max() < 1e-9
+    assert_hands_over_an_equilibrium(stepper, model, state, record)
 
 
 def test_a_soft_stack_whose_geometry_does_not_settle_keeps_its_blocks():
@@ -301,9 +307,4 @@ def test_the_finish_with_lagged_friction_hands_over_an_equilibrium(monkeypatch):
     stepper = Stepper(model)
     state, record = settle(stepper, model.initial_state())
     assert "lagged" in frictions
-    assert not record.welded and not record.unsettled and record.held == model.n_free
-    start = model.block_geometry(state.vertex_xy)["centroid"]
-    for _ in range(3):
-        state, _ = stepper.step(state)
-    moved = np.hypot(*(model.block_geometry(state.vertex_xy)["centroid"] - start).T)
-    assert moved.max() < 1e-9
+    assert_hands_over_an_equilibrium(stepper, model, state, record)
