@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import rocking_cases
 
 import ddatai as dd
 
@@ -53,9 +54,6 @@ def numpy_records(model, state, steps: int) -> tuple[np.ndarray, np.ndarray]:
 def rocking_model():
     """The 0.5 × 2 m rocking block of tests/rocking_cases.py released at half its overturning
     angle, without the equilibrium stage; 150 steps hold its first two impacts (steps 52, 138)."""
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
-    import rocking_cases
-
     params = dd.Params(kernels="numpy", solver="dense", initial_equilibrium=False)
     return dd.build_model(rocking_cases.scene(0.5, 2.0, 0.5), params)
 
