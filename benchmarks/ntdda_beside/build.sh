@@ -25,4 +25,8 @@ xml_cflags=$(pkg-config --cflags libxml-2.0 2>/dev/null || echo -I/usr/include/l
 $cc -O2 -fcommon -I"$src/include" -I"$src/src/platform/stubs" $xml_cflags \
     -o "$out/step_timer" "$here/step_timer.c" "$out/ntdda/src/libdda.a" \
     -Wl,--wrap=display $(pkg-config --libs libxml-2.0 2>/dev/null || echo -lxml2) -lm
+# contact_log: the same timer with ntdda's contact judge df22 wrapped (benchmarks/quiet16.py)
+$cc -O2 -fcommon -I"$src/include" -I"$src/src/platform/stubs" $xml_cflags \
+    -o "$out/contact_log" "$here/step_timer.c" "$here/contact_log.c" "$out/ntdda/src/libdda.a" \
+    -Wl,--wrap=display -Wl,--wrap=df22 $(pkg-config --libs libxml-2.0 2>/dev/null || echo -lxml2) -lm
 echo "$out/step_timer"
