@@ -3,7 +3,7 @@ step on the same DDAML files, and how robust ntdda's count is.
 
     benchmarks/ntdda_beside/build.sh NTDDA_CHECKOUT      # builds contact_log beside step_timer
     python benchmarks/quiet16.py --driver /tmp/ntdda-beside-build/contact_log
-                                 [--blocks 16] [--parts trace,closings,beta,perturb]
+                                 [--blocks 16] [--parts trace,extra,closings,beta,perturb]
                                  [--sizes 4,16,64] [--ddatai-perturb]
 
 The grid of docs/ntdda.md §5.1 written as DDAML files by ``ntdda_beside.grid_files``, 2,000 steps
@@ -21,6 +21,9 @@ from ntdda's sudden start, one thread in both codes. Parts:
   vertex–vertex contacts): how many are closed, the deepest overlap, how many are open while their
   blocks overlap; ntdda's largest open overlap against its re-closing band; each code's solves a
   step; how far ddatai's centroids lie from ntdda's, step by step.
+- ``extra``: ddatai's solves that changed contact states (``oc_changes.run``'s log), by the
+  classes of the contacts that changed (the impact rule's retakes apart), with and without the
+  impact rule.
 - ``closings``: for each of ``--sizes``, ntdda's open → closed changes (how many, the first step,
   the median overlap at closing), closed → open changes and the steps with more than one solve,
   against its re-closing band 2e-4·w0 (w0 grows with the grid).
@@ -245,6 +248,29 @@ def trace_part(driver: str, geo: Path, ana: Path, work: Path) -> None:
         distances(name, tr, nt)
 
 
+def extra_part(geo: Path, ana: Path) -> None:
+    case = dd.read_ntdda(geo, ana)
+    oc_changes.STEPS = STEPS
+    for rules in ("", "noimpact"):
+        res, log = oc_changes.run(case, frozenset(r for r in rules.split(",") if r), record=True)
+        start = np.asarray(res.centroid[0])
+        kinds: dict = {}
+        for r in log:
+            if not r["changed"]:
+                continue
+            rows = r["rows"]
+            step = dict(a=np.array([c[0] for c in rows]), b=np.array([c[1] for c in rows]),
+                        vv=np.array([c[2] for c in rows]))
+            name = "+".join(k for k, m in classes(step, start).items() if m.any())
+            name += " (impact retake)" if r["attempt"] > 1 else ""
+            kinds[name] = kinds.get(name, 0) + 1
+        n = len(res.steps)
+        print(f"\nddatai, rules {rules or 'its own'}: solves a step {res.steps['oc_total'].mean():.4f}; solves that "
+              "changed states, by the classes that changed:")
+        for name, count in sorted(kinds.items(), key=lambda kv: -kv[1]):
+            print(f"  {name:32s} {count:5d} ({count / n:.4f} a step)")
+
+
 def closings_part(driver: str, sizes, work: Path) -> None:
     for n in sizes:
         geo, ana = grid_files(n, work, STEPS)
@@ -302,7 +328,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--driver", required=True, help="the contact_log driver (benchmarks/ntdda_beside/build.sh)")
     ap.add_argument("--blocks", type=int, default=16)
-    ap.add_argument("--parts", default="trace,beta,perturb")
+    ap.add_argument("--parts", default="trace,extra,closings,beta,perturb")
     ap.add_argument("--sizes", default="4,16,64", help="grid sizes of the closings part")
     ap.add_argument("--ddatai-perturb", action="store_true")
     a = ap.parse_args()
@@ -313,6 +339,8 @@ def main() -> None:
         (work / "perturbed").mkdir()
         if "trace" in parts:
             trace_part(a.driver, geo, ana, work)
+        if "extra" in parts:
+            extra_part(geo, ana)
         if "closings" in parts:
             closings_part(a.driver, [int(n) for n in a.sizes.split(",")], work)
         if "beta" in parts:
