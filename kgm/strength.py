@@ -15,6 +15,7 @@ arithmetic (scalar and NumPy), as each always had.
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, replace
 from typing import Optional
 
@@ -32,6 +33,13 @@ class Strength:
 
     def joint(self, joint):
         """A `ddatai.Joint` (or `ddatai.BartonBandis`) at this strength."""
+        from ddatai.params import UnitWarning
+
+        with warnings.catch_warnings():  # c/F of a joint checked when it was built: no unit slip
+            warnings.simplefilter("ignore", UnitWarning)
+            return self._reduced(joint)
+
+    def _reduced(self, joint):
         from ddatai.params import BartonBandis, Joint
 
         if isinstance(joint, BartonBandis) and self.friction is None:

@@ -1,6 +1,7 @@
 """Unit mistakes are warned about (a `UnitWarning` naming the value and the likely unit), and a
 failure that a unit mistake explains names it as the likely cause."""
 
+import math
 import warnings
 
 import pytest
@@ -70,3 +71,16 @@ def test_refused_soft_model_names_the_unit():
     scene.add_block([(0, 0), (1, 0), (1, 1), (0, 1)], material=rock)
     with pytest.raises(ValueError, match=r"likely cause: Material\.young = 5000 Pa .* MPa"):
         dd.build_model(scene)
+
+
+def test_a_strength_reductions_cohesion_is_not_a_unit_slip():
+    """c/F of a joint checked when it was built is small by the method (a strength reduction to
+    F = 500 in a bisection), not by a unit slip: no warning."""
+    from kgm.strength import Strength
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        reduced = Strength(reduction=500.0).joint(dd.Joint(friction=30.0, cohesion=20e3))
+        barton = Strength(reduction=500.0).joint(dd.BartonBandis(jrc=10.0, jcs=50e6, residual_friction=25.0, cohesion=20e3))
+    assert reduced.cohesion == pytest.approx(40.0) and barton.cohesion == pytest.approx(40.0)
+    assert math.tan(math.radians(reduced.friction)) == pytest.approx(math.tan(math.radians(30.0)) / 500.0)
