@@ -84,7 +84,7 @@ ANALYSIS = """<Analysis type="dynamic">
     <AngleOverlap value="3.0"/> <ShearNormRatio value="2.5"/>
   </AConstants>
   <Blockmaterial type="1">
-    <Unitmass>2000.0</Unitmass> <Unitweight>19620.0</Unitweight> <Youngsmod>1.0e8</Youngsmod>
+    <Unitmass>2000.0</Unitmass> <Unitweight>19620.0</Unitweight> <Youngsmod>{young}</Youngsmod>
     <Poissonratio>0.25</Poissonratio> <Damping>0.0</Damping>
     <Istress>0 0 0</Istress> <Ivelocity>0 0 0</Ivelocity> <Istrain>0 0 0</Istrain>
   </Blockmaterial>
@@ -166,13 +166,14 @@ print(json.dumps(dict(ms=1e3 * wall / {steps}, cpu_ms=1e3 * cpu / {steps}, steps
 """
 
 
-def grid_files(n_blocks: int, directory: Path, steps: int) -> tuple[Path, Path]:
+def grid_files(n_blocks: int, directory: Path, steps: int, young: float = 1.0e8) -> tuple[Path, Path]:
     """Write ntdda's n × n grid (docs/ntdda.md §5.1) as DDAML ``grid{N}.geo`` and ``grid{N}.ana``.
 
     Joint lines: the base block's outline [−1, n + 1] × [−1, 0], the grid's columns x = 0 … n over
     y ∈ [0, n] and rows y = 1 … n over x ∈ [0, n], each passing its ends by `OVERSHOOT`. Three
     fixed points in the base; measured points at the top-left, top-right and bottom-middle block
-    centres. g2 is set so that g2·w0 = 0.03 m with ntdda's w0 = (n + 2)/2."""
+    centres. g2 is set so that g2·w0 = 0.03 m with ntdda's w0 = (n + 2)/2. ``young``: the blocks'
+    Young's modulus [Pa] (the grid's 100 MPa; another value tests how a result depends on it)."""
     n = int(round(n_blocks ** 0.5))
     if n * n != n_blocks:
         raise ValueError(f"grid_files: {n_blocks} blocks is not a square grid")
@@ -191,7 +192,8 @@ def grid_files(n_blocks: int, directory: Path, steps: int) -> tuple[Path, Path]:
     w0 = (n + 2) / 2
     geo, ana = directory / f"grid{n_blocks}.geo", directory / f"grid{n_blocks}.ana"
     geo.write_text(ENVELOPE.format(dtd="geometry.dtd", body=geometry))
-    ana.write_text(ENVELOPE.format(dtd="analysis.dtd", body=ANALYSIS.format(steps=steps, g2=GRID_STEP / w0)))
+    ana.write_text(ENVELOPE.format(dtd="analysis.dtd", body=ANALYSIS.format(
+        steps=steps, g2=GRID_STEP / w0, young="1.0e8" if young == 1.0e8 else f"{young:.6e}")))
     return geo, ana
 
 
@@ -249,13 +251,14 @@ def centroid_gap(a: dict, b: dict) -> float:
 SIDE = {"sudden": "ddatai", "default": "ddatai_default"}
 
 
-def measure(driver: str, cases, pairs: int, steps: int, cache: str, starts=("sudden",), log=sys.stderr) -> dict:
+def measure(driver: str, cases, pairs: int, steps: int, cache: str, starts=("sudden",), log=sys.stderr,
+            young: float = 1.0e8) -> dict:
     """``pairs`` rounds of fresh processes per case: ntdda, then ddatai from each of ``starts``
     (in turn first; each ddatai run paired with the ntdda run of its round); every run's figures."""
     out = {}
     with tempfile.TemporaryDirectory(prefix="ntdda_beside_files_") as tmp:
         for case in cases:
-            geo, ana = grid_files(case, Path(tmp), steps)
+            geo, ana = grid_files(case, Path(tmp), steps, young)
             rows = []
             for p in range(pairs):
                 row = dict(load=os.getloadavg()[0], ntdda=run_ntdda(driver, geo, ana))
@@ -430,6 +433,9 @@ def main() -> None:
                     help="ddatai's start: sudden (ntdda's, as the files say), default (dd.simulate's "
                     "equilibrium stage; ntdda still starts suddenly), or sudden,default (both, paired "
                     "with the same ntdda run)")
+    ap.add_argument("--young", type=float, default=1.0e8,
+                    help="the blocks' Young's modulus [Pa] in the files (the grid's 1e8; ntdda's 16-block run "
+                    "takes one solve a step at 1e8 and two at 0.99e8: benchmarks/results/iterations_16.md)")
     ap.add_argument("--out", default="", help="also write every run's figures to this JSON file")
     ap.add_argument("--tables", nargs="+", default=[], metavar="FILE.json",
                     help="no runs: the tables of the pairs saved by earlier --out runs, pooled")
@@ -449,9 +455,9 @@ def main() -> None:
     print(f"machine: {platform.machine()} {platform.processor() or ''}, {os.cpu_count()} CPUs, Python "
           f"{platform.python_version()}; load {os.getloadavg()[0]:.1f} at the start; {a.pairs} pairs of fresh "
           f"processes a size, ntdda then ddatai, {a.steps} steps; ntdda from its sudden start, ddatai from "
-          f"{' and from '.join(starts)} start; threads pinned\n")
+          f"{' and from '.join(starts)} start; E = {a.young:.4g} Pa; threads pinned\n")
     results = measure(a.driver, [int(c) for c in a.cases.split(",")], a.pairs, a.steps,
-                      a.cache or os.environ.get("TI_OFFLINE_CACHE_FILE_PATH", ""), starts)
+                      a.cache or os.environ.get("TI_OFFLINE_CACHE_FILE_PATH", ""), starts, young=a.young)
     if a.out:
         Path(a.out).write_text(json.dumps({str(k): v for k, v in results.items()}))
     print(table(results))
