@@ -94,7 +94,7 @@ def _hook_capture(keep: int, skip_steps: int, store: dict, stepper_ref: list):
 
     original = solver_mod.SparseSolver._factorise
 
-    def _factorise(self, data, indices, indptr, rhs, n, symmetric):
+    def _factorise(self, data, indices, indptr, rhs, n, symmetric, *rest):
         step = stepper_ref[0]
         kind = "spd" if symmetric else "lu"
         # Cholesky factorisations are rare after the first step of a failing slope (none in
@@ -102,7 +102,7 @@ def _hook_capture(keep: int, skip_steps: int, store: dict, stepper_ref: list):
         if (step >= skip_steps or symmetric) and len(store[kind]) < keep:
             store[kind].append(dict(data=np.array(data), indices=np.array(indices, dtype=np.int32),
                                     indptr=np.array(indptr, dtype=np.int32), rhs=np.array(rhs), step=step))
-        return original(self, data, indices, indptr, rhs, n, symmetric)
+        return original(self, data, indices, indptr, rhs, n, symmetric, *rest)
 
     solver_mod.SparseSolver._factorise = _factorise
 
