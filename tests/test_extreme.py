@@ -384,6 +384,19 @@ def test_soft_frictionless_cut_mass():
     _holds(spec, refuse_ok=False)
 
 
+def test_a_weightless_block_shaken_at_1e_5_g_stays_within_the_laws_round_off():
+    """Found by the long profile (2026-11-29): a 1 m block cut in two by a horizontal joint, no
+    gravity, shaken at 1e-5 g. Every contact force (~1e-3 N) lies below the law's round-off
+    force p·open_tolerance·w0 (0.057 N), where a sliding contact may slip against its friction:
+    friction work −1.8e-11 J/m in steps 6–7, 6.8e-12 J/m created by step 7 against the
+    allowance's 6.8e-12 J/m before it counted that force's work (tests/extreme_cases.py)."""
+    spec = CaseSpec(kind="cut", size=1.0, density=2274.0, young=377847034.1041358, poisson=0.25, friction=50.0,
+                    cohesion=0.0, tensile=0.0, gravity=0.0, shapes=(), aspects=(), gaps=(), shifts=(),
+                    velocities=(), spins=(), joints=((0.5, 0.5, 0.0),), outline=(), dt=0.0, load=0.0,
+                    shaking=1e-05, steps=100)
+    _holds(spec, refuse_ok=False)
+
+
 def test_fast_collision_of_an_l_block_with_a_rectangle():
     """Shrunk by the long profile: an L-shaped block thrown up at 33 m/s and a rectangle thrown
     at (31, −29) m/s, stacked, rock-like (E = 20.7 GPa, φ = 10°). The rectangle's corner passes
