@@ -27,22 +27,15 @@ void __real_df22(Geometrydata *gd, Analysisdata *ad, Contacts *ctacts, int *k1, 
 static FILE *contact_log;
 static int log_opened;
 
+void block_centroid(Geometrydata *gd, int b, double c[2]);  /* step_timer.c */
+
 static void centroids(FILE *f, Geometrydata *gd, int step) {
     int b;
     fprintf(f, "C %d", step);
     for (b = 1; b <= gd->nBlocks; b++) {
-        int j, j0 = gd->vindex[b][1], j1 = gd->vindex[b][2];
-        double a = 0.0, cx = 0.0, cy = 0.0;
-        for (j = j0; j <= j1; j++) {
-            int k = j < j1 ? j + 1 : j0;
-            double x0 = gd->vertices[j][1], y0 = gd->vertices[j][2];
-            double x1 = gd->vertices[k][1], y1 = gd->vertices[k][2];
-            double w = x0 * y1 - x1 * y0;
-            a += w;
-            cx += (x0 + x1) * w;
-            cy += (y0 + y1) * w;
-        }
-        fprintf(f, " %.12g %.12g", cx / (3.0 * a), cy / (3.0 * a));
+        double c[2];
+        block_centroid(gd, b, c);
+        fprintf(f, " %.12g %.12g", c[0], c[1]);
     }
     fprintf(f, "\n");
 }

@@ -96,6 +96,24 @@ static double mean(const double *v, int n) {
 }
 
 /* The cost of one step's clock reading. */
+/* Area centroid of block b's vertex loop (ntdda repeats the first vertex at its end); also
+ * contact_log.c's. */
+void block_centroid(Geometrydata *gd, int b, double c[2]) {
+    int j, j0 = gd->vindex[b][1], j1 = gd->vindex[b][2];
+    double a = 0.0, cx = 0.0, cy = 0.0;
+    for (j = j0; j <= j1; j++) {
+        int k = j < j1 ? j + 1 : j0;
+        double x0 = gd->vertices[j][1], y0 = gd->vertices[j][2];
+        double x1 = gd->vertices[k][1], y1 = gd->vertices[k][2];
+        double w = x0 * y1 - x1 * y0;
+        a += w;
+        cx += (x0 + x1) * w;
+        cy += (y0 + y1) * w;
+    }
+    c[0] = cx / (3.0 * a);
+    c[1] = cy / (3.0 * a);
+}
+
 static double timer_cost(void) {
     double t0 = now(CLOCK_MONOTONIC), sink = 0.0;
     int i;
@@ -177,19 +195,9 @@ int main(int argc, char **argv) {
            total_wall, total_cpu, 1e6 * timer_cost());
     printf("\"centroids\": [");
     for (b = 1; b <= gd->nBlocks; b++) {
-        /* area centroid of the block's vertex loop (ntdda repeats the first vertex at its end) */
-        int j, j0 = gd->vindex[b][1], j1 = gd->vindex[b][2];
-        double a = 0.0, cx = 0.0, cy = 0.0;
-        for (j = j0; j <= j1; j++) {
-            int k = j < j1 ? j + 1 : j0;
-            double x0 = gd->vertices[j][1], y0 = gd->vertices[j][2];
-            double x1 = gd->vertices[k][1], y1 = gd->vertices[k][2];
-            double w = x0 * y1 - x1 * y0;
-            a += w;
-            cx += (x0 + x1) * w;
-            cy += (y0 + y1) * w;
-        }
-        printf("%s[%.12g, %.12g]", b > 1 ? ", " : "", cx / (3.0 * a), cy / (3.0 * a));
+        double c[2];
+        block_centroid(gd, b, c);
+        printf("%s[%.12g, %.12g]", b > 1 ? ", " : "", c[0], c[1]);
     }
     printf("]}\n");
     return 0;
